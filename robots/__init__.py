@@ -1,0 +1,1 @@
+"""Robot descriptions: URDF files and the small facts a planner needs about them."""
