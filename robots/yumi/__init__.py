@@ -47,6 +47,20 @@ FLANGE_FRAME: MappingProxyType[str, str] = MappingProxyType(
 )
 """ABB's tool0 on each arm."""
 
+MAX_ACCELERATION_RAD_S2: MappingProxyType[str, float] = MappingProxyType({
+    specs.arm_joint_name(j.abb_axis, side): specs.MAX_ACCELERATION_RAD_S2[specs.joint_class(j.abb_axis)]
+    for side in ARM_SIDES
+    for j in specs.ARM_JOINTS
+})
+"""Stated acceleration limit of each arm joint in [rad/s^2] (ABB publishes none; see specs.py)."""
+
+MAX_JERK_RAD_S3: MappingProxyType[str, float] = MappingProxyType({
+    specs.arm_joint_name(j.abb_axis, side): specs.MAX_JERK_RAD_S3[specs.joint_class(j.abb_axis)]
+    for side in ARM_SIDES
+    for j in specs.ARM_JOINTS
+})
+"""Stated jerk limit of each arm joint in [rad/s^3]."""
+
 FINGER_TRAVEL_M: float = specs.FINGER_TRAVEL_M
 FINGER_MAX_FORCE_N: float = specs.FINGER_MAX_FORCE_N
 FINGER_MAX_SPEED_M_S: float = specs.FINGER_MAX_SPEED_M_S
@@ -75,6 +89,8 @@ __all__ = [
     "FLANGE_FRAME",
     "GRIPPER_JOINTS",
     "HOME",
+    "MAX_ACCELERATION_RAD_S2",
+    "MAX_JERK_RAD_S3",
     "SRDF_PATH",
     "TCP_FRAME",
     "URDF_PATH",

@@ -177,3 +177,16 @@ def body_mass_kg() -> float:
     """Mass left to the body once both arms and grippers are counted [kg]."""
     arm = sum(j.link_mass_kg for j in ARM_JOINTS) + GRIPPER_MASS_KG + 2 * FINGER_MASS_KG
     return ROBOT_MASS_KG - 2 * arm
+
+
+# Acceleration and jerk limits: ABB publishes no per-joint values (facts §1.6: "No acceleration
+# limits are given"). The data sheet's TCP figures are 1.5 m/s and 11 m/s^2 (facts §5, L-M). These
+# stated limits keep the TCP well under 11 m/s^2 at the arm's 0.56 m reach (6 rad/s^2 x 0.56 m is
+# about 3.4 m/s^2) and give smooth, quick moves of 1-2 s across the workspace.
+MAX_ACCELERATION_RAD_S2 = {"proximal": 6.0, "wrist": 12.0}
+MAX_JERK_RAD_S3 = {"proximal": 60.0, "wrist": 120.0}
+
+
+def joint_class(abb_axis: int) -> str:
+    """``"proximal"`` for axes 1, 2, 7, 3 (180 deg/s); ``"wrist"`` for 4, 5, 6 (400 deg/s)."""
+    return "proximal" if abb_axis in (1, 2, 7, 3) else "wrist"
