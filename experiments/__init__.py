@@ -1,0 +1,1 @@
+"""Experiments: the paper's tables, sweeps and the gva command line."""

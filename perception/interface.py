@@ -1,0 +1,149 @@
+"""The one interface every perception model implements: ``predict(image, condition)``.
+
+A plug-in model needs nothing but this module. The simulator hands a model an RGB image and a
+:class:`Condition` (what the top-down Query asks for) and gets back a :class:`Prediction`: one
+:class:`Target` per predicted object (a position, or a grasp pose for the gripper's tool centre
+point) plus the attention points the model looked at, in pixels.
+
+Example (a model that always points at the table centre)::
+
+    class Centre(PerceptionModel):
+        name = "centre"
+        label_kind = LabelKind.POSITION
+
+        def predict(self, image, condition):
+            return Prediction(targets=(Target(position_m=np.array([0.4, 0.0, 0.0])),))
+"""
+
+from __future__ import annotations
+
+import abc
+import enum
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+
+class PerceptionError(Exception):
+    """Base of every error raised by ``perception``."""
+
+
+class InvalidInputError(PerceptionError, ValueError):
+    """A value a model cannot use; the message names the field, the value and what is allowed."""
+
+    def __init__(self, field: str, value: object, allowed: str) -> None:
+        self.field, self.value, self.allowed = field, value, allowed
+        super().__init__(f"{field} = {value!r} is not allowed: {allowed}")
+
+
+class LabelKind(enum.Enum):
+    """What a model predicts per target."""
+
+    POSITION = "position"  # an object's position (x, y, z) in the world frame [m]
+    GRASP_POSE = "grasp_pose"  # the gripper TCP pose that picks the object: position + rotation
+
+
+class ConditionKind(enum.Enum):
+    """What a top-down condition names (paper Table I)."""
+
+    NONE = "none"  # baseline tasks: no condition, Base Queries only
+    OBJECT_TYPE = "object_type"  # selected type: which object to attend to
+    SIDE = "side"  # selected position: the object on the left or on the right
+
+
+@dataclass(frozen=True)
+class Condition:
+    """A top-down condition, as a name and as the one-hot vector a learned Query reads.
+
+    Args:
+        kind: What the condition names.
+        value: The named choice (``"mug"``, ``"left"``); None for :attr:`ConditionKind.NONE`.
+        choices: Every value this kind allows, in one-hot order.
+    """
+
+    kind: ConditionKind = ConditionKind.NONE
+    value: str | None = None
+    choices: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.kind is ConditionKind.NONE:
+            if self.value is not None or self.choices:
+                raise InvalidInputError("condition.value", self.value, "None when kind is 'none'")
+        elif self.value not in self.choices:
+            raise InvalidInputError(
+                "condition.value", self.value, f"one of {', '.join(self.choices) or '(no choices)'}"
+            )
+
+    def one_hot(self) -> np.ndarray:
+        """The condition as a float32 one-hot vector of length ``len(choices)`` (empty for none)."""
+        vector = np.zeros(len(self.choices), dtype=np.float32)
+        if self.value is not None:
+            vector[self.choices.index(self.value)] = 1.0
+        return vector
+
+
+NO_CONDITION = Condition()
+
+
+@dataclass(frozen=True)
+class Target:
+    """One predicted target in the world frame.
+
+    Args:
+        position_m: (3,) position [m]: the object's, or the TCP's for a grasp.
+        rotation: (3, 3) TCP orientation for a grasp (columns: the TCP x, y, z axes in the world;
+            z is the approach direction); None for position-only predictions.
+        object_type: The object type the model believes it attends to, where it knows.
+    """
+
+    position_m: np.ndarray
+    rotation: np.ndarray | None = None
+    object_type: str | None = None
+
+    def __post_init__(self) -> None:
+        if np.shape(self.position_m) != (3,):
+            raise InvalidInputError("position_m", np.shape(self.position_m), "shape (3,)")
+        if self.rotation is not None and np.shape(self.rotation) != (3, 3):
+            raise InvalidInputError("rotation", np.shape(self.rotation), "shape (3, 3) or None")
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """What a model saw and predicted for one image.
+
+    Args:
+        targets: One entry per target, in the task's target order.
+        attention_px: (q, 2) attention points (u right, v down) in image pixels; (0, 2) for a
+            model without attention.
+        heatmaps: (q, h, w) attention heatmaps, each summing to 1, where the model has them.
+    """
+
+    targets: tuple[Target, ...]
+    attention_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    heatmaps: np.ndarray | None = None
+
+
+class PerceptionModel(abc.ABC):
+    """A model that turns a camera image and a condition into target predictions.
+
+    Subclasses set ``name`` and ``label_kind`` and implement :meth:`predict`.
+    """
+
+    name: ClassVar[str]
+    label_kind: ClassVar[LabelKind]
+
+    @abc.abstractmethod
+    def predict(self, image: np.ndarray, condition: Condition = NO_CONDITION) -> Prediction:
+        """Predicts the targets in ``image`` (uint8 (H, W, 3) RGB, row 0 at the top)."""
+
+
+def check_image(image: np.ndarray, shape: Sequence[int] | None = None) -> None:
+    """Raises a clear error unless ``image`` is uint8 (H, W, 3), of ``shape`` when given."""
+    if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim != 3:
+        description = f"{type(image).__name__} {getattr(image, 'dtype', '')} {np.shape(image)}"
+        raise InvalidInputError("image", description.strip(), "a uint8 array of shape (H, W, 3)")
+    if image.shape[2] != 3 or (shape is not None and tuple(image.shape) != tuple(shape)):
+        expected = f"shape {tuple(shape)}" if shape is not None else "3 channels (RGB)"
+        raise InvalidInputError("image", f"shape {image.shape}", expected)
