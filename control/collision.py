@@ -1,5 +1,8 @@
-"""Collision checking with Pinocchio's geometry model (coal): the robot against itself and
-against obstacles handed in as plain shapes (the table, the objects that are not the target)."""
+"""Collision checking with Pinocchio's geometry model (coal).
+
+The robot is checked against itself and against obstacles handed in as plain shapes (the
+table, the objects that are not the target).
+"""
 
 from __future__ import annotations
 
@@ -36,6 +39,7 @@ class Obstacle:
         kind: The primitive.
         size: Dimensions in [m], as :class:`ShapeKind` documents.
         T_world_shape: Pose of the shape's centre in the world frame.
+
     """
 
     name: str
@@ -68,6 +72,7 @@ class CollisionReport:
         pairs: The colliding pairs as (link or obstacle name, link or obstacle name); with
             ``stop_at_first`` only the first found.
         sample_index: For path checks, the first colliding sample; None otherwise.
+
     """
 
     in_collision: bool
@@ -97,6 +102,7 @@ class CollisionChecker:
         urdf_path: The URDF the collision geometry is read from.
         srdf_path: Optional SRDF with ``disable_collisions`` entries.
         margin_m: Security margin in [m]: shapes closer than this count as colliding.
+
     """
 
     def __init__(

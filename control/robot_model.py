@@ -21,12 +21,13 @@ class RobotModel:
     Args:
         model: The Pinocchio model.
         srdf_path: Optional SRDF whose ``group_state`` entries become ``reference_configurations``.
+
     """
 
     def __init__(self, model: pin.Model, srdf_path: str | Path | None = None) -> None:
         if model.nq != model.nv:
             raise InvalidInputError(
-                "model", model.name, "a model whose joints all have one degree of freedom (nq == nv)"
+                "model", model.name, "a model whose joints each have one degree of freedom"
             )
         self.model = model
         self.data = model.createData()
@@ -73,7 +74,8 @@ class RobotModel:
         """Pinocchio id of a frame, with a clear error for an unknown name."""
         if not self.model.existFrame(name):
             frames = sorted({f.name for f in self.model.frames})
-            raise InvalidInputError("frame", name, f"one of the model's frames: {', '.join(frames)}")
+            allowed = f"one of the model's frames: {', '.join(frames)}"
+            raise InvalidInputError("frame", name, allowed)
         return int(self.model.getFrameId(name))
 
     def q_from_dict(

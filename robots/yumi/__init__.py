@@ -8,6 +8,7 @@ Example:
     'yumi_joint_7_r'
     >>> yumi.TCP_FRAME["l"]
     'gripper_l_tcp'
+
 """
 
 from __future__ import annotations
@@ -48,7 +49,8 @@ FLANGE_FRAME: MappingProxyType[str, str] = MappingProxyType(
 """ABB's tool0 on each arm."""
 
 MAX_ACCELERATION_RAD_S2: MappingProxyType[str, float] = MappingProxyType({
-    specs.arm_joint_name(j.abb_axis, side): specs.MAX_ACCELERATION_RAD_S2[specs.joint_class(j.abb_axis)]
+    specs.arm_joint_name(j.abb_axis, side):
+        specs.MAX_ACCELERATION_RAD_S2[specs.joint_class(j.abb_axis)]
     for side in ARM_SIDES
     for j in specs.ARM_JOINTS
 })

@@ -9,6 +9,7 @@ real collision).
 
 from __future__ import annotations
 
+import itertools
 import math
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -66,7 +67,8 @@ def _composite_inertia(
     inertia = np.zeros((3, 3))
     for box, mass, center in zip(boxes, masses, centers, strict=True):
         d = center - com
-        inertia += _box_inertia(float(mass), box.size) + mass * (np.dot(d, d) * np.eye(3) - np.outer(d, d))
+        shift = mass * (np.dot(d, d) * np.eye(3) - np.outer(d, d))  # parallel-axis theorem
+        inertia += _box_inertia(float(mass), box.size) + shift
     return (float(com[0]), float(com[1]), float(com[2])), inertia
 
 
@@ -102,7 +104,7 @@ def _add_shape(link: ET.Element, shape: Box | Cylinder, color: str) -> None:
         element = ET.SubElement(link, kind)
         ET.SubElement(element, "origin", xyz=_fmt(shape.center), rpy=_fmt(rpy))
         geometry = ET.SubElement(element, "geometry")
-        ET.SubElement(geometry, geometry_tag, **attrs)
+        ET.SubElement(geometry, geometry_tag, attrs)
         if kind == "visual":
             material = ET.SubElement(element, "material", name=color)
             ET.SubElement(material, "color", rgba=_fmt(_COLORS[color]))
@@ -128,7 +130,7 @@ def _add_joint(
     if axis is not None:
         ET.SubElement(joint, "axis", xyz=_fmt(axis))
     if limit is not None:
-        ET.SubElement(joint, "limit", **{k: f"{v:.9g}" for k, v in limit.items()})
+        ET.SubElement(joint, "limit", {k: f"{v:.9g}" for k, v in limit.items()})
     if damping is not None:
         ET.SubElement(joint, "dynamics", damping=f"{damping:.9g}", friction="0")
 
@@ -231,14 +233,16 @@ def _adjacent_pairs() -> set[tuple[str, str]]:
     pairs: set[tuple[str, str]] = set()
     for side in specs.ARM_SIDES:
         chain = ["yumi_body"] + [specs.arm_link_name(i, side) for i in range(1, 8)]
-        pairs.update(zip(chain[:-1], chain[1:], strict=True))
-        hand = [specs.arm_link_name(5, side), specs.arm_link_name(6, side), specs.arm_link_name(7, side), f"gripper_{side}_base",
-                f"gripper_{side}_finger_r", f"gripper_{side}_finger_l"]
-        pairs.update((a, b) for i, a in enumerate(hand) for b in hand[i + 1:])
-    return {tuple(sorted(p)) for p in pairs}  # type: ignore[misc]
+        pairs.update(itertools.pairwise(chain))
+        hand = [specs.arm_link_name(i, side) for i in (5, 6, 7)]
+        hand += [f"gripper_{side}_base", f"gripper_{side}_finger_r", f"gripper_{side}_finger_l"]
+        pairs.update(itertools.combinations(hand, 2))
+    return {(min(a, b), max(a, b)) for a, b in pairs}
 
 
-def always_colliding_pairs(urdf_text: str, samples: int = 2000, seed: int = 0) -> set[tuple[str, str]]:
+def always_colliding_pairs(
+    urdf_text: str, samples: int = 2000, seed: int = 0
+) -> set[tuple[str, str]]:
     """Link pairs whose primitives overlap in >= 99 % of random in-limit configurations."""
     import tempfile
 
@@ -263,8 +267,8 @@ def always_colliding_pairs(urdf_text: str, samples: int = 2000, seed: int = 0) -
             a = model.frames[geom.geometryObjects[pair.first].parentFrame].name
             b = model.frames[geom.geometryObjects[pair.second].parentFrame].name
             if a != b:
-                result.add(tuple(sorted((a, b))))
-    return result  # type: ignore[return-value]
+                result.add((min(a, b), max(a, b)))
+    return result
 
 
 def build_srdf(urdf_text: str) -> str:

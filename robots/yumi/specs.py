@@ -97,26 +97,39 @@ WRIST_RADIUS_M = 0.040
 
 # Link masses: no per-link data is public (facts §3.1); these split ABB's 38 kg robot weight
 # (facts §5) by link size, leaving the rest to the body.
+_span = Cylinder.spanning
 ARM_JOINTS: tuple[ArmJoint, ...] = (
     ArmJoint(1, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), -2.94088, 2.94088, 3.14159, _EFFORT_PROXIMAL_NM,
-             Cylinder.spanning(Box((-0.061, -0.078, 0.000), (0.079, 0.062, 0.149)), "z", TUBE_RADIUS_M), 2.0),
+
+             _span(Box((-0.061, -0.078, 0.000), (0.079, 0.062, 0.149)), "z", TUBE_RADIUS_M),
+             2.0),
     ArmJoint(2, (0.03, 0.0, 0.1), (HALF_PI, 0.0, 0.0), -2.50455, 0.75922, 3.14159,
-             _EFFORT_PROXIMAL_NM, Cylinder.spanning(Box((-0.085, -0.048, -0.078), (0.048, 0.173, 0.054)), "y", TUBE_RADIUS_M), 1.6),
+             _EFFORT_PROXIMAL_NM,
+             _span(Box((-0.085, -0.048, -0.078), (0.048, 0.173, 0.054)), "y", TUBE_RADIUS_M),
+             1.6),
     ArmJoint(7, (-0.03, 0.17283, 0.0), (-HALF_PI, 0.0, 0.0), -2.94088, 2.94088, 3.14159,
-             _EFFORT_PROXIMAL_NM, Cylinder.spanning(Box((-0.090, -0.079, 0.000), (0.047, 0.048, 0.127)), "z", TUBE_RADIUS_M), 1.4),
+             _EFFORT_PROXIMAL_NM,
+             _span(Box((-0.090, -0.079, 0.000), (0.047, 0.048, 0.127)), "z", TUBE_RADIUS_M),
+             1.4),
     ArmJoint(3, (-ELBOW_OFFSET_M, 0.0, 0.07873), (HALF_PI, -HALF_PI, 0.0), -2.15548, 1.39626,
              3.14159, _EFFORT_PROXIMAL_NM,
-             Cylinder.spanning(Box((-0.048, -0.048, -0.078), (0.085, 0.165, 0.048)), "y", TUBE_RADIUS_M), 1.1),
+
+             _span(Box((-0.048, -0.048, -0.078), (0.085, 0.165, 0.048)), "y", TUBE_RADIUS_M),
+             1.1),
     ArmJoint(4, (0.0405, 0.16461, 0.0), (-HALF_PI, 0.0, 0.0), -5.06145, 5.06145, 6.98132,
-             _EFFORT_WRIST_NM, Cylinder.spanning(Box((-0.059, -0.070, 0.000), (0.042, 0.042, 0.132)), "z", WRIST_RADIUS_M), 0.9),
+             _EFFORT_WRIST_NM,
+             _span(Box((-0.059, -0.070, 0.000), (0.042, 0.042, 0.132)), "z", WRIST_RADIUS_M),
+             0.9),
     ArmJoint(5, (-0.027, 0.0, 0.10039), (HALF_PI, 0.0, 0.0), -1.53589, 2.40855, 6.98132,
-             _EFFORT_WRIST_NM, Cylinder.spanning(Box((-0.034, -0.066, -0.067), (0.068, 0.033, 0.027)), "y", WRIST_RADIUS_M), 0.6),
+             _EFFORT_WRIST_NM,
+             _span(Box((-0.034, -0.066, -0.067), (0.068, 0.033, 0.027)), "y", WRIST_RADIUS_M),
+             0.6),
     ArmJoint(6, (0.027, 0.029, 0.0), (-HALF_PI, 0.0, 0.0), -3.99680, 3.99680, 6.98132,
              _EFFORT_WRIST_NM, Cylinder((0.0, 0.0, 0.00075), "z", 0.0315, 0.0235), 0.2),
 )
 """The seven arm joints in chain order (facts §1.2, §3.4); identical for both arms."""
 
-# Flange: yumi_link_7 -> gripper base (= ABB tool0), (0, 0, 0.007), rpy (0, 0, pi) (facts §1.2, §2.1).
+# Flange: yumi_link_7 -> gripper base (= ABB tool0), (0, 0, 0.007), rpy (0, 0, pi) (§1.2, §2.1).
 FLANGE_XYZ = (0.0, 0.0, 0.007)
 FLANGE_RPY = (0.0, 0.0, math.pi)
 
