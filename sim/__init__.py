@@ -1,0 +1,5 @@
+"""The simulated YuMi scene on PyBullet: world, robot, head camera and the object catalog.
+
+``sim`` may import ``control`` (pure kinematics) and ``perception``'s interface and data, never
+``experiments``. Every world owns its own PyBullet client, so several can live in one process.
+"""

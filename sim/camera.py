@@ -1,0 +1,181 @@
+"""The head camera: a RealSense D435 stand-in on top of the YuMi body, looking at the workspace."""
+
+from __future__ import annotations
+
+import math
+import struct
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pybullet
+
+from sim.errors import InvalidInputError
+
+
+@dataclass(frozen=True)
+class Lighting:
+    """The one directional light of PyBullet's software renderer.
+
+    Attributes:
+        direction: Points from the scene toward the light (world frame, any length > 0).
+        brightness: Scales the light's colour; 1 is a bright lab, 0.3 a dim room.
+        ambient_coeff: Share of each surface's colour lit regardless of direction.
+        diffuse_coeff: Share lit by the light's direction (Lambert).
+        specular_coeff: Highlights.
+        shadows: Whether objects cast shadows (from the light direction).
+
+    """
+
+    direction: tuple[float, float, float] = (0.4, 0.3, 1.0)
+    brightness: float = 1.0
+    ambient_coeff: float = 0.6
+    diffuse_coeff: float = 0.5
+    specular_coeff: float = 0.05
+    shadows: bool = True
+
+    def __post_init__(self) -> None:
+        if math.hypot(*self.direction) == 0.0:
+            raise InvalidInputError("direction", self.direction, "a non-zero vector")
+        for name in ("brightness", "ambient_coeff", "diffuse_coeff", "specular_coeff"):
+            value = getattr(self, name)
+            if not 0.0 <= value <= 2.0:
+                raise InvalidInputError(name, value, "in [0, 2]")
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """Intrinsics, placement and lighting of the head camera (world frame, [m] and [deg]).
+
+    The defaults put the optical centre 5 cm above the front edge of the body's top (z = 0.47 m,
+    x = 0.09 m), between the two shoulders, tilted 55° down toward x = 0.46 m on the table. From
+    there no arm link at HOME hides any part of the workspace (x 0.30-0.55 m, y ±0.25 m, objects
+    up to 17 cm tall; checked by ray casts): from further back or higher, the forward-pointing
+    first links of the arms cut off the workspace's near corners. So close to the table, the
+    0.5 m wide near edge needs a wide view: the square image takes the D435 colour sensor's
+    horizontal FOV, 69°, in both directions (its 42° vertical FOV would crop the workspace's
+    near corners). The workspace's table area then spans about u 21-107 px, v 53-85 px at
+    128 x 128, a 10 cm object 14-18 px across; the grippers at HOME show only in the bottom
+    corners.
+
+    Attributes:
+        width_px: Image width [px].
+        height_px: Image height [px].
+        vertical_fov_deg: Vertical field of view [deg]; the horizontal one follows the aspect.
+        position_m: Optical centre in the world.
+        target_m: The point the optical axis passes through.
+        up: World direction that appears up in the image.
+        near_m: Near clipping distance.
+        far_m: Far clipping distance.
+        lighting: The light the image is rendered with.
+
+    """
+
+    width_px: int = 128
+    height_px: int = 128
+    vertical_fov_deg: float = 69.0
+    position_m: tuple[float, float, float] = (0.09, 0.0, 0.52)
+    target_m: tuple[float, float, float] = (0.46, 0.0, 0.0)
+    up: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    near_m: float = 0.05
+    far_m: float = 3.0
+    lighting: Lighting = field(default_factory=Lighting)
+
+    def __post_init__(self) -> None:
+        for name in ("width_px", "height_px"):
+            if not 8 <= getattr(self, name) <= 4096:
+                raise InvalidInputError(name, getattr(self, name), "an integer in [8, 4096] px")
+        if not 1.0 <= self.vertical_fov_deg <= 170.0:
+            raise InvalidInputError("vertical_fov_deg", self.vertical_fov_deg, "in [1, 170] deg")
+        if not 0.0 < self.near_m < self.far_m:
+            raise InvalidInputError("near_m/far_m", (self.near_m, self.far_m), "0 < near < far")
+        axis = np.subtract(self.target_m, self.position_m)
+        if np.linalg.norm(axis) < 1e-6:
+            raise InvalidInputError("target_m", self.target_m, "a point away from position_m")
+        if np.linalg.norm(np.cross(axis, self.up)) < 1e-6 * np.linalg.norm(axis):
+            raise InvalidInputError("up", self.up, "a direction not along the optical axis")
+
+
+class HeadCamera:
+    """Renders and projects with one :class:`CameraConfig` (PyBullet's CPU renderer: no GPU, no X).
+
+    The view and projection matrices are PyBullet's own (OpenGL, column-major), so
+    :meth:`project` agrees with :meth:`render` to the pixel.
+    """
+
+    def __init__(self, config: CameraConfig | None = None) -> None:
+        self.config = CameraConfig() if config is None else config
+        c = self.config
+        self.view_matrix = pybullet.computeViewMatrix(c.position_m, c.target_m, c.up)
+        self.projection_matrix = pybullet.computeProjectionMatrixFOV(
+            c.vertical_fov_deg, c.width_px / c.height_px, c.near_m, c.far_m
+        )
+        # Column-major 4x4 lists -> row-major arrays acting on column vectors.
+        view = np.array(self.view_matrix).reshape(4, 4).T
+        projection = np.array(self.projection_matrix).reshape(4, 4).T
+        self._clip_from_world = projection @ view  # (4, 4)
+
+    def render(self, client: Any, lighting: Lighting | None = None) -> np.ndarray:
+        """Render an RGB image of the world on ``client``: uint8 (H, W, 3), row 0 at the top.
+
+        Args:
+            client: A ``BulletClient`` (e.g. ``World.client``).
+            lighting: Overrides the config's light for this image (e.g. a darker room).
+
+        """
+        c, light = self.config, self.config.lighting if lighting is None else lighting
+        _, _, rgba, _, _ = client.getCameraImage(
+            c.width_px, c.height_px, self.view_matrix, self.projection_matrix,
+            lightDirection=list(light.direction),
+            lightColor=[light.brightness] * 3,
+            lightAmbientCoeff=light.ambient_coeff * light.brightness,
+            lightDiffuseCoeff=light.diffuse_coeff,
+            lightSpecularCoeff=light.specular_coeff,
+            shadow=int(light.shadows),
+            renderer=pybullet.ER_TINY_RENDERER,
+        )
+        image = np.asarray(rgba, dtype=np.uint8).reshape(c.height_px, c.width_px, 4)
+        return np.ascontiguousarray(image[:, :, :3])
+
+    def project(self, points_world: np.ndarray) -> np.ndarray:
+        """Pixel coordinates (u right, v down) of world points, (N, 3) -> (N, 2).
+
+        Integer coordinates are pixel centres: ``round(u), round(v)`` index ``image[v, u]``.
+        Points behind the camera get NaN.
+        """
+        points = np.atleast_2d(np.asarray(points_world, dtype=float))
+        if points.ndim != 2 or points.shape[1] != 3:
+            raise InvalidInputError("points_world", np.shape(points_world), "shape (N, 3)")
+        homogeneous = np.hstack([points, np.ones((len(points), 1))])  # (N, 4)
+        clip = homogeneous @ self._clip_from_world.T  # (N, 4)
+        w = np.where(clip[:, 3] > 1e-9, clip[:, 3], np.nan)
+        ndc = clip[:, :2] / w[:, None]  # (N, 2), in [-1, 1] inside the image
+        # The software renderer samples column i at x = i, not i + 1/2, and rasterises rows
+        # bottom-up before flipping them; these offsets put its pixel centres on integers
+        # (checked against rendered markers: within 0.3 px).
+        u = (ndc[:, 0] + 1.0) * 0.5 * self.config.width_px
+        v = (1.0 - ndc[:, 1]) * 0.5 * self.config.height_px - 1.0
+        return np.stack([u, v], axis=1)
+
+
+def write_png(path: str | Path, image: np.ndarray) -> Path:
+    """Write a uint8 (H, W, 3) RGB image as a PNG file (zlib only, no imaging library)."""
+    array = np.asarray(image)
+    if array.dtype != np.uint8 or array.ndim != 3 or array.shape[2] != 3:
+        raise InvalidInputError("image", f"{array.dtype} {array.shape}", "uint8 (H, W, 3)")
+    height, width = array.shape[:2]
+    rows = np.hstack([np.zeros((height, 1), np.uint8), array.reshape(height, width * 3)])
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        body = kind + data
+        return struct.pack(">I", len(data)) + body + struct.pack(">I", zlib.crc32(body))
+
+    header = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)  # 8-bit RGB
+    png = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header)
+    png += chunk(b"IDAT", zlib.compress(rows.tobytes(), 6)) + chunk(b"IEND", b"")
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_bytes(png)
+    return out

@@ -1,0 +1,221 @@
+"""The YuMi scene in headless PyBullet: checker floor, wooden table, robot and catalog objects."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import TracebackType
+from typing import Any
+
+import numpy as np
+import pybullet
+import pybullet_data
+from pybullet_utils import bullet_client
+
+from robots import yumi
+from sim.errors import InvalidInputError, SimulationError
+from sim.objects import ObjectSpec, Pose, PrimitiveKind
+from sim.robot import RobotConfig, SimRobot
+
+TABLE_TOP_Z_IN_URDF_M = 0.625
+"""Height of ``table/table.urdf``'s top surface in its own frame [m]."""
+TABLE_HALF_SIZE_M = (0.75, 0.5)
+"""Half the table top along x and y [m]: 1.5 m x 1.0 m."""
+ROBOT_FOOTPRINT_M = ((-0.36, 0.135), (-0.2, 0.2))
+"""x and y ranges the YuMi's base covers on the table [m] (robots/yumi/specs.py BODY_BOXES)."""
+
+
+@dataclass(frozen=True)
+class WorldConfig:
+    """Physics settings and the table's placement.
+
+    Attributes:
+        time_step_s: Physics step [s]; trajectories are sampled at this rate.
+        gravity_m_s2: Gravity's magnitude [m/s^2], pointing down -z.
+        solver_iterations: Constraint solver iterations per step: twice PyBullet's default, for
+            contact-rich steps (an object pinched between two fingers while it still touches
+            the table); a step of the robot with three objects stays near 0.5 ms.
+        table_center_xy_m: Centre of the table top in the world [m]. The default puts the table's
+            back edge behind the robot (x = -0.4) and its front edge 1.1 m ahead.
+        robot: Joint controller and finger settings.
+
+    """
+
+    time_step_s: float = 1.0 / 240.0
+    gravity_m_s2: float = 9.81
+    solver_iterations: int = 100
+    table_center_xy_m: tuple[float, float] = (0.35, 0.0)
+    robot: RobotConfig = field(default_factory=RobotConfig)
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.time_step_s <= 0.01:
+            raise InvalidInputError("time_step_s", self.time_step_s, "in (0, 0.01] s")
+        if self.gravity_m_s2 < 0.0:
+            raise InvalidInputError("gravity_m_s2", self.gravity_m_s2, ">= 0 m/s^2")
+        if self.solver_iterations < 1:
+            raise InvalidInputError("solver_iterations", self.solver_iterations, ">= 1")
+        (x_lo, x_hi), (y_lo, y_hi) = ROBOT_FOOTPRINT_M
+        cx, cy = self.table_center_xy_m
+        hx, hy = TABLE_HALF_SIZE_M
+        if not (cx - hx <= x_lo and x_hi <= cx + hx and cy - hy <= y_lo and y_hi <= cy + hy):
+            raise InvalidInputError(
+                "table_center_xy_m", self.table_center_xy_m,
+                f"a table ({2 * hx} x {2 * hy} m) under the robot's base, x {x_lo}..{x_hi} m, "
+                f"y {y_lo}..{y_hi} m",
+            )
+
+
+class World:
+    """One headless PyBullet world with the YuMi at the origin on a table top at z = 0.
+
+    Use it as a context manager, or call :meth:`close`. Between trials call
+    :meth:`reset_scene`: it keeps the client and the robot and only removes the objects.
+    """
+
+    def __init__(self, config: WorldConfig | None = None) -> None:
+        self.config = WorldConfig() if config is None else config
+        self.client: Any = bullet_client.BulletClient(connection_mode=pybullet.DIRECT)
+        client = self.client
+        client.setAdditionalSearchPath(pybullet_data.getDataPath())
+        client.setTimeStep(self.config.time_step_s)
+        client.setGravity(0.0, 0.0, -self.config.gravity_m_s2)
+        client.setPhysicsEngineParameter(numSolverIterations=self.config.solver_iterations)
+        cx, cy = self.config.table_center_xy_m
+        self.plane_id = int(client.loadURDF("plane.urdf", [0.0, 0.0, -TABLE_TOP_Z_IN_URDF_M]))
+        self.table_id = int(client.loadURDF(
+            "table/table.urdf", [cx, cy, -TABLE_TOP_Z_IN_URDF_M], useFixedBase=True
+        ))
+        robot_id = int(client.loadURDF(
+            str(yumi.URDF_PATH), [0.0, 0.0, 0.0], useFixedBase=True,
+            flags=pybullet.URDF_USE_INERTIA_FROM_FILE,
+        ))
+        self.steps = 0
+        self._objects: dict[int, ObjectSpec] = {}
+        self._shapes: dict[ObjectSpec, tuple[int, int]] = {}
+        self.robot = SimRobot(client, robot_id, self.config.robot, step=self.step)
+
+    @property
+    def time_s(self) -> float:
+        """Simulated time since the world was made or last reset [s]."""
+        return self.steps * self.config.time_step_s
+
+    def step(self, n: int = 1) -> None:
+        """Advance the physics by ``n`` steps."""
+        if n < 0:
+            raise InvalidInputError("n", n, "a number of steps >= 0")
+        for _ in range(n):
+            self.robot.before_step()
+            self.client.stepSimulation()
+        self.steps += n
+
+    def add_object(
+        self, spec: ObjectSpec, position_xy_m: tuple[float, float], yaw_rad: float
+    ) -> int:
+        """Place an object resting on the table at ``position_xy_m`` turned by ``yaw_rad``."""
+        x, y = (float(v) for v in position_xy_m)
+        cx, cy = self.config.table_center_xy_m
+        hx, hy = TABLE_HALF_SIZE_M
+        if not (abs(x - cx) <= hx - 0.05 and abs(y - cy) <= hy - 0.05):
+            raise InvalidInputError(
+                "position_xy_m", (x, y), f"on the table, x {cx - hx + 0.05}..{cx + hx - 0.05} m, "
+                f"y {cy - hy + 0.05}..{cy + hy - 0.05} m",
+            )
+        collision, visual = self._shape_ids(spec)
+        body = int(self.client.createMultiBody(
+            baseMass=spec.mass_kg, baseCollisionShapeIndex=collision,
+            baseVisualShapeIndex=visual, basePosition=[x, y, 0.0],
+            baseOrientation=self.client.getQuaternionFromEuler([0.0, 0.0, float(yaw_rad)]),
+            baseInertialFramePosition=spec.center_of_mass_m.tolist(),
+        ))
+        if body < 0:
+            raise SimulationError(f"PyBullet could not create a body for {spec.name!r}")
+        self.client.changeDynamics(
+            body, -1, lateralFriction=spec.lateral_friction,
+            spinningFriction=spec.spinning_friction_m, rollingFriction=spec.rolling_friction_m,
+            restitution=0.0,
+        )
+        self._objects[body] = spec
+        return body
+
+    def remove_object(self, body_id: int) -> None:
+        """Take an object out of the world."""
+        self.object_spec(body_id)
+        self.client.removeBody(body_id)
+        del self._objects[body_id]
+
+    @property
+    def objects(self) -> Mapping[int, ObjectSpec]:
+        """The objects in the world: body id -> spec."""
+        return dict(self._objects)
+
+    def object_spec(self, body_id: int) -> ObjectSpec:
+        """Look up the catalog entry of an object in the world."""
+        try:
+            return self._objects[body_id]
+        except KeyError:
+            known = ", ".join(map(str, self._objects)) or "none"
+            allowed = f"an object in this world: {known}"
+            raise InvalidInputError("body_id", body_id, allowed) from None
+
+    def object_pose(self, body_id: int) -> Pose:
+        """``T_world_object``: the object frame (footprint centre, z up) in the world."""
+        spec = self.object_spec(body_id)
+        position, quaternion = self.client.getBasePositionAndOrientation(body_id)
+        rotation = np.array(self.client.getMatrixFromQuaternion(quaternion)).reshape(3, 3)
+        # PyBullet reports the centre of mass; the object frame lies back along -com.
+        return Pose(np.array(position) - rotation @ spec.center_of_mass_m, rotation)
+
+    def object_bottom_z_m(self, body_id: int) -> float:
+        """Height of the object's lowest point above the table [m] (from its bounding box)."""
+        self.object_spec(body_id)
+        return float(self.client.getAABB(body_id)[0][2])
+
+    def reset_scene(self, q_by_name: Mapping[str, float] = yumi.HOME) -> None:
+        """Remove every object and teleport the robot to ``q_by_name`` (HOME) at rest."""
+        for body in list(self._objects):
+            self.remove_object(body)
+        self.robot.reset(q_by_name)
+        self.steps = 0
+
+    def close(self) -> None:
+        """Disconnect the PyBullet client; the world is unusable afterwards."""
+        if self.client is not None:
+            self.client.disconnect()
+            self.client = None
+
+    def __enter__(self) -> World:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    def _shape_ids(self, spec: ObjectSpec) -> tuple[int, int]:
+        """Collision and visual shapes of a spec, made once per world and shared by its bodies."""
+        if spec not in self._shapes:
+            kinds = [
+                pybullet.GEOM_BOX if p.kind is PrimitiveKind.BOX else pybullet.GEOM_CYLINDER
+                for p in spec.primitives
+            ]
+            geometry: dict[str, Any] = {
+                "shapeTypes": kinds,
+                "halfExtents": [[s / 2 for s in p.size_m] for p in spec.primitives],
+                "radii": [p.size_m[0] / 2 for p in spec.primitives],
+                "lengths": [p.size_m[2] for p in spec.primitives],
+            }
+            positions = [list(p.position_m) for p in spec.primitives]
+            orientations = [self.client.getQuaternionFromEuler(p.rpy_rad) for p in spec.primitives]
+            collision = self.client.createCollisionShapeArray(
+                **geometry, collisionFramePositions=positions,
+                collisionFrameOrientations=orientations,
+            )
+            visual = self.client.createVisualShapeArray(
+                **geometry, visualFramePositions=positions, visualFrameOrientations=orientations,
+                rgbaColors=[list(p.rgba) for p in spec.primitives],
+            )
+            if collision < 0 or visual < 0:
+                raise SimulationError(f"PyBullet could not create the shapes of {spec.name!r}")
+            self._shapes[spec] = (int(collision), int(visual))
+        return self._shapes[spec]

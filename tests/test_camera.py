@@ -1,0 +1,141 @@
+"""The head camera: images, projection consistent with them, a clear view, lighting, PNGs."""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pybullet
+import pytest
+
+from sim.camera import CameraConfig, HeadCamera, Lighting, write_png
+from sim.errors import InvalidInputError
+from sim.objects import get_object_spec
+from sim.world import World
+
+WORKSPACE_X_M, WORKSPACE_Y_M = (0.30, 0.55), (-0.25, 0.25)
+
+
+@pytest.fixture(scope="session")
+def world() -> Iterator[World]:
+    with World() as w:
+        yield w
+
+
+@pytest.fixture(scope="session")
+def camera() -> HeadCamera:
+    return HeadCamera()
+
+
+def _marker(world: World, position: list[float]) -> int:
+    """A 1 cm magenta ball that only shows (no collision, no mass)."""
+    visual = world.client.createVisualShape(
+        pybullet.GEOM_SPHERE, radius=0.01, rgbaColor=[1.0, 0.0, 1.0, 1.0]
+    )
+    return int(world.client.createMultiBody(0.0, -1, visual, position))
+
+
+def _magenta_centroid(image: np.ndarray) -> np.ndarray:
+    rgb = image.astype(int)
+    mask = (rgb[..., 0] > 80) & (rgb[..., 2] > 80) & (rgb[..., 1] < 0.3 * rgb[..., 0])
+    v, u = np.nonzero(mask)
+    assert u.size >= 3, "the marker is not in the image"
+    return np.array([u.mean(), v.mean()])
+
+
+def test_render_gives_uint8_rgb_of_the_configured_size(world: World, camera: HeadCamera) -> None:
+    world.reset_scene()
+    image = camera.render(world.client)
+    assert image.dtype == np.uint8 and image.shape == (128, 128, 3)
+    wide = HeadCamera(CameraConfig(width_px=96, height_px=64)).render(world.client)
+    assert wide.shape == (64, 96, 3)
+
+
+@pytest.mark.parametrize(
+    "point", [[0.30, 0.25, 0.05], [0.55, -0.25, 0.10], [0.42, 0.0, 0.02], [0.35, -0.2, 0.17]]
+)
+def test_projection_lands_on_the_rendered_point(
+    world: World, camera: HeadCamera, point: list[float]
+) -> None:
+    world.reset_scene()
+    marker = _marker(world, point)
+    try:
+        found = _magenta_centroid(camera.render(world.client))
+    finally:
+        world.client.removeBody(marker)
+    np.testing.assert_allclose(camera.project(np.array([point]))[0], found, atol=0.35)
+
+
+def test_image_axes_u_right_v_down(camera: HeadCamera) -> None:
+    near, far, left = camera.project(np.array([[0.3, 0.0, 0.0], [0.55, 0.0, 0.0], [0.4, 0.2, 0]]))
+    assert far[1] < near[1]  # farther away is higher up: row 0 is the top
+    assert left[0] < near[0]  # the robot's left (+y) is the image's left
+    assert np.isnan(camera.project(np.array([[-1.0, 0.0, 0.6]]))).all()  # behind the camera
+
+
+def test_workspace_is_framed_and_not_hidden_by_the_arms_at_home(
+    world: World, camera: HeadCamera
+) -> None:
+    world.reset_scene()
+    xs, ys = np.linspace(*WORKSPACE_X_M, 11), np.linspace(*WORKSPACE_Y_M, 11)
+    points = np.array([[x, y, z] for x in xs for y in ys for z in (0.0, 0.09, 0.17)])
+    pixels = camera.project(points)
+    assert pixels.min() >= 5 and pixels.max() <= 122  # inside the image, with a margin
+    eye = list(camera.config.position_m)
+    hits = world.client.rayTestBatch([eye] * len(points), points.tolist())
+    assert not [p for p, hit in zip(points, hits, strict=True) if hit[0] == world.robot.body_id]
+
+
+def test_each_object_shows_its_colours_where_it_stands(world: World, camera: HeadCamera) -> None:
+    world.reset_scene()
+    placed = {"sponge": (0.33, 0.15), "spray_bottle": (0.50, 0.0), "mug": (0.40, -0.17)}
+    for name, xy in placed.items():
+        world.add_object(get_object_spec(name), xy, 0.4)
+    image = camera.render(world.client).astype(int)
+    r, g, b = image[..., 0], image[..., 1], image[..., 2]
+    colour = {  # what each object shows from above
+        "sponge": (g > r + 30) & (g > b + 30),  # the green scouring layer
+        "spray_bottle": (b > r + 60) & (b > g + 30),  # the blue trigger head
+        "mug": (r > 2 * g) & (r > 2 * b) & (r > 60),  # red ceramic
+    }
+    for name, (x, y) in placed.items():
+        height = get_object_spec(name).height_m
+        u, v = camera.project(np.array([[x, y, height / 2]]))[0].round().astype(int)
+        window = colour[name][max(v - 12, 0):v + 13, max(u - 12, 0):u + 13]
+        assert window.sum() >= 8, name  # at least 8 pixels of its colour near its centre
+
+
+def test_darker_lighting_darkens_the_image(world: World, camera: HeadCamera) -> None:
+    world.reset_scene()
+    bright = camera.render(world.client).mean()
+    dim = camera.render(world.client, Lighting(brightness=0.3)).mean()
+    assert dim < 0.45 * bright
+
+
+def test_config_errors_name_field_value_and_allowed() -> None:
+    with pytest.raises(InvalidInputError, match=r"vertical_fov_deg = 0.5 .* in \[1, 170\] deg"):
+        CameraConfig(vertical_fov_deg=0.5)
+    with pytest.raises(InvalidInputError, match=r"up = .* not along the optical axis"):
+        CameraConfig(position_m=(0.0, 0.0, 1.0), target_m=(0.0, 0.0, 0.0))
+    with pytest.raises(InvalidInputError, match=r"brightness = 3.0 .* in \[0, 2\]"):
+        Lighting(brightness=3.0)
+    with pytest.raises(InvalidInputError, match=r"points_world = \(4,\) .* shape \(N, 3\)"):
+        HeadCamera().project(np.zeros(4))
+
+
+def test_write_png_round_trip(tmp_path: Path) -> None:
+    image = np.random.default_rng(0).integers(0, 256, (5, 7, 3), dtype=np.uint8)
+    data = write_png(tmp_path / "sub" / "x.png", image).read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    width, height = struct.unpack(">II", data[16:24])
+    assert (width, height) == (7, 5)
+    start = data.index(b"IDAT") + 4
+    length = struct.unpack(">I", data[start - 8:start - 4])[0]
+    rows = np.frombuffer(zlib.decompress(data[start:start + length]), np.uint8).reshape(5, -1)
+    assert (rows[:, 0] == 0).all()  # filter type "none" on every row
+    np.testing.assert_array_equal(rows[:, 1:].reshape(5, 7, 3), image)
+    with pytest.raises(InvalidInputError, match=r"image = 'float64 .* uint8 \(H, W, 3\)"):
+        write_png(tmp_path / "bad.png", np.zeros((2, 2, 3)))

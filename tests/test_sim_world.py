@@ -1,0 +1,170 @@
+"""The simulated world and robot: table, holding and tracking, gripper, names, resets."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+from control.ik import ArmIk
+from control.robot_model import RobotModel
+from robots import yumi
+from sim.errors import InvalidInputError, SimError
+from sim.objects import get_object_spec, grasp_pose
+from sim.world import World, WorldConfig
+
+ARMS = [*yumi.ARM_JOINTS["r"], *yumi.ARM_JOINTS["l"]]
+
+
+@pytest.fixture(scope="session")
+def world() -> Iterator[World]:
+    with World() as w:
+        yield w
+
+
+@pytest.fixture
+def fresh(world: World) -> World:
+    world.reset_scene()
+    return world
+
+
+def _seconds(world: World, duration_s: float) -> int:
+    return round(duration_s / world.config.time_step_s)
+
+
+def test_config_errors_name_field_value_and_allowed() -> None:
+    with pytest.raises(InvalidInputError, match=r"time_step_s = 0.1 is not allowed: in \(0, 0.01"):
+        WorldConfig(time_step_s=0.1)
+    with pytest.raises(InvalidInputError, match=r"table_center_xy_m = .* under the robot's base"):
+        WorldConfig(table_center_xy_m=(0.6, 0.0))
+    with pytest.raises(SimError):  # the package's base catches it too
+        WorldConfig(solver_iterations=0)
+
+
+def test_table_top_is_at_z_zero_in_front_of_the_robot(fresh: World) -> None:
+    hits = fresh.client.rayTestBatch([[x, y, 0.3] for x, y in [(0.3, -0.3), (0.9, 0.4)]],
+                                     [[x, y, -0.3] for x, y in [(0.3, -0.3), (0.9, 0.4)]])
+    for hit in hits:
+        assert hit[0] == fresh.table_id
+        assert abs(hit[3][2]) < 1e-6
+
+
+def test_robot_holds_home_under_gravity(fresh: World) -> None:
+    fresh.step(_seconds(fresh, 2.0))
+    q = fresh.robot.joint_positions()
+    assert max(abs(q[name] - yumi.HOME[name]) for name in q) < 1e-3
+
+
+def test_link_pose_matches_pinocchio(fresh: World, yumi_model: RobotModel) -> None:
+    model = yumi_model
+    rng = np.random.default_rng(3)
+    q = model.random_configuration(rng)
+    fresh.robot.reset(model.dict_from_q(q))
+    for frame in (yumi.TCP_FRAME["r"], yumi.FLANGE_FRAME["l"], "yumi_body"):
+        expected = model.frame_pose(q, frame)
+        pose = fresh.robot.link_pose(frame)
+        np.testing.assert_allclose(pose.position, expected.translation, atol=1e-6)
+        np.testing.assert_allclose(pose.rotation, expected.rotation, atol=1e-6)
+
+
+def test_tracks_a_smooth_trajectory_closely(fresh: World, yumi_model: RobotModel) -> None:
+    dt = fresh.config.time_step_s
+    duration_s = 1.0
+    t = np.arange(1, _seconds(fresh, duration_s) + 1) * dt / duration_s  # (N,)
+    model = yumi_model
+    q0 = np.array([yumi.HOME[n] for n in ARMS])  # (14,)
+    middle = 0.5 * (model.lower_rad + model.upper_rad)[model.joint_indices(ARMS)]
+    shift = 0.5 * np.sign(middle - q0)  # (14,) [rad] into the joint ranges; 0.94 rad/s peak
+    positions = q0 + np.outer(10 * t**3 - 15 * t**4 + 6 * t**5, shift)  # (N, 14)
+    velocities = np.outer((30 * t**2 - 60 * t**3 + 30 * t**4) / duration_s, shift)
+    report = fresh.robot.track(ARMS, positions, velocities)
+    assert report.steps == len(t) and not report.stopped_early
+    assert report.max_error_rad < 1e-3
+    assert report.final_error_rad < 1e-4
+    assert abs(fresh.time_s - duration_s) < 1e-9  # tracking runs on the world's clock
+
+
+def test_track_callback_stops_early_and_shapes_are_checked(fresh: World) -> None:
+    names = yumi.ARM_JOINTS["r"]
+    q = np.tile([yumi.HOME[n] for n in names], (50, 1))
+    report = fresh.robot.track(names, q, np.zeros_like(q), on_step=lambda k: k == 9)
+    assert report.steps == 10 and report.stopped_early
+    with pytest.raises(InvalidInputError, match=r"velocities = \(50, 6\) .* shape \(50, 7\)"):
+        fresh.robot.track(names, q, np.zeros((50, 6)))
+    beyond = np.where(np.arange(50)[:, None] == 3, -3.0, q)  # row 3 below joint 1's limit
+    with pytest.raises(InvalidInputError, match=r"positions\[3\] of yumi_joint_1_r = -3.0 "):
+        fresh.robot.track(names, beyond, np.zeros_like(q))
+    with pytest.raises(InvalidInputError, match=r"joint_names = \['gripper_r_joint'\]"):
+        fresh.robot.command(["gripper_r_joint"], np.zeros(1))
+
+
+def test_bad_names_list_the_allowed_ones(fresh: World) -> None:
+    with pytest.raises(InvalidInputError, match=r"joint = 'yumi_joint_8_r' .* yumi_joint_1_r"):
+        fresh.robot.reset({"yumi_joint_8_r": 0.0})
+    with pytest.raises(InvalidInputError, match=r"link = 'tcp' .* gripper_r_tcp"):
+        fresh.robot.link_pose("tcp")
+    with pytest.raises(InvalidInputError, match=r"side = 'x' is not allowed: one of 'r', 'l'"):
+        fresh.robot.close_gripper("x")
+    with pytest.raises(InvalidInputError, match=r"opening_m = 0.07 .* in \[0, 0.05\] m"):
+        fresh.robot.open_gripper("r", 0.07)
+    with pytest.raises(InvalidInputError, match=r"body_id = 99 .* an object in this world: none"):
+        fresh.object_pose(99)
+
+
+def test_gripper_moves_at_rated_speed_and_squeezes_with_rated_force(
+    fresh: World, yumi_model: RobotModel
+) -> None:
+    robot = fresh.robot
+    robot.open_gripper("l")
+    fresh.step(_seconds(fresh, 0.5))
+    assert abs(robot.gripper_opening_m("l") - 0.025) < 0.001  # 2 fingers x 25 mm/s x 0.5 s
+    assert not robot.gripper_done("l")
+    fresh.step(_seconds(fresh, 0.6))
+    assert robot.gripper_done("l") and abs(robot.gripper_opening_m("l") - 0.05) < 1e-4
+    # At a sponge's grasp, the fingers stop at its 35 mm width and push with 20 N each.
+    spec = get_object_spec("sponge")
+    body = fresh.add_object(spec, (0.4, 0.1), 0.2)
+    model = yumi_model
+    ik = ArmIk(model, yumi.ARM_JOINTS["l"], yumi.TCP_FRAME["l"])
+    solution = ik.solve(grasp_pose(spec, fresh.object_pose(body)).as_se3(),
+                        model.q_from_dict(dict(yumi.HOME)))
+    assert solution.solved
+    fresh.robot.reset(model.dict_from_q(solution.q, yumi.ARM_JOINTS["l"]))  # fingers stay open
+    robot.close_gripper("l")
+    fresh.step(_seconds(fresh, 0.6))
+    squeeze_n = [
+        sum(c[9] for c in fresh.client.getContactPoints(
+            bodyA=robot.body_id, bodyB=body, linkIndexA=robot.joint_index(finger)))
+        for finger in yumi.GRIPPER_JOINTS["l"]
+    ]
+    np.testing.assert_allclose(squeeze_n, yumi.FINGER_MAX_FORCE_N, rtol=0.02)
+    assert abs(robot.gripper_opening_m("l") - 0.035) < 0.001
+    assert robot.gripper_contacts("l").held == {body}
+    assert robot.gripper_contacts("r").touched == frozenset()
+
+
+def test_reset_scene_removes_objects_and_restores_home(fresh: World) -> None:
+    ids = [fresh.add_object(get_object_spec(n), (0.4, y), 0.3) for n, y in
+           [("sponge", -0.15), ("mug", 0.15)]]
+    pose = fresh.object_pose(ids[1])
+    np.testing.assert_allclose(pose.position, [0.4, 0.15, 0.0], atol=1e-9)
+    assert abs(math.atan2(pose.rotation[1, 0], pose.rotation[0, 0]) - 0.3) < 1e-9
+    fresh.robot.open_gripper("r")
+    fresh.step(100)
+    fresh.reset_scene()
+    assert fresh.objects == {} and fresh.time_s == 0.0
+    q = fresh.robot.joint_positions()
+    assert max(abs(q[n] - yumi.HOME[n]) for n in q) < 1e-12
+    with pytest.raises(InvalidInputError, match=r"position_xy_m = .* on the table"):
+        fresh.add_object(get_object_spec("mug"), (2.0, 0.0), 0.0)
+
+
+def test_worlds_are_independent(fresh: World) -> None:
+    with World() as other:
+        body = other.add_object(get_object_spec("mug"), (0.4, 0.0), 0.0)
+        other.robot.open_gripper("r")
+        other.step(120)
+        assert fresh.objects == {} and fresh.robot.gripper_opening_m("r") < 1e-6
+        assert other.robot.gripper_opening_m("r") > 0.02 and body in other.objects
