@@ -1,0 +1,440 @@
+"""The pick planner: grasp pose -> arm -> IK -> timed, collision-checked joint trajectories.
+
+A pick is four segments, each a jerk-limited ruckig trajectory of one arm's joints:
+
+    approach   start -> pre-grasp (the grasp backed off along its approach axis), gripper open
+    descend    pre-grasp -> grasp, straight along the approach axis, slowly
+    lift       grasp -> grasp raised by ``lift_height_m``, after the gripper closes
+    retreat    lift -> the arm's start configuration, carrying the object
+
+The planner tries the nearer arm first, both 180-degree-equivalent grasps of the parallel
+gripper, and several IK solutions of each; every segment is checked densely (each sample at the
+execution rate) against self-collision and the obstacles. It returns a plan, or a
+:class:`PlanStatus` that says why not. No simulator in here.
+"""
+
+from __future__ import annotations
+
+import enum
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from control.collision import CollisionChecker, CollisionReport, Obstacle
+from control.errors import InvalidInputError
+from control.ik import ArmIk, IkOptions, IkResult
+from control.robot_model import RobotModel
+from control.trajectory import JointLimits, JointTrajectory, plan_segment, plan_through
+
+
+class PlanStatus(enum.Enum):
+    """Why a pick could or could not be planned."""
+
+    SUCCESS = "success"
+    UNREACHABLE = "unreachable"  # no arm has IK solutions for the pre-grasp, grasp and lift
+    COLLISION = "collision"  # IK solutions exist, but every path through them collides
+    START_IN_COLLISION = "start_in_collision"  # the start configuration already collides
+
+
+class GripperCommand(enum.Enum):
+    """What the executor does with the gripper before it tracks a segment."""
+
+    NONE = "none"
+    OPEN = "open"
+    CLOSE = "close"
+
+
+@dataclass(frozen=True)
+class ArmSpec:
+    """What the planner needs to know about one arm.
+
+    Args:
+        joints: The arm's joint names, base to tip.
+        tcp_frame: The tool frame grasps are given for.
+        finger_joints: The gripper's joint names (set to the opening when checking collisions).
+        max_acceleration: [rad/s^2] per joint name.
+        max_jerk: [rad/s^3] per joint name.
+        shoulder_frame: The frame whose distance to the grasp decides which arm is nearer.
+
+    """
+
+    joints: tuple[str, ...]
+    tcp_frame: str
+    finger_joints: tuple[str, ...]
+    max_acceleration: Mapping[str, float]
+    max_jerk: Mapping[str, float]
+    shoulder_frame: str
+
+
+@dataclass(frozen=True)
+class PickPlannerConfig:
+    """Tunables of the pick planner.
+
+    Args:
+        pregrasp_distance_m: Default back-off of the pre-grasp along the approach axis [m].
+        lift_height_m: How far the lift raises the grasp [m] (success asks for >= 0.05 m).
+        transit_velocity_scale: Fraction of the joint velocity limits for approach and retreat.
+        straight_velocity_scale: Fraction for descend and lift, which run close to objects.
+        dt_s: Sampling period of the trajectories [s]; the simulator tracks one sample per step.
+        ik_solutions_per_grasp: Distinct IK solutions tried per arm and gripper flip.
+        max_straight_deviation_m: How far the TCP may leave the straight line in descend/lift
+            before the segment is split into Cartesian waypoints [m].
+        max_joint_jump_rad: Largest joint change allowed between the pre-grasp and grasp (or
+            grasp and lift) solutions; a larger one means IK jumped to another branch.
+        via_heights_m: Heights above the pre-grasp (or lift) pose of the via poses tried, in
+            order, when the direct approach (or retreat) collides [m].
+        seed: Seeds the random IK restarts.
+
+    """
+
+    pregrasp_distance_m: float = 0.08
+    lift_height_m: float = 0.10
+    transit_velocity_scale: float = 1.0
+    straight_velocity_scale: float = 0.4
+    dt_s: float = 1.0 / 240.0
+    ik_solutions_per_grasp: int = 4
+    max_straight_deviation_m: float = 0.005
+    max_joint_jump_rad: float = 1.0
+    via_heights_m: tuple[float, ...] = (0.12, 0.22)
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        positive = ("pregrasp_distance_m", "lift_height_m", "dt_s", "max_straight_deviation_m",
+                    "max_joint_jump_rad")
+        for name in positive:
+            if getattr(self, name) <= 0.0:
+                raise InvalidInputError(name, getattr(self, name), "a value > 0")
+        for name in ("transit_velocity_scale", "straight_velocity_scale"):
+            if not 0.0 < getattr(self, name) <= 1.0:
+                raise InvalidInputError(name, getattr(self, name), "a fraction in (0, 1]")
+        if self.ik_solutions_per_grasp < 1:
+            raise InvalidInputError("ik_solutions_per_grasp", self.ik_solutions_per_grasp, ">= 1")
+
+
+@dataclass(frozen=True)
+class PickRequest:
+    """One pick to plan.
+
+    Args:
+        T_world_grasp: TCP pose at the grasp (z axis = approach direction).
+        q_start: Full start configuration of the robot.
+        obstacles: Everything the robot must not touch: table, other objects.
+        finger_opening_m: Finger joint value while approaching [m] (gap = 2 x this).
+        pregrasp_distance_m: Back-off for this grasp; None takes the planner's default.
+
+    """
+
+    T_world_grasp: pin.SE3
+    q_start: np.ndarray
+    obstacles: tuple[Obstacle, ...] = ()
+    finger_opening_m: float = 0.025
+    pregrasp_distance_m: float | None = None
+
+
+@dataclass(frozen=True)
+class PlanSegment:
+    """One timed segment of a plan, over the arm's joints."""
+
+    name: str
+    trajectory: JointTrajectory
+    gripper_before: GripperCommand = GripperCommand.NONE
+
+
+@dataclass(frozen=True)
+class PickPlan:
+    """A collision-checked pick for one arm."""
+
+    arm: str
+    segments: tuple[PlanSegment, ...]
+    q_grasp: np.ndarray  # full configuration at the grasp
+    T_world_grasp: pin.SE3  # the grasp actually used (possibly turned 180 deg about z)
+
+    def segment(self, name: str) -> PlanSegment:
+        """The segment called ``name``."""
+        for segment in self.segments:
+            if segment.name == name:
+                return segment
+        raise InvalidInputError("segment", name, ", ".join(s.name for s in self.segments))
+
+    @property
+    def duration_s(self) -> float:
+        """Total duration of all segments [s]."""
+        return sum(s.trajectory.duration_s for s in self.segments)
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    """A plan, or the reason there is none."""
+
+    status: PlanStatus
+    reason: str
+    plan: PickPlan | None = None
+    planning_time_s: float = 0.0
+    candidates_tried: int = 0
+
+    @property
+    def ok(self) -> bool:
+        """Whether a plan was found."""
+        return self.status is PlanStatus.SUCCESS
+
+
+@dataclass
+class _Candidate:
+    arm: str
+    T_grasp: pin.SE3
+    q_pre: np.ndarray
+    q_grasp: np.ndarray
+    q_lift: np.ndarray
+    cost: float
+    notes: list[str] = field(default_factory=list)
+
+
+_FLIP = pin.SE3(pin.utils.rotate("z", np.pi), np.zeros(3))
+
+
+class PickPlanner:
+    """Plans picks for a multi-arm robot; see the module docstring for the segments."""
+
+    def __init__(
+        self,
+        robot: RobotModel,
+        checker: CollisionChecker,
+        arms: Mapping[str, ArmSpec],
+        config: PickPlannerConfig | None = None,
+        ik_options: IkOptions | None = None,
+    ) -> None:
+        if not arms:
+            raise InvalidInputError("arms", dict(arms), "at least one arm")
+        self.robot, self.checker, self.arms = robot, checker, dict(arms)
+        self.config = config or PickPlannerConfig()
+        options = ik_options or IkOptions()
+        self._ik = {name: ArmIk(robot, spec.joints, spec.tcp_frame, options)
+                    for name, spec in self.arms.items()}
+        self._indices = {name: robot.joint_indices(spec.joints) for name, spec in self.arms.items()}
+        self._limits = {
+            (name, scale): JointLimits.from_robot(
+                robot, spec.joints, spec.max_acceleration, spec.max_jerk, velocity_scale=scale
+            )
+            for name, spec in self.arms.items()
+            for scale in (self.config.transit_velocity_scale, self.config.straight_velocity_scale)
+        }
+
+    def plan(self, request: PickRequest) -> PlanResult:
+        """Plans one pick; never raises for an unreachable or blocked grasp."""
+        started = time.perf_counter()
+        self.robot.check_shape(request.q_start)
+        if not isinstance(request.T_world_grasp, pin.SE3):
+            kind = type(request.T_world_grasp).__name__
+            raise InvalidInputError("T_world_grasp", kind, "pin.SE3")
+        if not self.robot.within_limits(request.q_start):
+            raise InvalidInputError("q_start", "outside the joint limits",
+                                    "an in-limit configuration")
+        q0 = request.q_start.copy()
+        for spec in self.arms.values():
+            for finger in spec.finger_joints:
+                q0[self.robot.joint_index(finger)] = request.finger_opening_m
+        self.checker.set_obstacles(request.obstacles)
+        start_report = self.checker.check(q0)
+        if start_report.in_collision:
+            return PlanResult(PlanStatus.START_IN_COLLISION, start_report.describe(),
+                              planning_time_s=time.perf_counter() - started)
+        pregrasp = request.pregrasp_distance_m or self.config.pregrasp_distance_m
+        rng = np.random.default_rng(self.config.seed)
+        reasons: list[str] = []
+        tried = 0
+        any_ik = False
+        for arm in self._arms_by_distance(q0, request.T_world_grasp.translation):
+            candidates = self._candidates(arm, request.T_world_grasp, q0, pregrasp, rng)
+            if not candidates:
+                reasons.append(f"arm {arm}: no in-limit IK solution for pre-grasp, grasp and lift")
+                continue
+            any_ik = True
+            for candidate in candidates:
+                tried += 1
+                plan, report = self._timed_plan(candidate, q0)
+                if plan is not None:
+                    return PlanResult(PlanStatus.SUCCESS, f"arm {arm}", plan,
+                                      time.perf_counter() - started, tried)
+                reasons.append(f"arm {arm}: {report}")
+        status = PlanStatus.COLLISION if any_ik else PlanStatus.UNREACHABLE
+        return PlanResult(status, "; ".join(reasons[:4]), None, time.perf_counter() - started,
+                          tried)
+
+    def _arms_by_distance(self, q: np.ndarray, target: np.ndarray) -> list[str]:
+        def distance(arm: str) -> float:
+            shoulder = self.robot.frame_pose(q, self.arms[arm].shoulder_frame).translation
+            return float(np.linalg.norm(shoulder - target))
+
+        return sorted(self.arms, key=distance)
+
+    def _candidates(
+        self, arm: str, T_grasp: pin.SE3, q0: np.ndarray, pregrasp_m: float,
+        rng: np.random.Generator,
+    ) -> list[_Candidate]:
+        ik, index = self._ik[arm], self._indices[arm]
+        lift = pin.SE3(np.eye(3), np.array([0.0, 0.0, self.config.lift_height_m]))
+        back_off = pin.SE3(np.eye(3), np.array([0.0, 0.0, -pregrasp_m]))
+        found: list[_Candidate] = []
+        for T_g in (T_grasp, T_grasp * _FLIP):
+            T_pre, T_lift = T_g * back_off, lift * T_g
+            for attempt in range(self.config.ik_solutions_per_grasp):
+                q_init = q0.copy()
+                if attempt > 0:
+                    lower, upper = self.robot.lower_rad[index], self.robot.upper_rad[index]
+                    q_init[index] = rng.uniform(lower, upper)
+                pre = ik.solve(T_pre, q_init, rng=rng)
+                if not pre.solved:
+                    continue
+                grasp = self._follow(ik, T_g, pre.q)
+                lifted = self._follow(ik, T_lift, grasp.q) if grasp is not None else None
+                if grasp is None or lifted is None:
+                    continue
+                if any(np.max(np.abs(c.q_pre[index] - pre.q[index])) < 1e-3 for c in found):
+                    continue  # the same solution again
+                cost = float(np.sum(np.abs(pre.q[index] - q0[index])))
+                found.append(_Candidate(arm, T_g, pre.q, grasp.q, lifted.q, cost))
+        return sorted(found, key=lambda c: c.cost)
+
+    def _follow(self, ik: ArmIk, T_target: pin.SE3, q_previous: np.ndarray) -> IkResult | None:
+        """IK seeded from a neighbouring solution; None if it fails or jumps branch."""
+        result = ik.solve(T_target, q_previous)
+        if not result.solved:
+            return None
+        if np.max(np.abs(result.q - q_previous)) > self.config.max_joint_jump_rad:
+            return None
+        return result
+
+    def _timed_plan(self, c: _Candidate, q0: np.ndarray) -> tuple[PickPlan | None, str]:
+        arm = c.arm
+        fast = self._limits[(arm, self.config.transit_velocity_scale)]
+        slow = self._limits[(arm, self.config.straight_velocity_scale)]
+        approach, blocked = self._transit(arm, q0, c.q_pre, fast)
+        if approach is None:
+            return None, f"approach: {blocked.describe()}, and no via pose clears it"
+        descend = self._straight(arm, c.q_pre, c.q_grasp, slow)
+        if descend is None:
+            return None, "descend leaves the straight line and IK cannot follow it"
+        lift = self._straight(arm, c.q_grasp, c.q_lift, slow)
+        if lift is None:
+            return None, "lift leaves the straight line and IK cannot follow it"
+        retreat, blocked = self._transit(arm, q0, c.q_lift, fast, reverse=True)
+        if retreat is None:
+            return None, f"retreat: {blocked.describe()}, and no via pose clears it"
+        segments = (
+            PlanSegment("approach", approach, GripperCommand.OPEN),
+            PlanSegment("descend", descend),
+            PlanSegment("lift", lift, GripperCommand.CLOSE),
+            PlanSegment("retreat", retreat),
+        )
+        for segment in segments[1:3]:  # approach and retreat were checked when planned
+            report = self._check(arm, q0, segment.trajectory)
+            if report.in_collision:
+                return None, f"{segment.name}: {report.describe()}"
+        return PickPlan(arm, segments, c.q_grasp, c.T_grasp), ""
+
+    def _transit(
+        self, arm: str, q0: np.ndarray, q_far: np.ndarray, limits: JointLimits,
+        reverse: bool = False,
+    ) -> tuple[JointTrajectory | None, CollisionReport]:
+        """A checked move between the start and ``q_far``: direct, else through via poses.
+
+        Returns the trajectory (None if every option collides) and the direct path's report.
+
+        The via poses lift the far end's TCP straight up: a straight joint-space line from the
+        start can swing the hand through the robot's own body, and going up first clears it.
+        """
+        index = self._indices[arm]
+        ends = (q_far, q0) if reverse else (q0, q_far)
+        direct = plan_segment(ends[0][index], ends[1][index], limits, self.config.dt_s)
+        report = self._check(arm, q0, direct)
+        if not report.in_collision:
+            return direct, report
+        T_far = self.robot.frame_pose(q_far, self.arms[arm].tcp_frame)
+        for height_m in self.config.via_heights_m:
+            raised = pin.SE3(np.eye(3), np.array([0.0, 0.0, height_m])) * T_far
+            via = self._ik[arm].solve(raised, q_far)
+            if not via.solved:
+                continue
+            points = [ends[0][index], via.q[index], ends[1][index]]
+            path = plan_through(points, limits, self.config.dt_s)
+            if not self._check(arm, q0, path).in_collision:
+                return path, report
+        return None, report
+
+    def _check(self, arm: str, q0: np.ndarray, trajectory: JointTrajectory) -> CollisionReport:
+        full = np.repeat(q0[None, :], len(trajectory.times_s), axis=0)  # (N, nq)
+        full[:, self._indices[arm]] = trajectory.positions
+        return self.checker.check_path(full)
+
+    def _straight(
+        self, arm: str, q_from: np.ndarray, q_to: np.ndarray, limits: JointLimits
+    ) -> JointTrajectory | None:
+        """A segment whose TCP runs along the line between the two poses, within tolerance.
+
+        A straight joint-space move is tried first; where its TCP strays from the line, the
+        move is bisected at the line's midpoint (IK seeded from the nearer end), recursively.
+        """
+        index, frame = self._indices[arm], self.arms[arm].tcp_frame
+        waypoints = self._bisect(arm, q_from, q_to, self.robot.frame_pose(q_from, frame),
+                                 self.robot.frame_pose(q_to, frame), limits, depth=0)
+        if waypoints is None:
+            return None
+        return plan_through([q_from[index], *[q[index] for q in waypoints]], limits,
+                            self.config.dt_s)
+
+    def _bisect(
+        self, arm: str, q_a: np.ndarray, q_b: np.ndarray, T_a: pin.SE3, T_b: pin.SE3,
+        limits: JointLimits, depth: int,
+    ) -> list[np.ndarray] | None:
+        """Waypoints after ``q_a`` up to ``q_b`` whose joint-space lines stay on the line."""
+        index = self._indices[arm]
+        direct = plan_segment(q_a[index], q_b[index], limits, self.config.dt_s)
+        if self._deviation_m(arm, q_a, direct, T_a, T_b) <= self.config.max_straight_deviation_m:
+            return [q_b]
+        if depth >= 4:
+            return None
+        T_mid = pin.SE3.Interpolate(T_a, T_b, 0.5)
+        middle = self._follow(self._ik[arm], T_mid, q_a)
+        if middle is None:
+            return None
+        first = self._bisect(arm, q_a, middle.q, T_a, T_mid, limits, depth + 1)
+        second = self._bisect(arm, middle.q, q_b, T_mid, T_b, limits, depth + 1)
+        if first is None or second is None:
+            return None
+        return first + second
+
+    def _deviation_m(
+        self, arm: str, q_base: np.ndarray, trajectory: JointTrajectory,
+        start: pin.SE3, goal: pin.SE3,
+    ) -> float:
+        index, frame = self._indices[arm], self.arms[arm].tcp_frame
+        a, b = start.translation, goal.translation
+        direction = b - a
+        length_sq = float(direction @ direction) or 1.0
+        q = q_base.copy()
+        worst = 0.0
+        for positions in trajectory.positions[:: max(1, len(trajectory.positions) // 20)]:
+            q[index] = positions
+            p = self.robot.frame_pose(q, frame).translation
+            s = np.clip((p - a) @ direction / length_sq, 0.0, 1.0)
+            worst = max(worst, float(np.linalg.norm(p - (a + s * direction))))
+        return worst
+
+
+def build_arm_specs(
+    arm_joints: Mapping[str, Sequence[str]],
+    tcp_frames: Mapping[str, str],
+    finger_joints: Mapping[str, Sequence[str]],
+    max_acceleration: Mapping[str, float],
+    max_jerk: Mapping[str, float],
+    shoulder_frames: Mapping[str, str],
+) -> dict[str, ArmSpec]:
+    """Arm specs from per-arm name mappings (e.g. those of :mod:`robots.yumi`)."""
+    return {
+        arm: ArmSpec(tuple(joints), tcp_frames[arm], tuple(finger_joints[arm]),
+                     max_acceleration, max_jerk, shoulder_frames[arm])
+        for arm, joints in arm_joints.items()
+    }

@@ -1,0 +1,131 @@
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import top_down
+
+from control.collision import Obstacle, ShapeKind
+from control.errors import InvalidInputError
+from control.planner import GripperCommand, PickPlannerConfig, PickRequest, PlanStatus
+from robots import yumi
+
+TABLE = Obstacle("table", ShapeKind.BOX, (1.5, 1.0, 0.05),
+                 pin.SE3(np.eye(3), np.array([0.35, 0.0, -0.025])))
+
+
+def box(name, size, centre):
+    return Obstacle(name, ShapeKind.BOX, size, pin.SE3(np.eye(3), np.asarray(centre, float)))
+
+
+def full_path(planner, plan, q_start):
+    index = planner.robot.joint_indices(yumi.ARM_JOINTS[plan.arm])
+    for segment in plan.segments:
+        for row in segment.trajectory.positions:
+            q = q_start.copy()
+            q[index] = row
+            yield segment.name, q
+
+
+@pytest.mark.parametrize("x", [0.32, 0.42, 0.52])
+@pytest.mark.parametrize("y", [-0.2, -0.05, 0.05, 0.2])
+def test_top_down_grasps_over_the_workspace_are_planned(yumi_planner, yumi_home, x, y):
+    result = yumi_planner.plan(PickRequest(top_down(x, y, 0.035), yumi_home, (TABLE,)))
+    assert result.status is PlanStatus.SUCCESS, result.reason
+    plan = result.plan
+    assert plan.arm == ("l" if y > 0 else "r")  # the nearer arm
+    assert [s.name for s in plan.segments] == ["approach", "descend", "lift", "retreat"]
+    assert plan.segment("approach").gripper_before is GripperCommand.OPEN
+    assert plan.segment("lift").gripper_before is GripperCommand.CLOSE
+    # The grasp configuration puts the TCP on the (possibly half-turned) grasp pose.
+    reached = yumi_planner.robot.frame_pose(plan.q_grasp, yumi.TCP_FRAME[plan.arm])
+    assert np.linalg.norm(reached.translation - plan.T_world_grasp.translation) < 5e-4
+    assert np.linalg.norm(pin.log3(reached.rotation.T @ plan.T_world_grasp.rotation)) < 0.01
+
+
+def test_plan_stays_in_limits_and_is_collision_free_at_every_sample(yumi_planner, yumi_home):
+    result = yumi_planner.plan(PickRequest(top_down(0.45, -0.1, 0.035), yumi_home, (TABLE,)))
+    assert result.ok
+    checker = yumi_planner.checker
+    checker.set_obstacles([TABLE])
+    q_open = yumi_home.copy()
+    for finger in yumi.GRIPPER_JOINTS[result.plan.arm]:
+        q_open[yumi_planner.robot.joint_index(finger)] = 0.025
+    for name, q in full_path(yumi_planner, result.plan, q_open):
+        assert yumi_planner.robot.within_limits(q), name
+        assert not checker.check(q).in_collision, name
+
+
+def test_descend_and_lift_follow_straight_lines(yumi_planner, yumi_home):
+    grasp = top_down(0.40, 0.15, 0.035, yaw=0.3)
+    result = yumi_planner.plan(PickRequest(grasp, yumi_home, (TABLE,)))
+    assert result.ok
+    plan, robot = result.plan, yumi_planner.robot
+    frame = yumi.TCP_FRAME[plan.arm]
+    axis = plan.T_world_grasp.rotation[:, 2]
+    for name, q in full_path(yumi_planner, plan, yumi_home):
+        if name not in ("descend", "lift"):
+            continue
+        offset = robot.frame_pose(q, frame).translation - plan.T_world_grasp.translation
+        along = axis if name == "descend" else np.array([0.0, 0.0, 1.0])
+        off_line = offset - (offset @ along) * along
+        tolerance = PickPlannerConfig().max_straight_deviation_m + 1e-3
+        assert np.linalg.norm(off_line) < tolerance, name
+
+
+def test_unreachable_grasp_is_a_named_status_not_an_exception(yumi_planner, yumi_home):
+    result = yumi_planner.plan(PickRequest(top_down(1.2, 0.0, 0.035), yumi_home, (TABLE,)))
+    assert result.status is PlanStatus.UNREACHABLE
+    assert result.plan is None
+    assert "arm r: no in-limit IK solution" in result.reason
+    assert "arm l: no in-limit IK solution" in result.reason
+
+
+def test_grasp_inside_an_obstacle_is_reported_as_collision(yumi_planner, yumi_home):
+    crate = box("crate", (0.12, 0.12, 0.20), (0.42, -0.10, 0.10))
+    result = yumi_planner.plan(PickRequest(top_down(0.42, -0.10, 0.035), yumi_home, (TABLE, crate)))
+    assert result.status is PlanStatus.COLLISION
+    assert "crate" in result.reason
+
+
+def test_obstacle_on_the_direct_path_is_avoided_or_reported(yumi_planner, yumi_home):
+    grasp = top_down(0.45, -0.12, 0.035)
+    free = yumi_planner.plan(PickRequest(grasp, yumi_home, (TABLE,)))
+    assert free.ok
+    # Put a block on the free plan's approach, as early as leaves the (open-handed) start clear.
+    path = full_path(yumi_planner, free.plan, yumi_home)
+    approach = [q for name, q in path if name == "approach"]
+    q_open = yumi_home.copy()
+    for finger in yumi.GRIPPER_JOINTS[free.plan.arm]:
+        q_open[yumi_planner.robot.joint_index(finger)] = 0.025
+    for fraction in (0.4, 0.5, 0.6, 0.7):
+        q_mid = approach[int(fraction * len(approach))]
+        centre = yumi_planner.robot.frame_pose(q_mid, yumi.TCP_FRAME[free.plan.arm]).translation
+        block = box("block", (0.05, 0.05, 0.05), centre)
+        yumi_planner.checker.set_obstacles([TABLE, block])
+        if not yumi_planner.checker.check(q_open).in_collision:
+            break
+    assert not yumi_planner.checker.check(q_open).in_collision
+    assert yumi_planner.checker.check_path(approach).in_collision  # the direct path is blocked
+    result = yumi_planner.plan(PickRequest(grasp, yumi_home, (TABLE, block)))
+    assert result.status in (PlanStatus.SUCCESS, PlanStatus.COLLISION)
+    if result.ok:
+        yumi_planner.checker.set_obstacles([TABLE, block])
+        path = [q for _, q in full_path(yumi_planner, result.plan, yumi_home)]
+        assert not yumi_planner.checker.check_path(path).in_collision
+
+
+def test_start_in_collision_is_reported(yumi_planner, yumi_home, yumi_model):
+    tcp = yumi_model.frame_pose(yumi_home, yumi.TCP_FRAME["r"]).translation
+    result = yumi_planner.plan(PickRequest(top_down(0.4, 0.0, 0.035), yumi_home,
+                                           (TABLE, box("crate", (0.1, 0.1, 0.1), tcp))))
+    assert result.status is PlanStatus.START_IN_COLLISION
+    assert "crate" in result.reason
+
+
+def test_bad_requests_raise_clear_errors(yumi_planner, yumi_home):
+    with pytest.raises(InvalidInputError, match=r"q = 'array of shape \(3,\)' is not allowed"):
+        yumi_planner.plan(PickRequest(top_down(0.4, 0.0, 0.035), np.zeros(3)))
+    not_se3 = r"T_world_grasp = 'ndarray' is not allowed: pin\.SE3"
+    with pytest.raises(InvalidInputError, match=not_se3):
+        yumi_planner.plan(PickRequest(np.eye(4), yumi_home))  # type: ignore[arg-type]
+    with pytest.raises(InvalidInputError, match=r"lift_height_m = 0\.0 is not allowed"):
+        PickPlannerConfig(lift_height_m=0.0)
