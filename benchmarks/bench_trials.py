@@ -1,0 +1,68 @@
+"""Wall time of closed-loop oracle pick trials on this machine.
+
+    python benchmarks/bench_trials.py [--n 30] [--seeds 0 1] [--out benchmarks/results/trials.json]
+
+Runs ``gva trials --model oracle --task single`` for each seed in a fresh folder and reports
+the median wall time per trial (the bar: <= 2 s on a 2-core machine), with the time spent
+planning and the simulated time per trial, plus successes per seed and per object type.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import statistics
+import tempfile
+import time
+from collections import Counter
+from pathlib import Path
+
+from sim.trials import TrialSettings, run_trials
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--n", type=int, default=30)
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    parser.add_argument("--task", default="single")
+    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/trials.json"))
+    args = parser.parse_args()
+
+    runs, wall, sim, picked = [], [], [], Counter()
+    for seed in args.seeds:
+        with tempfile.TemporaryDirectory() as folder:
+            started = time.perf_counter()
+            summary = run_trials(TrialSettings("oracle", args.task, args.n, seed), folder)
+            elapsed = time.perf_counter() - started
+            records = [json.loads(line) for line in (Path(folder) / "trials.jsonl").open()]
+        wall += [r["wall_time_s"] for r in records]
+        sim += [r["sim_time_s"] for r in records]
+        picked.update(r["target"] for r in records if r["outcome"] == "success")
+        runs.append({"seed": seed, "successes": summary.successes, "n": summary.n,
+                     "outcomes": {k: v for k, v in summary.outcomes.items() if v},
+                     "run_wall_s": round(elapsed, 2)})
+        print(f"seed {seed}: {summary.headline()}  ({elapsed:.1f} s for the run)")
+
+    result = {
+        "machine": {"cpu_count": __import__("os").cpu_count(), "python": platform.python_version(),
+                    "processor": platform.processor() or platform.machine()},
+        "task": args.task,
+        "runs": runs,
+        "median_trial_wall_s": round(statistics.median(wall), 3),
+        "p90_trial_wall_s": round(sorted(wall)[int(0.9 * (len(wall) - 1))], 3),
+        "median_trial_sim_s": round(statistics.median(sim), 3),
+        "real_time_factor": round(statistics.median(sim) / statistics.median(wall), 2),
+        "successes_by_object": dict(picked),
+    }
+    print(f"median wall time per trial: {result['median_trial_wall_s']} s "
+          f"(p90 {result['p90_trial_wall_s']} s; simulated {result['median_trial_sim_s']} s, "
+          f"{result['real_time_factor']}x real time)")
+    print("successes by object:", dict(picked))
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(result, indent=2) + "\n")
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()

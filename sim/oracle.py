@@ -1,0 +1,81 @@
+"""The oracle: a perception model that reads the simulator's true object poses.
+
+It answers through the same ``predict(image, condition)`` interface learned models use, so the
+trial runner cannot tell them apart; it sets the ceiling a learned model is measured against and
+produces the expert demonstrations.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from perception.interface import (
+    NO_CONDITION,
+    Condition,
+    ConditionKind,
+    LabelKind,
+    PerceptionModel,
+    Prediction,
+    Target,
+    check_image,
+)
+from sim.camera import HeadCamera
+from sim.errors import SimError
+from sim.objects import OBJECT_TYPES, grasp_pose
+from sim.world import World
+
+
+class TargetNotFoundError(SimError):
+    """The condition names an object that is not in the scene."""
+
+
+class OraclePerception(PerceptionModel):
+    """Grasp poses from the true object poses of a :class:`World`.
+
+    Targets follow the condition: none -> every object, in catalog order of their types (then
+    from the robot's right to its left); object type -> the object of that type; side -> the
+    leftmost (+y) or rightmost (-y) object. Attention points are the projected object centres.
+    """
+
+    name = "oracle"
+    label_kind = LabelKind.GRASP_POSE
+
+    def __init__(self, world: World, camera: HeadCamera) -> None:
+        self.world = world
+        self.camera = camera
+
+    def predict(self, image: np.ndarray, condition: Condition = NO_CONDITION) -> Prediction:
+        """The canonical grasp of each target; the image is checked but not needed."""
+        check_image(image)
+        bodies = self._targets(condition)
+        targets, centres = [], []
+        for body in bodies:
+            spec = self.world.object_spec(body)
+            pose = self.world.object_pose(body)
+            grasp = grasp_pose(spec, pose)
+            targets.append(Target(grasp.position.copy(), grasp.rotation.copy(), spec.name))
+            centres.append(pose.position + pose.rotation @ np.array([0.0, 0.0, spec.height_m / 2]))
+        attention = self.camera.project(np.array(centres)) if centres else np.zeros((0, 2))
+        return Prediction(targets=tuple(targets), attention_px=attention)
+
+    def _targets(self, condition: Condition) -> list[int]:
+        objects = self.world.objects
+        present = ", ".join(sorted(spec.name for spec in objects.values())) or "nothing"
+        if condition.kind is ConditionKind.NONE:
+            def order(body: int) -> tuple[int, float]:
+                y = float(self.world.object_pose(body).position[1])
+                return OBJECT_TYPES.index(objects[body].name), y
+
+            return sorted(objects, key=order)
+        if condition.kind is ConditionKind.OBJECT_TYPE:
+            matches = [b for b, spec in objects.items() if spec.name == condition.value]
+            if not matches:
+                raise TargetNotFoundError(
+                    f"condition object_type = {condition.value!r} names no object in the scene "
+                    f"(present: {present})"
+                )
+            return matches[:1]
+        if not objects:
+            raise TargetNotFoundError(f"condition side = {condition.value!r}: the table is empty")
+        by_y = sorted(objects, key=lambda b: float(self.world.object_pose(b).position[1]))
+        return [by_y[-1] if condition.value == "left" else by_y[0]]

@@ -1,0 +1,196 @@
+"""Trial outcomes and records, kept in an append-only JSON-lines file that survives crashes.
+
+Each finished trial is one line of ``trials.jsonl``, flushed and fsynced before the next trial
+starts; ``run.json`` beside it holds the run's settings. Opening the same folder again resumes:
+finished trials are kept and skipped, a half-written last line (a crash mid-write) is dropped,
+and a folder that holds a different run is refused rather than mixed.
+"""
+
+from __future__ import annotations
+
+import enum
+import json
+import math
+import os
+from collections import Counter
+from collections.abc import Iterator, Mapping
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from sim.errors import SimError
+
+RECORD_FORMAT_VERSION = 1
+
+
+class TrialOutcome(enum.Enum):
+    """How a pick trial ended."""
+
+    SUCCESS = "success"  # lifted >= 5 cm and held for 1 s
+    PERCEPTION_FAILED = "perception_failed"  # the model raised or gave no usable target
+    IK_UNREACHABLE = "ik_unreachable"  # no arm reaches the predicted grasp
+    PLAN_COLLISION = "plan_collision"  # every path to the grasp collides
+    COLLIDED = "collided"  # the robot touched the table or another object before the grasp
+    MISSED = "missed"  # the gripper closed on nothing, or the object did not rise
+    GRASP_SLIPPED = "grasp_slipped"  # the object was lifted but not held for the hold time
+    ERROR = "error"  # an unexpected exception; the record keeps its message
+
+
+@dataclass(frozen=True)
+class TrialRecord:
+    """Everything a trial did, as it goes into ``trials.jsonl``.
+
+    Positions in [m], angles in [rad], times in [s]. ``predicted`` and ``truth`` hold the TCP
+    grasp poses as ``{"position_m": [...], "rotation": [[...], ...]}``.
+    """
+
+    index: int
+    seed: int
+    task: str
+    model: str
+    outcome: TrialOutcome
+    reason: str
+    objects: list[dict[str, Any]] = field(default_factory=list)
+    target: str | None = None
+    predicted: dict[str, Any] | None = None
+    truth: dict[str, Any] | None = None
+    position_error_m: float | None = None
+    rotation_error_rad: float | None = None
+    plan_status: str | None = None
+    arm: str | None = None
+    lift_m: float | None = None
+    sim_time_s: float = 0.0
+    wall_time_s: float = 0.0
+
+    @property
+    def success(self) -> bool:
+        """Whether the pick succeeded."""
+        return self.outcome is TrialOutcome.SUCCESS
+
+    def to_json(self) -> str:
+        """One JSON line (no newline)."""
+        data = asdict(self)
+        data["outcome"] = self.outcome.value
+        return json.dumps(data, sort_keys=True)
+
+    @classmethod
+    def from_json(cls, line: str) -> TrialRecord:
+        """Parses a line written by :meth:`to_json`."""
+        data = json.loads(line)
+        data["outcome"] = TrialOutcome(data["outcome"])
+        return cls(**data)
+
+
+def wilson_interval(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
+    """Wilson score interval of a success rate (95 % for the default ``z``)."""
+    if n <= 0:
+        return (0.0, 1.0)
+    p = successes / n
+    denominator = 1.0 + z * z / n
+    centre = (p + z * z / (2 * n)) / denominator
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denominator
+    return (max(0.0, centre - half), min(1.0, centre + half))
+
+
+@dataclass(frozen=True)
+class TrialSummary:
+    """Successes out of n, their 95 % Wilson interval, and the count of every outcome."""
+
+    successes: int
+    n: int
+    wilson95: tuple[float, float]
+    outcomes: dict[str, int]
+    median_wall_time_s: float
+
+    @classmethod
+    def of(cls, records: list[TrialRecord]) -> TrialSummary:
+        """The summary of some records."""
+        successes = sum(r.success for r in records)
+        counts = Counter(r.outcome.value for r in records)
+        times = sorted(r.wall_time_s for r in records)
+        median = times[len(times) // 2] if times else 0.0
+        if times and len(times) % 2 == 0:
+            median = 0.5 * (times[len(times) // 2 - 1] + times[len(times) // 2])
+        return cls(successes, len(records), wilson_interval(successes, len(records)),
+                   {o.value: counts.get(o.value, 0) for o in TrialOutcome}, median)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form, as written to ``summary.json``."""
+        return asdict(self) | {"wilson95": list(self.wilson95)}
+
+    def headline(self) -> str:
+        """``29/30 successes (95 % Wilson interval 83.3-99.4 %)``."""
+        low, high = self.wilson95
+        return (f"{self.successes}/{self.n} successes "
+                f"(95 % Wilson interval {100 * low:.1f}-{100 * high:.1f} %)")
+
+
+class RunFolderError(SimError):
+    """A run folder that cannot be resumed: it holds another run, or a damaged file."""
+
+
+class TrialLog:
+    """The ``trials.jsonl`` + ``run.json`` pair of a run folder; see the module docstring.
+
+    Args:
+        folder: The run folder (created if missing).
+        settings: What identifies the run (task, model, seed, ...). Resuming a folder whose
+            ``run.json`` holds other settings raises :class:`RunFolderError`.
+
+    """
+
+    def __init__(self, folder: str | Path, settings: Mapping[str, Any]) -> None:
+        self.folder = Path(folder)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.path = self.folder / "trials.jsonl"
+        self.settings = {"format_version": RECORD_FORMAT_VERSION, **settings}
+        settings_path = self.folder / "run.json"
+        if settings_path.exists():
+            try:
+                stored = json.loads(settings_path.read_text())
+            except json.JSONDecodeError as error:
+                raise RunFolderError(
+                    f"{settings_path} is damaged ({error}); use another --out"
+                ) from None
+            if stored != self.settings:
+                differences = {k: (stored.get(k), v) for k, v in self.settings.items()
+                               if stored.get(k) != v}
+                raise RunFolderError(
+                    f"{self.folder} holds a different run ({differences}, stored vs asked); "
+                    "use another --out or remove the folder"
+                )
+        else:
+            settings_path.write_text(json.dumps(self.settings, indent=2, sort_keys=True) + "\n")
+        self.records: dict[int, TrialRecord] = dict(self._read())
+
+    def _read(self) -> Iterator[tuple[int, TrialRecord]]:
+        if not self.path.exists():
+            return
+        lines = self.path.read_text().splitlines()
+        kept: list[str] = []
+        for number, line in enumerate(lines, start=1):
+            try:
+                record = TrialRecord.from_json(line)
+            except (json.JSONDecodeError, TypeError, ValueError, KeyError) as error:
+                if number == len(lines):  # a crash mid-write: drop the partial last line
+                    self.path.write_text("".join(k + "\n" for k in kept))
+                    return
+                raise RunFolderError(f"{self.path} line {number} is damaged: {error}") from None
+            kept.append(line)
+            yield record.index, record
+
+    def done(self, index: int) -> bool:
+        """Whether trial ``index`` already finished."""
+        return index in self.records
+
+    def append(self, record: TrialRecord) -> None:
+        """Appends one finished trial and forces it to disk before returning."""
+        with self.path.open("a") as handle:
+            handle.write(record.to_json() + "\n")
+            handle.flush()
+            os.fsync(handle.fileno())
+        self.records[record.index] = record
+
+    def summary(self, n: int) -> TrialSummary:
+        """The summary of trials ``0 .. n-1``."""
+        return TrialSummary.of([self.records[i] for i in range(n) if i in self.records])

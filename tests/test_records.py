@@ -1,0 +1,75 @@
+import json
+
+import pytest
+
+from sim.records import (
+    RunFolderError,
+    TrialLog,
+    TrialOutcome,
+    TrialRecord,
+    TrialSummary,
+    wilson_interval,
+)
+
+
+def record(index: int, outcome=TrialOutcome.SUCCESS) -> TrialRecord:
+    return TrialRecord(index=index, seed=0, task="single", model="oracle", outcome=outcome,
+                       reason="test", wall_time_s=1.0 + index)
+
+
+def test_wilson_interval_matches_known_values():
+    low, high = wilson_interval(27, 30)
+    assert low == pytest.approx(0.7438, abs=1e-4)
+    assert high == pytest.approx(0.9654, abs=1e-4)
+    assert wilson_interval(30, 30)[1] == pytest.approx(1.0)
+    assert wilson_interval(0, 30)[0] == pytest.approx(0.0)
+
+
+def test_record_round_trips_through_json():
+    original = record(3, TrialOutcome.GRASP_SLIPPED)
+    assert TrialRecord.from_json(original.to_json()) == original
+
+
+def test_log_resumes_and_keeps_finished_trials(tmp_path):
+    log = TrialLog(tmp_path, {"task": "single", "seed": 0})
+    log.append(record(0))
+    log.append(record(1, TrialOutcome.MISSED))
+    again = TrialLog(tmp_path, {"task": "single", "seed": 0})
+    assert again.done(0) and again.done(1) and not again.done(2)
+    summary = again.summary(2)
+    assert (summary.successes, summary.n, summary.outcomes["missed"]) == (1, 2, 1)
+
+
+def test_half_written_last_line_is_dropped(tmp_path):
+    log = TrialLog(tmp_path, {"seed": 0})
+    log.append(record(0))
+    with log.path.open("a") as handle:
+        handle.write(record(1).to_json()[:40])  # a crash mid-write
+    again = TrialLog(tmp_path, {"seed": 0})
+    assert sorted(again.records) == [0]
+    again.append(record(1))
+    lines = again.path.read_text().splitlines()
+    assert [json.loads(line)["index"] for line in lines] == [0, 1]
+
+
+def test_damaged_line_in_the_middle_is_an_error(tmp_path):
+    log = TrialLog(tmp_path, {"seed": 0})
+    log.append(record(0))
+    log.path.write_text("not json\n" + log.path.read_text())
+    with pytest.raises(RunFolderError, match="line 1 is damaged"):
+        TrialLog(tmp_path, {"seed": 0})
+
+
+def test_folder_of_another_run_is_refused(tmp_path):
+    TrialLog(tmp_path, {"task": "single", "seed": 0})
+    with pytest.raises(RunFolderError, match=r"holds a different run \(\{'seed': \(0, 1\)\}"):
+        TrialLog(tmp_path, {"task": "single", "seed": 1})
+
+
+def test_summary_counts_every_outcome_and_median():
+    records = [record(0), record(1, TrialOutcome.IK_UNREACHABLE), record(2)]
+    summary = TrialSummary.of(records)
+    assert summary.outcomes["ik_unreachable"] == 1
+    assert set(summary.outcomes) == {o.value for o in TrialOutcome}
+    assert summary.median_wall_time_s == 2.0
+    assert summary.headline().startswith("2/3 successes (95 % Wilson interval")

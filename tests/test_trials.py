@@ -1,0 +1,98 @@
+import json
+
+import numpy as np
+import pytest
+
+from experiments.cli import main
+from perception.interface import Condition, ConditionKind
+from sim.camera import HeadCamera
+from sim.errors import InvalidInputError
+from sim.objects import OBJECT_TYPES, get_object_spec, grasp_pose
+from sim.oracle import OraclePerception, TargetNotFoundError
+from sim.scene import SeedStream, sample_scene
+from sim.tasks import get_task
+from sim.trials import TrialRunner, TrialSettings, run_trials
+from sim.world import World
+
+
+@pytest.fixture(scope="module")
+def world():
+    with World() as w:
+        yield w
+
+
+def test_oracle_returns_the_canonical_grasp(world):
+    world.reset_scene()
+    body = world.add_object(get_object_spec("sponge"), (0.42, -0.1), 0.4)
+    oracle = OraclePerception(world, HeadCamera())
+    image = np.zeros((128, 128, 3), np.uint8)
+    prediction = oracle.predict(image)
+    truth = grasp_pose(world.object_spec(body), world.object_pose(body))
+    (target,) = prediction.targets
+    assert np.allclose(target.position_m, truth.position)
+    assert np.allclose(target.rotation, truth.rotation)
+    assert target.object_type == "sponge"
+    assert prediction.attention_px.shape == (1, 2)
+
+
+def test_oracle_names_a_missing_object(world):
+    world.reset_scene()
+    world.add_object(get_object_spec("sponge"), (0.42, -0.1), 0.0)
+    oracle = OraclePerception(world, HeadCamera())
+    mug = Condition(ConditionKind.OBJECT_TYPE, "mug", OBJECT_TYPES)
+    with pytest.raises(TargetNotFoundError, match="object_type = 'mug' names no object in the "
+                       r"scene \(present: sponge\)"):
+        oracle.predict(np.zeros((128, 128, 3), np.uint8), mug)
+
+
+def test_scenes_are_seeded_and_test_scenes_differ_from_training(tmp_path):
+    task = get_task("single")
+    a = sample_scene(task, 0, SeedStream.TEST, 5)
+    assert a == sample_scene(task, 0, SeedStream.TEST, 5)
+    assert a != sample_scene(task, 0, SeedStream.TRAIN, 5)
+    assert a != sample_scene(task, 1, SeedStream.TEST, 5)
+    (placed,) = a.objects
+    assert task.workspace_x_m[0] <= placed.position_xy_m[0] <= task.workspace_x_m[1]
+
+
+def test_unknown_model_and_task_are_refused_with_the_allowed_names():
+    with pytest.raises(InvalidInputError, match="model = 'kqv9' is not allowed: one of oracle"):
+        TrialSettings(model="kqv9", task="single")
+    with pytest.raises(InvalidInputError, match="task = 'juggle' is not allowed: one of single"):
+        TrialSettings(model="oracle", task="juggle")
+
+
+def test_cli_reports_bad_input_in_one_line(tmp_path, capsys):
+    assert main(["trials", "--task", "juggle", "--out", str(tmp_path)]) == 2
+    assert "error: task = 'juggle' is not allowed: one of single" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["trials", "--n", "0", "--out", str(tmp_path)])
+
+
+def test_unreachable_prediction_is_a_recorded_outcome():
+    class FarAway(OraclePerception):
+        def predict(self, image, condition=None):
+            prediction = super().predict(image)
+            target = prediction.targets[0]
+            moved = type(target)(target.position_m + np.array([0.8, 0.0, 0.0]), target.rotation)
+            return type(prediction)((moved,))
+
+    with TrialRunner(TrialSettings("oracle", "single", 1, 0)) as runner:
+        runner.model = FarAway(runner.world, runner.camera)
+        record = runner.run(0)
+    assert record.outcome.value == "ik_unreachable"
+    assert "no in-limit IK solution" in record.reason
+    assert record.position_error_m == pytest.approx(0.8, abs=1e-6)
+
+
+@pytest.mark.slow
+def test_oracle_trials_succeed_and_resume(tmp_path):
+    settings = TrialSettings("oracle", "single", n=4, seed=0)
+    first = run_trials(TrialSettings("oracle", "single", n=2, seed=0), tmp_path, progress=False)
+    assert first.n == 2
+    summary = run_trials(settings, tmp_path, progress=False)  # resumes: runs trials 2 and 3 only
+    lines = (tmp_path / "trials.jsonl").read_text().splitlines()
+    assert [json.loads(line)["index"] for line in lines] == [0, 1, 2, 3]
+    assert summary.successes == 4, [json.loads(line)["reason"] for line in lines]
+    stored = json.loads((tmp_path / "summary.json").read_text())
+    assert stored["successes"] == 4 and stored["n"] == 4
