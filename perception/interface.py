@@ -61,6 +61,7 @@ class Condition:
         kind: What the condition names.
         value: The named choice (``"mug"``, ``"left"``); None for :attr:`ConditionKind.NONE`.
         choices: Every value this kind allows, in one-hot order.
+
     """
 
     kind: ConditionKind = ConditionKind.NONE
@@ -96,6 +97,7 @@ class Target:
         rotation: (3, 3) TCP orientation for a grasp (columns: the TCP x, y, z axes in the world;
             z is the approach direction); None for position-only predictions.
         object_type: The object type the model believes it attends to, where it knows.
+
     """
 
     position_m: np.ndarray
@@ -118,6 +120,7 @@ class Prediction:
         attention_px: (q, 2) attention points (u right, v down) in image pixels; (0, 2) for a
             model without attention.
         heatmaps: (q, h, w) attention heatmaps, each summing to 1, where the model has them.
+
     """
 
     targets: tuple[Target, ...]
