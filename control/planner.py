@@ -229,10 +229,7 @@ class PickPlanner:
         if not isinstance(request.T_world_grasp, pin.SE3):
             kind = type(request.T_world_grasp).__name__
             raise InvalidInputError("T_world_grasp", kind, "pin.SE3")
-        if not self.robot.within_limits(request.q_start):
-            raise InvalidInputError("q_start", "outside the joint limits",
-                                    "an in-limit configuration")
-        q0 = request.q_start.copy()
+        q0 = self.robot.clip_to_limits(request.q_start, "q_start")
         for spec in self.arms.values():
             for finger in spec.finger_joints:
                 q0[self.robot.joint_index(finger)] = request.finger_opening_m

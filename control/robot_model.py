@@ -108,6 +108,23 @@ class RobotModel:
             np.all(q >= self.lower_rad - tolerance) and np.all(q <= self.upper_rad + tolerance)
         )
 
+    def clip_to_limits(
+        self, q: np.ndarray, field: str = "q", tolerance: float = 1e-3
+    ) -> np.ndarray:
+        """``q`` clipped into the position limits, for a measured configuration.
+
+        A simulated or real joint sits a hair past its limit now and then; up to ``tolerance``
+        [rad] or [m] past it is clipped, further is an error naming the joint and its range.
+        """
+        self.check_shape(q)
+        outside = (q < self.lower_rad - tolerance) | (q > self.upper_rad + tolerance)
+        if np.any(outside):
+            i = int(np.argmax(outside))
+            name = self.joint_names[i]
+            raise InvalidInputError(f"{field}[{name}]", float(q[i]),
+                                    f"within [{self.lower_rad[i]:.6g}, {self.upper_rad[i]:.6g}]")
+        return np.clip(q, self.lower_rad, self.upper_rad)
+
     def random_configuration(self, rng: np.random.Generator) -> np.ndarray:
         """A configuration drawn uniformly within the position limits."""
         return rng.uniform(self.lower_rad, self.upper_rad)

@@ -127,5 +127,10 @@ def test_bad_requests_raise_clear_errors(yumi_planner, yumi_home):
     not_se3 = r"T_world_grasp = 'ndarray' is not allowed: pin\.SE3"
     with pytest.raises(InvalidInputError, match=not_se3):
         yumi_planner.plan(PickRequest(np.eye(4), yumi_home))  # type: ignore[arg-type]
+    bent = yumi_home.copy()
+    bent[yumi_planner.robot.joint_index("yumi_joint_2_r")] = 1.2
+    with pytest.raises(InvalidInputError, match=r"q_start\[yumi_joint_2_r\] = 1\.2 is not "
+                       r"allowed: within \[-2\.50455, 0\.75922\]"):
+        yumi_planner.plan(PickRequest(top_down(0.4, 0.0, 0.035), bent))
     with pytest.raises(InvalidInputError, match=r"lift_height_m = 0\.0 is not allowed"):
         PickPlannerConfig(lift_height_m=0.0)
