@@ -3,3 +3,5 @@
 ``sim`` may import ``control`` (pure kinematics) and ``perception``'s interface and data, never
 ``experiments``. Every world owns its own PyBullet client, so several can live in one process.
 """
+
+from sim import quiet as _quiet  # noqa: F401  (first: swallows PyBullet's banner)

@@ -15,6 +15,7 @@ from pybullet_utils import bullet_client
 from robots import yumi
 from sim.errors import InvalidInputError, SimulationError
 from sim.objects import ObjectSpec, Pose, PrimitiveKind
+from sim.quiet import silenced_output
 from sim.robot import RobotConfig, SimRobot
 
 TABLE_TOP_Z_IN_URDF_M = 0.625
@@ -74,7 +75,8 @@ class World:
 
     def __init__(self, config: WorldConfig | None = None) -> None:
         self.config = WorldConfig() if config is None else config
-        self.client: Any = bullet_client.BulletClient(connection_mode=pybullet.DIRECT)
+        with silenced_output():  # PyBullet prints "argv[0]=" from C on every connect
+            self.client: Any = bullet_client.BulletClient(connection_mode=pybullet.DIRECT)
         client = self.client
         client.setAdditionalSearchPath(pybullet_data.getDataPath())
         client.setTimeStep(self.config.time_step_s)
