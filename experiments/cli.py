@@ -9,9 +9,8 @@ stops half-way is resumed by running the same command again.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from control.errors import ControlError
@@ -19,24 +18,19 @@ from perception.interface import PerceptionError
 from sim.errors import SimError
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value} is not allowed: an integer >= 1")
-    return value
+def _integer(minimum: int) -> Callable[[str], int]:
+    """An argparse type: an integer >= ``minimum``, with a message that says so."""
 
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"{value} is not allowed: an integer >= {minimum}")
+        return value
 
-def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"{value} is not allowed: an integer >= 0")
-    return value
+    return parse
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -53,8 +47,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     trials.add_argument("--model", default="oracle", help="perception model (default: oracle)")
     trials.add_argument("--task", default="single", help="task name (default: single)")
-    trials.add_argument("--n", type=_positive_int, default=30, help="number of trials (30)")
-    trials.add_argument("--seed", type=_seed, default=0, help="seed of the test scenes (0)")
+    trials.add_argument("--n", type=_integer(1), default=30, help="number of trials (30)")
+    trials.add_argument("--seed", type=_integer(0), default=0, help="seed of the test scenes (0)")
     trials.add_argument("--out", type=Path, required=True, help="run folder")
     trials.add_argument("--no-progress", action="store_true", help="no progress bar")
     return parser
@@ -88,13 +82,6 @@ def main(argv: Sequence[str] | None = None) -> int:
               file=sys.stderr)
         return 130
     raise AssertionError(f"unhandled command {args.command}")  # argparse rejects others
-
-
-def write_json(path: Path, data: object) -> None:
-    """Writes ``data`` as indented JSON, atomically (a crash never leaves half a file)."""
-    temporary = path.with_suffix(path.suffix + ".tmp")
-    temporary.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
-    temporary.replace(path)
 
 
 if __name__ == "__main__":
