@@ -15,170 +15,28 @@ execution rate) against self-collision and the obstacles. It returns a plan, or 
 
 from __future__ import annotations
 
-import enum
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
 
-from control.collision import CollisionChecker, CollisionReport, Obstacle
+from control.collision import CollisionChecker, CollisionReport
 from control.errors import InvalidInputError
 from control.ik import ArmIk, IkOptions, IkResult
+from control.pick import (
+    ArmSpec,
+    GripperCommand,
+    PickPlan,
+    PickPlannerConfig,
+    PickRequest,
+    PlanResult,
+    PlanSegment,
+    PlanStatus,
+)
 from control.robot_model import RobotModel
 from control.trajectory import JointLimits, JointTrajectory, plan_segment, plan_through
-
-
-class PlanStatus(enum.Enum):
-    """Why a pick could or could not be planned."""
-
-    SUCCESS = "success"
-    UNREACHABLE = "unreachable"  # no arm has IK solutions for the pre-grasp, grasp and lift
-    COLLISION = "collision"  # IK solutions exist, but every path through them collides
-    START_IN_COLLISION = "start_in_collision"  # the start configuration already collides
-
-
-class GripperCommand(enum.Enum):
-    """What the executor does with the gripper before it tracks a segment."""
-
-    NONE = "none"
-    OPEN = "open"
-    CLOSE = "close"
-
-
-@dataclass(frozen=True)
-class ArmSpec:
-    """What the planner needs to know about one arm.
-
-    Args:
-        joints: The arm's joint names, base to tip.
-        tcp_frame: The tool frame grasps are given for.
-        finger_joints: The gripper's joint names (set to the opening when checking collisions).
-        max_acceleration: [rad/s^2] per joint name.
-        max_jerk: [rad/s^3] per joint name.
-        shoulder_frame: The frame whose distance to the grasp decides which arm is nearer.
-
-    """
-
-    joints: tuple[str, ...]
-    tcp_frame: str
-    finger_joints: tuple[str, ...]
-    max_acceleration: Mapping[str, float]
-    max_jerk: Mapping[str, float]
-    shoulder_frame: str
-
-
-@dataclass(frozen=True)
-class PickPlannerConfig:
-    """Tunables of the pick planner.
-
-    Args:
-        pregrasp_distance_m: Default back-off of the pre-grasp along the approach axis [m].
-        lift_height_m: How far the lift raises the grasp [m] (success asks for >= 0.05 m).
-        transit_velocity_scale: Fraction of the joint velocity limits for approach and retreat.
-        straight_velocity_scale: Fraction for descend and lift, which run close to objects.
-        dt_s: Sampling period of the trajectories [s]; the simulator tracks one sample per step.
-        ik_solutions_per_grasp: Distinct IK solutions tried per arm and gripper flip.
-        max_straight_deviation_m: How far the TCP may leave the straight line in descend/lift
-            before the segment is split into Cartesian waypoints [m].
-        max_joint_jump_rad: Largest joint change allowed between the pre-grasp and grasp (or
-            grasp and lift) solutions; a larger one means IK jumped to another branch.
-        via_heights_m: Heights above the pre-grasp (or lift) pose of the via poses tried, in
-            order, when the direct approach (or retreat) collides [m].
-        seed: Seeds the random IK restarts.
-
-    """
-
-    pregrasp_distance_m: float = 0.08
-    lift_height_m: float = 0.10
-    transit_velocity_scale: float = 1.0
-    straight_velocity_scale: float = 0.4
-    dt_s: float = 1.0 / 240.0
-    ik_solutions_per_grasp: int = 4
-    max_straight_deviation_m: float = 0.005
-    max_joint_jump_rad: float = 1.0
-    via_heights_m: tuple[float, ...] = (0.12, 0.22)
-    seed: int = 0
-
-    def __post_init__(self) -> None:
-        positive = ("pregrasp_distance_m", "lift_height_m", "dt_s", "max_straight_deviation_m",
-                    "max_joint_jump_rad")
-        for name in positive:
-            if getattr(self, name) <= 0.0:
-                raise InvalidInputError(name, getattr(self, name), "a value > 0")
-        for name in ("transit_velocity_scale", "straight_velocity_scale"):
-            if not 0.0 < getattr(self, name) <= 1.0:
-                raise InvalidInputError(name, getattr(self, name), "a fraction in (0, 1]")
-        if self.ik_solutions_per_grasp < 1:
-            raise InvalidInputError("ik_solutions_per_grasp", self.ik_solutions_per_grasp, ">= 1")
-
-
-@dataclass(frozen=True)
-class PickRequest:
-    """One pick to plan.
-
-    Args:
-        T_world_grasp: TCP pose at the grasp (z axis = approach direction).
-        q_start: Full start configuration of the robot.
-        obstacles: Everything the robot must not touch: table, other objects.
-        finger_opening_m: Finger joint value while approaching [m] (gap = 2 x this).
-        pregrasp_distance_m: Back-off for this grasp; None takes the planner's default.
-
-    """
-
-    T_world_grasp: pin.SE3
-    q_start: np.ndarray
-    obstacles: tuple[Obstacle, ...] = ()
-    finger_opening_m: float = 0.025
-    pregrasp_distance_m: float | None = None
-
-
-@dataclass(frozen=True)
-class PlanSegment:
-    """One timed segment of a plan, over the arm's joints."""
-
-    name: str
-    trajectory: JointTrajectory
-    gripper_before: GripperCommand = GripperCommand.NONE
-
-
-@dataclass(frozen=True)
-class PickPlan:
-    """A collision-checked pick for one arm."""
-
-    arm: str
-    segments: tuple[PlanSegment, ...]
-    q_grasp: np.ndarray  # full configuration at the grasp
-    T_world_grasp: pin.SE3  # the grasp actually used (possibly turned 180 deg about z)
-
-    def segment(self, name: str) -> PlanSegment:
-        """The segment called ``name``."""
-        for segment in self.segments:
-            if segment.name == name:
-                return segment
-        raise InvalidInputError("segment", name, ", ".join(s.name for s in self.segments))
-
-    @property
-    def duration_s(self) -> float:
-        """Total duration of all segments [s]."""
-        return sum(s.trajectory.duration_s for s in self.segments)
-
-
-@dataclass(frozen=True)
-class PlanResult:
-    """A plan, or the reason there is none."""
-
-    status: PlanStatus
-    reason: str
-    plan: PickPlan | None = None
-    planning_time_s: float = 0.0
-    candidates_tried: int = 0
-
-    @property
-    def ok(self) -> bool:
-        """Whether a plan was found."""
-        return self.status is PlanStatus.SUCCESS
 
 
 @dataclass
@@ -419,19 +277,3 @@ class PickPlanner:
             s = np.clip((p - a) @ direction / length_sq, 0.0, 1.0)
             worst = max(worst, float(np.linalg.norm(p - (a + s * direction))))
         return worst
-
-
-def build_arm_specs(
-    arm_joints: Mapping[str, Sequence[str]],
-    tcp_frames: Mapping[str, str],
-    finger_joints: Mapping[str, Sequence[str]],
-    max_acceleration: Mapping[str, float],
-    max_jerk: Mapping[str, float],
-    shoulder_frames: Mapping[str, str],
-) -> dict[str, ArmSpec]:
-    """Arm specs from per-arm name mappings (e.g. those of :mod:`robots.yumi`)."""
-    return {
-        arm: ArmSpec(tuple(joints), tcp_frames[arm], tuple(finger_joints[arm]),
-                     max_acceleration, max_jerk, shoulder_frames[arm])
-        for arm, joints in arm_joints.items()
-    }

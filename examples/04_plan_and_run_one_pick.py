@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import time
 
-from control.planner import PickRequest
+from control.pick import PickRequest
 from robots import yumi
 from sim.execution import ExecutionSettings, execute_pick
 from sim.objects import get_object_spec, grasp_pose

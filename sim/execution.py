@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from control.planner import GripperCommand, PickPlan
+from control.pick import GripperCommand, PickPlan
 from robots import yumi
 from sim.errors import InvalidInputError
 from sim.records import TrialOutcome

@@ -9,7 +9,8 @@ import pinocchio as pin
 
 from control.collision import CollisionChecker, Obstacle, ShapeKind
 from control.ik import IkOptions
-from control.planner import PickPlanner, PickPlannerConfig, build_arm_specs
+from control.pick import PickPlannerConfig, build_arm_specs
+from control.planner import PickPlanner
 from control.robot_model import RobotModel
 from robots import yumi
 from sim.objects import PrimitiveKind, obstacle_shapes

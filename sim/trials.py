@@ -20,7 +20,8 @@ import numpy as np
 import pinocchio as pin
 from tqdm import tqdm
 
-from control.planner import PickPlanner, PickRequest, PlanStatus
+from control.pick import PickRequest, PlanStatus
+from control.planner import PickPlanner
 from perception.interface import PerceptionError, PerceptionModel, Prediction
 from robots import yumi
 from sim.camera import HeadCamera

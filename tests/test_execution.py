@@ -5,7 +5,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from control.planner import PickRequest, PlanStatus
+from control.pick import PickRequest, PlanStatus
 from sim.execution import ExecutionSettings, execute_pick
 from sim.objects import get_object_spec, grasp_pose
 from sim.planning import object_obstacles, table_obstacle

@@ -5,7 +5,7 @@ from conftest import top_down
 
 from control.collision import Obstacle, ShapeKind
 from control.errors import InvalidInputError
-from control.planner import GripperCommand, PickPlannerConfig, PickRequest, PlanStatus
+from control.pick import GripperCommand, PickPlannerConfig, PickRequest, PlanStatus
 from robots import yumi
 
 TABLE = Obstacle("table", ShapeKind.BOX, (1.5, 1.0, 0.05),

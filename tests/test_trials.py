@@ -96,3 +96,21 @@ def test_oracle_trials_succeed_and_resume(tmp_path):
     assert summary.successes == 4, [json.loads(line)["reason"] for line in lines]
     stored = json.loads((tmp_path / "summary.json").read_text())
     assert stored["successes"] == 4 and stored["n"] == 4
+
+
+def test_grasp_of_a_missing_object_is_a_recorded_outcome():
+    class AsksFor(OraclePerception):
+        def __init__(self, object_type, *args):
+            super().__init__(*args)
+            self.condition = Condition(ConditionKind.OBJECT_TYPE, object_type, OBJECT_TYPES)
+
+        def predict(self, image, condition=None):
+            return super().predict(image, self.condition)
+
+    with TrialRunner(TrialSettings("oracle", "single", 1, 0)) as runner:
+        present = runner.scene(0).objects[0].object_type
+        missing = next(t for t in OBJECT_TYPES if t != present)
+        runner.model = AsksFor(missing, runner.world, runner.camera)
+        record = runner.run(0)
+    assert record.outcome.value == "perception_failed"
+    assert f"object_type = '{missing}' names no object in the scene" in record.reason
