@@ -6,8 +6,9 @@ table, the objects that are not the target).
 
 from __future__ import annotations
 
+import contextlib
 import enum
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -161,6 +162,27 @@ class CollisionChecker:
             request.security_margin = self.margin_m
         self._names = self._link_names + [o.name for o in self.obstacles]
         self._data = self.robot.model.createData()
+
+    @contextlib.contextmanager
+    def ignoring(self, obstacle_names: Iterable[str]) -> Iterator[None]:
+        """Checks inside the block skip the pairs that involve the named obstacles.
+
+        E.g. the pick's target, which the fingers close around once the hand descends.
+        """
+        names = set(obstacle_names)
+        unknown = names - {o.name for o in self.obstacles}
+        if unknown:
+            raise InvalidInputError("obstacle_names", sorted(unknown),
+                                    "names of obstacles set with set_obstacles")
+        skipped = [i for i, pair in enumerate(self._geom.collisionPairs)
+                   if self._names[pair.second] in names and pair.second >= len(self._link_names)]
+        for index in skipped:
+            self._geom_data.deactivateCollisionPair(index)
+        try:
+            yield
+        finally:
+            for index in skipped:
+                self._geom_data.activateCollisionPair(index)
 
     @property
     def pair_count(self) -> int:

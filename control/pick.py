@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import enum
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import KW_ONLY, dataclass
 
 import numpy as np
 import pinocchio as pin
@@ -74,6 +74,9 @@ class PickPlannerConfig:
             grasp and lift) solutions; a larger one means IK jumped to another branch.
         via_heights_m: Heights above the pre-grasp (or lift) pose of the via poses tried, in
             order, when the direct approach (or retreat) collides [m].
+        pregrasp_scales: Fractions of the pre-grasp distance tried in order, per arm: near the
+            robot a long back-off can put the wrist on the robot's own body, while far away a
+            short one can bring the open fingers down next to the target.
         seed: Seeds the random IK restarts.
 
     """
@@ -87,6 +90,7 @@ class PickPlannerConfig:
     max_straight_deviation_m: float = 0.005
     max_joint_jump_rad: float = 1.0
     via_heights_m: tuple[float, ...] = (0.12, 0.22)
+    pregrasp_scales: tuple[float, ...] = (1.0, 0.6)
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -95,6 +99,9 @@ class PickPlannerConfig:
         for name in positive:
             if getattr(self, name) <= 0.0:
                 raise InvalidInputError(name, getattr(self, name), "a value > 0")
+        if not self.pregrasp_scales or not all(0.0 < f <= 1.0 for f in self.pregrasp_scales):
+            raise InvalidInputError("pregrasp_scales", self.pregrasp_scales,
+                                    "a non-empty tuple of fractions in (0, 1]")
         for name in ("transit_velocity_scale", "straight_velocity_scale"):
             if not 0.0 < getattr(self, name) <= 1.0:
                 raise InvalidInputError(name, getattr(self, name), "a fraction in (0, 1]")
@@ -110,6 +117,11 @@ class PickRequest:
         T_world_grasp: TCP pose at the grasp (z axis = approach direction).
         q_start: Full start configuration of the robot.
         obstacles: Everything the robot must not touch: table, other objects.
+        target_obstacles: The target's own shapes: avoided on the approach, ignored from the
+            descend on (the fingers close around the target and carry it).
+        alternatives: Other TCP poses that pick the target as well (e.g. a rotationally
+            symmetric object's grasp turned about its axis), tried in order when the primary
+            grasp fails on every arm.
         finger_opening_m: Finger joint value while approaching [m] (gap = 2 x this).
         pregrasp_distance_m: Back-off for this grasp; None takes the planner's default.
 
@@ -117,7 +129,10 @@ class PickRequest:
 
     T_world_grasp: pin.SE3
     q_start: np.ndarray
+    _: KW_ONLY
     obstacles: tuple[Obstacle, ...] = ()
+    target_obstacles: tuple[Obstacle, ...] = ()
+    alternatives: tuple[pin.SE3, ...] = ()
     finger_opening_m: float = 0.025
     pregrasp_distance_m: float | None = None
 

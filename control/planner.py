@@ -67,6 +67,7 @@ class PickPlanner:
         if not arms:
             raise InvalidInputError("arms", dict(arms), "at least one arm")
         self.robot, self.checker, self.arms = robot, checker, dict(arms)
+        self._target_names: list[str] = []
         self.config = config or PickPlannerConfig()
         options = ik_options or IkOptions()
         self._ik = {name: ArmIk(robot, spec.joints, spec.tcp_frame, options)
@@ -91,7 +92,8 @@ class PickPlanner:
         for spec in self.arms.values():
             for finger in spec.finger_joints:
                 q0[self.robot.joint_index(finger)] = request.finger_opening_m
-        self.checker.set_obstacles(request.obstacles)
+        self.checker.set_obstacles(request.obstacles + request.target_obstacles)
+        self._target_names = [o.name for o in request.target_obstacles]
         start_report = self.checker.check(q0)
         if start_report.in_collision:
             return PlanResult(PlanStatus.START_IN_COLLISION, start_report.describe(),
@@ -101,19 +103,25 @@ class PickPlanner:
         reasons: list[str] = []
         tried = 0
         any_ik = False
-        for arm in self._arms_by_distance(q0, request.T_world_grasp.translation):
-            candidates = self._candidates(arm, request.T_world_grasp, q0, pregrasp, rng)
-            if not candidates:
-                reasons.append(f"arm {arm}: no in-limit IK solution for pre-grasp, grasp and lift")
-                continue
-            any_ik = True
-            for candidate in candidates:
-                tried += 1
-                plan, report = self._timed_plan(candidate, q0)
-                if plan is not None:
-                    return PlanResult(PlanStatus.SUCCESS, f"arm {arm}", plan,
-                                      time.perf_counter() - started, tried)
-                reasons.append(f"arm {arm}: {report}")
+        for number, T_grasp in enumerate((request.T_world_grasp, *request.alternatives)):
+            grasp_name = "grasp" if number == 0 else f"alternative {number}"
+            for arm in self._arms_by_distance(q0, T_grasp.translation):
+                for scale in self.config.pregrasp_scales:
+                    distance_m = scale * pregrasp
+                    candidates = self._candidates(arm, T_grasp, q0, distance_m, rng)
+                    if not candidates:
+                        reasons.append(f"arm {arm}, {grasp_name}: no in-limit IK solution for "
+                                       f"pre-grasp ({100 * distance_m:.0f} cm back), grasp and "
+                                       "lift")
+                        continue
+                    any_ik = True
+                    for candidate in candidates:
+                        tried += 1
+                        plan, report = self._timed_plan(candidate, q0)
+                        if plan is not None:
+                            return PlanResult(PlanStatus.SUCCESS, f"arm {arm}, {grasp_name}",
+                                              plan, time.perf_counter() - started, tried)
+                        reasons.append(f"arm {arm}, {grasp_name}: {report}")
         status = PlanStatus.COLLISION if any_ik else PlanStatus.UNREACHABLE
         return PlanResult(status, "; ".join(reasons[:4]), None, time.perf_counter() - started,
                           tried)
@@ -163,12 +171,19 @@ class PickPlanner:
         return result
 
     def _timed_plan(self, c: _Candidate, q0: np.ndarray) -> tuple[PickPlan | None, str]:
+        fast = self._limits[(c.arm, self.config.transit_velocity_scale)]
+        approach, blocked = self._transit(c.arm, q0, c.q_pre, fast)
+        if approach is None:
+            return None, f"approach: {blocked.describe()}, and no via pose clears it"
+        with self.checker.ignoring(self._target_names):  # from here the hand holds the target
+            return self._timed_rest(c, q0, approach)
+
+    def _timed_rest(
+        self, c: _Candidate, q0: np.ndarray, approach: JointTrajectory
+    ) -> tuple[PickPlan | None, str]:
         arm = c.arm
         fast = self._limits[(arm, self.config.transit_velocity_scale)]
         slow = self._limits[(arm, self.config.straight_velocity_scale)]
-        approach, blocked = self._transit(arm, q0, c.q_pre, fast)
-        if approach is None:
-            return None, f"approach: {blocked.describe()}, and no via pose clears it"
         descend = self._straight(arm, c.q_pre, c.q_grasp, slow)
         if descend is None:
             return None, "descend leaves the straight line and IK cannot follow it"
@@ -198,8 +213,10 @@ class PickPlanner:
 
         Returns the trajectory (None if every option collides) and the direct path's report.
 
-        The via poses lift the far end's TCP straight up: a straight joint-space line from the
-        start can swing the hand through the robot's own body, and going up first clears it.
+        A straight joint-space line from the start can swing the hand through the robot's own
+        body or through the target. The via poses lift the TCP straight up, at the far end, at
+        the start, or at both (start first), tried in that order for each height in
+        ``via_heights_m``; the first option whose whole path is clear wins.
         """
         index = self._indices[arm]
         ends = (q_far, q0) if reverse else (q0, q_far)
@@ -207,17 +224,26 @@ class PickPlanner:
         report = self._check(arm, q0, direct)
         if not report.in_collision:
             return direct, report
-        T_far = self.robot.frame_pose(q_far, self.arms[arm].tcp_frame)
         for height_m in self.config.via_heights_m:
-            raised = pin.SE3(np.eye(3), np.array([0.0, 0.0, height_m])) * T_far
-            via = self._ik[arm].solve(raised, q_far)
-            if not via.solved:
-                continue
-            points = [ends[0][index], via.q[index], ends[1][index]]
-            path = plan_through(points, limits, self.config.dt_s)
-            if not self._check(arm, q0, path).in_collision:
-                return path, report
+            near_via = self._raised(arm, q0, height_m)
+            far_via = self._raised(arm, q_far, height_m)
+            options = [[far_via], [near_via], [near_via, far_via]]
+            for vias in options:
+                if any(v is None for v in vias):
+                    continue
+                middle = [v[index] for v in vias if v is not None]
+                points = [ends[0][index], *(middle[::-1] if reverse else middle), ends[1][index]]
+                path = plan_through(points, limits, self.config.dt_s)
+                if not self._check(arm, q0, path).in_collision:
+                    return path, report
         return None, report
+
+    def _raised(self, arm: str, q: np.ndarray, height_m: float) -> np.ndarray | None:
+        """The configuration with the TCP ``height_m`` straight above where ``q`` puts it."""
+        T_tcp = self.robot.frame_pose(q, self.arms[arm].tcp_frame)
+        raised = pin.SE3(np.eye(3), np.array([0.0, 0.0, height_m])) * T_tcp
+        via = self._ik[arm].solve(raised, q)  # no jump limit: the path to it is checked
+        return via.q if via.solved else None
 
     def _check(self, arm: str, q0: np.ndarray, trajectory: JointTrajectory) -> CollisionReport:
         full = np.repeat(q0[None, :], len(trajectory.times_s), axis=0)  # (N, nq)

@@ -28,10 +28,12 @@ def full_path(planner, plan, q_start):
 @pytest.mark.parametrize("x", [0.32, 0.42, 0.52])
 @pytest.mark.parametrize("y", [-0.2, -0.05, 0.05, 0.2])
 def test_top_down_grasps_over_the_workspace_are_planned(yumi_planner, yumi_home, x, y):
-    result = yumi_planner.plan(PickRequest(top_down(x, y, 0.035), yumi_home, (TABLE,)))
+    request = PickRequest(top_down(x, y, 0.035), yumi_home, obstacles=(TABLE,))
+    result = yumi_planner.plan(request)
     assert result.status is PlanStatus.SUCCESS, result.reason
     plan = result.plan
     assert plan.arm == ("l" if y > 0 else "r")  # the nearer arm
+    assert result.reason == f"arm {plan.arm}, grasp"
     assert [s.name for s in plan.segments] == ["approach", "descend", "lift", "retreat"]
     assert plan.segment("approach").gripper_before is GripperCommand.OPEN
     assert plan.segment("lift").gripper_before is GripperCommand.CLOSE
@@ -42,7 +44,8 @@ def test_top_down_grasps_over_the_workspace_are_planned(yumi_planner, yumi_home,
 
 
 def test_plan_stays_in_limits_and_is_collision_free_at_every_sample(yumi_planner, yumi_home):
-    result = yumi_planner.plan(PickRequest(top_down(0.45, -0.1, 0.035), yumi_home, (TABLE,)))
+    request = PickRequest(top_down(0.45, -0.1, 0.035), yumi_home, obstacles=(TABLE,))
+    result = yumi_planner.plan(request)
     assert result.ok
     checker = yumi_planner.checker
     checker.set_obstacles([TABLE])
@@ -56,7 +59,7 @@ def test_plan_stays_in_limits_and_is_collision_free_at_every_sample(yumi_planner
 
 def test_descend_and_lift_follow_straight_lines(yumi_planner, yumi_home):
     grasp = top_down(0.40, 0.15, 0.035, yaw=0.3)
-    result = yumi_planner.plan(PickRequest(grasp, yumi_home, (TABLE,)))
+    result = yumi_planner.plan(PickRequest(grasp, yumi_home, obstacles=(TABLE,)))
     assert result.ok
     plan, robot = result.plan, yumi_planner.robot
     frame = yumi.TCP_FRAME[plan.arm]
@@ -72,23 +75,25 @@ def test_descend_and_lift_follow_straight_lines(yumi_planner, yumi_home):
 
 
 def test_unreachable_grasp_is_a_named_status_not_an_exception(yumi_planner, yumi_home):
-    result = yumi_planner.plan(PickRequest(top_down(1.2, 0.0, 0.035), yumi_home, (TABLE,)))
+    request = PickRequest(top_down(1.2, 0.0, 0.035), yumi_home, obstacles=(TABLE,))
+    result = yumi_planner.plan(request)
     assert result.status is PlanStatus.UNREACHABLE
     assert result.plan is None
-    assert "arm r: no in-limit IK solution" in result.reason
-    assert "arm l: no in-limit IK solution" in result.reason
+    assert "arm r, grasp: no in-limit IK solution for pre-grasp (8 cm back)" in result.reason
+    assert "arm l, grasp: no in-limit IK solution" in result.reason
 
 
 def test_grasp_inside_an_obstacle_is_reported_as_collision(yumi_planner, yumi_home):
     crate = box("crate", (0.12, 0.12, 0.20), (0.42, -0.10, 0.10))
-    result = yumi_planner.plan(PickRequest(top_down(0.42, -0.10, 0.035), yumi_home, (TABLE, crate)))
+    request = PickRequest(top_down(0.42, -0.10, 0.035), yumi_home, obstacles=(TABLE, crate))
+    result = yumi_planner.plan(request)
     assert result.status is PlanStatus.COLLISION
     assert "crate" in result.reason
 
 
 def test_obstacle_on_the_direct_path_is_avoided_or_reported(yumi_planner, yumi_home):
     grasp = top_down(0.45, -0.12, 0.035)
-    free = yumi_planner.plan(PickRequest(grasp, yumi_home, (TABLE,)))
+    free = yumi_planner.plan(PickRequest(grasp, yumi_home, obstacles=(TABLE,)))
     assert free.ok
     # Put a block on the free plan's approach, as early as leaves the (open-handed) start clear.
     path = full_path(yumi_planner, free.plan, yumi_home)
@@ -105,7 +110,7 @@ def test_obstacle_on_the_direct_path_is_avoided_or_reported(yumi_planner, yumi_h
             break
     assert not yumi_planner.checker.check(q_open).in_collision
     assert yumi_planner.checker.check_path(approach).in_collision  # the direct path is blocked
-    result = yumi_planner.plan(PickRequest(grasp, yumi_home, (TABLE, block)))
+    result = yumi_planner.plan(PickRequest(grasp, yumi_home, obstacles=(TABLE, block)))
     assert result.status in (PlanStatus.SUCCESS, PlanStatus.COLLISION)
     if result.ok:
         yumi_planner.checker.set_obstacles([TABLE, block])
@@ -115,8 +120,9 @@ def test_obstacle_on_the_direct_path_is_avoided_or_reported(yumi_planner, yumi_h
 
 def test_start_in_collision_is_reported(yumi_planner, yumi_home, yumi_model):
     tcp = yumi_model.frame_pose(yumi_home, yumi.TCP_FRAME["r"]).translation
+    crate = box("crate", (0.1, 0.1, 0.1), tcp)
     result = yumi_planner.plan(PickRequest(top_down(0.4, 0.0, 0.035), yumi_home,
-                                           (TABLE, box("crate", (0.1, 0.1, 0.1), tcp))))
+                                           obstacles=(TABLE, crate)))
     assert result.status is PlanStatus.START_IN_COLLISION
     assert "crate" in result.reason
 
