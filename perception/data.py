@@ -1,0 +1,435 @@
+"""One file per dataset: images, conditions, labels and scene records, written and read strictly.
+
+A dataset file is a single safetensors file::
+
+    images      uint8   (N, H, W, 3)  RGB, row 0 at the top
+    conditions  float32 (N, C)        one-hot rows in ``condition_choices`` order (C = 0 allowed)
+    labels      float32 (N, q, D)     D = 3 (x, y, z [m]) or 12 (then the 3x3 TCP rotation,
+                                      row-major); see :func:`label_vector`
+    __metadata__ = {"gva.dataset": JSON {"metadata": {...}, "scenes": [...],
+                                         "contents_sha256": "..."}}
+
+One metadata entry, not three, because safetensors writes ``__metadata__`` from a hash map whose
+order changes from call to call; inside it the JSON has sorted keys, so the same dataset always
+gives the same bytes. The SHA-256 covers the metadata, the scene records and every tensor byte,
+so a file changed after writing (a flipped pixel, an edited seed) is refused, which safetensors'
+own header check would not catch. :func:`load_dataset` checks everything else it can before use:
+truncation, format version, shapes and dtypes against the metadata, and what the caller expects.
+"""
+
+from __future__ import annotations
+
+import enum
+import hashlib
+import json
+import os
+import secrets
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, fields, replace
+from numbers import Integral
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+from safetensors import SafetensorError, safe_open
+from safetensors.numpy import save_file
+
+from perception.interface import ConditionKind, InvalidInputError, LabelKind, PerceptionError
+
+FORMAT_VERSION = 1
+HEADER_KEY = "gva.dataset"  # the one safetensors metadata entry this module reads and writes
+LABEL_DIMS: Mapping[LabelKind, int] = {LabelKind.POSITION: 3, LabelKind.GRASP_POSE: 12}
+ROTATION_TOLERANCE = 1e-4  # |R Rᵀ - I|: float32 rounding of a true rotation stays near 1e-7
+_TENSORS = ("images", "conditions", "labels")
+_NAMES = ", ".join(_TENSORS)
+_CODES = {np.dtype(np.uint8): "U8", np.dtype(np.float32): "F32"}  # safetensors' dtype names
+_RECORD_KEYS = {"metadata", "scenes", "contents_sha256"}
+_MAX_HEADER_BYTES = 100_000_000  # safetensors' own limit
+
+
+class DatasetError(PerceptionError):
+    """A dataset file that cannot be used: missing, damaged, truncated, changed or not as asked."""
+
+    def __init__(self, path: Path, problem: str) -> None:
+        self.path, self.problem = path, problem
+        super().__init__(f"dataset {path}: {problem}")
+
+
+class Label(NamedTuple):
+    """A label split into its parts (shared by dataset writers and models)."""
+
+    position_m: np.ndarray  # (..., 3) [m], world frame
+    rotation: np.ndarray | None  # (..., 3, 3) TCP rotation (columns: TCP axes); None: position
+
+
+def label_vector(position_m: np.ndarray, rotation: np.ndarray | None = None) -> np.ndarray:
+    """The float32 label layout: (..., 3) position [m], or (..., 12) with the rotation row-major."""
+    position = np.asarray(position_m, dtype=np.float64)
+    if position.ndim < 1 or position.shape[-1] != 3 or not np.all(np.isfinite(position)):
+        raise InvalidInputError("position_m", position.tolist(), "finite values of shape (..., 3)")
+    if rotation is None:
+        return position.astype(np.float32)
+    matrix = np.asarray(rotation, dtype=np.float64)
+    if matrix.shape != (*position.shape[:-1], 3, 3):
+        raise InvalidInputError("rotation", f"shape {matrix.shape}",
+                                f"shape {(*position.shape[:-1], 3, 3)} to match position_m")
+    _check_rotations("rotation", matrix)
+    flat = matrix.reshape(*position.shape[:-1], 9)
+    return np.concatenate([position, flat], axis=-1).astype(np.float32)
+
+
+def split_label(vector: np.ndarray) -> Label:
+    """The position and (for 12-long labels) rotation in ``vector`` (..., 3) or (..., 12)."""
+    array = np.asarray(vector)
+    if array.ndim < 1 or array.shape[-1] not in (3, 12):
+        raise InvalidInputError("label", f"shape {array.shape}", "shape (..., 3) or (..., 12)")
+    if array.shape[-1] == 3:
+        return Label(array[..., :3], None)
+    return Label(array[..., :3], array[..., 3:].reshape(*array.shape[:-1], 3, 3))
+
+
+@dataclass(frozen=True)
+class DatasetMetadata:
+    """What a dataset holds and how it was made; a reader checks it before use.
+
+    Args:
+        scene: The scene family the images show (``"paper-sim"``, ``"yumi"``, ...).
+        task: The task name (``"selected-type"``, ...).
+        size: N, the number of samples.
+        seed: The seed the scenes were drawn from (train and test seeds differ).
+        image_height_px: H, image rows.
+        image_width_px: W, image columns.
+        label_kind: What each label holds; it fixes :attr:`label_dim`.
+        targets: q, targets per sample.
+        condition_kind: What the condition names.
+        condition_choices: The one-hot order; () exactly when ``condition_kind`` is none.
+        camera: JSON-able camera description (placement, field of view, ...).
+        extra: Anything else JSON-able worth keeping (e.g. how many demonstrations were redrawn).
+        format_version: The file format; this gva reads and writes :data:`FORMAT_VERSION` only.
+
+    ``camera`` and ``extra`` are kept in their JSON form (tuples become lists), so what is loaded
+    equals what was saved.
+
+    """
+
+    scene: str
+    task: str
+    size: int
+    seed: int
+    image_height_px: int
+    image_width_px: int
+    label_kind: LabelKind
+    targets: int
+    condition_kind: ConditionKind
+    condition_choices: tuple[str, ...]
+    camera: dict[str, Any]
+    extra: dict[str, Any] = field(default_factory=dict)
+    format_version: int = FORMAT_VERSION
+
+    def __post_init__(self) -> None:
+        for name in ("scene", "task"):
+            if not isinstance(getattr(self, name), str) or not getattr(self, name):
+                raise InvalidInputError(name, getattr(self, name), "a non-empty string")
+        for name, least in (("size", 0), ("seed", 0), ("image_height_px", 1),
+                            ("image_width_px", 1), ("targets", 1), ("format_version", 0)):
+            value = getattr(self, name)
+            if not isinstance(value, Integral) or isinstance(value, bool) or value < least:
+                raise InvalidInputError(name, value, f"an integer >= {least}")
+            object.__setattr__(self, name, int(value))
+        if self.format_version != FORMAT_VERSION:
+            raise InvalidInputError("format_version", self.format_version,
+                                    f"{FORMAT_VERSION}, the only version this gva writes")
+        for name, kind in (("label_kind", LabelKind), ("condition_kind", ConditionKind)):
+            if not isinstance(getattr(self, name), kind):
+                allowed = ", ".join(f"{kind.__name__}.{member.name}" for member in kind)
+                raise InvalidInputError(name, getattr(self, name), f"one of {allowed}")
+        choices = self.condition_choices
+        if isinstance(choices, str) or not isinstance(choices, Sequence) or not all(
+                isinstance(choice, str) and choice for choice in choices):
+            raise InvalidInputError("condition_choices", choices, "a tuple of non-empty strings")
+        if len(set(choices)) != len(choices):
+            raise InvalidInputError("condition_choices", choices, "distinct names")
+        if (self.condition_kind is ConditionKind.NONE) != (len(choices) == 0):
+            raise InvalidInputError("condition_choices", choices, "() exactly when condition_kind"
+                                    f" is none (condition_kind is {self.condition_kind.value})")
+        object.__setattr__(self, "condition_choices", tuple(choices))
+        object.__setattr__(self, "camera", _json_form("camera", self.camera))
+        object.__setattr__(self, "extra", _json_form("extra", self.extra))
+
+    @property
+    def label_dim(self) -> int:
+        """D, the length of one target's label: 3 for a position, 12 for a grasp pose."""
+        return LABEL_DIMS[self.label_kind]
+
+
+@dataclass(frozen=True, eq=False)
+class Dataset:
+    """Samples of one task in one scene, as a dataset file keeps them.
+
+    Args:
+        metadata: What the samples are; every shape below follows from it.
+        images: (N, H, W, 3) uint8 RGB, row 0 at the top.
+        conditions: (N, C) float32 one-hot rows in ``metadata.condition_choices`` order.
+        labels: (N, q, D) float32 in the :func:`label_vector` layout.
+        scenes: One JSON-able record per sample (object types and poses, targets, condition),
+            kept in JSON form like ``metadata.camera``.
+
+    """
+
+    metadata: DatasetMetadata
+    images: np.ndarray  # (N, H, W, 3) uint8
+    conditions: np.ndarray  # (N, C) float32
+    labels: np.ndarray  # (N, q, D) float32
+    scenes: tuple[dict[str, Any], ...]
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.metadata, DatasetMetadata):
+            raise InvalidInputError("metadata", type(self.metadata).__name__, "a DatasetMetadata")
+        for name, (dtype, shape, layout) in _expected_arrays(self.metadata).items():
+            array = getattr(self, name)
+            found = f"{getattr(array, 'dtype', type(array).__name__)} {np.shape(array)}"
+            if not isinstance(array, np.ndarray) or array.dtype != dtype or array.shape != shape:
+                raise InvalidInputError(name, found, f"{dtype} {layout} = {shape} from metadata")
+        one_hot = (self.conditions.sum(axis=1) == 1) & np.isin(self.conditions, (0, 1)).all(axis=1)
+        if self.conditions.shape[1] and not one_hot.all():
+            row = int(np.flatnonzero(~one_hot)[0])
+            raise InvalidInputError(f"conditions[{row}]", self.conditions[row].tolist(),
+                                    "a one-hot row: one 1.0, the rest 0.0")
+        if not np.all(np.isfinite(self.labels)):
+            raise InvalidInputError("labels", "non-finite values", "finite values")
+        rotation = split_label(self.labels).rotation
+        if rotation is not None:
+            _check_rotations("labels", rotation)
+        if isinstance(self.scenes, str | Mapping) or not isinstance(self.scenes, Sequence):
+            raise InvalidInputError("scenes", type(self.scenes).__name__, "a tuple of dicts")
+        if len(self.scenes) != self.metadata.size:
+            raise InvalidInputError("scenes", f"{len(self.scenes)} records",
+                                    f"one per sample ({self.metadata.size})")
+        records = tuple(_json_form(f"scenes[{i}]", s) for i, s in enumerate(self.scenes))
+        object.__setattr__(self, "scenes", records)
+
+    def __len__(self) -> int:
+        return self.metadata.size
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Dataset):
+            return NotImplemented
+        return (self.metadata == other.metadata and self.scenes == other.scenes
+                and all(np.array_equal(getattr(self, n), getattr(other, n)) for n in _TENSORS))
+
+    def subset(self, indices: Sequence[int] | np.ndarray) -> Dataset:
+        """The samples at ``indices``, in that order (e.g. the first 4 of 100); size follows."""
+        index = np.asarray(indices)
+        if index.ndim != 1 or (index.size and not np.issubdtype(index.dtype, np.integer)):
+            raise InvalidInputError("indices", index.tolist(), "a 1-D sequence of integers")
+        index = index.astype(np.intp)
+        wrong = index[(index < 0) | (index >= len(self))]
+        if wrong.size:
+            raise InvalidInputError("indices", wrong.tolist(), f"integers in [0, {len(self)})")
+        if np.unique(index).size != index.size:
+            raise InvalidInputError("indices", index.tolist(), "distinct sample indices")
+        return Dataset(replace(self.metadata, size=int(index.size)), self.images[index],
+                       self.conditions[index], self.labels[index],
+                       tuple(self.scenes[i] for i in index))
+
+
+def save_dataset(dataset: Dataset, path: str | Path) -> Path:
+    """Writes ``dataset`` to ``path`` (parents created) atomically; the same data, the same bytes.
+
+    The file appears under its name only once complete: it is written to a temporary file in the
+    same folder, flushed to disk, then renamed over ``path``.
+    """
+    if not isinstance(dataset, Dataset):
+        raise InvalidInputError("dataset", type(dataset).__name__, "a Dataset")
+    path = Path(path)
+    tensors = {name: np.ascontiguousarray(getattr(dataset, name)) for name in _TENSORS}
+    metadata = {f.name: _plain(getattr(dataset.metadata, f.name)) for f in fields(DatasetMetadata)}
+    record: dict[str, Any] = {"metadata": metadata, "scenes": list(dataset.scenes)}
+    record["contents_sha256"] = _contents_sha256(record, tensors)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temporary = path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.tmp")
+    try:
+        save_file(tensors, str(temporary), metadata={HEADER_KEY: _canonical(record)})
+        with temporary.open("rb+") as file:
+            os.fsync(file.fileno())
+        os.replace(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)
+    return path
+
+
+def read_metadata(path: str | Path) -> DatasetMetadata:
+    """The metadata of the dataset at ``path``, from its header alone (no image is read)."""
+    path = Path(path)
+    return _metadata_from_json(path, _read_record(path, _read_header(path))["metadata"])
+
+
+def load_dataset(path: str | Path, expect: Mapping[str, Any] | None = None) -> Dataset:
+    """The dataset at ``path``, checked in full; ``expect`` maps metadata fields to required values.
+
+    Raises:
+        InvalidInputError: ``expect`` names a field :class:`DatasetMetadata` does not have.
+        DatasetError: The file cannot be used; the message says what is wrong and what was expected.
+
+    """
+    path, expect = Path(path), dict(expect or {})
+    names = [f.name for f in fields(DatasetMetadata)]
+    if unknown := sorted(set(expect) - set(names)):
+        raise InvalidInputError("expect", unknown, f"metadata fields: {', '.join(names)}")
+    header = _read_header(path)
+    record = _read_record(path, header)
+    metadata = _metadata_from_json(path, record["metadata"])
+    mismatches = [f"{name} is {record['metadata'][name]!r} in the file, expected {_plain(value)!r}"
+                  for name, value in expect.items() if record["metadata"][name] != _plain(value)]
+    if mismatches:
+        raise DatasetError(path, "not the dataset asked for: " + "; ".join(mismatches))
+    entries = {name: entry for name, entry in header.items() if name != "__metadata__"}
+    if missing := sorted(set(_TENSORS) - set(entries)):
+        raise DatasetError(path, f"lacks tensors {', '.join(missing)}; it needs {_NAMES}")
+    if extra := sorted(set(entries) - set(_TENSORS)):
+        raise DatasetError(path, f"has unexpected tensors {', '.join(extra)}; it holds {_NAMES}")
+    for name, (dtype, shape, layout) in _expected_arrays(metadata).items():
+        found = (entries[name].get("dtype"), tuple(entries[name].get("shape", ())))
+        if found != (_CODES[dtype], shape):
+            raise DatasetError(path, f"tensor {name} is {found[0]} of shape {found[1]}; the "
+                               f"metadata says {_CODES[dtype]} {layout} = {shape}")
+    try:
+        with safe_open(str(path), framework="numpy") as file:
+            tensors = {name: file.get_tensor(name) for name in _TENSORS}
+    except (SafetensorError, OSError) as error:
+        raise DatasetError(path, f"safetensors cannot read it: {error}") from error
+    if _contents_sha256(record, tensors) != record["contents_sha256"]:
+        raise DatasetError(path, "contents do not match their checksum: the file was changed or "
+                           "damaged after it was written")
+    try:
+        return Dataset(metadata, scenes=tuple(record["scenes"]), **tensors)
+    except InvalidInputError as error:
+        raise DatasetError(path, f"holds data a dataset cannot have: {error}") from error
+
+
+def _read_header(path: Path) -> dict[str, Any]:
+    """The safetensors header JSON of ``path``, after checking the file is whole."""
+    if not path.is_file():
+        raise DatasetError(path, "not a file" if path.exists() else "no such file")
+    size = path.stat().st_size
+    with path.open("rb") as file:
+        length = int.from_bytes(file.read(8), "little")
+        if file.read(1) != b"{" or length > _MAX_HEADER_BYTES:
+            raise DatasetError(path, "not a safetensors file: it does not start with an 8-byte "
+                               "header length followed by a JSON header")
+        if length > size - 8:
+            raise DatasetError(path, f"truncated: {size} bytes, but the header alone needs "
+                               f"{8 + length}")
+        raw = b"{" + file.read(length - 1)
+    try:
+        header = json.loads(raw.decode("utf-8"))
+        ends = [int(entry["data_offsets"][1]) for name, entry in header.items()
+                if name != "__metadata__"]
+    except (UnicodeDecodeError, ValueError, TypeError, KeyError, IndexError,
+            AttributeError) as error:
+        raise DatasetError(path, f"the header JSON is damaged ({error})") from error
+    expected_size = 8 + length + max(ends, default=0)
+    if size != expected_size:
+        state = "truncated" if size < expected_size else "longer than its header says"
+        raise DatasetError(path, f"{state}: {size} bytes, the header describes {expected_size}")
+    return dict(header)
+
+
+def _read_record(path: Path, header: Mapping[str, Any]) -> dict[str, Any]:
+    """The gva record in ``header``, its format version checked first."""
+    entries = header.get("__metadata__")
+    text = entries.get(HEADER_KEY) if isinstance(entries, dict) else None
+    if not isinstance(text, str):
+        raise DatasetError(path, f"not a gva dataset: no {HEADER_KEY!r} entry in its metadata")
+    try:
+        record = json.loads(text)
+    except ValueError as error:
+        raise DatasetError(path, f"the {HEADER_KEY!r} JSON is damaged ({error})") from error
+    metadata = record.get("metadata") if isinstance(record, dict) else None
+    if not isinstance(metadata, dict):
+        raise DatasetError(path, f"the {HEADER_KEY!r} entry lacks its metadata object")
+    version = metadata.get("format_version")
+    if version != FORMAT_VERSION:
+        raise DatasetError(path, f"written by format version {version}; this gva reads version "
+                           f"{FORMAT_VERSION}")
+    if missing := sorted(_RECORD_KEYS - set(record)):
+        raise DatasetError(path, f"the {HEADER_KEY!r} entry lacks {', '.join(missing)}")
+    names = {f.name for f in fields(DatasetMetadata)}
+    if missing := sorted(names - set(metadata)):
+        raise DatasetError(path, f"metadata lacks keys {', '.join(missing)}; "
+                           f"version {FORMAT_VERSION} has {', '.join(sorted(names))}")
+    if unknown := sorted(set(metadata) - names):
+        raise DatasetError(path, f"metadata has unknown keys {', '.join(unknown)}; "
+                           f"version {FORMAT_VERSION} has {', '.join(sorted(names))}")
+    return dict(record)
+
+
+def _metadata_from_json(path: Path, data: Mapping[str, Any]) -> DatasetMetadata:
+    """The metadata in its JSON form ``data`` (keys already checked), validated."""
+    values, choices = dict(data), data["condition_choices"]
+    values["condition_choices"] = tuple(choices) if isinstance(choices, list) else choices
+    try:
+        for name, kind in (("label_kind", LabelKind), ("condition_kind", ConditionKind)):
+            try:
+                values[name] = kind(data[name])
+            except (ValueError, TypeError):
+                allowed = ", ".join(member.value for member in kind)
+                raise InvalidInputError(name, data[name], f"one of {allowed}") from None
+        return DatasetMetadata(**values)
+    except InvalidInputError as error:
+        raise DatasetError(path, f"metadata is not valid: {error}") from error
+
+
+def _plain(value: Any) -> Any:
+    """``value`` as it reads back from JSON (enums by value, tuples as lists)."""
+    if isinstance(value, enum.Enum):
+        return value.value
+    if isinstance(value, tuple | list):
+        return [_plain(item) for item in value]
+    return value
+
+
+def _expected_arrays(metadata: DatasetMetadata) -> dict[str, tuple[np.dtype, tuple, str]]:
+    """Per tensor: the dtype, the shape and its symbolic layout the metadata implies."""
+    n, h, w, q = metadata.size, metadata.image_height_px, metadata.image_width_px, metadata.targets
+    return {
+        "images": (np.dtype(np.uint8), (n, h, w, 3), "(N, H, W, 3)"),
+        "conditions": (np.dtype(np.float32), (n, len(metadata.condition_choices)), "(N, C)"),
+        "labels": (np.dtype(np.float32), (n, q, metadata.label_dim), "(N, q, D)"),
+    }
+
+
+def _json_form(name: str, value: Any) -> dict[str, Any]:
+    """A copy of the dict ``value`` as it reads back from JSON; an error unless JSON-able."""
+    if not isinstance(value, Mapping):
+        raise InvalidInputError(name, type(value).__name__, "a JSON-able dict")
+    try:
+        return dict(json.loads(_canonical(value)))
+    except (TypeError, ValueError) as error:
+        raise InvalidInputError(name, str(error), "JSON-able values: dicts with str keys, lists, "
+                                "str, int, finite float, bool, None") from error
+
+
+def _canonical(value: Any) -> str:
+    """The one JSON text of ``value``: sorted keys, no spaces, no NaN."""
+    return json.dumps(value, sort_keys=True, separators=(",", ":"), allow_nan=False)
+
+
+def _contents_sha256(record: Mapping[str, Any], tensors: Mapping[str, np.ndarray]) -> str:
+    """SHA-256 over the metadata, the scene records and each tensor's dtype, shape and bytes."""
+    digest = hashlib.sha256(_canonical([record["metadata"], record["scenes"]]).encode())
+    for name in _TENSORS:
+        array = np.ascontiguousarray(tensors[name])
+        digest.update(f"\n{name} {array.dtype.str} {array.shape}\n".encode())
+        digest.update(array.reshape(-1).view(np.uint8).data)
+    return digest.hexdigest()
+
+
+def _check_rotations(name: str, rotation: np.ndarray) -> None:
+    """An error unless every (3, 3) matrix in ``rotation`` (..., 3, 3) is a proper rotation."""
+    matrices = rotation.reshape(-1, 3, 3).astype(np.float64)
+    error = np.abs(matrices @ matrices.transpose(0, 2, 1) - np.eye(3)).max(axis=(1, 2))
+    bad = np.flatnonzero((error > ROTATION_TOLERANCE) | (np.linalg.det(matrices) <= 0))
+    if bad.size:
+        raise InvalidInputError(name, f"matrix {int(bad[0])} = {matrices[bad[0]].tolist()}",
+                                f"rotations: R Rᵀ = I within {ROTATION_TOLERANCE}, det(R) = +1")
