@@ -17,6 +17,9 @@ from sim.errors import InvalidInputError
 from sim.records import TrialOutcome
 from sim.world import World
 
+TOUCH_DISTANCE_M = 1e-4
+"""Contact points closer than this count as touching [m]."""
+
 
 @dataclass(frozen=True)
 class ExecutionSettings:
@@ -62,7 +65,10 @@ class _ContactWatch:
     def __call__(self, step: int) -> bool:
         client, robot = self.world.client, self.world.robot.body_id
         for body, name in self.forbidden.items():
-            points = client.getContactPoints(bodyA=robot, bodyB=body)
+            # PyBullet also reports points a little apart (inside its contact margin): a touch
+            # is a point at (or within 0.1 mm of) contact.
+            points = [p for p in client.getContactPoints(bodyA=robot, bodyB=body)
+                      if p[8] < TOUCH_DISTANCE_M]
             if points:
                 index = points[0][3]
                 link = "yumi_body" if index < 0 else client.getJointInfo(robot, index)[12].decode()

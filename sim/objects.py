@@ -394,3 +394,22 @@ def _canonical_turn_rad(grasp: GraspSpec, T_world_object: Pose) -> float:
     if grasp.symmetry is Symmetry.NONE:
         turn = max(-grasp.max_turn_rad, min(grasp.max_turn_rad, turn))
     return turn
+
+
+def symmetric_alternatives(
+    spec: ObjectSpec, T_world_grasp: Pose, turns_rad: tuple[float, ...] = (0.35, -0.35, 0.7, -0.7)
+) -> tuple[Pose, ...]:
+    """Grasps equivalent to ``T_world_grasp`` by the object's rotational symmetry.
+
+    For an object the same after any turn (the bottle), the grasp turned by each of
+    ``turns_rad`` about the object's vertical axis, which is found from the grasp itself (no
+    knowledge of the true pose): a planner tries them when the given grasp is blocked. Other
+    symmetries give none (a half turn of the sponge equals the gripper's own half turn).
+    """
+    if spec.grasp.symmetry is not Symmetry.CONTINUOUS:
+        return ()
+    T_object_grasp = spec.grasp.T_object_grasp
+    inverse = Pose(-T_object_grasp.rotation.T @ T_object_grasp.position, T_object_grasp.rotation.T)
+    T_world_object = T_world_grasp.compose(inverse)
+    return tuple(T_world_object.compose(Pose(np.zeros(3), rot_z(turn))).compose(T_object_grasp)
+                 for turn in turns_rad)

@@ -35,6 +35,9 @@ class OraclePerception(PerceptionModel):
     Targets follow the condition: none -> every object, in catalog order of their types (then
     from the robot's right to its left); object type -> the object of that type; side -> the
     leftmost (+y) or rightmost (-y) object. Attention points are the projected object centres.
+
+    ``candidates``, when set, limits the targets to those bodies (a scene's distractors are
+    presented but never targets); objects taken off the table drop out by themselves.
     """
 
     name = "oracle"
@@ -43,6 +46,7 @@ class OraclePerception(PerceptionModel):
     def __init__(self, world: World, camera: HeadCamera) -> None:
         self.world = world
         self.camera = camera
+        self.candidates: tuple[int, ...] | None = None
 
     def predict(self, image: np.ndarray, condition: Condition = NO_CONDITION) -> Prediction:
         """The canonical grasp of each target; the image is checked but not needed."""
@@ -59,7 +63,8 @@ class OraclePerception(PerceptionModel):
         return Prediction(targets=tuple(targets), attention_px=attention)
 
     def _targets(self, condition: Condition) -> list[int]:
-        objects = self.world.objects
+        objects = {b: s for b, s in self.world.objects.items()
+                   if self.candidates is None or b in self.candidates}
         present = ", ".join(sorted(spec.name for spec in objects.values())) or "nothing"
         if condition.kind is ConditionKind.NONE:
             def order(body: int) -> tuple[int, float]:

@@ -41,7 +41,8 @@ class TrialRecord:
     """Everything a trial did, as it goes into ``trials.jsonl``.
 
     Positions in [m], angles in [rad], times in [s]. ``predicted`` and ``truth`` hold the TCP
-    grasp poses as ``{"position_m": [...], "rotation": [[...], ...]}``.
+    grasp poses as ``{"position_m": [...], "rotation": [[...], ...]}``. The top-level pick
+    fields describe the last pick tried; ``picks`` lists every pick of a multi-target trial.
     """
 
     index: int
@@ -59,6 +60,7 @@ class TrialRecord:
     plan_status: str | None = None
     arm: str | None = None
     lift_m: float | None = None
+    picks: list[dict[str, Any]] = field(default_factory=list)
     sim_time_s: float = 0.0
     wall_time_s: float = 0.0
 
@@ -101,18 +103,29 @@ class TrialSummary:
     wilson95: tuple[float, float]
     outcomes: dict[str, int]
     median_wall_time_s: float
+    per_object: dict[str, dict[str, int]]
 
     @classmethod
     def of(cls, records: list[TrialRecord]) -> TrialSummary:
         """The summary of some records."""
         successes = sum(r.success for r in records)
         counts = Counter(r.outcome.value for r in records)
+        per_object: dict[str, dict[str, int]] = {}
+        for record in records:
+            for pick in record.picks or [{"target": record.target,
+                                          "outcome": record.outcome.value}]:
+                if pick.get("target") is None:
+                    continue
+                counts_of = per_object.setdefault(pick["target"], {"attempted": 0, "picked": 0})
+                counts_of["attempted"] += 1
+                counts_of["picked"] += pick["outcome"] == TrialOutcome.SUCCESS.value
         times = sorted(r.wall_time_s for r in records)
         median = times[len(times) // 2] if times else 0.0
         if times and len(times) % 2 == 0:
             median = 0.5 * (times[len(times) // 2 - 1] + times[len(times) // 2])
         return cls(successes, len(records), wilson_interval(successes, len(records)),
-                   {o.value: counts.get(o.value, 0) for o in TrialOutcome}, median)
+                   {o.value: counts.get(o.value, 0) for o in TrialOutcome}, median,
+                   dict(sorted(per_object.items())))
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form, as written to ``summary.json``."""
@@ -143,7 +156,9 @@ class TrialLog:
         self.folder = Path(folder)
         self.folder.mkdir(parents=True, exist_ok=True)
         self.path = self.folder / "trials.jsonl"
-        self.settings = {"format_version": RECORD_FORMAT_VERSION, **settings}
+        # Compared in JSON form: what was stored comes back with lists where tuples went in.
+        self.settings = json.loads(json.dumps({"format_version": RECORD_FORMAT_VERSION,
+                                               **settings}))
         settings_path = self.folder / "run.json"
         if settings_path.exists():
             try:

@@ -1,4 +1,4 @@
-"""Scenes drawn from a task and a seed: object types and poses, the targets, the condition.
+"""Scenes drawn from a task, a scene spec and a seed: objects, poses, targets, the condition.
 
 Training and test scenes come from disjoint seed streams, so a trial never runs on a scene a
 model was trained on: scene ``index`` of stream ``stream`` under seed ``seed`` is drawn from
@@ -9,12 +9,16 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-from perception.interface import NO_CONDITION, Condition
+from perception.interface import NO_CONDITION, Condition, ConditionKind
 from sim.errors import InvalidInputError
-from sim.tasks import TaskSpec
+from sim.scenes import SceneSpec
+from sim.tasks import SIDES, ObjectChoice, TargetSelection, TaskSpec
+
+MAX_PLACEMENT_TRIES = 200
 
 
 class SeedStream(enum.IntEnum):
@@ -26,33 +30,49 @@ class SeedStream(enum.IntEnum):
 
 @dataclass(frozen=True)
 class PlacedObject:
-    """One object of a scene: its type and its pose on the table."""
+    """One object of a scene: its type, its pose on the table, and whether it is a distractor."""
 
     object_type: str
     position_xy_m: tuple[float, float]
     yaw_rad: float
+    distractor: bool = False
 
 
 @dataclass(frozen=True)
 class Scene:
-    """A scene of a task: what lies where, and what the robot is asked to pick.
+    """A drawn scene: what lies where, and what the model is asked for.
 
     Args:
         task: The task's name.
+        scene: The scene's name (``paper-sim`` or ``yumi``).
         seed, stream, index: Where in the seed streams this scene was drawn.
-        objects: The presented objects.
-        targets: Indices into ``objects``, in the order they are to be picked.
+        objects: The presented objects, distractors last.
+        targets: Indices into ``objects``, in target order.
         condition: The top-down condition the model is given.
 
     """
 
     task: str
+    scene: str
     seed: int
     stream: SeedStream
     index: int
     objects: tuple[PlacedObject, ...]
     targets: tuple[int, ...]
     condition: Condition = NO_CONDITION
+
+    def to_record(self) -> dict[str, Any]:
+        """The scene as JSON-able data (datasets and trial records keep it)."""
+        return {
+            "task": self.task, "scene": self.scene, "seed": self.seed,
+            "stream": self.stream.name.lower(), "index": self.index,
+            "objects": [{"type": o.object_type, "position_xy_m": [round(v, 6) for v in
+                                                                  o.position_xy_m],
+                         "yaw_rad": round(o.yaw_rad, 6), "distractor": o.distractor}
+                        for o in self.objects],
+            "targets": list(self.targets),
+            "condition": {"kind": self.condition.kind.value, "value": self.condition.value},
+        }
 
 
 def scene_rng(seed: int, stream: SeedStream, index: int) -> np.random.Generator:
@@ -62,28 +82,91 @@ def scene_rng(seed: int, stream: SeedStream, index: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence([seed, int(stream), index]))
 
 
+def check_task_fits(task: TaskSpec, spec: SceneSpec) -> None:
+    """Raises a clear error if ``task`` cannot be drawn in ``spec``'s scene."""
+    where = f"task {task.name!r} in scene {spec.name!r}"
+    if task.objects is ObjectChoice.ONE_OF_EACH and task.count != len(spec.object_types):
+        raise InvalidInputError(f"{where}: objects.count", task.count,
+                                f"{len(spec.object_types)} (one of each of "
+                                f"{', '.join(spec.object_types)})")
+    unknown = [t for t in task.distractors if t not in spec.object_types]
+    if unknown:
+        raise InvalidInputError(f"{where}: distractors.types", unknown,
+                                f"types of the scene: {', '.join(spec.object_types)}")
+    for field, own, scene_range in (("x_m", task.workspace_x_m, spec.workspace_x_m),
+                                    ("y_m", task.workspace_y_m, spec.workspace_y_m)):
+        if own is not None and not (scene_range[0] <= own[0] and own[1] <= scene_range[1]):
+            raise InvalidInputError(f"{where}: placement.{field}", list(own),
+                                    f"a range within the scene's workspace {list(scene_range)}")
+
+
 def sample_scene(
-    task: TaskSpec, seed: int, stream: SeedStream, index: int, max_draws: int = 1000
+    task: TaskSpec, spec: SceneSpec, seed: int, stream: SeedStream, index: int
 ) -> Scene:
-    """Draws a scene: types, then positions spaced at least ``task.min_spacing_m`` apart."""
+    """Draws scene ``index`` of ``stream``: types, then spaced positions, yaws, the condition."""
+    check_task_fits(task, spec)
     rng = scene_rng(seed, stream, index)
-    types = [str(t) for t in rng.choice(task.object_types, size=task.objects_presented)]
-    positions: list[tuple[float, float]] = []
-    for _ in range(max_draws):
-        if len(positions) == len(types):
-            break
-        candidate = (float(rng.uniform(*task.workspace_x_m)),
-                     float(rng.uniform(*task.workspace_y_m)))
-        if all(np.hypot(candidate[0] - x, candidate[1] - y) >= task.min_spacing_m
-               for x, y in positions):
-            positions.append(candidate)
-    if len(positions) < len(types):
-        raise InvalidInputError(
-            f"task {task.name!r}", f"{len(types)} objects {task.min_spacing_m} m apart",
-            "a workspace large enough to place them (widen it or lower min_spacing_m)",
-        )
+    if task.objects is ObjectChoice.ONE_OF_EACH:
+        types = list(spec.object_types)
+    elif task.objects is ObjectChoice.SAME_TYPE:
+        types = [str(rng.choice(spec.object_types))] * task.count
+    else:
+        types = [str(t) for t in rng.choice(spec.object_types, size=task.count)]
+    all_types = types + list(task.distractors)
+    positions = _place(task, spec, len(all_types), rng)
     objects = tuple(
-        PlacedObject(t, p, float(rng.uniform(*task.yaw_range_rad)))
-        for t, p in zip(types, positions, strict=True)
+        PlacedObject(t, p, float(rng.uniform(*task.yaw_range_rad)), distractor=i >= len(types))
+        for i, (t, p) in enumerate(zip(all_types, positions, strict=True))
     )
-    return Scene(task.name, seed, stream, index, objects, targets=tuple(range(len(objects))))
+    condition, targets = _targets(task, spec, objects, rng)
+    return Scene(task.name, spec.name, seed, stream, index, objects, targets, condition)
+
+
+def _place(
+    task: TaskSpec, spec: SceneSpec, count: int, rng: np.random.Generator
+) -> list[tuple[float, float]]:
+    x_range = task.workspace_x_m or spec.workspace_x_m
+    y_low, y_high = task.workspace_y_m or spec.workspace_y_m
+    margin = task.min_spacing_m / 2
+    for _ in range(MAX_PLACEMENT_TRIES):
+        placed: list[tuple[float, float]] = []
+        for number in range(count):
+            y_range = (y_low, y_high)
+            if task.sides and number == 0:
+                y_range = (spec.centre_y_m + margin, y_high)  # the left (+y) object
+            elif task.sides and number == 1:
+                y_range = (y_low, spec.centre_y_m - margin)  # the right (-y) object
+            for _ in range(MAX_PLACEMENT_TRIES):
+                candidate = (float(rng.uniform(*x_range)), float(rng.uniform(*y_range)))
+                if all(np.hypot(candidate[0] - x, candidate[1] - y) >= task.min_spacing_m
+                       for x, y in placed):
+                    placed.append(candidate)
+                    break
+            else:
+                break
+        if len(placed) == count:
+            return placed
+    raise InvalidInputError(
+        f"task {task.name!r} in scene {spec.name!r}",
+        f"{count} objects {task.min_spacing_m} m apart",
+        "a workspace large enough to place them (widen it or lower placement.min_spacing_m)",
+    )
+
+
+def _targets(
+    task: TaskSpec, spec: SceneSpec, objects: tuple[PlacedObject, ...], rng: np.random.Generator
+) -> tuple[Condition, tuple[int, ...]]:
+    candidates = [i for i, o in enumerate(objects) if not o.distractor]
+    if task.targets is TargetSelection.ALL:
+        order = sorted(candidates, key=lambda i: (spec.object_types.index(objects[i].object_type),
+                                                  objects[i].position_xy_m[1]))
+        return NO_CONDITION, tuple(order)
+    if task.condition is ConditionKind.OBJECT_TYPE:
+        value = str(rng.choice([objects[i].object_type for i in candidates]))
+        condition = Condition(ConditionKind.OBJECT_TYPE, value, spec.object_types)
+        target = next(i for i in candidates if objects[i].object_type == value)
+        return condition, (target,)
+    value = str(rng.choice(SIDES))
+    condition = Condition(ConditionKind.SIDE, value, SIDES)
+    by_y = sorted(candidates, key=lambda i: objects[i].position_xy_m[1])
+    return condition, (by_y[-1] if value == "left" else by_y[0],)

@@ -11,10 +11,11 @@ from sim.objects import get_object_spec, grasp_pose
 from sim.planning import object_obstacles, table_obstacle
 from sim.records import TrialOutcome
 from sim.scene import SeedStream, sample_scene
-from sim.tasks import TaskSpec
+from sim.scenes import YUMI_SCENE
+from sim.tasks import ObjectChoice, TaskSpec
 from sim.world import World
 
-CLUTTER = TaskSpec(name="clutter", objects_presented=3, min_spacing_m=0.11)
+CLUTTER = TaskSpec(name="clutter", objects=ObjectChoice.RANDOM, count=3, min_spacing_m=0.11)
 
 
 @pytest.fixture(scope="module")
@@ -28,14 +29,15 @@ def plan_for(planner, world, target, others, grasp=None, with_obstacles=True):
     grasp = grasp or grasp_pose(spec, world.object_pose(target)).as_se3()
     obstacles = [table_obstacle(world), *object_obstacles(world, others)] if with_obstacles else []
     q_start = planner.robot.q_from_dict(world.robot.joint_positions())
-    return planner.plan(PickRequest(grasp, q_start, tuple(obstacles),
-                                    spec.grasp.opening_m / 2, spec.grasp.pregrasp_distance_m))
+    return planner.plan(PickRequest(grasp, q_start, obstacles=tuple(obstacles),
+                                    finger_opening_m=spec.grasp.opening_m / 2,
+                                    pregrasp_distance_m=spec.grasp.pregrasp_distance_m))
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("index", range(4))
 def test_checked_plans_touch_nothing_but_the_target(world, yumi_planner, index):
-    scene = sample_scene(CLUTTER, seed=7, stream=SeedStream.TEST, index=index)
+    scene = sample_scene(CLUTTER, YUMI_SCENE, seed=7, stream=SeedStream.TEST, index=index)
     for target_number in range(3):
         world.reset_scene()
         bodies = [world.add_object(get_object_spec(o.object_type), o.position_xy_m, o.yaw_rad)

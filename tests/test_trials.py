@@ -9,9 +9,11 @@ from sim.camera import HeadCamera
 from sim.errors import InvalidInputError
 from sim.objects import OBJECT_TYPES, get_object_spec, grasp_pose
 from sim.oracle import OraclePerception, TargetNotFoundError
+from sim.runner import TrialRunner
 from sim.scene import SeedStream, sample_scene
-from sim.tasks import get_task
-from sim.trials import TrialRunner, TrialSettings, run_trials
+from sim.scenes import YUMI_SCENE
+from sim.tasks import load_task
+from sim.trials import TrialSettings, run_trials
 from sim.world import World
 
 
@@ -46,25 +48,24 @@ def test_oracle_names_a_missing_object(world):
 
 
 def test_scenes_are_seeded_and_test_scenes_differ_from_training(tmp_path):
-    task = get_task("single")
-    a = sample_scene(task, 0, SeedStream.TEST, 5)
-    assert a == sample_scene(task, 0, SeedStream.TEST, 5)
-    assert a != sample_scene(task, 0, SeedStream.TRAIN, 5)
-    assert a != sample_scene(task, 1, SeedStream.TEST, 5)
-    (placed,) = a.objects
-    assert task.workspace_x_m[0] <= placed.position_xy_m[0] <= task.workspace_x_m[1]
+    task = load_task("single")
+    a = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 5)
+    assert a == sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 5)
+    assert a != sample_scene(task, YUMI_SCENE, 0, SeedStream.TRAIN, 5)
+    assert a != sample_scene(task, YUMI_SCENE, 1, SeedStream.TEST, 5)
 
 
 def test_unknown_model_and_task_are_refused_with_the_allowed_names():
     with pytest.raises(InvalidInputError, match="model = 'kqv9' is not allowed: one of oracle"):
         TrialSettings(model="kqv9", task="single")
-    with pytest.raises(InvalidInputError, match="task = 'juggle' is not allowed: one of single"):
+    with pytest.raises(InvalidInputError, match=r"task = 'juggle' is not allowed: one of multiple, "
+                       r"selected-position, selected-type, single, or the path of a \.toml file"):
         TrialSettings(model="oracle", task="juggle")
 
 
 def test_cli_reports_bad_input_in_one_line(tmp_path, capsys):
     assert main(["trials", "--task", "juggle", "--out", str(tmp_path)]) == 2
-    assert "error: task = 'juggle' is not allowed: one of single" in capsys.readouterr().err
+    assert "error: task = 'juggle' is not allowed: one of multiple" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["trials", "--n", "0", "--out", str(tmp_path)])
 
@@ -77,9 +78,10 @@ def test_unreachable_prediction_is_a_recorded_outcome():
             moved = type(target)(target.position_m + np.array([0.8, 0.0, 0.0]), target.rotation)
             return type(prediction)((moved,))
 
-    with TrialRunner(TrialSettings("oracle", "single", 1, 0)) as runner:
+    task = load_task("single")
+    with TrialRunner(task) as runner:
         runner.model = FarAway(runner.world, runner.camera)
-        record = runner.run(0)
+        record = runner.run(sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 0), 0, 0, "far")
     assert record.outcome.value == "ik_unreachable"
     assert "no in-limit IK solution" in record.reason
     assert record.position_error_m == pytest.approx(0.8, abs=1e-6)
@@ -107,10 +109,11 @@ def test_grasp_of_a_missing_object_is_a_recorded_outcome():
         def predict(self, image, condition=None):
             return super().predict(image, self.condition)
 
-    with TrialRunner(TrialSettings("oracle", "single", 1, 0)) as runner:
-        present = runner.scene(0).objects[0].object_type
-        missing = next(t for t in OBJECT_TYPES if t != present)
+    task = load_task("single")
+    scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 0)
+    with TrialRunner(task) as runner:
+        missing = next(t for t in OBJECT_TYPES if t != scene.objects[0].object_type)
         runner.model = AsksFor(missing, runner.world, runner.camera)
-        record = runner.run(0)
+        record = runner.run(scene, 0, 0, "asks-for")
     assert record.outcome.value == "perception_failed"
     assert f"object_type = '{missing}' names no object in the scene" in record.reason

@@ -1,0 +1,73 @@
+"""The two scenes of the paper's experiments, as the tasks and the data collector see them.
+
+| | ``paper-sim`` (Table II) | ``yumi`` (Table III) |
+|---|---|---|
+| objects | duck, soccer ball, mug (pybullet_data, ~10 cm) | sponge, spray bottle, mug |
+| camera | at the table centre from 50 cm | the YuMi's head camera |
+| label per target | the object's position (x, y, z) [m] | the TCP pose that picks it |
+
+The simulators themselves are :class:`sim.paper_world.PaperWorld` and :class:`sim.world.World`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from perception.interface import LabelKind
+from sim.errors import InvalidInputError
+from sim.objects import OBJECT_TYPES
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """What a scene offers a task.
+
+    Args:
+        name: ``paper-sim`` or ``yumi``.
+        object_types: The scene's object types, in one-hot (and target) order.
+        workspace_x_m, workspace_y_m: Where object centres may be placed [m].
+        label_kind: What a model predicts per target in this scene.
+
+    """
+
+    name: str
+    object_types: tuple[str, ...]
+    workspace_x_m: tuple[float, float]
+    workspace_y_m: tuple[float, float]
+    label_kind: LabelKind
+
+    @property
+    def centre_y_m(self) -> float:
+        """The line between the left (+y) and the right (-y) side [m]."""
+        return 0.5 * (self.workspace_y_m[0] + self.workspace_y_m[1])
+
+
+YUMI_SCENE = SceneSpec(
+    name="yumi",
+    object_types=OBJECT_TYPES,
+    # In front of the robot, where the camera sees every object and the planner reaches every
+    # catalog grasp at any yaw: nearer than x = 0.40 m the spray bottle's low side grasp puts
+    # the wrist over the robot's foot at |y| > 0.15 m (mapped with the planner).
+    workspace_x_m=(0.40, 0.55),
+    workspace_y_m=(-0.20, 0.20),
+    label_kind=LabelKind.GRASP_POSE,
+)
+
+
+def _paper_scene() -> SceneSpec:
+    from sim.paper_world import PAPER_OBJECT_TYPES, PAPER_WORKSPACE_X_M, PAPER_WORKSPACE_Y_M
+
+    return SceneSpec("paper-sim", PAPER_OBJECT_TYPES, PAPER_WORKSPACE_X_M, PAPER_WORKSPACE_Y_M,
+                     LabelKind.POSITION)
+
+
+SCENE_NAMES = ("paper-sim", "yumi")
+
+
+def get_scene_spec(name: str) -> SceneSpec:
+    """The scene called ``name``; an unknown name lists the allowed ones."""
+    if name == "yumi":
+        return YUMI_SCENE
+    if name == "paper-sim":
+        return _paper_scene()
+    raise InvalidInputError("scene", name, f"one of {', '.join(SCENE_NAMES)}")
