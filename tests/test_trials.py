@@ -117,3 +117,28 @@ def test_grasp_of_a_missing_object_is_a_recorded_outcome():
         record = runner.run(scene, 0, 0, "asks-for")
     assert record.outcome.value == "perception_failed"
     assert f"object_type = '{missing}' names no object in the scene" in record.reason
+
+
+@pytest.mark.slow
+def test_multiple_picks_every_target_after_a_fresh_image(tmp_path):
+    summary = run_trials(TrialSettings("oracle", "multiple", n=1, seed=0), tmp_path,
+                         progress=False)
+    (line,) = (tmp_path / "trials.jsonl").read_text().splitlines()
+    record = json.loads(line)
+    assert record["outcome"] == "success", record["reason"]
+    assert [p["target"] for p in record["picks"]] == ["sponge", "spray_bottle", "mug"]
+    assert all(p["outcome"] == "success" for p in record["picks"])
+    assert summary.per_object == {t: {"attempted": 1, "picked": 1}
+                                  for t in ("mug", "sponge", "spray_bottle")}
+
+
+@pytest.mark.slow
+def test_a_users_task_file_runs_without_code(tmp_path):
+    task = tmp_path / "two-mugs.toml"
+    task.write_text('name = "two-mugs-dim"\n[objects]\nchoose = "same_type"\ncount = 1\n'
+                    '[lighting]\nbrightness = 0.4\n[distractors]\ntypes = ["mug"]\n')
+    assert main(["trials", "--task", str(task), "--n", "2", "--out", str(tmp_path / "run"),
+                 "--no-progress"]) == 0
+    records = [json.loads(x) for x in (tmp_path / "run" / "trials.jsonl").read_text().splitlines()]
+    assert [r["outcome"] for r in records] == ["success", "success"]
+    assert all(len(r["objects"]) == 2 and r["objects"][1]["distractor"] for r in records)

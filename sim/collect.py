@@ -1,0 +1,159 @@
+"""Collects a dataset: training scenes of a task, their images, conditions and labels.
+
+``paper-sim``: each training scene is placed and rendered; the labels are the targets' true
+positions. ``yumi``: each training scene is an expert demonstration: the oracle's grasps are
+executed in the simulator, and the scene is kept only if every pick succeeded (a failed one is
+redrawn from the next scene of the training stream, and counted). Either way, scene ``i`` of a
+dataset comes from the training seed stream, never the test stream the trials use.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from perception.data import Dataset, DatasetMetadata, label_vector, save_dataset
+from perception.interface import ConditionKind
+from sim.errors import InvalidInputError, SimError
+from sim.records import TrialOutcome
+from sim.scene import SeedStream, check_task_fits, sample_scene
+from sim.scenes import SCENE_NAMES, SceneSpec, get_scene_spec
+from sim.tasks import SIDES, TaskSpec, load_task
+
+MAX_REDRAW_FACTOR = 3
+"""A yumi collection gives up after this many times ``size`` failed demonstrations."""
+
+
+@dataclass(frozen=True)
+class CollectSettings:
+    """What to collect.
+
+    Args:
+        scene: ``paper-sim`` or ``yumi``.
+        task: A built-in task name or the path of a task TOML file.
+        size: Number of training scenes (the paper uses 4, 20 and 100).
+        seed: Training seed; the scenes are its training stream.
+
+    """
+
+    scene: str
+    task: str
+    size: int
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.scene not in SCENE_NAMES:
+            raise InvalidInputError("scene", self.scene, f"one of {', '.join(SCENE_NAMES)}")
+        check_task_fits(load_task(self.task), get_scene_spec(self.scene))
+        if self.size < 1:
+            raise InvalidInputError("size", self.size, "an integer >= 1")
+        if self.seed < 0:
+            raise InvalidInputError("seed", self.seed, "an integer >= 0")
+
+
+def condition_choices(task: TaskSpec, spec: SceneSpec) -> tuple[str, ...]:
+    """The one-hot order of a task's condition in a scene."""
+    if task.condition is ConditionKind.OBJECT_TYPE:
+        return spec.object_types
+    if task.condition is ConditionKind.SIDE:
+        return SIDES
+    return ()
+
+
+def collect(settings: CollectSettings, out_path: str | Path, progress: bool = True) -> Dataset:
+    """Collects the dataset ``settings`` describes and writes it to ``out_path``."""
+    task, spec = load_task(settings.task), get_scene_spec(settings.scene)
+    bar = tqdm(total=settings.size, disable=not progress, unit="scene",
+               desc=f"collect {spec.name} / {task.name}")
+    with bar:
+        if spec.name == "paper-sim":
+            samples, camera, extra = _collect_paper(task, spec, settings, bar)
+        else:
+            samples, camera, extra = _collect_yumi(task, spec, settings, bar)
+    images, conditions, labels, scenes = zip(*samples, strict=True)
+    first = images[0]
+    metadata = DatasetMetadata(
+        scene=spec.name, task=task.name, size=len(images), seed=settings.seed,
+        image_height_px=first.shape[0], image_width_px=first.shape[1],
+        label_kind=spec.label_kind, targets=labels[0].shape[0],
+        condition_kind=task.condition, condition_choices=condition_choices(task, spec),
+        camera=camera, extra=extra | {"task": _task_json(task)},
+    )
+    dataset = Dataset(metadata, np.stack(images), np.stack(conditions).astype(np.float32),
+                      np.stack(labels).astype(np.float32), tuple(scenes))
+    save_dataset(dataset, out_path)
+    return dataset
+
+
+Sample = tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]
+
+
+def _task_json(task: TaskSpec) -> dict[str, Any]:
+    data = dataclasses.asdict(task)
+    data.pop("source")
+    return json.loads(json.dumps(data, default=lambda v: v.value))
+
+
+def _camera_json(camera: Any) -> dict[str, Any]:
+    return json.loads(json.dumps(dataclasses.asdict(camera.config)))
+
+
+def _collect_paper(
+    task: TaskSpec, spec: SceneSpec, settings: CollectSettings, bar: tqdm
+) -> tuple[list[Sample], dict[str, Any], dict[str, Any]]:
+    from sim.paper_world import PaperWorld
+
+    samples: list[Sample] = []
+    with PaperWorld() as world:
+        for index in range(settings.size):
+            scene = sample_scene(task, spec, settings.seed, SeedStream.TRAIN, index)
+            world.reset_scene()
+            bodies = [world.add_object(o.object_type, o.position_xy_m, o.yaw_rad)
+                      for o in scene.objects]
+            world.settle()
+            labels = np.stack([label_vector(world.object_position_m(bodies[t]))
+                               for t in scene.targets])
+            samples.append((world.render(task.brightness), scene.condition.one_hot(), labels,
+                            scene.to_record()))
+            bar.update()
+        camera = _camera_json(world.camera)
+    return samples, camera, {"stream": "train"}
+
+
+def _collect_yumi(
+    task: TaskSpec, spec: SceneSpec, settings: CollectSettings, bar: tqdm
+) -> tuple[list[Sample], dict[str, Any], dict[str, Any]]:
+    from sim.runner import TrialRunner
+
+    samples: list[Sample] = []
+    redrawn: list[dict[str, Any]] = []
+    index = 0
+    with TrialRunner(task) as runner:
+        while len(samples) < settings.size:
+            if len(redrawn) > MAX_REDRAW_FACTOR * settings.size:
+                raise SimError(
+                    f"collect yumi / {task.name}: {len(redrawn)} of {index} demonstrations "
+                    f"failed (last: {redrawn[-1]['reason']}); the task may not be pickable"
+                )
+            scene = sample_scene(task, spec, settings.seed, SeedStream.TRAIN, index)
+            index += 1
+            bodies = runner.setup(scene)
+            image = runner.render()
+            labels = np.stack([label_vector(pose.position, pose.rotation)
+                               for pose in (runner.truth(bodies[t]) for t in scene.targets)])
+            outcome = runner.pick_targets(scene, bodies)
+            if outcome["outcome"] is not TrialOutcome.SUCCESS:
+                redrawn.append({"scene_index": scene.index, "reason": outcome["reason"]})
+                bar.set_postfix_str(f"{len(redrawn)} redrawn")
+                continue
+            samples.append((image, scene.condition.one_hot(), labels, scene.to_record()))
+            bar.update()
+        camera = _camera_json(runner.camera)
+    extra = {"stream": "train", "demonstrations_redrawn": len(redrawn), "redrawn": redrawn}
+    return samples, camera, extra

@@ -1,0 +1,48 @@
+"""Pictures of what a model sees: a scene rendered by its camera, written as a PNG."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+
+from sim.camera import HeadCamera, write_png
+from sim.errors import InvalidInputError
+from sim.objects import get_object_spec
+from sim.scene import Scene
+from sim.world import World
+
+SETTLE_S = 0.25
+
+
+def render_scene(scene: Scene, brightness: float = 1.0) -> np.ndarray:
+    """The camera image of ``scene`` (uint8 (H, W, 3)), as a model would get it."""
+    if scene.scene == "paper-sim":
+        from sim.paper_world import PaperWorld
+
+        with PaperWorld() as paper:
+            paper.reset_scene()
+            for placed in scene.objects:
+                paper.add_object(placed.object_type, placed.position_xy_m, placed.yaw_rad)
+            paper.settle()
+            return paper.render(brightness)
+    with World() as world:
+        world.reset_scene()
+        for placed in scene.objects:
+            world.add_object(get_object_spec(placed.object_type), placed.position_xy_m,
+                             placed.yaw_rad)
+        world.step(round(SETTLE_S / world.config.time_step_s))
+        camera = HeadCamera()
+        lighting = dataclasses.replace(camera.config.lighting, brightness=brightness)
+        return camera.render(world.client, lighting)
+
+
+def write_scene_png(image: np.ndarray, path: str | Path, scale: int = 1) -> Path:
+    """Writes ``image`` enlarged ``scale`` times (nearest neighbour, so pixels stay visible)."""
+    if scale < 1:
+        raise InvalidInputError("scale", scale, "an integer >= 1")
+    enlarged = np.kron(image, np.ones((scale, scale, 1), dtype=np.uint8)) if scale > 1 else image
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    return write_png(out, enlarged)

@@ -1,0 +1,63 @@
+import numpy as np
+import pytest
+
+from experiments.cli import main
+from perception.data import DatasetError, load_dataset, split_label
+from perception.interface import LabelKind
+from sim.collect import CollectSettings, collect
+from sim.errors import InvalidInputError
+
+
+@pytest.fixture(scope="module")
+def yumi_files(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("yumi")
+    paths = {}
+    for name, seed in (("a", 0), ("b", 0), ("c", 1)):
+        paths[name] = folder / f"{name}.gva"
+        collect(CollectSettings("yumi", "selected-type", size=2, seed=seed), paths[name],
+                progress=False)
+    return paths
+
+
+@pytest.mark.slow
+def test_same_seed_gives_a_byte_identical_dataset(yumi_files):
+    assert yumi_files["a"].read_bytes() == yumi_files["b"].read_bytes()
+    assert yumi_files["a"].read_bytes() != yumi_files["c"].read_bytes()
+
+
+@pytest.mark.slow
+def test_yumi_dataset_holds_grasp_labels_conditions_and_scene_records(yumi_files):
+    data = load_dataset(yumi_files["a"], expect={"scene": "yumi", "task": "selected-type"})
+    meta = data.metadata
+    assert meta.label_kind is LabelKind.GRASP_POSE and meta.targets == 1
+    assert meta.condition_choices == ("sponge", "spray_bottle", "mug")
+    assert data.images.shape == (2, 128, 128, 3) and data.images.dtype == np.uint8
+    assert meta.extra["stream"] == "train" and meta.extra["demonstrations_redrawn"] >= 0
+    for condition, label, record in zip(data.conditions, data.labels, data.scenes, strict=True):
+        named = meta.condition_choices[int(np.argmax(condition))]
+        assert record["condition"]["value"] == named
+        target = record["objects"][record["targets"][0]]
+        assert target["type"] == named
+        position, rotation = split_label(label[0])
+        assert np.linalg.norm(position[:2] - np.array(target["position_xy_m"])) < 0.06
+        assert np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-4)
+
+
+@pytest.mark.slow
+def test_a_dataset_of_another_scene_is_refused(yumi_files):
+    with pytest.raises(DatasetError, match=r"scene is 'yumi' in the file, expected 'paper-sim'"):
+        load_dataset(yumi_files["a"], expect={"scene": "paper-sim"})
+
+
+def test_bad_collect_settings_are_named():
+    with pytest.raises(InvalidInputError, match=r"scene = 'kitchen' is not allowed: one of "
+                       r"paper-sim, yumi"):
+        CollectSettings("kitchen", "single", 4)
+    with pytest.raises(InvalidInputError, match=r"size = 0 is not allowed: an integer >= 1"):
+        CollectSettings("yumi", "single", 0)
+
+
+def test_cli_collect_reports_a_bad_task(tmp_path, capsys):
+    assert main(["collect", "--scene", "yumi", "--task", "juggle", "--size", "2",
+                 "--out", str(tmp_path / "x.gva")]) == 2
+    assert "task = 'juggle' is not allowed" in capsys.readouterr().err

@@ -1,0 +1,90 @@
+import numpy as np
+import pytest
+
+from perception.interface import ConditionKind
+from sim.errors import InvalidInputError
+from sim.scene import SeedStream, sample_scene
+from sim.scenes import YUMI_SCENE, get_scene_spec
+from sim.tasks import builtin_tasks, load_task, task_from_toml
+
+SCENES = ("paper-sim", "yumi")
+
+
+def scenes(task_name, scene_name, stream, n=100, seed=0):
+    task, spec = load_task(task_name), get_scene_spec(scene_name)
+    return [sample_scene(task, spec, seed, stream, i) for i in range(n)]
+
+
+@pytest.mark.parametrize("scene_name", SCENES)
+@pytest.mark.parametrize("task_name", builtin_tasks())
+def test_no_test_scene_equals_a_training_scene(task_name, scene_name):
+    train = scenes(task_name, scene_name, SeedStream.TRAIN)
+    test = scenes(task_name, scene_name, SeedStream.TEST)
+    positions = lambda s: tuple(o.position_xy_m for o in s.objects)  # noqa: E731
+    assert not {positions(s) for s in train} & {positions(s) for s in test}
+    assert len({positions(s) for s in train}) == 100  # and the training scenes all differ
+
+
+@pytest.mark.parametrize("scene_name", SCENES)
+@pytest.mark.parametrize("task_name", builtin_tasks())
+def test_scenes_keep_spacing_and_stay_in_the_workspace(task_name, scene_name):
+    task, spec = load_task(task_name), get_scene_spec(scene_name)
+    for scene in scenes(task_name, scene_name, SeedStream.TEST):
+        points = np.array([o.position_xy_m for o in scene.objects])  # (n, 2)
+        for axis, (low, high) in enumerate((spec.workspace_x_m, spec.workspace_y_m)):
+            assert np.all((low <= points[:, axis]) & (points[:, axis] <= high))
+        gaps = [np.linalg.norm(a - b) for i, a in enumerate(points) for b in points[i + 1:]]
+        assert min(gaps, default=1.0) >= task.min_spacing_m
+        assert len(scene.objects) == task.count
+
+
+@pytest.mark.parametrize("scene_name", SCENES)
+def test_selected_position_puts_one_object_on_each_side(scene_name):
+    spec = get_scene_spec(scene_name)
+    for scene in scenes("selected-position", scene_name, SeedStream.TEST):
+        left, right = sorted(scene.objects, key=lambda o: -o.position_xy_m[1])
+        assert left.position_xy_m[1] > spec.centre_y_m > right.position_xy_m[1]
+        assert left.object_type == right.object_type
+        (target,) = scene.targets
+        expected = left if scene.condition.value == "left" else right
+        assert scene.objects[target] is expected
+    values = {s.condition.value for s in scenes("selected-position", scene_name, SeedStream.TEST)}
+    assert values == {"left", "right"}
+
+
+@pytest.mark.parametrize("scene_name", SCENES)
+def test_selected_type_targets_the_named_type(scene_name):
+    spec = get_scene_spec(scene_name)
+    drawn = scenes("selected-type", scene_name, SeedStream.TEST)
+    for scene in drawn:
+        assert scene.condition.kind is ConditionKind.OBJECT_TYPE
+        assert scene.condition.choices == spec.object_types
+        assert scene.objects[scene.targets[0]].object_type == scene.condition.value
+        assert sorted(o.object_type for o in scene.objects) == sorted(spec.object_types)
+    assert {s.condition.value for s in drawn} == set(spec.object_types)
+
+
+def test_multiple_targets_every_object_in_type_order():
+    for scene in scenes("multiple", "yumi", SeedStream.TEST, n=20):
+        order = [scene.objects[i].object_type for i in scene.targets]
+        assert order == list(YUMI_SCENE.object_types)
+
+
+def test_distractors_are_presented_but_never_targets():
+    task = task_from_toml('name = "d"\n[objects]\ncount = 1\n[distractors]\ntypes = ["mug"]')
+    for index in range(20):
+        scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, index)
+        assert len(scene.objects) == 2 and scene.objects[1].distractor
+        assert scene.targets == (0,)
+
+
+def test_an_impossible_task_in_a_scene_is_named():
+    crowded = task_from_toml(
+        'name = "crowded"\n[objects]\ncount = 9\n[placement]\nmin_spacing_m = 0.3')
+    with pytest.raises(InvalidInputError, match=r"task 'crowded' in scene 'yumi' = '9 objects "
+                       r"0\.3 m apart' is not allowed: a workspace large enough"):
+        sample_scene(crowded, YUMI_SCENE, 0, SeedStream.TEST, 0)
+    alien = task_from_toml('name = "a"\n[distractors]\ntypes = ["duck"]')
+    with pytest.raises(InvalidInputError, match=r"distractors\.types = \['duck'\] is not allowed: "
+                       r"types of the scene: sponge, spray_bottle, mug"):
+        sample_scene(alien, YUMI_SCENE, 0, SeedStream.TEST, 0)
