@@ -28,18 +28,17 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
 from numbers import Integral
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 from safetensors import SafetensorError, safe_open
 from safetensors.numpy import save_file
 
 from perception.interface import ConditionKind, InvalidInputError, LabelKind, PerceptionError
+from perception.labels import LABEL_DIMS, check_rotations, split_label
 
 FORMAT_VERSION = 1
 HEADER_KEY = "gva.dataset"  # the one safetensors metadata entry this module reads and writes
-LABEL_DIMS: Mapping[LabelKind, int] = {LabelKind.POSITION: 3, LabelKind.GRASP_POSE: 12}
-ROTATION_TOLERANCE = 1e-4  # |R Rᵀ - I|: float32 rounding of a true rotation stays near 1e-7
 _TENSORS = ("images", "conditions", "labels")
 _NAMES = ", ".join(_TENSORS)
 _CODES = {np.dtype(np.uint8): "U8", np.dtype(np.float32): "F32"}  # safetensors' dtype names
@@ -53,39 +52,6 @@ class DatasetError(PerceptionError):
     def __init__(self, path: Path, problem: str) -> None:
         self.path, self.problem = path, problem
         super().__init__(f"dataset {path}: {problem}")
-
-
-class Label(NamedTuple):
-    """A label split into its parts (shared by dataset writers and models)."""
-
-    position_m: np.ndarray  # (..., 3) [m], world frame
-    rotation: np.ndarray | None  # (..., 3, 3) TCP rotation (columns: TCP axes); None: position
-
-
-def label_vector(position_m: np.ndarray, rotation: np.ndarray | None = None) -> np.ndarray:
-    """The float32 label layout: (..., 3) position [m], or (..., 12) with the rotation row-major."""
-    position = np.asarray(position_m, dtype=np.float64)
-    if position.ndim < 1 or position.shape[-1] != 3 or not np.all(np.isfinite(position)):
-        raise InvalidInputError("position_m", position.tolist(), "finite values of shape (..., 3)")
-    if rotation is None:
-        return position.astype(np.float32)
-    matrix = np.asarray(rotation, dtype=np.float64)
-    if matrix.shape != (*position.shape[:-1], 3, 3):
-        raise InvalidInputError("rotation", f"shape {matrix.shape}",
-                                f"shape {(*position.shape[:-1], 3, 3)} to match position_m")
-    _check_rotations("rotation", matrix)
-    flat = matrix.reshape(*position.shape[:-1], 9)
-    return np.concatenate([position, flat], axis=-1).astype(np.float32)
-
-
-def split_label(vector: np.ndarray) -> Label:
-    """The position and (for 12-long labels) rotation in ``vector`` (..., 3) or (..., 12)."""
-    array = np.asarray(vector)
-    if array.ndim < 1 or array.shape[-1] not in (3, 12):
-        raise InvalidInputError("label", f"shape {array.shape}", "shape (..., 3) or (..., 12)")
-    if array.shape[-1] == 3:
-        return Label(array[..., :3], None)
-    return Label(array[..., :3], array[..., 3:].reshape(*array.shape[:-1], 3, 3))
 
 
 @dataclass(frozen=True)
@@ -199,7 +165,7 @@ class Dataset:
             raise InvalidInputError("labels", "non-finite values", "finite values")
         rotation = split_label(self.labels).rotation
         if rotation is not None:
-            _check_rotations("labels", rotation)
+            check_rotations("labels", rotation)
         if isinstance(self.scenes, str | Mapping) or not isinstance(self.scenes, Sequence):
             raise InvalidInputError("scenes", type(self.scenes).__name__, "a tuple of dicts")
         if len(self.scenes) != self.metadata.size:
@@ -423,13 +389,3 @@ def _contents_sha256(record: Mapping[str, Any], tensors: Mapping[str, np.ndarray
         digest.update(f"\n{name} {array.dtype.str} {array.shape}\n".encode())
         digest.update(array.reshape(-1).view(np.uint8).data)
     return digest.hexdigest()
-
-
-def _check_rotations(name: str, rotation: np.ndarray) -> None:
-    """An error unless every (3, 3) matrix in ``rotation`` (..., 3, 3) is a proper rotation."""
-    matrices = rotation.reshape(-1, 3, 3).astype(np.float64)
-    error = np.abs(matrices @ matrices.transpose(0, 2, 1) - np.eye(3)).max(axis=(1, 2))
-    bad = np.flatnonzero((error > ROTATION_TOLERANCE) | (np.linalg.det(matrices) <= 0))
-    if bad.size:
-        raise InvalidInputError(name, f"matrix {int(bad[0])} = {matrices[bad[0]].tolist()}",
-                                f"rotations: R Rᵀ = I within {ROTATION_TOLERANCE}, det(R) = +1")

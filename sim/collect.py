@@ -18,8 +18,9 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from perception.data import Dataset, DatasetMetadata, label_vector, save_dataset
+from perception.data import Dataset, DatasetMetadata, save_dataset
 from perception.interface import ConditionKind
+from perception.labels import label_vector
 from sim.errors import InvalidInputError, SimError
 from sim.records import TrialOutcome
 from sim.scene import SeedStream, check_task_fits, sample_scene

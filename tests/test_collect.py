@@ -2,8 +2,9 @@ import numpy as np
 import pytest
 
 from experiments.cli import main
-from perception.data import DatasetError, load_dataset, split_label
+from perception.data import DatasetError, load_dataset
 from perception.interface import LabelKind
+from perception.labels import split_label
 from sim.collect import CollectSettings, collect
 from sim.errors import InvalidInputError
 

@@ -13,13 +13,12 @@ from perception.data import (
     Dataset,
     DatasetError,
     DatasetMetadata,
-    label_vector,
     load_dataset,
     read_metadata,
     save_dataset,
-    split_label,
 )
 from perception.interface import ConditionKind, InvalidInputError, LabelKind
+from perception.labels import label_vector, split_label
 
 
 def rotations(rng: np.random.Generator, n: int) -> np.ndarray:
