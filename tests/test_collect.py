@@ -62,3 +62,17 @@ def test_cli_collect_reports_a_bad_task(tmp_path, capsys):
     assert main(["collect", "--scene", "yumi", "--task", "juggle", "--size", "2",
                  "--out", str(tmp_path / "x.gva")]) == 2
     assert "task = 'juggle' is not allowed" in capsys.readouterr().err
+
+
+def test_paper_sim_dataset_is_seeded_and_labelled_with_positions(tmp_path):
+    paths = [tmp_path / f"{i}.gva" for i in range(3)]
+    for path, seed in zip(paths, (0, 0, 1), strict=True):
+        collect(CollectSettings("paper-sim", "multiple", size=3, seed=seed), path, progress=False)
+    assert paths[0].read_bytes() == paths[1].read_bytes()
+    assert paths[0].read_bytes() != paths[2].read_bytes()
+    data = load_dataset(paths[0], expect={"scene": "paper-sim", "label_kind": "position"})
+    assert data.labels.shape == (3, 3, 3) and data.conditions.shape == (3, 0)
+    for labels, record in zip(data.labels, data.scenes, strict=True):
+        for label, target in zip(labels, record["targets"], strict=True):
+            placed = record["objects"][target]["position_xy_m"]
+            assert np.linalg.norm(label[:2] - np.array(placed)) < 0.01
