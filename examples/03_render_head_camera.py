@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from sim.camera import HeadCamera, Lighting, write_png
-from sim.objects import get_object_spec, grasp_pose
+from sim.grasps import grasp_pose
+from sim.objects import get_object_spec
 from sim.world import World
 
 out = Path(sys.argv[1] if len(sys.argv) > 1 else "runs/renders")

@@ -14,7 +14,8 @@ import time
 from control.pick import PickRequest
 from robots import yumi
 from sim.execution import ExecutionSettings, execute_pick
-from sim.objects import get_object_spec, grasp_pose
+from sim.grasps import grasp_pose
+from sim.objects import get_object_spec
 from sim.planning import make_yumi_planner, table_obstacle
 from sim.world import World
 

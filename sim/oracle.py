@@ -21,7 +21,8 @@ from perception.interface import (
 )
 from sim.camera import HeadCamera
 from sim.errors import SimError
-from sim.objects import OBJECT_TYPES, grasp_pose
+from sim.grasps import grasp_pose
+from sim.objects import OBJECT_TYPES
 from sim.world import World
 
 

@@ -26,7 +26,8 @@ from robots import yumi
 from sim.camera import HeadCamera
 from sim.errors import InvalidInputError, SimError
 from sim.execution import ExecutionSettings, execute_pick
-from sim.objects import Pose, get_object_spec, grasp_pose, symmetric_alternatives
+from sim.grasps import grasp_pose, symmetric_alternatives
+from sim.objects import Pose, get_object_spec
 from sim.oracle import OraclePerception
 from sim.planning import make_yumi_planner, nearest_object, object_obstacles, table_obstacle
 from sim.records import TrialOutcome, TrialRecord

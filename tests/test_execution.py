@@ -7,7 +7,8 @@ import pytest
 
 from control.pick import PickRequest, PlanStatus
 from sim.execution import ExecutionSettings, execute_pick
-from sim.objects import get_object_spec, grasp_pose
+from sim.grasps import grasp_pose
+from sim.objects import get_object_spec
 from sim.planning import object_obstacles, table_obstacle
 from sim.records import TrialOutcome
 from sim.scene import SeedStream, sample_scene

@@ -14,6 +14,7 @@ from control.ik import ArmIk
 from control.robot_model import RobotModel
 from robots import yumi
 from sim.errors import InvalidInputError
+from sim.grasps import grasp_pose
 from sim.objects import (
     FINGERTIP_BEYOND_TCP_M,
     OBJECT_TYPES,
@@ -24,7 +25,6 @@ from sim.objects import (
     PrimitiveKind,
     Symmetry,
     get_object_spec,
-    grasp_pose,
     obstacle_shapes,
 )
 from sim.world import World

@@ -12,7 +12,8 @@ from control.ik import ArmIk
 from control.robot_model import RobotModel
 from robots import yumi
 from sim.errors import InvalidInputError, SimError
-from sim.objects import get_object_spec, grasp_pose
+from sim.grasps import grasp_pose
+from sim.objects import get_object_spec
 from sim.world import World, WorldConfig
 
 ARMS = [*yumi.ARM_JOINTS["r"], *yumi.ARM_JOINTS["l"]]

@@ -7,7 +7,8 @@ from experiments.cli import main
 from perception.interface import Condition, ConditionKind
 from sim.camera import HeadCamera
 from sim.errors import InvalidInputError
-from sim.objects import OBJECT_TYPES, get_object_spec, grasp_pose
+from sim.grasps import grasp_pose
+from sim.objects import OBJECT_TYPES, get_object_spec
 from sim.oracle import OraclePerception, TargetNotFoundError
 from sim.runner import TrialRunner
 from sim.scene import SeedStream, sample_scene
