@@ -1,0 +1,156 @@
+"""The KQV model's CPU budget and accuracy: inference latency, training time, test errors.
+
+    python benchmarks/bench_kqv.py [--pair TRAIN.gva TEST.gva]... [--repeats 200]
+        [--steps 1000] [--out benchmarks/results/kqv.json]
+
+Inference: median wall time of ``predict(image, condition)`` at batch 1 on a 128 x 128 image
+(bar: 5 ms), for position and grasp labels. For each ``--pair`` of datasets (from ``gva
+collect``; the test set from another seed, so no test scene was trained on): the training time
+(bar: 180 s for 20 scenes on 2 cores), the mean position error on the test scenes (bars: 2 cm
+for ``single``, 3 cm for ``selected-type``) and, for a conditioned task, how often switching the
+condition puts the attention point on the object the condition names (bar: 95 % of scenes).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from perception.data import Dataset, load_dataset
+from perception.evaluate import evaluate
+from perception.interface import ConditionKind, LabelKind
+from perception.learnable import ModelSpec
+from perception.models.base import LabelScaler
+from perception.models.kqv import KqvConfig, KqvModel
+from perception.train import TrainConfig, available_threads
+
+ERROR_BARS_CM = {"single": 2.0, "selected-type": 3.0}
+INFERENCE_BAR_MS, TRAINING_BAR_S, SWITCH_BAR = 5.0, 180.0, 0.95
+
+
+def inference_ms(kind: LabelKind, repeats: int, threads: int) -> float:
+    """Median ``predict`` wall time [ms] of an untrained q = 1 model on 128 x 128 images."""
+    spec = ModelSpec("bench", "single", kind, 1, ConditionKind.NONE, (), 128, 128)
+    model = KqvModel(spec, KqvConfig(), LabelScaler((0.45, 0.0, 0.05), 0.2))
+    image = np.random.default_rng(0).integers(0, 256, (128, 128, 3), dtype=np.uint8)
+    torch.set_num_threads(threads)
+    for _ in range(20):  # warm-up: allocator, oneDNN kernels
+        model.predict(image)
+    times = []
+    for _ in range(repeats):
+        started = time.perf_counter()
+        model.predict(image)
+        times.append(time.perf_counter() - started)
+    return statistics.median(times) * 1e3
+
+
+def object_pixels(dataset: Dataset, height_m: float = 0.04) -> list[np.ndarray]:
+    """Per scene, the pixels of its objects' centres (taken ``height_m`` above the table)."""
+    from sim.camera import CameraConfig, HeadCamera, Lighting
+
+    camera = dict(dataset.metadata.camera)
+    camera["lighting"] = Lighting(**{k: tuple(v) if isinstance(v, list) else v
+                                     for k, v in camera.get("lighting", {}).items()})
+    config = CameraConfig(**{k: tuple(v) if isinstance(v, list) else v
+                             for k, v in camera.items()})
+    projector = HeadCamera(config)
+    return [projector.project(np.array([[*o["position_xy_m"], height_m]
+                                        for o in scene["objects"]]))
+            for scene in dataset.scenes]
+
+
+def switch_rate(model: KqvModel, dataset: Dataset) -> float:
+    """Share of scenes in which every condition puts the attention on the object it names.
+
+    The attention point must lie nearest the object the condition names (its type, or the
+    left/right one of two).
+    """
+    meta, pixels = dataset.metadata, object_pixels(dataset)
+    good = 0
+    for index, scene in enumerate(dataset.scenes):
+        objects = [o for o in scene["objects"] if not o.get("distractor")]
+        hits = []
+        for choice in meta.condition_choices:
+            one_hot = np.eye(len(meta.condition_choices), dtype=np.float32)[
+                meta.condition_choices.index(choice)]
+            point = model.predict_batch(dataset.images[index:index + 1], one_hot[None])[0]
+            nearest = int(np.argmin(np.linalg.norm(pixels[index] - point.attention_px[0], axis=1)))
+            if meta.condition_kind is ConditionKind.OBJECT_TYPE:
+                hits.append(objects[nearest]["type"] == choice)
+            else:  # side: left is +y
+                ys = [o["position_xy_m"][1] for o in objects]
+                hits.append(nearest == int(np.argmax(ys) if choice == "left" else np.argmin(ys)))
+        good += all(hits)
+    return good / len(dataset)
+
+
+def accuracy(train_path: Path, test_path: Path, steps: int) -> dict[str, Any]:
+    """Trains on one dataset with the default settings (``steps`` steps) and scores on another."""
+    train_set, test_set = load_dataset(train_path), load_dataset(test_path)
+    model = KqvModel.for_dataset(train_set)
+    started = time.perf_counter()
+    report = model.fit(train_set, TrainConfig(steps=steps), progress=False)
+    training_s = time.perf_counter() - started
+    result = evaluate(model, test_set)
+    task = train_set.metadata.task
+    row: dict[str, Any] = {
+        "scene": train_set.metadata.scene, "task": task, "train": str(train_path),
+        "train_size": len(train_set), "train_seed": train_set.metadata.seed,
+        "test": str(test_path), "test_size": len(test_set), "test_seed": test_set.metadata.seed,
+        "steps": steps, "training_s": round(training_s, 1), "training_bar_s": TRAINING_BAR_S,
+        "threads": report.threads, "final_loss": report.final_loss,
+        "mean_position_error_cm": round(result.mean_position_error_cm, 3),
+        "median_position_error_cm": round(result.median_position_error_cm, 3),
+        "error_bar_cm": ERROR_BARS_CM.get(task),
+        "mean_angle_error_deg": result.mean_angle_error_deg,
+    }
+    print(f"{result.headline()}; trained in {training_s:.1f} s ({steps} steps, "
+          f"{report.threads} threads)")
+    if test_set.metadata.condition_kind is not ConditionKind.NONE:
+        row["attention_switch_rate"] = switch_rate(model, test_set)
+        row["switch_bar"] = SWITCH_BAR
+        print(f"switching the condition moves attention onto the named object in "
+              f"{row['attention_switch_rate']:.0%} of test scenes")
+    return row
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--pair", nargs=2, type=Path, action="append", default=[],
+                        metavar=("TRAIN", "TEST"), help="training and test datasets")
+    parser.add_argument("--steps", type=int, default=TrainConfig().steps)
+    parser.add_argument("--repeats", type=int, default=200)
+    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/kqv.json"))
+    args = parser.parse_args()
+
+    threads = available_threads()
+    inference = {}
+    for kind in LabelKind:
+        for count in sorted({1, threads}):
+            median = inference_ms(kind, args.repeats, count)
+            inference[f"{kind.value}_{count}_threads_ms"] = round(median, 3)
+            print(f"inference, {kind.value} labels, batch 1, {count} thread(s): median "
+                  f"{median:.2f} ms (bar {INFERENCE_BAR_MS} ms)")
+    result: dict[str, Any] = {
+        "benchmark": "kqv", "config": KqvConfig().__dict__, "train_config": TrainConfig().__dict__,
+        "machine": {"cpus": os.cpu_count(), "threads": threads, "python": platform.python_version(),
+                    "torch": torch.__version__, "platform": platform.platform()},
+        "inference": inference | {"bar_ms": INFERENCE_BAR_MS, "repeats": args.repeats},
+    }
+    result["accuracy"] = [accuracy(train, test, args.steps) for train, test in args.pair]
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(result, indent=2, default=str) + "\n")
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()

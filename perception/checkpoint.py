@@ -1,0 +1,180 @@
+"""Checkpoints: a folder with ``weights.safetensors`` and ``config.json``; never pickle.
+
+::
+
+    checkpoint/
+        weights.safetensors   every tensor of the network (safetensors: no code runs on load)
+        config.json           {"format_version", "model", "weights_sha256", "spec", ...}
+
+``config.json`` names the model, holds what it needs to rebuild its network (hyper-parameters,
+the dataset spec, the label scaler, ...) and the SHA-256 of the weights file. Loading checks,
+in this order, and refuses with a message naming the file and the problem: both files exist,
+the format version, the model name, the weights file is whole (not truncated), its checksum,
+then (in :func:`check_shapes`) every tensor against the network the config describes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import secrets
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import torch
+from safetensors import SafetensorError
+from safetensors.torch import load_file, save_file
+
+from perception.interface import PerceptionError
+
+FORMAT_VERSION = 1
+WEIGHTS_FILE = "weights.safetensors"
+CONFIG_FILE = "config.json"
+_MAX_HEADER_BYTES = 100_000_000  # safetensors' own limit
+
+
+class CheckpointError(PerceptionError):
+    """A checkpoint that cannot be used; the message names the file and what is wrong."""
+
+    def __init__(self, path: Path, problem: str) -> None:
+        self.path, self.problem = path, problem
+        super().__init__(f"checkpoint {path}: {problem}")
+
+
+@dataclass(frozen=True)
+class Checkpoint:
+    """What a checkpoint folder holds, checked against its checksum."""
+
+    folder: Path
+    config: dict[str, Any]  # the whole config.json
+    tensors: dict[str, torch.Tensor]
+
+
+def save_checkpoint(folder: str | Path, model: str, config: Mapping[str, Any],
+                    tensors: Mapping[str, torch.Tensor]) -> Path:
+    """Writes ``tensors`` and ``config`` (JSON-able, plus model name, version, checksum).
+
+    Each file is written under a temporary name and renamed into place, the weights first: a
+    save that stops half-way leaves a config whose checksum refuses the weights.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    reserved = {"format_version", "model", "weights_sha256"} & set(config)
+    if reserved:
+        raise ValueError(f"config keys {sorted(reserved)} are written by save_checkpoint")
+    weights = {name: tensor.detach().cpu().contiguous() for name, tensor in tensors.items()}
+    _atomic_write(folder / WEIGHTS_FILE, lambda path: save_file(weights, str(path)))
+    record = {"format_version": FORMAT_VERSION, "model": model,
+              "weights_sha256": _sha256(folder / WEIGHTS_FILE), **config}
+    text = json.dumps(record, indent=2, sort_keys=True, allow_nan=False) + "\n"
+    _atomic_write(folder / CONFIG_FILE, lambda path: path.write_text(text, encoding="utf-8"))
+    return folder
+
+
+def read_config(folder: str | Path) -> dict[str, Any]:
+    """The checked ``config.json`` of a checkpoint folder (weights not read)."""
+    path = Path(folder) / CONFIG_FILE
+    if not Path(folder).is_dir():
+        raise CheckpointError(Path(folder), "no such folder" if not Path(folder).exists()
+                              else "not a folder")
+    if not path.is_file():
+        raise CheckpointError(path, f"missing: a checkpoint folder holds {CONFIG_FILE} and "
+                              f"{WEIGHTS_FILE}")
+    try:
+        config = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, ValueError) as error:
+        raise CheckpointError(path, f"not valid JSON ({error})") from error
+    if not isinstance(config, dict):
+        raise CheckpointError(path, "not a JSON object")
+    version = config.get("format_version")
+    if version != FORMAT_VERSION:
+        raise CheckpointError(path, f"format version {version!r}; this gva reads version "
+                              f"{FORMAT_VERSION}")
+    for key, kind in (("model", str), ("weights_sha256", str)):
+        if not isinstance(config.get(key), kind):
+            raise CheckpointError(path, f"lacks {key!r}")
+    return config
+
+
+def load_checkpoint(folder: str | Path, model: str | None = None) -> Checkpoint:
+    """The config and tensors of a checkpoint folder, for ``model`` (any model when None)."""
+    folder = Path(folder)
+    config = read_config(folder)
+    if model is not None and config["model"] != model:
+        raise CheckpointError(folder / CONFIG_FILE, f"a checkpoint of model "
+                              f"{config['model']!r}, not {model!r}")
+    path = folder / WEIGHTS_FILE
+    if not path.is_file():
+        raise CheckpointError(path, f"missing: a checkpoint folder holds {CONFIG_FILE} and "
+                              f"{WEIGHTS_FILE}")
+    _check_whole(path)
+    if _sha256(path) != config["weights_sha256"]:
+        raise CheckpointError(path, f"its SHA-256 does not match {CONFIG_FILE}: the weights "
+                              "were changed or damaged after saving")
+    try:
+        tensors = load_file(str(path))
+    except (SafetensorError, OSError) as error:
+        raise CheckpointError(path, f"safetensors cannot read it ({error})") from error
+    return Checkpoint(folder, config, tensors)
+
+
+def check_shapes(checkpoint: Checkpoint, expected: Mapping[str, torch.Tensor]) -> None:
+    """An error unless the checkpoint has exactly ``expected``'s tensors, each of its shape."""
+    path, found = checkpoint.folder / WEIGHTS_FILE, checkpoint.tensors
+    if missing := sorted(set(expected) - set(found)):
+        raise CheckpointError(path, f"lacks tensors {', '.join(missing)} that the network "
+                              f"{CONFIG_FILE} describes needs")
+    if extra := sorted(set(found) - set(expected)):
+        raise CheckpointError(path, f"has tensors {', '.join(extra)} that the network "
+                              f"{CONFIG_FILE} describes does not have")
+    for name, tensor in expected.items():
+        if found[name].shape != tensor.shape or found[name].dtype != tensor.dtype:
+            raise CheckpointError(path, f"tensor {name} is {found[name].dtype} "
+                                  f"{tuple(found[name].shape)}; the network {CONFIG_FILE} "
+                                  f"describes needs {tensor.dtype} {tuple(tensor.shape)}")
+
+
+def _check_whole(path: Path) -> None:
+    """An error if the safetensors file is cut short (or longer than its header says)."""
+    size = path.stat().st_size
+    with path.open("rb") as file:
+        length = int.from_bytes(file.read(8), "little")
+        if size < 8 or length > _MAX_HEADER_BYTES or file.read(1) != b"{":
+            raise CheckpointError(path, "not a safetensors file (no 8-byte header length and "
+                                  "JSON header)")
+        if length > size - 8:
+            raise CheckpointError(path, f"truncated: {size} bytes, the header alone needs "
+                                  f"{8 + length}")
+        raw = b"{" + file.read(length - 1)
+    try:
+        header = json.loads(raw)
+        end = max((int(e["data_offsets"][1]) for k, e in header.items() if k != "__metadata__"),
+                  default=0)
+    except (ValueError, TypeError, KeyError, IndexError, AttributeError) as error:
+        raise CheckpointError(path, f"its header is damaged ({error})") from error
+    if size != 8 + length + end:
+        state = "truncated" if size < 8 + length + end else "longer than its header says"
+        raise CheckpointError(path, f"{state}: {size} bytes, the header describes "
+                              f"{8 + length + end}")
+
+
+def _sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with path.open("rb") as file:
+        for block in iter(lambda: file.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _atomic_write(path: Path, write: Any) -> None:
+    temporary = path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.tmp")
+    try:
+        write(temporary)
+        with temporary.open("rb+") as file:
+            os.fsync(file.fileno())
+        os.replace(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)

@@ -1,0 +1,172 @@
+"""Learnable perception models: a :class:`PerceptionModel` that also fits, saves and loads.
+
+A learnable model is built from what a dataset says about its task (:class:`ModelSpec`: label
+kind, number of targets, condition choices, image size) plus its own frozen hyper-parameter
+dataclass. It predicts a whole batch at once (:meth:`LearnableModel.predict_batch`); ``predict``
+checks one image and one condition and calls it.
+
+Adding a model: subclass :class:`LearnableModel`, implement ``fit``, ``save``, ``load`` and
+``predict_batch`` (:mod:`perception.train` is the training loop, :mod:`perception.checkpoint`
+the file format), then register the class in :mod:`perception.registry` or name it as
+``"package.module:Class"``.
+"""
+
+from __future__ import annotations
+
+import abc
+from collections.abc import Sequence
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Self
+
+import numpy as np
+
+from perception.data import Dataset, DatasetMetadata
+from perception.interface import (
+    NO_CONDITION,
+    Condition,
+    ConditionKind,
+    InvalidInputError,
+    LabelKind,
+    PerceptionModel,
+    Prediction,
+    check_image,
+)
+from perception.labels import LABEL_DIMS
+
+if TYPE_CHECKING:
+    from perception.train import TrainConfig, TrainReport
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """What a model is built for, as a dataset's metadata states it.
+
+    Args:
+        scene: The scene family (``"paper-sim"``, ``"yumi"``).
+        task: The task name.
+        label_kind: What the model predicts per target.
+        targets: q, targets (attention heads) per image.
+        condition_kind: What the condition names.
+        condition_choices: The one-hot order of the condition; () for none.
+        image_height_px: H of the images the model reads.
+        image_width_px: W of the images the model reads.
+
+    """
+
+    scene: str
+    task: str
+    label_kind: LabelKind
+    targets: int
+    condition_kind: ConditionKind
+    condition_choices: tuple[str, ...]
+    image_height_px: int
+    image_width_px: int
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.label_kind, LabelKind):
+            raise InvalidInputError("label_kind", self.label_kind, "a LabelKind")
+        if not isinstance(self.condition_kind, ConditionKind):
+            raise InvalidInputError("condition_kind", self.condition_kind, "a ConditionKind")
+        for name in ("targets", "image_height_px", "image_width_px"):
+            if not isinstance(getattr(self, name), int) or getattr(self, name) < 1:
+                raise InvalidInputError(name, getattr(self, name), "an integer >= 1")
+        object.__setattr__(self, "condition_choices", tuple(self.condition_choices))
+
+    @property
+    def label_dim(self) -> int:
+        """D, one target's label length (3 or 12)."""
+        return LABEL_DIMS[self.label_kind]
+
+    @property
+    def condition_size(self) -> int:
+        """C, the length of the one-hot condition (0 without one)."""
+        return len(self.condition_choices)
+
+    @classmethod
+    def from_metadata(cls, metadata: DatasetMetadata) -> ModelSpec:
+        """The spec of a model trained on a dataset with ``metadata``."""
+        return cls(**{f.name: getattr(metadata, f.name) for f in fields(cls)})
+
+    def check_dataset(self, dataset: Dataset) -> None:
+        """An error naming every field in which ``dataset`` differs from this spec."""
+        other = ModelSpec.from_metadata(dataset.metadata)
+        wrong = [f"{f.name} is {getattr(other, f.name)!r}, the model's is "
+                 f"{getattr(self, f.name)!r}" for f in fields(self)
+                 if f.name not in ("scene", "task") and getattr(other, f.name) !=
+                 getattr(self, f.name)]
+        if wrong:
+            raise InvalidInputError("dataset", "; ".join(wrong), "a dataset of the model's spec")
+
+    def to_json(self) -> dict[str, Any]:
+        """The spec as JSON-able data (enums by value)."""
+        data = {f.name: getattr(self, f.name) for f in fields(self)}
+        data |= {"label_kind": self.label_kind.value, "condition_kind": self.condition_kind.value,
+                 "condition_choices": list(self.condition_choices), "label_dim": self.label_dim}
+        return data
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> ModelSpec:
+        """The spec :meth:`to_json` wrote."""
+        values = {f.name: data[f.name] for f in fields(cls)}
+        values["label_kind"] = LabelKind(values["label_kind"])
+        values["condition_kind"] = ConditionKind(values["condition_kind"])
+        values["condition_choices"] = tuple(values["condition_choices"])
+        return cls(**values)
+
+
+class LearnableModel(PerceptionModel):
+    """A perception model with weights: ``fit`` on a dataset, ``save`` and ``load`` a checkpoint.
+
+    Subclasses set ``name``, keep their :class:`ModelSpec` in ``self.spec`` and implement
+    :meth:`predict_batch`, :meth:`fit`, :meth:`save` and :meth:`load`.
+    """
+
+    spec: ModelSpec
+
+    @abc.abstractmethod
+    def predict_batch(self, images: np.ndarray, conditions: np.ndarray) -> list[Prediction]:
+        """Predictions for uint8 images (B, H, W, 3) and one-hot conditions (B, C), in order."""
+
+    @abc.abstractmethod
+    def fit(self, dataset: Dataset, config: TrainConfig, progress: bool = True) -> TrainReport:
+        """Trains on ``dataset`` (of this model's spec) and says how it went."""
+
+    @abc.abstractmethod
+    def save(self, path: str | Path) -> Path:
+        """Writes a checkpoint folder (weights + JSON config) at ``path``; returns it."""
+
+    @classmethod
+    @abc.abstractmethod
+    def load(cls, path: str | Path) -> Self:
+        """The model a checkpoint folder at ``path`` holds, checked before use."""
+
+    def predict(self, image: np.ndarray, condition: Condition = NO_CONDITION) -> Prediction:
+        """Predicts the targets in one uint8 (H, W, 3) image under ``condition``."""
+        spec = self.spec
+        check_image(image, (spec.image_height_px, spec.image_width_px, 3))
+        if condition.kind is not spec.condition_kind or condition.choices != \
+                spec.condition_choices:
+            choices = ", ".join(spec.condition_choices) or "none"
+            raise InvalidInputError("condition", f"{condition.kind.value} {condition.choices}",
+                                    f"a {spec.condition_kind.value} condition over ({choices})")
+        return self.predict_batch(image[None], condition.one_hot()[None])[0]
+
+    def check_batch(self, images: np.ndarray, conditions: np.ndarray) -> None:
+        """An error unless ``images`` (B, H, W, 3) uint8 and ``conditions`` (B, C) fit the spec."""
+        spec = self.spec
+        shape = (spec.image_height_px, spec.image_width_px, 3)
+        if not isinstance(images, np.ndarray) or images.dtype != np.uint8 or \
+                images.shape[1:] != shape or images.ndim != 4:
+            found = f"{getattr(images, 'dtype', type(images).__name__)} {np.shape(images)}"
+            raise InvalidInputError("images", found,
+                                    f"uint8 of shape (B, {shape[0]}, {shape[1]}, 3)")
+        if np.shape(conditions) != (len(images), spec.condition_size):
+            raise InvalidInputError("conditions", f"shape {np.shape(conditions)}",
+                                    f"shape ({len(images)}, {spec.condition_size})")
+
+
+def check_choices(name: str, value: object, allowed: Sequence[object]) -> None:
+    """An error unless ``value`` is one of ``allowed`` (for config ``__post_init__`` checks)."""
+    if value not in allowed:
+        raise InvalidInputError(name, value, f"one of {', '.join(map(repr, allowed))}")

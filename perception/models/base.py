@@ -1,0 +1,195 @@
+"""Torch pieces the learnable models share: coordinates, CoordConv, Softmax2D, MLP, label scaling.
+
+Coordinates inside a model are normalised: ``x`` runs from -1 at the image's left edge to +1 at
+its right edge, ``y`` from -1 at the top edge to +1 at the bottom edge, so a feature map of any
+size covers the same [-1, 1]² square and a cell's coordinate is its centre. Pixel coordinates
+follow :meth:`sim.camera.HeadCamera.project`: integers are pixel centres, ``image[v, u]``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+from torch import Tensor, nn
+
+from perception.interface import InvalidInputError
+
+MIN_LABEL_SCALE_M = 0.01
+"""Smallest half-range :class:`LabelScaler` divides by [m], so a constant label stays finite."""
+
+
+def coordinate_grid(height: int, width: int, device: torch.device | str = "cpu") -> Tensor:
+    """The (x, y) coordinate of each cell's centre, (2, height, width), in [-1, 1]."""
+    y = (torch.arange(height, device=device, dtype=torch.float32) * 2 + 1) / height - 1  # (h,)
+    x = (torch.arange(width, device=device, dtype=torch.float32) * 2 + 1) / width - 1  # (w,)
+    grid_y, grid_x = torch.meshgrid(y, x, indexing="ij")  # (h, w) each
+    return torch.stack([grid_x, grid_y])  # (2, h, w)
+
+
+def normalised_to_pixels(points: Tensor, height_px: int, width_px: int) -> Tensor:
+    """Maps normalised (x, y) in [-1, 1] (..., 2) to pixel (u, v) (..., 2) of an H x W image."""
+    size = points.new_tensor([width_px, height_px])  # (2,)
+    return (points + 1) * 0.5 * size - 0.5  # (..., 2)
+
+
+def pixels_to_normalised(points_px: Tensor, height_px: int, width_px: int) -> Tensor:
+    """The inverse of :func:`normalised_to_pixels`."""
+    size = points_px.new_tensor([width_px, height_px])  # (2,)
+    return (points_px + 0.5) / size * 2 - 1  # (..., 2)
+
+
+def add_coordinates(features: Tensor) -> Tensor:
+    """``features`` (B, C, h, w) with the x and y coordinate channels appended: (B, C + 2, h, w)."""
+    batch, _, height, width = features.shape
+    grid = coordinate_grid(height, width, features.device).expand(batch, -1, -1, -1)  # (B, 2, h, w)
+    return torch.cat([features, grid], dim=1)  # (B, C + 2, h, w)
+
+
+class CoordConv(nn.Module):
+    """A convolution (+ ReLU) whose output gets the coordinate channels appended (Liu et al. 2018).
+
+    Concatenating the coordinates after the layer, as the paper does after each of FCN1's three
+    layers, lets the next layer, and the dot product with a Query, know where a feature lies.
+    """
+
+    def __init__(self, in_channels: int, out_channels: int, kernel_size: int, stride: int,
+                 activation: bool = True) -> None:
+        super().__init__()
+        self.conv = nn.Conv2d(in_channels, out_channels, kernel_size, stride, kernel_size // 2)
+        self.activation = activation
+
+    def forward(self, x: Tensor) -> Tensor:
+        """(B, in, H, W) -> (B, out + 2, h, w)."""
+        x = self.conv(x)  # (B, out, h, w)
+        if self.activation:
+            x = torch.relu(x)
+        return add_coordinates(x)  # (B, out + 2, h, w)
+
+
+def softmax2d(logits: Tensor, temperature: float = 1.0) -> Tensor:
+    """Softmax over each map's h·w cells, (B, q, h, w) -> (B, q, h, w); each map sums to 1."""
+    batch, heads, height, width = logits.shape
+    flat = (logits / temperature).reshape(batch, heads, height * width)  # (B, q, h*w)
+    return torch.softmax(flat, dim=-1).reshape(batch, heads, height, width)  # (B, q, h, w)
+
+
+def spatial_expectation(heatmaps: Tensor, values: Tensor) -> Tensor:
+    """Σ_uv M(u, v) V(u, v), the expectation of values under each heatmap.
+
+    Heatmaps (B, q, h, w), values (B, C, h, w) or (C, h, w) shared by the batch -> (B, q, C).
+    """
+    if values.dim() == 3:
+        return torch.einsum("bqhw,chw->bqc", heatmaps, values)  # (B, q, C)
+    return torch.einsum("bqhw,bchw->bqc", heatmaps, values)  # (B, q, C)
+
+
+class MLP(nn.Sequential):
+    """Linear layers with ELU between them, ``sizes = (in, hidden..., out)``; a linear output."""
+
+    def __init__(self, sizes: tuple[int, ...]) -> None:
+        layers: list[nn.Module] = []
+        for index, (size_in, size_out) in enumerate(itertools.pairwise(sizes)):
+            layers.append(nn.Linear(size_in, size_out))
+            if index < len(sizes) - 2:
+                layers.append(nn.ELU())
+        super().__init__(*layers)
+
+
+def images_to_tensor(images: np.ndarray, device: torch.device | str = "cpu") -> Tensor:
+    """uint8 images (B, H, W, 3) RGB -> float32 (B, 3, H, W) in [0, 1]; models normalise further."""
+    tensor = torch.from_numpy(np.ascontiguousarray(images)).to(device)  # (B, H, W, 3) uint8
+    return tensor.permute(0, 3, 1, 2).float().div_(255.0)  # (B, 3, H, W)
+
+
+def rotation_from_6d(six: Tensor) -> Tensor:
+    """The rotation whose first two columns are Gram-Schmidt of ``six`` (..., 6) -> (..., 3, 3).
+
+    The continuous 6-D representation of Zhou et al. (2019): unlike quaternions or Euler angles
+    it has no discontinuity a network must jump across, and any 6 numbers give a proper rotation.
+    """
+    a1, a2 = six[..., :3], six[..., 3:]  # (..., 3) each
+    b1 = torch.nn.functional.normalize(a1, dim=-1)  # (..., 3)
+    b2 = torch.nn.functional.normalize(a2 - (b1 * a2).sum(-1, keepdim=True) * b1, dim=-1)
+    b3 = torch.cross(b1, b2, dim=-1)  # (..., 3)
+    return torch.stack([b1, b2, b3], dim=-1)  # (..., 3, 3), columns b1, b2, b3
+
+
+FLIP_Z = torch.diag(torch.tensor([-1.0, -1.0, 1.0]))
+"""A half turn about the TCP z axis: ``R @ FLIP_Z`` is the same parallel-gripper grasp as ``R``."""
+
+
+def symmetric_chordal_loss(rotation: Tensor, target: Tensor) -> Tensor:
+    """||R - R*||²_F, the smaller of R* and R* turned by π about its z axis: (..., 3, 3) -> (...).
+
+    A parallel gripper turned half a turn about its approach axis makes the same grasp, so the
+    network is not punished for predicting the equivalent one.
+    """
+    flipped = target @ FLIP_Z.to(target)  # (..., 3, 3)
+    direct = (rotation - target).square().sum(dim=(-2, -1))  # (...)
+    other = (rotation - flipped).square().sum(dim=(-2, -1))  # (...)
+    return torch.minimum(direct, other)
+
+
+def symmetric_angle_rad(rotation: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Geodesic angle [rad] between rotations (..., 3, 3), the smaller over the π-about-z twin.
+
+    From the chordal distance, ||R - R*||_F = √8 sin(θ/2), which unlike arccos of the trace
+    stays accurate for small angles.
+    """
+    def angle(other: np.ndarray) -> np.ndarray:
+        chord = np.sqrt(np.square(rotation - other).sum(axis=(-2, -1)))
+        return 2 * np.arcsin(np.clip(chord / math.sqrt(8), 0.0, 1.0))
+
+    return np.minimum(angle(target), angle(target @ np.diag([-1.0, -1.0, 1.0])))
+
+
+@dataclass(frozen=True)
+class LabelScaler:
+    """Maps positions [m] to the network's scale and back: ``(p - centre_m) / scale_m``.
+
+    The centre is the middle of the training labels' range per axis; the scale is the largest
+    half-range over the three axes, so every training position lands in [-1, 1] (the label
+    scaled to the workspace) while the loss stays proportional to the Euclidean error in metres,
+    the quantity the paper reports. Kept in a checkpoint's ``config.json``.
+    """
+
+    centre_m: tuple[float, float, float]
+    scale_m: float
+
+    def __post_init__(self) -> None:
+        if len(self.centre_m) != 3 or not all(math.isfinite(c) for c in self.centre_m):
+            raise InvalidInputError("centre_m", self.centre_m, "3 finite values [m]")
+        if not (math.isfinite(self.scale_m) and self.scale_m >= MIN_LABEL_SCALE_M):
+            raise InvalidInputError("scale_m", self.scale_m, f"a finite value >= "
+                                    f"{MIN_LABEL_SCALE_M} m")
+
+    @classmethod
+    def fit(cls, positions_m: np.ndarray) -> LabelScaler:
+        """The scaler of training positions (..., 3) [m]."""
+        flat = np.asarray(positions_m, dtype=np.float64).reshape(-1, 3)  # (N, 3)
+        low, high = flat.min(axis=0), flat.max(axis=0)  # (3,)
+        half = float(max((high - low).max() / 2, MIN_LABEL_SCALE_M))
+        return cls(tuple(float(c) for c in (low + high) / 2), half)  # type: ignore[arg-type]
+
+    def normalise(self, positions_m: Tensor) -> Tensor:
+        """Positions (..., 3) [m] -> network scale (..., 3)."""
+        return (positions_m - positions_m.new_tensor(self.centre_m)) / self.scale_m
+
+    def denormalise(self, scaled: Tensor) -> Tensor:
+        """Network scale (..., 3) -> positions (..., 3) [m]."""
+        return scaled * self.scale_m + scaled.new_tensor(self.centre_m)
+
+    def to_json(self) -> dict[str, Any]:
+        """The scaler as JSON-able data."""
+        return {"centre_m": list(self.centre_m), "scale_m": self.scale_m}
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> LabelScaler:
+        """The scaler :meth:`to_json` wrote."""
+        return cls(tuple(float(c) for c in data["centre_m"]),  # type: ignore[arg-type]
+                   float(data["scale_m"]))

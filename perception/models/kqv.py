@@ -1,0 +1,361 @@
+"""The paper's Key-Query-Value visual attention model (Hiruma et al.), the whole of it.
+
+Selection: the Key ``K = FCN1(image)`` (three conv layers, the x/y coordinate channels appended
+after each: CoordConv) meets one Query vector per head; the heatmap is
+``M = Softmax2D(K · Q / sqrt(hw) / temperature)``. Extraction: the Feature Value
+``V_feat = FCN2(image)`` (own weights) and the Coordinate Value (the x/y channels) are averaged
+under ``M``: ``a_feat = Σ M V_feat``, ``a_coord = Σ M [x, y]``. An MLP maps each head's
+``a_coord`` (and ``a_feat`` where configured) to its target. Queries are learnable Base Queries,
+Conditioned Queries ``MLP(one-hot condition)``, or their sum; :meth:`KqvModel.attend` runs the
+selection with Queries supplied from outside, so the top-down target can be replaced at inference.
+
+The image is read at full size (128 x 128) but the first two layers of each FCN have stride 2
+(:attr:`KqvConfig.stride`), so the heatmaps are 32 x 32: four times fewer cells to attend over
+and sixteen times less work per layer, which keeps training on two CPU cores within minutes;
+``a_coord`` is an expectation, so it still resolves positions between cells.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any, NamedTuple, Self
+
+import numpy as np
+import torch
+from torch import Tensor, nn
+
+from perception.checkpoint import (
+    CONFIG_FILE,
+    CheckpointError,
+    check_shapes,
+    load_checkpoint,
+    save_checkpoint,
+)
+from perception.data import Dataset
+from perception.interface import ConditionKind, InvalidInputError, LabelKind, Prediction, Target
+from perception.learnable import LearnableModel, ModelSpec, check_choices
+from perception.models.base import (
+    MLP,
+    CoordConv,
+    LabelScaler,
+    coordinate_grid,
+    images_to_tensor,
+    normalised_to_pixels,
+    rotation_from_6d,
+    softmax2d,
+    spatial_expectation,
+    symmetric_chordal_loss,
+)
+from perception.train import Batch, TrainConfig, TrainReport, train
+
+QUERY_MODES = ("auto", "base", "conditioned", "conditioned+base")
+
+
+@dataclass(frozen=True)
+class KqvConfig:
+    """Hyper-parameters of the KQV attention model.
+
+    Args:
+        channels: Output channels of the first two conv layers of FCN1 and of FCN2; few in the
+            first (it runs at the finest resolution), more in the second.
+        key_dim: Ck, the Key's learned channels; Keys and Queries have Ck + 2 entries (the two
+            coordinate channels ride along, so a Query can prefer a place as well as a look).
+        value_dim: Cv, the Feature Value's channels (the length of ``a_feat``).
+        stride: Downsampling from image to heatmap, 1, 2 or 4 (stride 2 in the first one or two
+            layers of each FCN): 4 turns 128 x 128 images into 32 x 32 heatmaps.
+        similarity: How a Query meets the Key at each cell. ``"dot"``: the paper's scaled dot
+            product K · Q / sqrt(hw). ``"cosine"``: K and Q normalised to unit length first, so
+            the logits lie in [-1, 1] before the temperature. With the unbounded dot product the
+            network sharpens each heatmap onto a single cell (measured: 95 % of the mass), so
+            ``a_coord`` snaps to the 32 x 32 cell grid (4 px, about 2 cm on the table) and the
+            gradient that could refine it vanishes; bounded logits keep a heatmap a few cells
+            wide, and its expectation falls between cells (validation error 2.7 -> 1.4 cm on
+            the yumi ``single`` task, 20 training scenes).
+        temperature: Divides the logits before the 2-D softmax: with cosine similarity it sets
+            how peaked a heatmap can get (1 / temperature between best and worst match).
+        query_mode: ``"base"`` (learned vectors), ``"conditioned"`` (MLP of the one-hot
+            condition), ``"conditioned+base"`` (their sum) or ``"auto"``: base without a
+            condition, conditioned with one (the paper's training configurations).
+        head_features: Whether the head MLP reads ``a_feat`` besides ``a_coord``; None: only for
+            grasp labels (orientation and grasp offset depend on what the object looks like),
+            coordinates only for positions, as in the paper's simulator experiment.
+        head_width: Width of the head MLP's two hidden layers.
+        rotation_loss_weight: Weight of the chordal rotation loss against the position loss
+            (squared distance in scaled units); 0.1 balances 1 cm against about 3 degrees.
+        seed: Seeds the initial weights.
+
+    """
+
+    channels: tuple[int, int] = (16, 32)
+    key_dim: int = 16
+    value_dim: int = 16
+    stride: int = 4
+    similarity: str = "cosine"
+    temperature: float = 0.1
+    query_mode: str = "auto"
+    head_features: bool | None = None
+    head_width: int = 64
+    rotation_loss_weight: float = 0.1
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        channels = tuple(self.channels) if isinstance(self.channels, list | tuple) else ()
+        if len(channels) != 2 or not all(isinstance(c, int) and c >= 1 for c in channels):
+            raise InvalidInputError("channels", self.channels, "two integers >= 1")
+        object.__setattr__(self, "channels", channels)  # a JSON list reads back as the tuple
+        for name in ("key_dim", "value_dim", "head_width"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise InvalidInputError(name, value, "an integer >= 1")
+        check_choices("stride", self.stride, (1, 2, 4))
+        check_choices("query_mode", self.query_mode, QUERY_MODES)
+        check_choices("similarity", self.similarity, ("cosine", "dot"))
+        if not (math.isfinite(self.temperature) and self.temperature > 0):
+            raise InvalidInputError("temperature", self.temperature, "a finite value > 0")
+        if not (math.isfinite(self.rotation_loss_weight) and self.rotation_loss_weight >= 0):
+            raise InvalidInputError("rotation_loss_weight", self.rotation_loss_weight,
+                                    "a finite value >= 0")
+        if self.head_features not in (None, True, False, "additive"):
+            raise InvalidInputError("head_features", self.head_features, "None, True or False")
+        if not isinstance(self.seed, int) or self.seed < 0:
+            raise InvalidInputError("seed", self.seed, "an integer >= 0")
+
+
+class Attention(NamedTuple):
+    """What the heads attend to (tensors, batch first)."""
+
+    heatmaps: Tensor  # (B, q, h, w) M, each map sums to 1
+    coords: Tensor  # (B, q, 2) a_coord, (x, y) in [-1, 1]
+    features: Tensor  # (B, q, Cv) a_feat
+
+
+class KqvOutput(NamedTuple):
+    """The network's output for a batch."""
+
+    positions: Tensor  # (B, q, 3) in the label scaler's units
+    rotations: Tensor | None  # (B, q, 3, 3) proper rotations; None for position labels
+    attention: Attention
+
+
+class KqvNet(nn.Module):
+    """The network: FCN1 (Key), FCN2 (Feature Value), the Queries and the head MLP."""
+
+    def __init__(self, spec: ModelSpec, config: KqvConfig) -> None:
+        super().__init__()
+        c, key, value = config, config.key_dim, config.value_dim
+        (wide1, wide2), hidden = config.channels, config.channels[1]
+        first, second = {1: (1, 1), 2: (2, 1), 4: (2, 2)}[c.stride]
+        self.temperature = c.temperature
+        self.similarity = c.similarity
+        self.key_net = nn.Sequential(  # FCN1 with CoordConv: (B, 3, H, W) -> (B, Ck + 2, h, w)
+            CoordConv(3, wide1, 5, first),
+            CoordConv(wide1 + 2, wide2, 3, second),
+            CoordConv(wide2 + 2, key, 3, 1, activation=False),
+        )
+        self.value_net = nn.Sequential(  # FCN2, own weights: (B, 3, H, W) -> (B, Cv, h, w)
+            nn.Conv2d(3, wide1, 5, first, 2), nn.ReLU(),
+            nn.Conv2d(wide1, wide2, 3, second, 1), nn.ReLU(),
+            nn.Conv2d(wide2, value, 3, 1, 1),
+        )
+        mode = c.query_mode
+        if mode == "auto":
+            mode = "conditioned" if spec.condition_size else "base"
+        if "conditioned" in mode and not spec.condition_size:
+            raise InvalidInputError("query_mode", c.query_mode, "'base' or 'auto' for a task "
+                                    "without a condition")
+        self.targets, query_dim = spec.targets, key + 2
+        self.base_queries = nn.Parameter(torch.randn(spec.targets, query_dim)) \
+            if "base" in mode else None  # (q, Ck + 2)
+        self.query_mlp = MLP((spec.condition_size, hidden, spec.targets * query_dim)) \
+            if "conditioned" in mode else None
+        reads_features = c.head_features
+        if reads_features is None:
+            reads_features = spec.label_kind is LabelKind.GRASP_POSE
+        self.head_features = reads_features
+        self.feature_head = None
+        if reads_features == "additive":
+            self.head_features = False
+            outputs = 3 if spec.label_kind is LabelKind.POSITION else 9
+            self.feature_head = MLP((value, c.head_width, outputs))
+            reads_features = False
+        # One MLP shared by every head: the image-to-world mapping is one camera's geometry, so
+        # each head learns it from q times the samples; a one-hot head index tells them apart.
+        head_in = 2 + (value if reads_features else 0) + (spec.targets if spec.targets > 1 else 0)
+        head_out = 3 if spec.label_kind is LabelKind.POSITION else 9  # position (+ 6-D rotation)
+        self.head = MLP((head_in, c.head_width, c.head_width, head_out))
+
+    def queries(self, conditions: Tensor) -> Tensor:
+        """The Query vectors for one-hot conditions (B, C): (B, q, Ck + 2)."""
+        batch = conditions.shape[0]
+        parts = []
+        if self.base_queries is not None:
+            parts.append(self.base_queries.expand(batch, -1, -1))  # (B, q, Ck + 2)
+        if self.query_mlp is not None:
+            parts.append(self.query_mlp(conditions).view(batch, self.targets, -1))
+        return torch.stack(parts).sum(dim=0)  # (B, q, Ck + 2)
+
+    def attend(self, images: Tensor, queries: Tensor) -> Attention:
+        """Selection and extraction: images (B, 3, H, W) in [0, 1], queries (B, q', Ck + 2)."""
+        x = (images - 0.5) / 0.25  # (B, 3, H, W), roughly zero mean, unit spread
+        keys = self.key_net(x)  # (B, Ck + 2, h, w)
+        values = self.value_net(x)  # (B, Cv, h, w)
+        height, width = keys.shape[-2:]
+        if self.similarity == "cosine":
+            keys = nn.functional.normalize(keys, dim=1)  # (B, Ck + 2, h, w), unit per cell
+            queries = nn.functional.normalize(queries, dim=-1)  # (B, q', Ck + 2)
+            logits = torch.einsum("bchw,bqc->bqhw", keys, queries)  # (B, q', h, w) in [-1, 1]
+        else:
+            logits = torch.einsum("bchw,bqc->bqhw", keys, queries) / math.sqrt(height * width)
+        heatmaps = softmax2d(logits, self.temperature)  # (B, q', h, w)
+        grid = coordinate_grid(height, width, images.device)  # (2, h, w)
+        return Attention(heatmaps, spatial_expectation(heatmaps, grid),  # (B, q', 2)
+                         spatial_expectation(heatmaps, values))  # (B, q', Cv)
+
+    def forward(self, images: Tensor, conditions: Tensor, queries: Tensor | None = None
+                ) -> KqvOutput:
+        """Targets for images (B, 3, H, W) in [0, 1] under conditions (B, C) (or given Queries)."""
+        attention = self.attend(images, self.queries(conditions) if queries is None else queries)
+        batch, heads = attention.coords.shape[:2]
+        parts = [attention.coords]  # (B, q, 2)
+        if self.head_features:
+            parts.append(attention.features)  # (B, q, Cv)
+        if self.targets > 1:
+            parts.append(torch.eye(heads, device=images.device).expand(batch, -1, -1))
+        out = self.head(torch.cat(parts, dim=-1))  # (B, q, 3) or (B, q, 9)
+        if self.feature_head is not None:
+            out = out + self.feature_head(attention.features)
+        rotations = rotation_from_6d(out[..., 3:]) if out.shape[-1] == 9 else None
+        return KqvOutput(out[..., :3], rotations, attention)
+
+
+class KqvModel(LearnableModel):
+    """The KQV attention model behind the :class:`PerceptionModel` interface.
+
+    Build it for a dataset with :meth:`for_dataset`, train it with :meth:`fit`, then
+    ``predict(image, condition)``; ``save``/``load`` a checkpoint folder.
+    """
+
+    name = "kqv"
+    label_kind = LabelKind.POSITION  # replaced per instance by the spec's
+
+    def __init__(self, spec: ModelSpec, config: KqvConfig | None = None,
+                 scaler: LabelScaler | None = None) -> None:
+        self.spec, self.config, self.scaler = spec, config or KqvConfig(), scaler
+        self.label_kind = spec.label_kind  # type: ignore[misc]
+        self.report: TrainReport | None = None
+        with torch.random.fork_rng(devices=[]):  # seeded weights, global RNG left alone
+            torch.manual_seed(self.config.seed)
+            self.network = KqvNet(spec, self.config).eval()
+
+    @classmethod
+    def for_dataset(cls, dataset: Dataset, config: KqvConfig | None = None) -> Self:
+        """A fresh model for ``dataset``'s task (its label kind, q, condition and image size)."""
+        return cls(ModelSpec.from_metadata(dataset.metadata), config)
+
+    def fit(self, dataset: Dataset, config: TrainConfig | None = None,
+            progress: bool = True) -> TrainReport:
+        """Trains on ``dataset``; the label scaler comes from its labels on the first fit."""
+        self.spec.check_dataset(dataset)
+        if self.scaler is None:
+            self.scaler = LabelScaler.fit(dataset.labels[..., :3])
+        self.report = train(self.network, self.batch_loss, dataset, config or TrainConfig(),
+                            progress, description=f"kqv {self.spec.task}")
+        return self.report
+
+    def batch_loss(self, batch: Batch) -> Tensor:
+        """Squared position error (scaled units) + weighted symmetric chordal rotation loss."""
+        scaler = self._scaler()
+        out = self.network(batch.images, batch.conditions)
+        target = scaler.normalise(batch.labels[..., :3])  # (B, q, 3)
+        loss = (out.positions - target).square().sum(dim=-1).mean()
+        if out.rotations is not None:
+            rotation = batch.labels[..., 3:].unflatten(-1, (3, 3))  # (B, q, 3, 3), row-major
+            chordal = symmetric_chordal_loss(out.rotations, rotation).mean()
+            loss = loss + self.config.rotation_loss_weight * chordal
+        return loss
+
+    @torch.no_grad()
+    def predict_batch(self, images: np.ndarray, conditions: np.ndarray,
+                      queries: np.ndarray | None = None) -> list[Prediction]:
+        """Predictions for uint8 images (B, H, W, 3) and conditions (B, C).
+
+        ``queries`` (B, q, Ck + 2), when given, replaces the learned Queries (top-down control
+        from outside; see :meth:`queries` for the learned ones).
+        """
+        self.check_batch(images, conditions)
+        scaler, spec = self._scaler(), self.spec
+        given = None if queries is None else self._check_queries(queries, len(images))
+        out = self.network(images_to_tensor(images), torch.as_tensor(conditions).float(), given)
+        positions = scaler.denormalise(out.positions).double().numpy()  # (B, q, 3) [m]
+        rotations = None if out.rotations is None else out.rotations.double().numpy()
+        points = normalised_to_pixels(out.attention.coords, spec.image_height_px,
+                                      spec.image_width_px).numpy()  # (B, q, 2)
+        heatmaps = out.attention.heatmaps.numpy()  # (B, q, h, w)
+        predictions = []
+        for b in range(len(images)):
+            object_type = None
+            if spec.condition_kind is ConditionKind.OBJECT_TYPE:
+                object_type = spec.condition_choices[int(np.argmax(conditions[b]))]
+            targets = tuple(Target(positions[b, i], None if rotations is None else
+                                   rotations[b, i], object_type) for i in range(spec.targets))
+            predictions.append(Prediction(targets, points[b].astype(np.float64), heatmaps[b]))
+        return predictions
+
+    @torch.no_grad()
+    def queries(self, conditions: np.ndarray) -> np.ndarray:
+        """The learned Query vectors (B, q, Ck + 2) for one-hot conditions (B, C)."""
+        return self.network.queries(torch.as_tensor(conditions).float()).numpy()
+
+    @torch.no_grad()
+    def attend(self, images: np.ndarray, queries: np.ndarray) -> dict[str, np.ndarray]:
+        """Attention of uint8 images (B, H, W, 3) under any Queries (B, q', Ck + 2).
+
+        Returns ``points_px`` (B, q', 2) (u right, v down), ``heatmaps`` (B, q', h, w) and
+        ``features`` (B, q', Cv): where each Query looks and what it sees there.
+        """
+        self.check_batch(images, np.zeros((len(images), self.spec.condition_size)))
+        attention = self.network.attend(images_to_tensor(images),
+                                        self._check_queries(queries, len(images), any_q=True))
+        points = normalised_to_pixels(attention.coords, self.spec.image_height_px,
+                                      self.spec.image_width_px)
+        return {"points_px": points.double().numpy(), "heatmaps": attention.heatmaps.numpy(),
+                "features": attention.features.numpy()}
+
+    def save(self, path: str | Path) -> Path:
+        """Writes the checkpoint folder ``path`` (weights.safetensors + config.json)."""
+        config: dict[str, Any] = {
+            "spec": self.spec.to_json(), "hyperparameters": asdict(self.config),
+            "label_scaler": self._scaler().to_json(),
+            "training": None if self.report is None else self.report.to_json(),
+        }
+        return save_checkpoint(path, self.name, config, self.network.state_dict())
+
+    @classmethod
+    def load(cls, path: str | Path) -> Self:
+        """The model saved at ``path``; refuses a damaged or mismatched checkpoint."""
+        checkpoint = load_checkpoint(path, cls.name)
+        data = checkpoint.config
+        try:
+            model = cls(ModelSpec.from_json(data["spec"]), KqvConfig(**data["hyperparameters"]),
+                        LabelScaler.from_json(data["label_scaler"]))
+        except (KeyError, TypeError, ValueError) as error:
+            raise CheckpointError(checkpoint.folder / CONFIG_FILE, f"cannot rebuild the model "
+                                  f"({type(error).__name__}: {error})") from error
+        check_shapes(checkpoint, model.network.state_dict())
+        model.network.load_state_dict(checkpoint.tensors)
+        return model
+
+    def _scaler(self) -> LabelScaler:
+        if self.scaler is None:
+            raise InvalidInputError("model", "untrained (no label scaler)", "fit() or load() first")
+        return self.scaler
+
+    def _check_queries(self, queries: np.ndarray, batch: int, any_q: bool = False) -> Tensor:
+        size = self.config.key_dim + 2
+        heads = np.shape(queries)[1] if any_q and np.ndim(queries) == 3 else self.spec.targets
+        if np.ndim(queries) != 3 or np.shape(queries) != (batch, heads, size):
+            raise InvalidInputError("queries", f"shape {np.shape(queries)}",
+                                    f"shape ({batch}, {'q' if any_q else heads}, {size})")
+        return torch.as_tensor(np.asarray(queries, dtype=np.float32))

@@ -1,0 +1,225 @@
+"""The one training loop every learnable model uses: seeded batches, Adam, photometric noise.
+
+A model hands :func:`train` its network and a ``batch_loss(batch) -> loss`` function; the loop
+draws batches, augments them, steps the optimiser and reports. Read top to bottom::
+
+    config = TrainConfig(steps=1500, batch_size=16)
+    report = train(network, model.batch_loss, dataset, config)
+
+Augmentation is photometric only (brightness, contrast, colour gain, pixel noise). Geometric
+augmentation (shifts, crops, flips, rotations) is not used: the labels are positions and poses
+in the world frame, and a shifted image shows a shifted scene, so its labels would have to be
+moved through the camera model, which a perception model does not have. Keeping the geometry
+fixed also keeps the image-to-table mapping the attention coordinates learn to read.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import asdict, dataclass
+from typing import Any, NamedTuple
+
+import numpy as np
+import torch
+from torch import Tensor, nn
+from tqdm import tqdm
+
+from perception.data import Dataset
+from perception.interface import InvalidInputError, PerceptionError
+from perception.models.base import images_to_tensor
+
+BRIGHTNESS = (0.7, 1.3)  # image gain: the yumi tasks light scenes at 0.3-1.0 brightness
+CONTRAST = (0.8, 1.2)  # scales each image about its mean grey level
+COLOUR_GAIN = (0.9, 1.1)  # per channel: small, so a red mug stays red and a green sponge green
+NOISE_STD = 0.02  # per pixel and channel, of the [0, 1] range: sensor noise
+
+
+class TrainingError(PerceptionError):
+    """Training that cannot go on (e.g. the loss became NaN); the message says what to change."""
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """How to train a learnable model.
+
+    Args:
+        steps: Optimiser steps.
+        batch_size: Samples per step; a dataset smaller than this gives all its samples each step.
+        learning_rate: Adam's step size at the start.
+        lr_schedule: ``"cosine"`` decays the rate to 0 over ``steps`` (fine final precision with
+            few samples); ``"constant"`` keeps it.
+        weight_decay: Adam's L2 penalty on every parameter.
+        seed: Seeds batch order (numpy) and augmentation (torch); the weights' initial values
+            come from the model's own seed.
+        augment: Photometric augmentation on or off (see the module docstring).
+        device: Torch device, ``"cpu"`` (the project's target) or e.g. ``"cuda"``.
+        threads: CPU threads for torch; None uses the cores this process may run on.
+        log_every: Steps between two points of the loss curve.
+
+    """
+
+    steps: int = 1500
+    batch_size: int = 16
+    learning_rate: float = 2e-3
+    lr_schedule: str = "cosine"
+    weight_decay: float = 0.0
+    seed: int = 0
+    augment: bool = True
+    device: str = "cpu"
+    threads: int | None = None
+    log_every: int = 25
+
+    def __post_init__(self) -> None:
+        for name in ("steps", "batch_size", "log_every"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise InvalidInputError(name, value, "an integer >= 1")
+        if not isinstance(self.seed, int) or self.seed < 0:
+            raise InvalidInputError("seed", self.seed, "an integer >= 0")
+        if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
+            raise InvalidInputError("learning_rate", self.learning_rate, "a finite value > 0")
+        if not (math.isfinite(self.weight_decay) and self.weight_decay >= 0):
+            raise InvalidInputError("weight_decay", self.weight_decay, "a finite value >= 0")
+        if self.lr_schedule not in ("cosine", "constant"):
+            raise InvalidInputError("lr_schedule", self.lr_schedule, "'cosine' or 'constant'")
+        if self.threads is not None and (not isinstance(self.threads, int) or self.threads < 1):
+            raise InvalidInputError("threads", self.threads, "None or an integer >= 1")
+        try:
+            torch.device(self.device)
+        except RuntimeError:
+            raise InvalidInputError("device", self.device, "a torch device such as 'cpu'") from None
+
+
+class Batch(NamedTuple):
+    """One training batch, as a model's ``batch_loss`` receives it."""
+
+    images: Tensor  # (B, 3, H, W) float32 in [0, 1], augmented
+    conditions: Tensor  # (B, C) float32 one-hot
+    labels: Tensor  # (B, q, D) float32, as the dataset holds them (not yet scaled)
+
+
+@dataclass(frozen=True)
+class TrainReport:
+    """How training went.
+
+    Args:
+        steps: Optimiser steps taken.
+        samples: Training samples in the dataset.
+        final_loss: Mean loss over the last ``log_every`` steps.
+        losses: (step, mean loss over the ``log_every`` steps up to it) pairs: the loss curve.
+        wall_time_s: Wall time of the loop [s].
+        threads: CPU threads torch used.
+        config: The configuration trained with.
+
+    """
+
+    steps: int
+    samples: int
+    final_loss: float
+    losses: tuple[tuple[int, float], ...]
+    wall_time_s: float
+    threads: int
+    config: TrainConfig
+
+    def to_json(self) -> dict[str, Any]:
+        """The report as JSON-able data."""
+        data = asdict(self)
+        data["losses"] = [list(point) for point in self.losses]
+        return data
+
+
+def available_threads() -> int:
+    """CPU cores this process may run on (its affinity mask, not the machine's total)."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+def photometric_augment(images: Tensor, generator: torch.Generator) -> Tensor:
+    """Random brightness, contrast, colour gain and noise on images (B, 3, H, W) in [0, 1]."""
+    batch = images.shape[0]
+
+    def uniform(low_high: tuple[float, float], *shape: int) -> Tensor:
+        low, high = low_high
+        return torch.rand(*shape, generator=generator).to(images) * (high - low) + low
+
+    mean = images.mean(dim=(1, 2, 3), keepdim=True)  # (B, 1, 1, 1)
+    images = (images - mean) * uniform(CONTRAST, batch, 1, 1, 1) + mean  # (B, 3, H, W)
+    images = images * uniform(BRIGHTNESS, batch, 1, 1, 1) * uniform(COLOUR_GAIN, batch, 3, 1, 1)
+    noise = torch.randn(images.shape, generator=generator).to(images) * NOISE_STD
+    return (images + noise).clamp_(0.0, 1.0)  # (B, 3, H, W)
+
+
+def batch_indices(size: int, batch_size: int, rng: np.random.Generator) -> Iterator[np.ndarray]:
+    """Endless batches of sample indices: a fresh permutation each epoch, no sample twice in one."""
+    batch_size = min(batch_size, size)
+    order = np.zeros(0, dtype=np.intp)
+    while True:
+        while len(order) < batch_size:
+            order = np.concatenate([order, rng.permutation(size)])
+        yield order[:batch_size]
+        order = order[batch_size:]
+
+
+def train(
+    network: nn.Module,
+    batch_loss: Callable[[Batch], Tensor],
+    dataset: Dataset,
+    config: TrainConfig,
+    progress: bool = True,
+    description: str = "train",
+) -> TrainReport:
+    """Trains ``network``'s parameters to lower ``batch_loss`` on ``dataset``; leaves it in eval.
+
+    Raises:
+        TrainingError: The loss became NaN or infinite (the message names the step).
+
+    """
+    if len(dataset) == 0:
+        raise InvalidInputError("dataset", "0 samples", "at least one sample")
+    device = torch.device(config.device)
+    threads = config.threads or available_threads()
+    previous_threads = torch.get_num_threads()
+    torch.set_num_threads(threads)
+    rng = np.random.default_rng(config.seed)
+    generator = torch.Generator().manual_seed(config.seed)
+    network.to(device).train()
+    optimiser = torch.optim.Adam(network.parameters(), lr=config.learning_rate,
+                                 weight_decay=config.weight_decay)
+    schedule = torch.optim.lr_scheduler.LambdaLR(optimiser, lambda step: 1.0 if
+                                                 config.lr_schedule == "constant" else
+                                                 0.5 * (1 + math.cos(math.pi * step /
+                                                                     config.steps)))
+    conditions = torch.from_numpy(dataset.conditions).to(device)  # (N, C)
+    labels = torch.from_numpy(dataset.labels).to(device)  # (N, q, D)
+    losses: list[tuple[int, float]] = []
+    window: list[float] = []
+    started = time.perf_counter()
+    bar = tqdm(range(1, config.steps + 1), desc=description, disable=not progress, unit="step")
+    try:
+        batches = batch_indices(len(dataset), config.batch_size, rng)
+        for step in bar:
+            index = next(batches)
+            images = images_to_tensor(dataset.images[index], device)  # (B, 3, H, W)
+            if config.augment:
+                images = photometric_augment(images, generator)
+            loss = batch_loss(Batch(images, conditions[index], labels[index]))
+            if not torch.isfinite(loss):
+                raise TrainingError(f"{description}: the loss became {loss.item()} at step "
+                                    f"{step}; try a lower learning_rate (now "
+                                    f"{config.learning_rate})")
+            optimiser.zero_grad(set_to_none=True)
+            loss.backward()
+            optimiser.step()
+            schedule.step()
+            window.append(loss.item())
+            if step % config.log_every == 0 or step == config.steps:
+                losses.append((step, float(np.mean(window))))
+                bar.set_postfix(loss=f"{losses[-1][1]:.4g}")
+                window = []
+    finally:
+        network.eval()
+        torch.set_num_threads(previous_threads)
+    return TrainReport(config.steps, len(dataset), losses[-1][1], tuple(losses),
+                       time.perf_counter() - started, threads, config)

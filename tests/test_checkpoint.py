@@ -1,0 +1,158 @@
+import json
+
+import numpy as np
+import pytest
+import torch
+from safetensors.torch import load_file, save_file
+from user_models import synthetic_dataset
+
+from perception.checkpoint import (
+    CONFIG_FILE,
+    FORMAT_VERSION,
+    WEIGHTS_FILE,
+    CheckpointError,
+    _sha256,
+    load_checkpoint,
+)
+from perception.interface import LabelKind
+from perception.models.kqv import KqvConfig, KqvModel
+from perception.train import TrainConfig
+
+
+@pytest.fixture(scope="module")
+def saved(tmp_path_factory):
+    """A briefly trained grasp model with 3 conditioned... heads, saved once for every test."""
+    dataset = synthetic_dataset(size=4, targets=3, kind=LabelKind.GRASP_POSE, seed=5)
+    model = KqvModel.for_dataset(dataset, KqvConfig(seed=1))
+    model.fit(dataset, TrainConfig(steps=3, batch_size=2, threads=1), progress=False)
+    folder = model.save(tmp_path_factory.mktemp("ckpt") / "kqv")
+    return model, dataset, folder
+
+
+def copy_of(folder, tmp_path):
+    target = tmp_path / "copy"
+    target.mkdir()
+    for name in (WEIGHTS_FILE, CONFIG_FILE):
+        (target / name).write_bytes((folder / name).read_bytes())
+    return target
+
+
+def edit_config(folder, change):
+    config = json.loads((folder / CONFIG_FILE).read_text())
+    change(config)
+    (folder / CONFIG_FILE).write_text(json.dumps(config))
+
+
+def test_save_then_load_gives_identical_predictions(saved):
+    model, dataset, folder = saved
+    loaded = KqvModel.load(folder)
+    before = model.predict_batch(dataset.images, dataset.conditions)
+    after = loaded.predict_batch(dataset.images, dataset.conditions)
+    for a, b in zip(before, after, strict=True):
+        np.testing.assert_array_equal(a.attention_px, b.attention_px)
+        np.testing.assert_array_equal(a.heatmaps, b.heatmaps)
+        for x, y in zip(a.targets, b.targets, strict=True):
+            np.testing.assert_array_equal(x.position_m, y.position_m)
+            np.testing.assert_array_equal(x.rotation, y.rotation)
+    assert loaded.spec == model.spec and loaded.config == model.config
+    assert loaded.scaler == model.scaler
+
+
+def test_config_json_describes_the_model(saved):
+    _, _, folder = saved
+    config = json.loads((folder / CONFIG_FILE).read_text())
+    assert config["model"] == "kqv" and config["format_version"] == FORMAT_VERSION
+    assert config["spec"]["label_kind"] == "grasp_pose" and config["spec"]["targets"] == 3
+    assert config["spec"]["label_dim"] == 12 and config["spec"]["image_height_px"] == 64
+    assert set(config["label_scaler"]) == {"centre_m", "scale_m"}
+    assert config["hyperparameters"]["channels"] == [16, 32]
+    assert config["training"]["steps"] == 3
+    assert config["weights_sha256"] == _sha256(folder / WEIGHTS_FILE)
+
+
+@pytest.mark.parametrize("name", [WEIGHTS_FILE, CONFIG_FILE])
+def test_missing_file(saved, tmp_path, name):
+    folder = copy_of(saved[2], tmp_path)
+    (folder / name).unlink()
+    with pytest.raises(CheckpointError, match=rf"{name}: missing: a checkpoint folder holds"):
+        KqvModel.load(folder)
+
+
+def test_missing_folder(tmp_path):
+    with pytest.raises(CheckpointError, match=r"nowhere: no such folder"):
+        KqvModel.load(tmp_path / "nowhere")
+
+
+def test_other_format_version(saved, tmp_path):
+    folder = copy_of(saved[2], tmp_path)
+    edit_config(folder, lambda c: c.update(format_version=99))
+    with pytest.raises(CheckpointError, match=rf"config.json: format version 99; this gva "
+                                              rf"reads version {FORMAT_VERSION}"):
+        KqvModel.load(folder)
+
+
+def test_config_of_another_model(saved, tmp_path):
+    folder = copy_of(saved[2], tmp_path)
+    edit_config(folder, lambda c: c.update(model="keypoint"))
+    with pytest.raises(CheckpointError, match=r"config.json: a checkpoint of model 'keypoint', "
+                                              r"not 'kqv'"):
+        KqvModel.load(folder)
+
+
+def test_truncated_weights(saved, tmp_path):
+    folder = copy_of(saved[2], tmp_path)
+    data = (folder / WEIGHTS_FILE).read_bytes()
+    (folder / WEIGHTS_FILE).write_bytes(data[:-100])
+    with pytest.raises(CheckpointError, match=rf"{WEIGHTS_FILE}: truncated: \d+ bytes, the "
+                                              r"header describes \d+"):
+        KqvModel.load(folder)
+
+
+def test_tampered_weights(saved, tmp_path):
+    folder = copy_of(saved[2], tmp_path)
+    data = bytearray((folder / WEIGHTS_FILE).read_bytes())
+    data[-5] ^= 0x40  # one bit of one weight
+    (folder / WEIGHTS_FILE).write_bytes(bytes(data))
+    with pytest.raises(CheckpointError, match=rf"{WEIGHTS_FILE}: its SHA-256 does not match "
+                                              r"config.json: the weights were changed"):
+        KqvModel.load(folder)
+
+
+def test_not_json_config(saved, tmp_path):
+    folder = copy_of(saved[2], tmp_path)
+    (folder / CONFIG_FILE).write_text("{not json")
+    with pytest.raises(CheckpointError, match=r"config.json: not valid JSON"):
+        KqvModel.load(folder)
+
+
+def test_shape_mismatch_with_the_config(saved, tmp_path):
+    folder = copy_of(saved[2], tmp_path)
+    edit_config(folder, lambda c: c["hyperparameters"].update(key_dim=8))
+    with pytest.raises(CheckpointError, match=rf"{WEIGHTS_FILE}: tensor \S+ is torch.float32 "
+                                              r"\(.*\); the network config.json describes "
+                                              r"needs torch.float32 \(.*\)"):
+        KqvModel.load(folder)
+
+
+def test_missing_tensor(saved, tmp_path):
+    folder = copy_of(saved[2], tmp_path)
+    tensors = load_file(str(folder / WEIGHTS_FILE))
+    tensors.pop("head.0.bias")
+    save_file(tensors, str(folder / WEIGHTS_FILE))  # a consistent file, with its checksum
+    edit_config(folder, lambda c: c.update(weights_sha256=_sha256(folder / WEIGHTS_FILE)))
+    with pytest.raises(CheckpointError, match=r"lacks tensors head.0.bias that the network"):
+        KqvModel.load(folder)
+
+
+def test_bad_hyperparameters_in_config(saved, tmp_path):
+    folder = copy_of(saved[2], tmp_path)
+    edit_config(folder, lambda c: c["hyperparameters"].update(stride=3))
+    with pytest.raises(CheckpointError, match=r"config.json: cannot rebuild the model "
+                                              r"\(InvalidInputError: stride = 3"):
+        KqvModel.load(folder)
+
+
+def test_load_checkpoint_reads_tensors_without_pickle(saved):
+    checkpoint = load_checkpoint(saved[2], "kqv")
+    assert all(isinstance(t, torch.Tensor) for t in checkpoint.tensors.values())
+    assert checkpoint.config["model"] == "kqv"

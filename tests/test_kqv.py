@@ -1,0 +1,176 @@
+import numpy as np
+import pytest
+import torch
+from user_models import BACKGROUND, COLOURS, DOWN, TYPES, rot_z, synthetic_dataset
+
+from perception.interface import Condition, ConditionKind, InvalidInputError, LabelKind
+from perception.labels import check_rotations
+from perception.learnable import ModelSpec
+from perception.models.base import (
+    LabelScaler,
+    coordinate_grid,
+    normalised_to_pixels,
+    pixels_to_normalised,
+    rotation_from_6d,
+    softmax2d,
+    spatial_expectation,
+    symmetric_angle_rad,
+    symmetric_chordal_loss,
+)
+from perception.models.kqv import KqvConfig, KqvModel
+
+
+def spec(q=1, kind=LabelKind.POSITION, choices=(), px=64):
+    return ModelSpec(scene="synthetic", task="t", label_kind=kind, targets=q,
+                     condition_kind=ConditionKind.OBJECT_TYPE if choices else ConditionKind.NONE,
+                     condition_choices=choices, image_height_px=px, image_width_px=px)
+
+
+def trained_scaler(model):
+    model.scaler = LabelScaler((0.4, 0.0, 0.02), 0.2)
+    return model
+
+
+def test_softmax2d_sums_to_one_per_head():
+    logits = torch.randn(2, 3, 5, 7, generator=torch.Generator().manual_seed(0)) * 10
+    for temperature in (0.05, 1.0, 4.0):
+        heatmaps = softmax2d(logits, temperature)
+        assert heatmaps.shape == (2, 3, 5, 7)
+        torch.testing.assert_close(heatmaps.sum(dim=(2, 3)), torch.ones(2, 3))
+        assert (heatmaps >= 0).all()
+    # a lower temperature sharpens the same logits
+    assert softmax2d(logits, 0.1).amax() >= softmax2d(logits, 1.0).amax()
+
+
+def test_one_hot_heatmap_extracts_that_cells_feature_and_coordinates():
+    values = torch.randn(1, 4, 6, 8, generator=torch.Generator().manual_seed(1))
+    heatmaps = torch.zeros(1, 2, 6, 8)
+    heatmaps[0, 0, 2, 5] = 1.0  # row 2, column 5
+    heatmaps[0, 1, 0, 0] = 1.0
+    features = spatial_expectation(heatmaps, values)
+    torch.testing.assert_close(features[0, 0], values[0, :, 2, 5])
+    torch.testing.assert_close(features[0, 1], values[0, :, 0, 0])
+    coords = spatial_expectation(heatmaps, coordinate_grid(6, 8))
+    expected = torch.tensor([(2 * 5 + 1) / 8 - 1, (2 * 2 + 1) / 6 - 1])  # (x, y) of the centre
+    torch.testing.assert_close(coords[0, 0], expected)
+    # cell (row 2, column 5) of a 6 x 8 map over a 96 x 128 image: pixels u 80-95, v 32-47
+    pixels = normalised_to_pixels(coords, 96, 128)
+    torch.testing.assert_close(pixels[0, 0], torch.tensor([87.5, 39.5]))
+    torch.testing.assert_close(pixels_to_normalised(pixels, 96, 128), coords)
+
+
+def test_coordinate_grid_spans_minus_one_to_one_at_the_edges():
+    grid = coordinate_grid(4, 4)
+    assert grid.shape == (2, 4, 4)
+    assert grid[0, 0, 0] == -0.75 and grid[0, 0, -1] == 0.75  # x: left to right
+    assert grid[1, 0, 0] == -0.75 and grid[1, -1, 0] == 0.75  # y: top to bottom
+    edges = normalised_to_pixels(torch.tensor([[-1.0, -1.0], [1.0, 1.0]]), 64, 64)
+    torch.testing.assert_close(edges, torch.tensor([[-0.5, -0.5], [63.5, 63.5]]))
+
+
+def test_rotation_from_6d_is_proper_and_keeps_the_first_column_direction():
+    six = torch.randn(50, 6, generator=torch.Generator().manual_seed(2))
+    rotation = rotation_from_6d(six).double().numpy()
+    check_rotations("rotation", rotation)
+    first = six[:, :3].numpy() / np.linalg.norm(six[:, :3].numpy(), axis=1, keepdims=True)
+    np.testing.assert_allclose(rotation[:, :, 0], first, atol=1e-5)
+
+
+def test_rotation_loss_and_angle_ignore_the_gripper_half_turn():
+    target = torch.tensor(rot_z(0.3) @ DOWN, dtype=torch.float32)
+    flipped = target @ torch.diag(torch.tensor([-1.0, -1.0, 1.0]))
+    assert symmetric_chordal_loss(flipped, target) < 1e-10
+    assert symmetric_chordal_loss(target, target) < 1e-10
+    other = torch.tensor(rot_z(0.3 + np.pi / 2) @ DOWN, dtype=torch.float32)
+    assert symmetric_chordal_loss(other, target) == pytest.approx(4.0, abs=1e-5)  # 90 degrees
+    angle = symmetric_angle_rad(flipped.double().numpy(), target.double().numpy())
+    assert angle == pytest.approx(0.0, abs=1e-6)
+    assert symmetric_angle_rad(rot_z(0.5) @ DOWN, rot_z(0.3) @ DOWN) == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize("q", [1, 3])
+@pytest.mark.parametrize("kind", [LabelKind.POSITION, LabelKind.GRASP_POSE])
+@pytest.mark.parametrize("choices", [(), TYPES])
+def test_prediction_shapes(q, kind, choices):
+    model = trained_scaler(KqvModel(spec(q, kind, choices), KqvConfig(seed=q)))
+    assert model.label_kind is kind and model.name == "kqv"
+    images = np.broadcast_to(BACKGROUND, (2, 64, 64, 3)).copy()
+    conditions = np.eye(len(choices), dtype=np.float32)[[0, 2]] if choices else np.zeros((2, 0))
+    predictions = model.predict_batch(images, conditions)
+    condition = Condition(ConditionKind.OBJECT_TYPE, "blue", TYPES) if choices else Condition()
+    predictions.append(model.predict(images[1], condition))
+    for prediction in predictions:
+        assert len(prediction.targets) == q
+        assert prediction.attention_px.shape == (q, 2)
+        assert prediction.heatmaps is not None and prediction.heatmaps.shape == (q, 16, 16)
+        np.testing.assert_allclose(prediction.heatmaps.sum(axis=(1, 2)), 1.0, rtol=1e-5)
+        for target in prediction.targets:
+            assert target.position_m.shape == (3,)
+            if kind is LabelKind.GRASP_POSE:
+                check_rotations("rotation", target.rotation)
+            else:
+                assert target.rotation is None
+    if choices:
+        assert predictions[1].targets[0].object_type == "blue"
+        # the same image under the same condition, one by one or batched
+        np.testing.assert_allclose(predictions[2].targets[0].position_m,
+                                   predictions[1].targets[0].position_m, atol=1e-6)
+
+
+def test_replacing_the_query_moves_the_attention_point():
+    model = trained_scaler(KqvModel(spec(), KqvConfig(seed=3)))
+    image = np.broadcast_to(BACKGROUND, (64, 64, 3)).copy()
+    image[8:16, 8:16] = COLOURS[0]  # a red square near the top left
+    image[44:52, 40:48] = COLOURS[2]  # a blue one near the bottom right
+    with torch.no_grad():
+        from perception.models.base import images_to_tensor
+        keys = model.network.key_net((images_to_tensor(image[None]) - 0.5) / 0.25)
+    # Queries taken from the Key at each square: attention goes where the Query matches
+    at_red, at_blue = keys[0, :, 3, 3].numpy(), keys[0, :, 12, 11].numpy()  # 16 x 16 cells
+    points = model.attend(image[None], np.stack([at_red, at_blue])[None] * 5)["points_px"][0]
+    assert np.linalg.norm(points[0] - [11.5, 11.5]) < 6
+    assert np.linalg.norm(points[1] - [43.5, 47.5]) < 6
+    # and predict_batch takes replaced Queries too: the learned one, then the blue one
+    learned = model.queries(np.zeros((1, 0)))
+    moved = model.predict_batch(image[None], np.zeros((1, 0)), at_blue[None, None] * 5)[0]
+    assert learned.shape == (1, 1, model.config.key_dim + 2)
+    np.testing.assert_allclose(moved.attention_px[0], points[1], atol=1e-4)
+
+
+def test_config_errors_name_field_value_and_allowed():
+    with pytest.raises(InvalidInputError, match=r"stride = 3 is not allowed: one of 1, 2, 4"):
+        KqvConfig(stride=3)
+    with pytest.raises(InvalidInputError, match=r"query_mode = 'best' is not allowed: one of"):
+        KqvConfig(query_mode="best")
+    with pytest.raises(InvalidInputError, match=r"temperature = 0.0 is not allowed"):
+        KqvConfig(temperature=0.0)
+    with pytest.raises(InvalidInputError, match=r"channels = \(16,\) is not allowed: two integ"):
+        KqvConfig(channels=(16,))
+    with pytest.raises(InvalidInputError, match=r"similarity = 'l2' is not allowed"):
+        KqvConfig(similarity="l2")
+    with pytest.raises(InvalidInputError, match=r"query_mode = 'conditioned' is not allowed"):
+        KqvModel(spec(), KqvConfig(query_mode="conditioned"))
+    assert KqvConfig(channels=[8, 16]).channels == (8, 16)  # as JSON gives it back
+
+
+def test_predict_refuses_wrong_images_and_conditions():
+    model = trained_scaler(KqvModel(spec(choices=TYPES)))
+    image = np.zeros((64, 64, 3), np.uint8)
+    with pytest.raises(InvalidInputError, match=r"image = 'shape \(32, 32, 3\)'"):
+        model.predict(np.zeros((32, 32, 3), np.uint8), Condition(ConditionKind.OBJECT_TYPE,
+                                                                 "red", TYPES))
+    with pytest.raises(InvalidInputError, match=r"condition = .*object_type condition over"):
+        model.predict(image)
+    with pytest.raises(InvalidInputError, match=r"queries = 'shape \(1, 2, 18\)'"):
+        model.predict_batch(image[None], np.eye(3)[:1], np.zeros((1, 2, 18)))
+    untrained = KqvModel(spec())
+    with pytest.raises(InvalidInputError, match=r"untrained"):
+        untrained.predict(image)
+
+
+def test_for_dataset_reads_the_spec_from_metadata():
+    dataset = synthetic_dataset(size=2, targets=3, kind=LabelKind.GRASP_POSE)
+    model = KqvModel.for_dataset(dataset)
+    assert model.spec.targets == 3 and model.spec.label_dim == 12
+    assert model.network.head_features  # grasp labels: the head reads a_feat
+    assert not KqvModel.for_dataset(synthetic_dataset(size=2)).network.head_features

@@ -1,0 +1,134 @@
+import json
+
+import numpy as np
+import pytest
+import torch
+from user_models import CentreModel, synthetic_dataset
+
+from perception.evaluate import evaluate
+from perception.interface import (
+    NO_CONDITION,
+    Condition,
+    InvalidInputError,
+    LabelKind,
+    PerceptionModel,
+    Prediction,
+    Target,
+)
+from perception.labels import split_label
+from perception.models.kqv import KqvConfig, KqvModel
+from perception.train import TrainConfig, batch_indices, photometric_augment
+
+FAST = TrainConfig(steps=60, batch_size=8, learning_rate=3e-3, log_every=10, threads=1)
+
+
+@pytest.mark.parametrize("kind", [LabelKind.POSITION, LabelKind.GRASP_POSE])
+def test_loss_falls_on_a_tiny_synthetic_dataset(kind):
+    dataset = synthetic_dataset(size=8, kind=kind, seed=1)
+    model = KqvModel.for_dataset(dataset, KqvConfig(seed=0))
+    report = model.fit(dataset, FAST, progress=False)
+    first, last = report.losses[0][1], report.final_loss
+    assert last < 0.5 * first, report.losses
+    assert report.steps == 60 and report.samples == 8 and len(report.losses) == 6
+    assert report.wall_time_s > 0 and report.threads == 1
+    json.dumps(report.to_json())  # JSON-able as it is
+
+
+def test_conditioned_model_trains_and_evaluates():
+    dataset = synthetic_dataset(size=8, conditioned=True, seed=2)
+    model = KqvModel.for_dataset(dataset)
+    before = evaluate(trained_scaler_for(model, dataset), dataset)
+    model.scaler = None
+    model.fit(dataset, FAST, progress=False)
+    after = evaluate(model, dataset)
+    assert after.mean_position_error_cm < before.mean_position_error_cm
+
+
+def trained_scaler_for(model, dataset):
+    from perception.models.base import LabelScaler
+
+    model.scaler = LabelScaler.fit(dataset.labels[..., :3])
+    return model
+
+
+def test_training_is_reproducible_from_its_seeds():
+    dataset = synthetic_dataset(size=4, seed=3)
+    config = TrainConfig(steps=5, batch_size=2, log_every=1, threads=1)
+    curves = []
+    for _ in range(2):
+        model = KqvModel.for_dataset(dataset, KqvConfig(seed=7))
+        curves.append(model.fit(dataset, config, progress=False).losses)
+    assert curves[0] == curves[1]
+
+
+def test_batches_visit_every_sample_once_per_epoch():
+    batches = batch_indices(10, 4, np.random.default_rng(0))
+    drawn = np.concatenate([next(batches) for _ in range(5)])  # 20 = two epochs
+    assert sorted(drawn[:10]) == list(range(10)) and sorted(drawn[10:]) == list(range(10))
+    assert len(next(batch_indices(3, 8, np.random.default_rng(0)))) == 3  # capped at the size
+
+
+def test_photometric_augmentation_keeps_shape_range_and_geometry():
+    images = torch.zeros(4, 3, 16, 16)
+    images[:, 0, 4:8, 4:8] = 0.8  # a red square on black
+    out = photometric_augment(images, torch.Generator().manual_seed(0))
+    assert out.shape == images.shape and out.min() >= 0 and out.max() <= 1
+    # photometric only: the square stays where it was
+    red = out[:, 0]
+    assert (red[:, 4:8, 4:8].mean(dim=(1, 2)) > red.mean(dim=(1, 2)) + 0.3).all()
+
+
+def test_train_config_errors_name_field_value_and_allowed():
+    with pytest.raises(InvalidInputError, match=r"steps = 0 is not allowed: an integer >= 1"):
+        TrainConfig(steps=0)
+    with pytest.raises(InvalidInputError, match=r"learning_rate = -0.1 is not allowed"):
+        TrainConfig(learning_rate=-0.1)
+    with pytest.raises(InvalidInputError, match=r"lr_schedule = 'step' is not allowed"):
+        TrainConfig(lr_schedule="step")
+    with pytest.raises(InvalidInputError, match=r"device = 'gpu0' is not allowed"):
+        TrainConfig(device="gpu0")
+
+
+def test_fit_refuses_a_dataset_of_another_spec():
+    model = KqvModel.for_dataset(synthetic_dataset(size=2, targets=1))
+    with pytest.raises(InvalidInputError, match=r"targets is 3, the model's is 1"):
+        model.fit(synthetic_dataset(size=2, targets=3), FAST, progress=False)
+
+
+class Truth(PerceptionModel):
+    """Predicts a dataset's own labels, its rotations turned half a turn about the TCP z axis."""
+
+    name = "truth"
+    label_kind = LabelKind.GRASP_POSE
+
+    def __init__(self, dataset):
+        self.labels = {image.tobytes(): label
+                       for image, label in zip(dataset.images, dataset.labels, strict=True)}
+
+    def predict(self, image: np.ndarray, condition: Condition = NO_CONDITION) -> Prediction:
+        position, rotation = split_label(self.labels[image.tobytes()].astype(np.float64))
+        flip = np.diag([-1.0, -1.0, 1.0])
+        offset = np.array([0.0, 0.03, 0.04])
+        return Prediction(tuple(Target(p + offset, r @ flip)
+                                for p, r in zip(position, rotation, strict=True)))
+
+
+def test_evaluate_reports_cm_and_symmetric_angles():
+    dataset = synthetic_dataset(size=5, targets=2, kind=LabelKind.GRASP_POSE, seed=4)
+    result = evaluate(Truth(dataset), dataset)
+    assert result.samples == 5 and result.targets == 2
+    assert result.mean_position_error_cm == pytest.approx(5.0)  # 3-4-5 cm off
+    assert result.mean_angle_error_deg == pytest.approx(0.0, abs=1e-4)
+    assert np.shape(result.position_errors_cm) == (5, 2)
+    assert len(result.per_target_mean_position_error_cm) == 2
+    text = json.dumps(result.to_json())
+    assert json.loads(text)["median_position_error_cm"] == pytest.approx(5.0)
+    assert "5.00 cm" in result.headline()
+
+
+def test_evaluate_refuses_models_that_do_not_fit_the_dataset():
+    grasps = synthetic_dataset(size=2, kind=LabelKind.GRASP_POSE)
+    with pytest.raises(InvalidInputError, match=r"model rotation = None is not allowed"):
+        evaluate(CentreModel(), grasps)
+    with pytest.raises(InvalidInputError, match=r"model targets = \[1\] is not allowed: 3"):
+        evaluate(CentreModel(), synthetic_dataset(size=2, targets=3))

@@ -1,0 +1,104 @@
+"""A user's own models (found by the registry as ``"user_models:Class"``) and tiny synthetic data.
+
+The synthetic scenes: coloured squares on a wood-coloured background; square ``k`` has type
+``TYPES[k]`` and its label is an affine function of where it lies in the image, so a model that
+finds the square can predict the label.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from perception.data import Dataset, DatasetMetadata
+from perception.interface import (
+    NO_CONDITION,
+    Condition,
+    ConditionKind,
+    LabelKind,
+    PerceptionModel,
+    Prediction,
+    Target,
+)
+from perception.labels import label_vector
+from perception.models.kqv import KqvModel
+
+TYPES = ("red", "green", "blue")
+COLOURS = np.array([[220, 30, 30], [30, 170, 60], [40, 60, 220]], dtype=np.uint8)
+BACKGROUND = np.array([200, 170, 130], dtype=np.uint8)
+SQUARE_PX = 8
+
+
+class CentreModel(PerceptionModel):
+    """Always points at the table centre: the smallest model the interface allows."""
+
+    name = "centre"
+    label_kind = LabelKind.POSITION
+
+    def predict(self, image: np.ndarray, condition: Condition = NO_CONDITION) -> Prediction:
+        return Prediction(targets=(Target(position_m=np.array([0.4, 0.0, 0.0])),))
+
+
+class MyKqv(KqvModel):
+    """A user's variant of the KQV model, under a name of its own (not registered)."""
+
+    name = "my-kqv"
+
+
+class NotAModel:
+    """A class that is no PerceptionModel."""
+
+
+def rot_z(yaw: float) -> np.ndarray:
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+DOWN = np.diag([1.0, -1.0, -1.0])  # a TCP pointing straight down
+
+
+def synthetic_dataset(size: int = 8, targets: int = 1, kind: LabelKind = LabelKind.POSITION,
+                      conditioned: bool = False, seed: int = 0, image_px: int = 64) -> Dataset:
+    """``size`` scenes of coloured squares (``targets`` of them, or all three when conditioned).
+
+    Labels: x = 0.3 + 0.3 v/H, y = 0.2 - 0.4 u/W [m] of the square's centre, z = 0.02 per type
+    index; grasp labels add a top-down TCP turned by a random yaw.
+    """
+    rng = np.random.default_rng(seed)
+    shown = len(TYPES) if conditioned else targets
+    images = np.broadcast_to(BACKGROUND, (size, image_px, image_px, 3)).copy()
+    labels, conditions, scenes = [], [], []
+    for n in range(size):
+        corners = _spaced_corners(rng, shown, image_px)
+        chosen = int(rng.integers(len(TYPES))) if conditioned else None
+        wanted = [chosen] if chosen is not None else list(range(targets))
+        positions, rotations = [], []
+        for k, (v, u) in enumerate(corners):
+            images[n, v:v + SQUARE_PX, u:u + SQUARE_PX] = COLOURS[k]
+            if k in wanted:
+                centre_v, centre_u = v + SQUARE_PX / 2, u + SQUARE_PX / 2
+                positions.append([0.3 + 0.3 * centre_v / image_px,
+                                  0.2 - 0.4 * centre_u / image_px, 0.02 * k])
+                rotations.append(rot_z(rng.uniform(-np.pi, np.pi)) @ DOWN)
+        rotation = np.array(rotations) if kind is LabelKind.GRASP_POSE else None
+        labels.append(label_vector(np.array(positions), rotation))
+        conditions.append(np.eye(len(TYPES), dtype=np.float32)[chosen] if conditioned
+                          else np.zeros(0, np.float32))
+        scenes.append({"index": n, "corners_px": [list(map(int, c)) for c in corners]})
+    metadata = DatasetMetadata(
+        scene="synthetic", task="selected-type" if conditioned else "multiple", size=size,
+        seed=seed, image_height_px=image_px, image_width_px=image_px, label_kind=kind,
+        targets=1 if conditioned else targets,
+        condition_kind=ConditionKind.OBJECT_TYPE if conditioned else ConditionKind.NONE,
+        condition_choices=TYPES if conditioned else (), camera={})
+    return Dataset(metadata, images, np.array(conditions, dtype=np.float32).reshape(size, -1),
+                   np.array(labels, dtype=np.float32), tuple(scenes))
+
+
+def _spaced_corners(rng: np.random.Generator, count: int, image_px: int) -> list[tuple[int, int]]:
+    """Top-left corners (v, u) of ``count`` squares that do not touch."""
+    corners: list[tuple[int, int]] = []
+    while len(corners) < count:
+        v, u = (int(c) for c in rng.integers(2, image_px - SQUARE_PX - 2, size=2))
+        if all(max(abs(v - a), abs(u - b)) > SQUARE_PX + 2 for a, b in corners):
+            corners.append((v, u))
+    return corners
