@@ -19,6 +19,7 @@ import os
 import platform
 import statistics
 import time
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -57,11 +58,12 @@ def object_pixels(dataset: Dataset, height_m: float = 0.04) -> list[np.ndarray]:
     """Per scene, the pixels of its objects' centres (taken ``height_m`` above the table)."""
     from sim.camera import CameraConfig, HeadCamera, Lighting
 
-    camera = dict(dataset.metadata.camera)
-    camera["lighting"] = Lighting(**{k: tuple(v) if isinstance(v, list) else v
-                                     for k, v in camera.get("lighting", {}).items()})
-    config = CameraConfig(**{k: tuple(v) if isinstance(v, list) else v
-                             for k, v in camera.items()})
+    def plain(data: dict[str, Any]) -> dict[str, Any]:  # JSON lists back to tuples
+        return {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
+
+    camera = plain(dataset.metadata.camera)
+    camera["lighting"] = Lighting(**plain(camera.get("lighting", {})))
+    config = CameraConfig(**camera)
     projector = HeadCamera(config)
     return [projector.project(np.array([[*o["position_xy_m"], height_m]
                                         for o in scene["objects"]]))
@@ -83,7 +85,8 @@ def switch_rate(model: KqvModel, dataset: Dataset) -> float:
             one_hot = np.eye(len(meta.condition_choices), dtype=np.float32)[
                 meta.condition_choices.index(choice)]
             point = model.predict_batch(dataset.images[index:index + 1], one_hot[None])[0]
-            nearest = int(np.argmin(np.linalg.norm(pixels[index] - point.attention_px[0], axis=1)))
+            distances = np.linalg.norm(pixels[index] - point.attention_px[0], axis=1)
+            nearest = int(np.argmin(distances))
             if meta.condition_kind is ConditionKind.OBJECT_TYPE:
                 hits.append(objects[nearest]["type"] == choice)
             else:  # side: left is +y
@@ -141,9 +144,10 @@ def main() -> None:
             print(f"inference, {kind.value} labels, batch 1, {count} thread(s): median "
                   f"{median:.2f} ms (bar {INFERENCE_BAR_MS} ms)")
     result: dict[str, Any] = {
-        "benchmark": "kqv", "config": KqvConfig().__dict__, "train_config": TrainConfig().__dict__,
-        "machine": {"cpus": os.cpu_count(), "threads": threads, "python": platform.python_version(),
-                    "torch": torch.__version__, "platform": platform.platform()},
+        "benchmark": "kqv", "config": asdict(KqvConfig()), "train_config": asdict(TrainConfig()),
+        "machine": {"cpus": os.cpu_count(), "threads": threads, "torch": torch.__version__,
+                    "python": platform.python_version(), "platform": platform.platform(),
+                    "load_average_1min": os.getloadavg()[0]},
         "inference": inference | {"bar_ms": INFERENCE_BAR_MS, "repeats": args.repeats},
     }
     result["accuracy"] = [accuracy(train, test, args.steps) for train, test in args.pair]

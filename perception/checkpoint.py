@@ -28,7 +28,7 @@ import torch
 from safetensors import SafetensorError
 from safetensors.torch import load_file, save_file
 
-from perception.interface import PerceptionError
+from perception.interface import InvalidInputError, PerceptionError
 
 FORMAT_VERSION = 1
 WEIGHTS_FILE = "weights.safetensors"
@@ -64,7 +64,8 @@ def save_checkpoint(folder: str | Path, model: str, config: Mapping[str, Any],
     folder.mkdir(parents=True, exist_ok=True)
     reserved = {"format_version", "model", "weights_sha256"} & set(config)
     if reserved:
-        raise ValueError(f"config keys {sorted(reserved)} are written by save_checkpoint")
+        raise InvalidInputError("config keys", sorted(reserved), "keys other than those "
+                                "save_checkpoint writes itself")
     weights = {name: tensor.detach().cpu().contiguous() for name, tensor in tensors.items()}
     _atomic_write(folder / WEIGHTS_FILE, lambda path: save_file(weights, str(path)))
     record = {"format_version": FORMAT_VERSION, "model": model,

@@ -135,7 +135,7 @@ class PerceptionModel(abc.ABC):
     """
 
     name: ClassVar[str]
-    label_kind: ClassVar[LabelKind]
+    label_kind: LabelKind  # per instance where one class serves both kinds (kqv)
 
     @abc.abstractmethod
     def predict(self, image: np.ndarray, condition: Condition = NO_CONDITION) -> Prediction:

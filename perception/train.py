@@ -3,7 +3,7 @@
 A model hands :func:`train` its network and a ``batch_loss(batch) -> loss`` function; the loop
 draws batches, augments them, steps the optimiser and reports. Read top to bottom::
 
-    config = TrainConfig(steps=1500, batch_size=16)
+    config = TrainConfig(steps=1000, batch_size=16)
     report = train(network, model.batch_loss, dataset, config)
 
 Augmentation is photometric only (brightness, contrast, colour gain, pixel noise). Geometric
@@ -61,7 +61,7 @@ class TrainConfig:
 
     """
 
-    steps: int = 1500
+    steps: int = 1000
     batch_size: int = 16
     learning_rate: float = 2e-3
     lr_schedule: str = "cosine"

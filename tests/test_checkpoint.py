@@ -21,7 +21,7 @@ from perception.train import TrainConfig
 
 @pytest.fixture(scope="module")
 def saved(tmp_path_factory):
-    """A briefly trained grasp model with 3 conditioned... heads, saved once for every test."""
+    """A briefly trained grasp model with 3 heads, saved once for every test."""
     dataset = synthetic_dataset(size=4, targets=3, kind=LabelKind.GRASP_POSE, seed=5)
     model = KqvModel.for_dataset(dataset, KqvConfig(seed=1))
     model.fit(dataset, TrainConfig(steps=3, batch_size=2, threads=1), progress=False)

@@ -174,3 +174,12 @@ def test_for_dataset_reads_the_spec_from_metadata():
     assert model.spec.targets == 3 and model.spec.label_dim == 12
     assert model.network.head_features  # grasp labels: the head reads a_feat
     assert not KqvModel.for_dataset(synthetic_dataset(size=2)).network.head_features
+
+
+def test_conditioned_queries_start_as_the_base_query():
+    model = KqvModel(spec(choices=TYPES))  # auto: conditioned + base for a conditioned task
+    queries = model.queries(np.eye(3, dtype=np.float32))
+    assert model.network.base_queries is not None and model.network.query_mlp is not None
+    np.testing.assert_array_equal(queries[0], queries[1])
+    np.testing.assert_array_equal(queries[0], queries[2])
+    assert KqvModel(spec()).network.query_mlp is None  # no condition: Base Queries only
