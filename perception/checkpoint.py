@@ -17,8 +17,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
-import secrets
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,20 +26,18 @@ import torch
 from safetensors import SafetensorError
 from safetensors.torch import load_file, save_file
 
-from perception.interface import InvalidInputError, PerceptionError
+from perception.files import FileError, atomic_write, read_safetensors_header
+from perception.interface import InvalidInputError
 
 FORMAT_VERSION = 1
 WEIGHTS_FILE = "weights.safetensors"
 CONFIG_FILE = "config.json"
-_MAX_HEADER_BYTES = 100_000_000  # safetensors' own limit
 
 
-class CheckpointError(PerceptionError):
+class CheckpointError(FileError):
     """A checkpoint that cannot be used; the message names the file and what is wrong."""
 
-    def __init__(self, path: Path, problem: str) -> None:
-        self.path, self.problem = path, problem
-        super().__init__(f"checkpoint {path}: {problem}")
+    kind = "checkpoint"
 
 
 @dataclass(frozen=True)
@@ -67,11 +63,11 @@ def save_checkpoint(folder: str | Path, model: str, config: Mapping[str, Any],
         raise InvalidInputError("config keys", sorted(reserved), "keys other than those "
                                 "save_checkpoint writes itself")
     weights = {name: tensor.detach().cpu().contiguous() for name, tensor in tensors.items()}
-    _atomic_write(folder / WEIGHTS_FILE, lambda path: save_file(weights, str(path)))
+    atomic_write(folder / WEIGHTS_FILE, lambda path: save_file(weights, str(path)))
     record = {"format_version": FORMAT_VERSION, "model": model,
               "weights_sha256": _sha256(folder / WEIGHTS_FILE), **config}
     text = json.dumps(record, indent=2, sort_keys=True, allow_nan=False) + "\n"
-    _atomic_write(folder / CONFIG_FILE, lambda path: path.write_text(text, encoding="utf-8"))
+    atomic_write(folder / CONFIG_FILE, lambda path: path.write_text(text, encoding="utf-8"))
     return folder
 
 
@@ -111,7 +107,7 @@ def load_checkpoint(folder: str | Path, model: str | None = None) -> Checkpoint:
     if not path.is_file():
         raise CheckpointError(path, f"missing: a checkpoint folder holds {CONFIG_FILE} and "
                               f"{WEIGHTS_FILE}")
-    _check_whole(path)
+    read_safetensors_header(path, CheckpointError)
     if _sha256(path) != config["weights_sha256"]:
         raise CheckpointError(path, f"its SHA-256 does not match {CONFIG_FILE}: the weights "
                               "were changed or damaged after saving")
@@ -138,44 +134,9 @@ def check_shapes(checkpoint: Checkpoint, expected: Mapping[str, torch.Tensor]) -
                                   f"describes needs {tensor.dtype} {tuple(tensor.shape)}")
 
 
-def _check_whole(path: Path) -> None:
-    """An error if the safetensors file is cut short (or longer than its header says)."""
-    size = path.stat().st_size
-    with path.open("rb") as file:
-        length = int.from_bytes(file.read(8), "little")
-        if size < 8 or length > _MAX_HEADER_BYTES or file.read(1) != b"{":
-            raise CheckpointError(path, "not a safetensors file (no 8-byte header length and "
-                                  "JSON header)")
-        if length > size - 8:
-            raise CheckpointError(path, f"truncated: {size} bytes, the header alone needs "
-                                  f"{8 + length}")
-        raw = b"{" + file.read(length - 1)
-    try:
-        header = json.loads(raw)
-        end = max((int(e["data_offsets"][1]) for k, e in header.items() if k != "__metadata__"),
-                  default=0)
-    except (ValueError, TypeError, KeyError, IndexError, AttributeError) as error:
-        raise CheckpointError(path, f"its header is damaged ({error})") from error
-    if size != 8 + length + end:
-        state = "truncated" if size < 8 + length + end else "longer than its header says"
-        raise CheckpointError(path, f"{state}: {size} bytes, the header describes "
-                              f"{8 + length + end}")
-
-
 def _sha256(path: Path) -> str:
     digest = hashlib.sha256()
     with path.open("rb") as file:
         for block in iter(lambda: file.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
-
-
-def _atomic_write(path: Path, write: Any) -> None:
-    temporary = path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.tmp")
-    try:
-        write(temporary)
-        with temporary.open("rb+") as file:
-            os.fsync(file.fileno())
-        os.replace(temporary, path)
-    finally:
-        temporary.unlink(missing_ok=True)

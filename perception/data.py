@@ -22,8 +22,6 @@ from __future__ import annotations
 import enum
 import hashlib
 import json
-import os
-import secrets
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
 from numbers import Integral
@@ -34,7 +32,8 @@ import numpy as np
 from safetensors import SafetensorError, safe_open
 from safetensors.numpy import save_file
 
-from perception.interface import ConditionKind, InvalidInputError, LabelKind, PerceptionError
+from perception.files import FileError, atomic_write, read_safetensors_header
+from perception.interface import ConditionKind, InvalidInputError, LabelKind
 from perception.labels import LABEL_DIMS, check_rotations, split_label
 
 FORMAT_VERSION = 1
@@ -43,15 +42,12 @@ _TENSORS = ("images", "conditions", "labels")
 _NAMES = ", ".join(_TENSORS)
 _CODES = {np.dtype(np.uint8): "U8", np.dtype(np.float32): "F32"}  # safetensors' dtype names
 _RECORD_KEYS = {"metadata", "scenes", "contents_sha256"}
-_MAX_HEADER_BYTES = 100_000_000  # safetensors' own limit
 
 
-class DatasetError(PerceptionError):
+class DatasetError(FileError):
     """A dataset file that cannot be used: missing, damaged, truncated, changed or not as asked."""
 
-    def __init__(self, path: Path, problem: str) -> None:
-        self.path, self.problem = path, problem
-        super().__init__(f"dataset {path}: {problem}")
+    kind = "dataset"
 
 
 @dataclass(frozen=True)
@@ -213,14 +209,8 @@ def save_dataset(dataset: Dataset, path: str | Path) -> Path:
     record: dict[str, Any] = {"metadata": metadata, "scenes": list(dataset.scenes)}
     record["contents_sha256"] = _contents_sha256(record, tensors)
     path.parent.mkdir(parents=True, exist_ok=True)
-    temporary = path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.tmp")
-    try:
-        save_file(tensors, str(temporary), metadata={HEADER_KEY: _canonical(record)})
-        with temporary.open("rb+") as file:
-            os.fsync(file.fileno())
-        os.replace(temporary, path)
-    finally:
-        temporary.unlink(missing_ok=True)
+    atomic_write(path, lambda temporary: save_file(
+        tensors, str(temporary), metadata={HEADER_KEY: _canonical(record)}))
     return path
 
 
@@ -275,30 +265,7 @@ def load_dataset(path: str | Path, expect: Mapping[str, Any] | None = None) -> D
 
 def _read_header(path: Path) -> dict[str, Any]:
     """The safetensors header JSON of ``path``, after checking the file is whole."""
-    if not path.is_file():
-        raise DatasetError(path, "not a file" if path.exists() else "no such file")
-    size = path.stat().st_size
-    with path.open("rb") as file:
-        length = int.from_bytes(file.read(8), "little")
-        if file.read(1) != b"{" or length > _MAX_HEADER_BYTES:
-            raise DatasetError(path, "not a safetensors file: it does not start with an 8-byte "
-                               "header length followed by a JSON header")
-        if length > size - 8:
-            raise DatasetError(path, f"truncated: {size} bytes, but the header alone needs "
-                               f"{8 + length}")
-        raw = b"{" + file.read(length - 1)
-    try:
-        header = json.loads(raw.decode("utf-8"))
-        ends = [int(entry["data_offsets"][1]) for name, entry in header.items()
-                if name != "__metadata__"]
-    except (UnicodeDecodeError, ValueError, TypeError, KeyError, IndexError,
-            AttributeError) as error:
-        raise DatasetError(path, f"the header JSON is damaged ({error})") from error
-    expected_size = 8 + length + max(ends, default=0)
-    if size != expected_size:
-        state = "truncated" if size < expected_size else "longer than its header says"
-        raise DatasetError(path, f"{state}: {size} bytes, the header describes {expected_size}")
-    return dict(header)
+    return read_safetensors_header(path, DatasetError)
 
 
 def _read_record(path: Path, header: Mapping[str, Any]) -> dict[str, Any]:

@@ -16,6 +16,7 @@ from typing import Any
 
 from tqdm import tqdm
 
+from perception.files import atomic_write
 from perception.interface import PerceptionModel
 from sim.camera import HeadCamera
 from sim.errors import InvalidInputError
@@ -108,8 +109,7 @@ def run_trials(
                 bar.update()
     summary = log.summary(settings.n)
     data = {"settings": settings.identity() | {"n": settings.n}} | summary.to_dict()
-    temporary = out / "summary.json.tmp"
-    temporary.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
-    temporary.replace(out / "summary.json")
+    text = json.dumps(data, indent=2, sort_keys=True) + "\n"
+    atomic_write(out / "summary.json", lambda temporary: temporary.write_text(text))
     return summary
 
