@@ -125,12 +125,15 @@ def test_not_json_config(saved, tmp_path):
         KqvModel.load(folder)
 
 
-def test_shape_mismatch_with_the_config(saved, tmp_path):
+@pytest.mark.parametrize(("change", "message"), [
+    ({"key_dim": 8}, rf"{WEIGHTS_FILE}: tensor \S+ is torch.float32 \(.*\); the network "
+                     r"config.json describes needs torch.float32 \(.*\)"),
+    ({"stride": 3}, r"config.json: cannot rebuild the model \(InvalidInputError: stride = 3"),
+])
+def test_hyperparameters_that_do_not_fit_the_weights(saved, tmp_path, change, message):
     folder = copy_of(saved[2], tmp_path)
-    edit_config(folder, lambda c: c["hyperparameters"].update(key_dim=8))
-    with pytest.raises(CheckpointError, match=rf"{WEIGHTS_FILE}: tensor \S+ is torch.float32 "
-                                              r"\(.*\); the network config.json describes "
-                                              r"needs torch.float32 \(.*\)"):
+    edit_config(folder, lambda c: c["hyperparameters"].update(change))
+    with pytest.raises(CheckpointError, match=message):
         KqvModel.load(folder)
 
 
@@ -141,14 +144,6 @@ def test_missing_tensor(saved, tmp_path):
     save_file(tensors, str(folder / WEIGHTS_FILE))  # a consistent file, with its checksum
     edit_config(folder, lambda c: c.update(weights_sha256=_sha256(folder / WEIGHTS_FILE)))
     with pytest.raises(CheckpointError, match=r"lacks tensors head.0.bias that the network"):
-        KqvModel.load(folder)
-
-
-def test_bad_hyperparameters_in_config(saved, tmp_path):
-    folder = copy_of(saved[2], tmp_path)
-    edit_config(folder, lambda c: c["hyperparameters"].update(stride=3))
-    with pytest.raises(CheckpointError, match=r"config.json: cannot rebuild the model "
-                                              r"\(InvalidInputError: stride = 3"):
         KqvModel.load(folder)
 
 
