@@ -12,6 +12,7 @@ import enum
 import json
 import math
 import os
+import statistics
 from collections import Counter
 from collections.abc import Iterator, Mapping
 from dataclasses import asdict, dataclass, field
@@ -119,10 +120,8 @@ class TrialSummary:
                 counts_of = per_object.setdefault(pick["target"], {"attempted": 0, "picked": 0})
                 counts_of["attempted"] += 1
                 counts_of["picked"] += pick["outcome"] == TrialOutcome.SUCCESS.value
-        times = sorted(r.wall_time_s for r in records)
-        median = times[len(times) // 2] if times else 0.0
-        if times and len(times) % 2 == 0:
-            median = 0.5 * (times[len(times) // 2 - 1] + times[len(times) // 2])
+        times = [r.wall_time_s for r in records]
+        median = statistics.median(times) if times else 0.0
         return cls(successes, len(records), wilson_interval(successes, len(records)),
                    {o.value: counts.get(o.value, 0) for o in TrialOutcome}, median,
                    dict(sorted(per_object.items())))
