@@ -4,6 +4,7 @@
 
     model_class("kqv")                      # -> KqvModel
     model_class("my_lab.models:TinyNet")    # imported with importlib; must be a PerceptionModel
+    new_model("keypoint-16", dataset, seed=0)   # a fresh model for a dataset, preset applied
     load_model("runs/kqv-single")           # reads config.json's model name, then Class.load
 
 A checkpoint names its model but never says where to import code from: loading a checkpoint of
@@ -13,20 +14,59 @@ a model that is not registered needs the class named by the caller (``load_model
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 from collections.abc import Mapping
 from pathlib import Path
 from types import MappingProxyType
+from typing import Any
 
 from perception.checkpoint import CONFIG_FILE, CheckpointError, read_config
+from perception.data import Dataset
 from perception.interface import InvalidInputError, PerceptionModel
 from perception.learnable import LearnableModel
 from perception.models.kqv import KqvModel
+from perception.models.torch_model import TorchModel
 
 MODELS: Mapping[str, type[PerceptionModel]] = MappingProxyType({
     KqvModel.name: KqvModel,
 })
 """The built-in models by name; adding a model adds one line here."""
+
+PRESETS: Mapping[str, tuple[str, Mapping[str, Any]]] = MappingProxyType({})
+"""Named variants of a built-in model: name -> (model, hyper-parameters it sets)."""
+
+
+def new_model(name_or_path: str, dataset: Dataset, *, seed: int = 0,
+              **hyperparameters: Any) -> LearnableModel:
+    """A fresh, untrained model for ``dataset``'s task, its weights seeded with ``seed``.
+
+    Args:
+        name_or_path: A registered name, a preset (:data:`PRESETS`, e.g. ``"keypoint-16"``) or
+            ``"package.module:Class"`` of a :class:`~perception.models.torch_model.TorchModel`.
+        dataset: The training dataset; its metadata sets label kind, q, condition, image size.
+        seed: Seeds the initial weights.
+        **hyperparameters: Fields of the model's config dataclass that differ from the defaults
+            (and from the preset's).
+
+    Raises:
+        InvalidInputError: An unknown model, a model that cannot be built from a dataset, or a
+            hyper-parameter the model's config does not have (the message lists those it has).
+
+    """
+    preset: Mapping[str, Any] = {}
+    if name_or_path in PRESETS:
+        name_or_path, preset = PRESETS[name_or_path]
+    cls = model_class(name_or_path)
+    if not issubclass(cls, TorchModel):
+        raise InvalidInputError("model", name_or_path, "a model that trains from a dataset "
+                                f"(a TorchModel: {_names()}, or a subclass of your own)")
+    settings = {**preset, **hyperparameters, "seed": seed}
+    allowed = [field.name for field in dataclasses.fields(cls.config_class)]
+    if unknown := sorted(set(settings) - set(allowed)):
+        raise InvalidInputError("hyper-parameters", unknown, f"fields of {cls.name}'s "
+                                f"{cls.config_class.__name__}: {', '.join(allowed)}")
+    return cls.for_dataset(dataset, cls.config_class(**settings))
 
 
 def model_class(name_or_path: str) -> type[PerceptionModel]:
@@ -40,6 +80,8 @@ def model_class(name_or_path: str) -> type[PerceptionModel]:
     if not isinstance(name_or_path, str) or not name_or_path:
         raise InvalidInputError("model", name_or_path, f"a registered name ({_names()}) or "
                                 "'package.module:Class'")
+    if name_or_path in PRESETS:
+        name_or_path = PRESETS[name_or_path][0]
     if ":" not in name_or_path:
         if name_or_path not in MODELS:
             raise InvalidInputError("model", name_or_path, f"a registered name ({_names()}) "
@@ -92,4 +134,4 @@ def load_model(folder: str | Path, model: str | None = None) -> LearnableModel:
 
 
 def _names() -> str:
-    return ", ".join(MODELS)
+    return ", ".join([*MODELS, *PRESETS])

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 import os
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any, NamedTuple
 
@@ -130,6 +130,23 @@ class TrainReport:
         data["losses"] = [list(point) for point in self.losses]
         return data
 
+    @classmethod
+    def chain(cls, reports: Sequence[TrainReport]) -> TrainReport:
+        """One report for phases trained one after the other: steps and times add up.
+
+        The loss curve runs on across phases (a later phase's steps follow the earlier ones');
+        its losses are each phase's own, so the curve jumps where a phase changes its loss.
+        """
+        if not reports:
+            raise InvalidInputError("reports", "none", "at least one training report")
+        losses, offset = [], 0
+        for report in reports:
+            losses += [(offset + step, loss) for step, loss in report.losses]
+            offset += report.steps
+        last = reports[-1]
+        return cls(offset, last.samples, last.final_loss, tuple(losses),
+                   sum(r.wall_time_s for r in reports), last.threads, last.config)
+
 
 def available_threads() -> int:
     """CPU cores this process may run on (its affinity mask, not the machine's total)."""
@@ -169,8 +186,12 @@ def train(
     config: TrainConfig,
     progress: bool = True,
     description: str = "train",
+    parameters: Iterable[nn.Parameter] | None = None,
 ) -> TrainReport:
     """Trains ``network``'s parameters to lower ``batch_loss`` on ``dataset``; leaves it in eval.
+
+    ``parameters``, when given, are the only ones the optimiser moves (a later training phase
+    on a frozen encoder); by default every parameter of ``network``.
 
     Raises:
         TrainingError: The loss became NaN or infinite (the message names the step).
@@ -185,7 +206,10 @@ def train(
     rng = np.random.default_rng(config.seed)
     generator = torch.Generator().manual_seed(config.seed)
     network.to(device).train()
-    optimiser = torch.optim.Adam(network.parameters(), lr=config.learning_rate,
+    trained = list(network.parameters() if parameters is None else parameters)
+    if not trained:
+        raise InvalidInputError("parameters", "none", "at least one parameter to train")
+    optimiser = torch.optim.Adam(trained, lr=config.learning_rate,
                                  weight_decay=config.weight_decay)
     schedule = torch.optim.lr_scheduler.LambdaLR(optimiser, lambda step: 1.0 if
                                                  config.lr_schedule == "constant" else

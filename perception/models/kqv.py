@@ -19,37 +19,25 @@ and sixteen times less work per layer, which keeps training on two CPU cores wit
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
-from pathlib import Path
-from typing import Any, NamedTuple, Self, cast
+from dataclasses import dataclass
+from typing import NamedTuple, cast
 
 import numpy as np
 import torch
 from torch import Tensor, nn
 
-from perception.checkpoint import (
-    CONFIG_FILE,
-    CheckpointError,
-    check_shapes,
-    load_checkpoint,
-    save_checkpoint,
-)
-from perception.data import Dataset
-from perception.interface import ConditionKind, InvalidInputError, LabelKind, Prediction, Target
-from perception.learnable import LearnableModel, ModelSpec, check_choices
+from perception.interface import InvalidInputError, LabelKind, Prediction
+from perception.learnable import ModelSpec, check_choices
 from perception.models.base import (
     MLP,
     CoordConv,
-    LabelScaler,
     coordinate_grid,
     images_to_tensor,
     normalised_to_pixels,
-    rotation_from_6d,
     softmax2d,
     spatial_expectation,
-    symmetric_chordal_loss,
 )
-from perception.train import Batch, TrainConfig, TrainReport, train
+from perception.models.torch_model import NetOutput, TorchModel, pose_size, split_pose
 
 QUERY_MODES = ("auto", "base", "conditioned", "conditioned+base")
 
@@ -141,14 +129,6 @@ class Attention(NamedTuple):
     features: Tensor  # (B, q, Cv) a_feat
 
 
-class KqvOutput(NamedTuple):
-    """The network's output for a batch."""
-
-    positions: Tensor  # (B, q, 3) in the label scaler's units
-    rotations: Tensor | None  # (B, q, 3, 3) proper rotations; None for position labels
-    attention: Attention
-
-
 class KqvNet(nn.Module):
     """The network: FCN1 (Key), FCN2 (Feature Value), the Queries and the head MLP."""
 
@@ -193,8 +173,7 @@ class KqvNet(nn.Module):
         # One MLP shared by every head: the image-to-world mapping is one camera's geometry, so
         # each head learns it from q times the samples; a one-hot head index tells them apart.
         head_in = 2 + (value if reads_features else 0) + (spec.targets if spec.targets > 1 else 0)
-        head_out = 3 if spec.label_kind is LabelKind.POSITION else 9  # position (+ 6-D rotation)
-        self.head = MLP((head_in, c.head_width, c.head_width, head_out))
+        self.head = MLP((head_in, c.head_width, c.head_width, pose_size(spec.label_kind)))
 
     def queries(self, conditions: Tensor) -> Tensor:
         """The Query vectors for one-hot conditions (B, C): (B, q, Ck + 2)."""
@@ -224,7 +203,7 @@ class KqvNet(nn.Module):
                          spatial_expectation(heatmaps, values))  # (B, q', Cv)
 
     def forward(self, images: Tensor, conditions: Tensor, queries: Tensor | None = None
-                ) -> KqvOutput:
+                ) -> NetOutput:
         """Targets for images (B, 3, H, W) in [0, 1] under conditions (B, C) (or given Queries)."""
         attention = self.attend(images, self.queries(conditions) if queries is None else queries)
         batch, heads = attention.coords.shape[:2]
@@ -233,56 +212,26 @@ class KqvNet(nn.Module):
             parts.append(attention.features)  # (B, q, Cv)
         if self.targets > 1:
             parts.append(torch.eye(heads, device=images.device).expand(batch, -1, -1))
-        out = self.head(torch.cat(parts, dim=-1))  # (B, q, 3) or (B, q, 9)
-        rotations = rotation_from_6d(out[..., 3:]) if out.shape[-1] == 9 else None
-        return KqvOutput(out[..., :3], rotations, attention)
+        positions, rotations = split_pose(self.head(torch.cat(parts, dim=-1)))  # (B, q, 3|9)
+        return NetOutput(positions, rotations, attention.coords, attention.heatmaps)
 
 
-class KqvModel(LearnableModel):
+class KqvModel(TorchModel):
     """The KQV attention model behind the :class:`PerceptionModel` interface.
 
     Build it for a dataset with :meth:`for_dataset`, train it with :meth:`fit`, then
-    ``predict(image, condition)``; ``save``/``load`` a checkpoint folder.
+    ``predict(image, condition)``; ``save``/``load`` a checkpoint folder. :meth:`queries` and
+    :meth:`attend` expose the Queries, so a caller can steer the attention from outside.
     """
 
     name = "kqv"
-    label_kind = LabelKind.POSITION  # replaced per instance by the spec's
+    config_class = KqvConfig
+    config: KqvConfig
+    network: KqvNet
 
-    def __init__(self, spec: ModelSpec, config: KqvConfig | None = None,
-                 scaler: LabelScaler | None = None) -> None:
-        self.spec, self.config, self.scaler = spec, config or KqvConfig(), scaler
-        self.label_kind = spec.label_kind
-        self.report: TrainReport | None = None
-        with torch.random.fork_rng(devices=[]):  # seeded weights, global RNG left alone
-            torch.manual_seed(self.config.seed)
-            self.network = KqvNet(spec, self.config).eval()
-
-    @classmethod
-    def for_dataset(cls, dataset: Dataset, config: KqvConfig | None = None) -> Self:
-        """A fresh model for ``dataset``'s task (its label kind, q, condition and image size)."""
-        return cls(ModelSpec.from_metadata(dataset.metadata), config)
-
-    def fit(self, dataset: Dataset, config: TrainConfig | None = None,
-            progress: bool = True) -> TrainReport:
-        """Trains on ``dataset``; the label scaler comes from its labels on the first fit."""
-        self.spec.check_dataset(dataset)
-        if self.scaler is None:
-            self.scaler = LabelScaler.fit(dataset.labels[..., :3])
-        self.report = train(self.network, self.batch_loss, dataset, config or TrainConfig(),
-                            progress, description=f"kqv {self.spec.task}")
-        return self.report
-
-    def batch_loss(self, batch: Batch) -> Tensor:
-        """Squared position error (scaled units) + weighted symmetric chordal rotation loss."""
-        scaler = self._scaler()
-        out = self.network(batch.images, batch.conditions)
-        target = scaler.normalise(batch.labels[..., :3])  # (B, q, 3)
-        loss = (out.positions - target).square().sum(dim=-1).mean()
-        if out.rotations is not None:
-            rotation = batch.labels[..., 3:].unflatten(-1, (3, 3))  # (B, q, 3, 3), row-major
-            chordal = symmetric_chordal_loss(out.rotations, rotation).mean()
-            loss = loss + self.config.rotation_loss_weight * chordal
-        return loss
+    def build_network(self) -> KqvNet:
+        """The Key, Value, Query and head networks for this spec."""
+        return KqvNet(self.spec, self.config)
 
     @torch.no_grad()
     def predict_batch(self, images: np.ndarray, conditions: np.ndarray,
@@ -292,24 +241,12 @@ class KqvModel(LearnableModel):
         ``queries`` (B, q, Ck + 2), when given, replaces the learned Queries (top-down control
         from outside; see :meth:`queries` for the learned ones).
         """
+        if queries is None:
+            return super().predict_batch(images, conditions)
         self.check_batch(images, conditions)
-        scaler, spec = self._scaler(), self.spec
-        given = None if queries is None else self._check_queries(queries, len(images))
+        given = self._check_queries(queries, len(images))
         out = self.network(images_to_tensor(images), torch.as_tensor(conditions).float(), given)
-        positions = scaler.denormalise(out.positions).double().numpy()  # (B, q, 3) [m]
-        rotations = None if out.rotations is None else out.rotations.double().numpy()
-        points = normalised_to_pixels(out.attention.coords, spec.image_height_px,
-                                      spec.image_width_px).numpy()  # (B, q, 2)
-        heatmaps = out.attention.heatmaps.numpy()  # (B, q, h, w)
-        predictions = []
-        for b in range(len(images)):
-            object_type = None
-            if spec.condition_kind is ConditionKind.OBJECT_TYPE:
-                object_type = spec.condition_choices[int(np.argmax(conditions[b]))]
-            targets = tuple(Target(positions[b, i], None if rotations is None else
-                                   rotations[b, i], object_type) for i in range(spec.targets))
-            predictions.append(Prediction(targets, points[b].astype(np.float64), heatmaps[b]))
-        return predictions
+        return self.to_predictions(out, conditions)
 
     @torch.no_grad()
     def queries(self, conditions: np.ndarray) -> np.ndarray:
@@ -330,35 +267,6 @@ class KqvModel(LearnableModel):
                                       self.spec.image_width_px)
         return {"points_px": points.double().numpy(), "heatmaps": attention.heatmaps.numpy(),
                 "features": attention.features.numpy()}
-
-    def save(self, path: str | Path) -> Path:
-        """Writes the checkpoint folder ``path`` (weights.safetensors + config.json)."""
-        config: dict[str, Any] = {
-            "spec": self.spec.to_json(), "hyperparameters": asdict(self.config),
-            "label_scaler": self._scaler().to_json(),
-            "training": None if self.report is None else self.report.to_json(),
-        }
-        return save_checkpoint(path, self.name, config, self.network.state_dict())
-
-    @classmethod
-    def load(cls, path: str | Path) -> Self:
-        """The model saved at ``path``; refuses a damaged or mismatched checkpoint."""
-        checkpoint = load_checkpoint(path, cls.name)
-        data = checkpoint.config
-        try:
-            model = cls(ModelSpec.from_json(data["spec"]), KqvConfig(**data["hyperparameters"]),
-                        LabelScaler.from_json(data["label_scaler"]))
-        except (KeyError, TypeError, ValueError) as error:
-            raise CheckpointError(checkpoint.folder / CONFIG_FILE, f"cannot rebuild the model "
-                                  f"({type(error).__name__}: {error})") from error
-        check_shapes(checkpoint, model.network.state_dict())
-        model.network.load_state_dict(checkpoint.tensors)
-        return model
-
-    def _scaler(self) -> LabelScaler:
-        if self.scaler is None:
-            raise InvalidInputError("model", "untrained (no label scaler)", "fit() or load() first")
-        return self.scaler
 
     def _check_queries(self, queries: np.ndarray, batch: int, any_q: bool = False) -> Tensor:
         size = self.config.key_dim + 2

@@ -1,0 +1,219 @@
+"""What every torch model here shares: predicting, the target loss, training phases, checkpoints.
+
+A :class:`TorchModel` is a :class:`~perception.learnable.LearnableModel` built around one
+``nn.Module`` whose ``forward(images, conditions)`` returns a :class:`NetOutput`: the targets
+in the label scaler's units, plus the attention points and heatmaps where the network has them.
+A subclass names its hyper-parameter dataclass and builds its network; predicting, the loss on
+the labels, ``fit`` (one :class:`Phase` or more, through :func:`perception.train.train`),
+``save`` and ``load`` are the same for all::
+
+    class Tiny(TorchModel):
+        name = "tiny"
+        config_class = TinyConfig          # a frozen dataclass with a ``seed`` field
+
+        def build_network(self) -> nn.Module:
+            return TinyNet(self.spec, self.config)
+
+Autoencoder baselines train in two phases (reconstruction first, then the head on the frozen
+encoder): they override :meth:`TorchModel.phases`.
+"""
+
+from __future__ import annotations
+
+import abc
+import dataclasses
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any, ClassVar, NamedTuple, Self
+
+import numpy as np
+import torch
+from torch import Tensor, nn
+
+from perception.checkpoint import (
+    CONFIG_FILE,
+    CheckpointError,
+    check_shapes,
+    load_checkpoint,
+    save_checkpoint,
+)
+from perception.data import Dataset
+from perception.interface import ConditionKind, InvalidInputError, LabelKind, Prediction, Target
+from perception.learnable import LearnableModel, ModelSpec
+from perception.models.base import (
+    LabelScaler,
+    images_to_tensor,
+    normalised_to_pixels,
+    rotation_from_6d,
+    symmetric_chordal_loss,
+)
+from perception.train import Batch, TrainConfig, TrainReport, train
+
+
+class NetOutput(NamedTuple):
+    """A network's output for a batch (tensors, batch first)."""
+
+    positions: Tensor  # (B, q, 3) in the label scaler's units
+    rotations: Tensor | None  # (B, q, 3, 3) proper rotations; None for position labels
+    points: Tensor | None = None  # (B, p, 2) attention points, (x, y) in [-1, 1]; None: none
+    heatmaps: Tensor | None = None  # (B, p, h, w), each summing to 1; None where it has none
+
+
+def pose_size(label_kind: LabelKind) -> int:
+    """Outputs per target a head predicts: 3 (position) or 9 (position + 6-D rotation)."""
+    return 3 if label_kind is LabelKind.POSITION else 9
+
+
+def split_pose(out: Tensor) -> tuple[Tensor, Tensor | None]:
+    """A head's output (B, q, 3 | 9) -> positions (B, q, 3) and rotations (B, q, 3, 3) | None."""
+    rotations = rotation_from_6d(out[..., 3:]) if out.shape[-1] == 9 else None
+    return out[..., :3], rotations
+
+
+class Phase(NamedTuple):
+    """One stage of training: the loss to lower and the parameters that lower it."""
+
+    name: str
+    loss: Callable[[Batch], Tensor]
+    parameters: Iterable[nn.Parameter]
+
+
+class TorchModel(LearnableModel):
+    """A learnable model with one torch network; see the module docstring for a subclass.
+
+    Args:
+        spec: What the model is built for (label kind, q, condition, image size).
+        config: The hyper-parameters, an instance of :attr:`config_class`; None: its defaults.
+        scaler: Maps labels to the network's units; None until :meth:`fit` sets it.
+
+    """
+
+    config_class: ClassVar[type[Any]]
+    label_kind = LabelKind.POSITION  # replaced per instance by the spec's
+
+    def __init__(self, spec: ModelSpec, config: Any = None,
+                 scaler: LabelScaler | None = None) -> None:
+        if config is None:
+            config = self.config_class()
+        if not isinstance(config, self.config_class):
+            raise InvalidInputError("config", type(config).__name__,
+                                    f"a {self.config_class.__name__} for model {self.name!r}")
+        self.spec, self.config, self.scaler = spec, config, scaler
+        self.label_kind = spec.label_kind
+        self.report: TrainReport | None = None
+        with torch.random.fork_rng(devices=[]):  # seeded weights, global RNG left alone
+            torch.manual_seed(config.seed)
+            self.network = self.build_network().eval()
+
+    @abc.abstractmethod
+    def build_network(self) -> nn.Module:
+        """The network for ``self.spec`` and ``self.config``; forward returns a NetOutput."""
+
+    @classmethod
+    def for_dataset(cls, dataset: Dataset, config: Any = None) -> Self:
+        """A fresh model for ``dataset``'s task (its label kind, q, condition and image size)."""
+        return cls(ModelSpec.from_metadata(dataset.metadata), config)
+
+    # training
+
+    def phases(self) -> list[Phase]:
+        """The training stages, in order; by default one: every parameter on the target loss."""
+        return [Phase("targets", self.batch_loss, self.network.parameters())]
+
+    def fit(self, dataset: Dataset, config: TrainConfig | None = None,
+            progress: bool = True) -> TrainReport:
+        """Trains on ``dataset``; the label scaler comes from its labels on the first fit.
+
+        Each :meth:`phases` stage runs ``config.steps`` steps; the report chains them.
+        """
+        self.spec.check_dataset(dataset)
+        if self.scaler is None:
+            self.scaler = LabelScaler.fit(dataset.labels[..., :3])
+        config = config or TrainConfig()
+        phases = self.phases()
+        reports = [train(self.network, phase.loss, dataset, config, progress,
+                         description=f"{self.name} {self.spec.task}" +
+                         (f" [{phase.name}]" if len(phases) > 1 else ""),
+                         parameters=phase.parameters) for phase in phases]
+        self.report = TrainReport.chain(reports)
+        return self.report
+
+    def batch_loss(self, batch: Batch) -> Tensor:
+        """The target loss of the network's prediction for ``batch``."""
+        return self.target_loss(self.network(batch.images, batch.conditions), batch.labels)
+
+    def target_loss(self, out: NetOutput, labels: Tensor) -> Tensor:
+        """Squared position error (scaled units) + weighted symmetric chordal rotation loss.
+
+        The position term is the squared Euclidean distance in the scaler's units, so it stays
+        proportional to the error in metres the paper reports; the rotation term counts a half
+        turn about the TCP's approach axis as no error (the same parallel-gripper grasp).
+        """
+        target = self._scaler().normalise(labels[..., :3])  # (B, q, 3)
+        loss = (out.positions - target).square().sum(dim=-1).mean()
+        if out.rotations is not None:
+            rotation = labels[..., 3:].unflatten(-1, (3, 3))  # (B, q, 3, 3), row-major
+            chordal = symmetric_chordal_loss(out.rotations, rotation).mean()
+            loss = loss + self.config.rotation_loss_weight * chordal
+        return loss
+
+    # predicting
+
+    @torch.no_grad()
+    def predict_batch(self, images: np.ndarray, conditions: np.ndarray) -> list[Prediction]:
+        """Predictions for uint8 images (B, H, W, 3) and one-hot conditions (B, C), in order."""
+        self.check_batch(images, conditions)
+        out = self.network(images_to_tensor(images), torch.as_tensor(conditions).float())
+        return self.to_predictions(out, conditions)
+
+    def to_predictions(self, out: NetOutput, conditions: np.ndarray) -> list[Prediction]:
+        """The network's output for a batch as one :class:`Prediction` per image."""
+        spec = self.spec
+        positions = self._scaler().denormalise(out.positions).double().numpy()  # (B, q, 3) [m]
+        rotations = None if out.rotations is None else out.rotations.double().numpy()
+        points = None if out.points is None else normalised_to_pixels(
+            out.points, spec.image_height_px, spec.image_width_px).double().numpy()  # (B, p, 2)
+        heatmaps = None if out.heatmaps is None else out.heatmaps.numpy()  # (B, p, h, w)
+        predictions = []
+        for b in range(len(positions)):
+            object_type = None
+            if spec.condition_kind is ConditionKind.OBJECT_TYPE:
+                object_type = spec.condition_choices[int(np.argmax(conditions[b]))]
+            targets = tuple(Target(positions[b, i], None if rotations is None else
+                                   rotations[b, i], object_type) for i in range(spec.targets))
+            predictions.append(Prediction(
+                targets, np.zeros((0, 2)) if points is None else points[b],
+                None if heatmaps is None else heatmaps[b]))
+        return predictions
+
+    # checkpoints
+
+    def save(self, path: str | Path) -> Path:
+        """Writes the checkpoint folder ``path`` (weights.safetensors + config.json)."""
+        config: dict[str, Any] = {
+            "spec": self.spec.to_json(), "hyperparameters": dataclasses.asdict(self.config),
+            "label_scaler": self._scaler().to_json(),
+            "training": None if self.report is None else self.report.to_json(),
+        }
+        return save_checkpoint(path, self.name, config, self.network.state_dict())
+
+    @classmethod
+    def load(cls, path: str | Path) -> Self:
+        """The model saved at ``path``; refuses a damaged or mismatched checkpoint."""
+        checkpoint = load_checkpoint(path, cls.name)
+        data = checkpoint.config
+        try:
+            model = cls(ModelSpec.from_json(data["spec"]),
+                        cls.config_class(**data["hyperparameters"]),
+                        LabelScaler.from_json(data["label_scaler"]))
+        except (KeyError, TypeError, ValueError) as error:
+            raise CheckpointError(checkpoint.folder / CONFIG_FILE, f"cannot rebuild the model "
+                                  f"({type(error).__name__}: {error})") from error
+        check_shapes(checkpoint, model.network.state_dict())
+        model.network.load_state_dict(checkpoint.tensors)
+        return model
+
+    def _scaler(self) -> LabelScaler:
+        if self.scaler is None:
+            raise InvalidInputError("model", "untrained (no label scaler)", "fit() or load() first")
+        return self.scaler
