@@ -25,15 +25,27 @@ from perception.checkpoint import CONFIG_FILE, CheckpointError, read_config
 from perception.data import Dataset
 from perception.interface import InvalidInputError, PerceptionModel
 from perception.learnable import LearnableModel
+from perception.models.conv_ae import ConvAeModel
+from perception.models.dsae import DsaeModel
+from perception.models.fcn import FcnModel
+from perception.models.keypoint import KeypointModel
 from perception.models.kqv import KqvModel
 from perception.models.torch_model import TorchModel
 
 MODELS: Mapping[str, type[PerceptionModel]] = MappingProxyType({
     KqvModel.name: KqvModel,
+    KeypointModel.name: KeypointModel,
+    DsaeModel.name: DsaeModel,
+    ConvAeModel.name: ConvAeModel,
+    FcnModel.name: FcnModel,
 })
 """The built-in models by name; adding a model adds one line here."""
 
-PRESETS: Mapping[str, tuple[str, Mapping[str, Any]]] = MappingProxyType({})
+PRESETS: Mapping[str, tuple[str, Mapping[str, Any]]] = MappingProxyType({
+    "keypoint-16": ("keypoint", {"points": 16}),  # paper Table II: Key Point (q=16)
+    "keypoint-min": ("keypoint", {"points": None}),  # Key Point (q=min): one point per target
+    "dsae-16": ("dsae", {"points": 16}),  # Deep Spatial AE (q=16)
+})
 """Named variants of a built-in model: name -> (model, hyper-parameters it sets)."""
 
 

@@ -1,0 +1,219 @@
+"""What the paper's four comparison models share: conv stacks, the head, the decoder, two phases.
+
+Table II of the paper compares the KQV model with two visual attention models, "Key Point"
+(a vanilla FCN and a spatial softmax: Levine et al. 2016, Kulkarni et al. 2019) and "Deep
+Spatial AE" (Finn et al. 2016), and with two vanilla FCN models, "Convolutional AE" and "FCN".
+Each is one file built from the pieces here; every network is a :class:`BaselineNet`, an encoder
+giving one feature vector per image (an :class:`Encoding`) and a :class:`PoseHead` MLP::
+
+    model      encoder (file)                    phase 1: reconstruct      head reads
+    keypoint   spatial softmax (keypoint.py)     -                         2K point coordinates
+    dsae       spatial softmax (keypoint.py)     linear -> grey 32 x 32    frozen 2K coordinates
+    conv-ae    conv stack + linear (fcn.py)      convs -> RGB 32 x 32      frozen latent vector
+    fcn        conv stack, flattened (fcn.py)    -                         the flat feature map
+
+In top-down tasks the one-hot condition is concatenated with the features before the head MLP:
+the paper gives these models the target "with the coordinates" to an MLP. The two autoencoders
+(:class:`AutoencoderModel`) train the encoder and decoder on reconstruction first, then the head
+alone on the frozen encoder, as the paper trains them ("separately training vision models").
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, NamedTuple
+
+import torch
+from torch import Tensor, nn
+
+from perception.interface import InvalidInputError
+from perception.learnable import ModelSpec, check_choices
+from perception.models.base import MLP
+from perception.models.torch_model import NetOutput, Phase, TorchModel, pose_size, split_pose
+from perception.train import Batch
+
+RECONSTRUCTION_PX = (16, 32, 64)
+"""Reconstruction sizes a decoder allows (square, a multiple of 8 for conv-ae's upsampling)."""
+
+GREY_WEIGHTS = (0.299, 0.587, 0.114)
+"""ITU-R BT.601 luma weights of R, G and B: the grey image DSAE reconstructs."""
+
+
+def check_count(name: str, value: Any) -> None:
+    """An error unless ``value`` is an integer >= 1 (a width, a count)."""
+    if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+        raise InvalidInputError(name, value, "an integer >= 1")
+
+
+def check_channels(name: str, value: Any, lengths: range) -> tuple[int, ...]:
+    """``value`` as a tuple of integers >= 1 of a length in ``lengths`` (JSON gives a list)."""
+    channels = tuple(value) if isinstance(value, list | tuple) else ()
+    if len(channels) not in lengths or not all(
+            isinstance(c, int) and not isinstance(c, bool) and c >= 1 for c in channels):
+        count = str(lengths[0]) if len(lengths) == 1 else f"{lengths[0]} to {lengths[-1]}"
+        raise InvalidInputError(name, value, f"{count} integers >= 1")
+    return channels
+
+
+@dataclass(frozen=True)
+class BaselineConfig:
+    """Hyper-parameters every comparison model has (each model's config adds its own).
+
+    Args:
+        head_width: Width of the head MLP's two hidden layers; 64, as the KQV model's head, so
+            the models differ in what the head reads, not in its size.
+        rotation_loss_weight: Weight of the chordal rotation loss against the position loss
+            (squared distance in scaled units); 0.1 weighs 1 cm (at a 0.2 m label scale) like
+            about 6 degrees of rotation.
+        seed: Seeds the initial weights.
+
+    """
+
+    head_width: int = 64
+    rotation_loss_weight: float = 0.1
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        check_count("head_width", self.head_width)
+        if not (math.isfinite(self.rotation_loss_weight) and self.rotation_loss_weight >= 0):
+            raise InvalidInputError("rotation_loss_weight", self.rotation_loss_weight,
+                                    "a finite value >= 0")
+        if not isinstance(self.seed, int) or isinstance(self.seed, bool) or self.seed < 0:
+            raise InvalidInputError("seed", self.seed, "an integer >= 0")
+
+
+def check_reconstruction_px(value: Any, spec: ModelSpec | None = None) -> None:
+    """An error unless ``value`` is an allowed reconstruction size (no larger than the image)."""
+    check_choices("reconstruction_px", value, RECONSTRUCTION_PX)
+    if spec is not None and value > min(spec.image_height_px, spec.image_width_px):
+        raise InvalidInputError("reconstruction_px", value, f"at most the image's "
+                                f"{spec.image_height_px} x {spec.image_width_px} px")
+
+
+def conv_stack(channels: Sequence[int], kernels: Sequence[int], strides: Sequence[int],
+               activate_last: bool = True) -> nn.Sequential:
+    """Convolutions ``channels[i] -> channels[i + 1]`` ('same' padding), ReLU after each.
+
+    ``activate_last=False`` leaves the last layer linear (logits for a spatial softmax).
+    """
+    layers: list[nn.Module] = []
+    for index, (kernel, stride) in enumerate(zip(kernels, strides, strict=True)):
+        layers.append(nn.Conv2d(channels[index], channels[index + 1], kernel, stride,
+                                kernel // 2))
+        if activate_last or index < len(kernels) - 1:
+            layers.append(nn.ReLU())
+    return nn.Sequential(*layers)
+
+
+def normalise_images(images: Tensor) -> Tensor:
+    """Images (B, 3, H, W) in [0, 1] -> roughly zero mean, unit spread, as the KQV model reads."""
+    return (images - 0.5) / 0.25
+
+
+class Encoding(NamedTuple):
+    """What an encoder makes of a batch of images (tensors, batch first)."""
+
+    features: Tensor  # (B, F) what the head (and the decoder) reads
+    points: Tensor | None = None  # (B, K, 2) attention points, (x, y) in [-1, 1]
+    heatmaps: Tensor | None = None  # (B, K, h, w), each summing to 1
+
+
+class PoseHead(nn.Module):
+    """The MLP from features (+ the one-hot condition) to all q targets at once."""
+
+    def __init__(self, features: int, spec: ModelSpec, width: int) -> None:
+        super().__init__()
+        self.targets, self.pose = spec.targets, pose_size(spec.label_kind)
+        self.mlp = MLP((features + spec.condition_size, width, width, self.targets * self.pose))
+
+    def forward(self, features: Tensor, conditions: Tensor) -> tuple[Tensor, Tensor | None]:
+        """Features (B, F), conditions (B, C) -> positions (B, q, 3), rotations (B, q, 3, 3)."""
+        out = self.mlp(torch.cat([features, conditions], dim=-1))  # (B, q * (3 | 9))
+        return split_pose(out.unflatten(-1, (self.targets, self.pose)))
+
+
+class Decoder(nn.Module):
+    """Reconstructs a small image (B, c, r, r) from an encoding's features (B, F).
+
+    Its target is the normalised input image average-pooled to r x r, in grey (c = 1) or RGB.
+    """
+
+    def __init__(self, body: nn.Module, channels: int, size_px: int) -> None:
+        super().__init__()
+        self.body, self.channels, self.size_px = body, channels, size_px
+
+    def forward(self, features: Tensor) -> Tensor:
+        """Features (B, F) -> the reconstruction (B, c, r, r)."""
+        return self.body(features).reshape(-1, self.channels, self.size_px, self.size_px)
+
+    def target(self, images: Tensor) -> Tensor:
+        """Normalised images (B, 3, H, W) -> what the decoder should give back (B, c, r, r)."""
+        if self.channels == 1:
+            weights = images.new_tensor(GREY_WEIGHTS).view(1, 3, 1, 1)
+            images = (images * weights).sum(dim=1, keepdim=True)  # (B, 1, H, W)
+        return nn.functional.adaptive_avg_pool2d(images, self.size_px)  # (B, c, r, r)
+
+
+class BaselineNet(nn.Module):
+    """An encoder, the head on its features and, for an autoencoder, a decoder."""
+
+    def __init__(self, encoder: nn.Module, head: PoseHead, decoder: Decoder | None = None) -> None:
+        super().__init__()
+        self.encoder, self.head, self.decoder = encoder, head, decoder
+
+    def encode(self, images: Tensor) -> Encoding:
+        """The encoding of images (B, 3, H, W) in [0, 1]."""
+        encoding: Encoding = self.encoder(normalise_images(images))
+        return encoding
+
+    def targets(self, encoding: Encoding, conditions: Tensor) -> NetOutput:
+        """The head's targets for an encoding under one-hot conditions (B, C)."""
+        positions, rotations = self.head(encoding.features, conditions)  # (B, q, 3), ...
+        return NetOutput(positions, rotations, encoding.points, encoding.heatmaps)
+
+    def forward(self, images: Tensor, conditions: Tensor) -> NetOutput:
+        """Targets for images (B, 3, H, W) in [0, 1] under conditions (B, C)."""
+        return self.targets(self.encode(images), conditions)
+
+    def reconstruction_loss(self, images: Tensor) -> Tensor:
+        """Mean squared error of the decoder's reconstruction of images (B, 3, H, W)."""
+        if self.decoder is None:
+            raise InvalidInputError("decoder", None, "a network built with a decoder")
+        x = normalise_images(images)  # (B, 3, H, W)
+        return (self.decoder(self.encoder(x).features) - self.decoder.target(x)).square().mean()
+
+
+class BaselineModel(TorchModel):
+    """A comparison model: a :class:`BaselineNet` trained end to end on the target loss."""
+
+    network: BaselineNet
+
+
+class AutoencoderModel(BaselineModel):
+    """A comparison model trained in two phases, as the paper trains its autoencoders.
+
+    Phase ``"autoencoder"``: encoder and decoder lower the reconstruction error. Phase
+    ``"head"``: the head alone lowers the target loss on the frozen encoder's features (computed
+    without gradients, so the encoder neither changes nor costs a backward pass).
+    """
+
+    def phases(self) -> list[Phase]:
+        """Reconstruction (encoder + decoder), then the targets (head only)."""
+        net = self.network
+        if net.decoder is None:
+            raise InvalidInputError("decoder", None, "a network built with a decoder")
+        return [Phase("autoencoder", self.reconstruction_loss,
+                      [*net.encoder.parameters(), *net.decoder.parameters()]),
+                Phase("head", self.head_loss, list(net.head.parameters()))]
+
+    def reconstruction_loss(self, batch: Batch) -> Tensor:
+        """Phase 1's loss: the reconstruction error of the batch's images."""
+        return self.network.reconstruction_loss(batch.images)
+
+    def head_loss(self, batch: Batch) -> Tensor:
+        """Phase 2's loss: the target loss, the encoder frozen."""
+        with torch.no_grad():
+            encoding = self.network.encode(batch.images)
+        return self.target_loss(self.network.targets(encoding, batch.conditions), batch.labels)
