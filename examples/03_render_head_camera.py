@@ -13,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.camera import HeadCamera, Lighting, write_png
+from perception.drawing import write_png
+from sim.camera import HeadCamera, Lighting
 from sim.grasps import grasp_pose
 from sim.objects import get_object_spec
 from sim.world import World

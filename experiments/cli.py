@@ -1,8 +1,18 @@
 """The ``gva`` command line.
 
-    gva trials --model oracle --task single --n 30 --seed 0 --out runs/oracle-single
     gva collect --scene yumi --task multiple --size 20 --seed 0 --out runs/yumi-multiple-20.gva
+    gva collect --scene yumi --task multiple --size 100 --seed 1 --out runs/yumi-multiple-test.gva
+    gva train --model kqv --data runs/yumi-multiple-20.gva --out runs/kqv-multiple
+    gva evaluate --model runs/kqv-multiple --data runs/yumi-multiple-test.gva
+    gva trials --model oracle --task single --n 30 --seed 0 --out runs/oracle-single
+    gva trials --model runs/kqv-multiple --task multiple --n 30 --out runs/kqv-multiple-trials
     gva show scene --scene paper-sim --task multiple --out runs/scene.png
+    gva show attention --model runs/kqv-multiple --data runs/yumi-multiple-20.gva --out runs/att
+
+``train`` takes a registered model, a preset (``keypoint-16``) or ``package.module:Class``;
+``evaluate``, ``show attention`` and ``trials`` take a checkpoint folder, with
+``--model-class package.module:Class`` for a model that is not registered. ``trials`` also
+takes ``oracle`` or ``package.module:Class`` of a model that needs no weights.
 
 Bad input exits with status 2 and one line naming the value and what is allowed; a run that
 stops half-way is resumed by running the same command again.
@@ -47,7 +57,10 @@ def build_parser() -> argparse.ArgumentParser:
         description="Runs pick trials: reset a scene from the seed, predict, plan, execute, "
         "judge by physics. Appends each trial to OUT/trials.jsonl; re-running resumes.",
     )
-    trials.add_argument("--model", default="oracle", help="perception model (default: oracle)")
+    trials.add_argument("--model", default="oracle",
+                        help="oracle (default), a checkpoint folder, or package.module:Class")
+    trials.add_argument("--model-class", metavar="MODULE:CLASS",
+                        help="the class that loads a checkpoint of an unregistered model")
     trials.add_argument("--task", default="single",
                         help="built-in task name or task TOML path (default: single)")
     trials.add_argument("--n", type=_integer(1), default=30, help="number of trials (30)")
@@ -67,6 +80,40 @@ def build_parser() -> argparse.ArgumentParser:
     collect.add_argument("--out", type=Path, required=True, help="dataset file to write")
     collect.add_argument("--no-progress", action="store_true", help="no progress bar")
 
+    train = commands.add_parser(
+        "train", help="train a perception model on a dataset and save its checkpoint",
+        description="Trains a fresh model on a dataset and writes its checkpoint folder.",
+    )
+    train.add_argument("--model", required=True,
+                       help="registered model, preset (keypoint-16) or package.module:Class")
+    train.add_argument("--data", type=Path, required=True, help="training dataset file")
+    train.add_argument("--out", type=Path, required=True, help="checkpoint folder to write")
+    train.add_argument("--seed", type=_integer(0), default=0,
+                       help="seeds the weights and the batches (0)")
+    train.add_argument("--steps", type=_integer(1),
+                       help="optimiser steps (default: TrainConfig's)")
+    train.add_argument("--batch-size", type=_integer(1),
+                       help="samples per step (default: TrainConfig's)")
+    train.add_argument("--points", type=_integer(1),
+                       help="attention points of models that have the setting (keypoint)")
+    train.add_argument("--threads", type=_integer(1),
+                       help="torch CPU threads (default: the cores it may use)")
+    train.add_argument("--overwrite", action="store_true",
+                       help="replace a checkpoint already in --out")
+    train.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+    evaluate = commands.add_parser(
+        "evaluate", help="a checkpoint's errors on a dataset, as the paper reports them",
+        description="Mean position error in cm (angle errors too for grasp labels) of a "
+        "checkpoint on a dataset; writes them as JSON.",
+    )
+    evaluate.add_argument("--model", type=Path, required=True, help="checkpoint folder")
+    evaluate.add_argument("--data", type=Path, required=True, help="dataset file (test scenes)")
+    evaluate.add_argument("--out", type=Path,
+                          help="JSON file to write (MODEL/evaluation-<dataset name>.json)")
+    evaluate.add_argument("--model-class", metavar="MODULE:CLASS",
+                          help="the class that loads a checkpoint of an unregistered model")
+
     show = commands.add_parser("show", help="pictures of what the models see")
     shown = show.add_subparsers(dest="what", required=True)
     scene = shown.add_parser(
@@ -82,13 +129,28 @@ def build_parser() -> argparse.ArgumentParser:
     scene.add_argument("--scale", type=_integer(1), default=1,
                        help="enlarge the PNG this many times (1: the model's size)")
     scene.add_argument("--out", type=Path, required=True, help="PNG file to write")
+    attention = shown.add_parser(
+        "attention", help="a checkpoint's attention points and heatmaps, as PNGs (Fig. 5)",
+        description="For each of the first COUNT samples of a dataset: the image with the "
+        "attention points, and each head's heatmap; a conditioned model gets one row per "
+        "condition choice.",
+    )
+    attention.add_argument("--model", type=Path, required=True, help="checkpoint folder")
+    attention.add_argument("--data", type=Path, required=True, help="dataset file")
+    attention.add_argument("--out", type=Path, required=True, help="folder for the PNGs")
+    attention.add_argument("--count", type=_integer(1), default=8, help="samples drawn (8)")
+    attention.add_argument("--scale", type=_integer(1), default=3,
+                           help="enlarge the image this many times (3)")
+    attention.add_argument("--model-class", metavar="MODULE:CLASS",
+                           help="the class that loads a checkpoint of an unregistered model")
     return parser
 
 
 def _run_trials(args: argparse.Namespace) -> int:
     from sim.trials import TrialSettings, run_trials
 
-    settings = TrialSettings(model=args.model, task=args.task, n=args.n, seed=args.seed)
+    settings = TrialSettings(model=args.model, task=args.task, n=args.n, seed=args.seed,
+                             model_class=args.model_class)
     summary = run_trials(settings, args.out, progress=not args.no_progress)
     print(summary.headline())
     for outcome, count in summary.outcomes.items():
@@ -117,6 +179,10 @@ def _run_collect(args: argparse.Namespace) -> int:
 
 
 def _run_show(args: argparse.Namespace) -> int:
+    if args.what == "attention":
+        from experiments.model_commands import run_show_attention
+
+        return run_show_attention(args)
     from sim.scene import SeedStream, sample_scene
     from sim.scenes import get_scene_spec
     from sim.show import render_scene, write_scene_png
@@ -143,9 +209,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _run_trials(args)
         if args.command == "collect":
             return _run_collect(args)
+        if args.command == "train":
+            from experiments.model_commands import run_train
+
+            return run_train(args)
+        if args.command == "evaluate":
+            from experiments.model_commands import run_evaluate
+
+            return run_evaluate(args)
         if args.command == "show":
             return _run_show(args)
-    except (SimError, ControlError, PerceptionError, ValueError) as error:
+    except (SimError, ControlError, PerceptionError, ValueError, OSError) as error:
         print(f"gva {args.command}: error: {error}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

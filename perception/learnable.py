@@ -14,6 +14,7 @@ the file format), then register the class in :mod:`perception.registry` or name 
 from __future__ import annotations
 
 import abc
+import enum
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -91,8 +92,8 @@ class ModelSpec:
     def check_dataset(self, dataset: Dataset) -> None:
         """An error naming every field in which ``dataset`` differs from this spec."""
         other = ModelSpec.from_metadata(dataset.metadata)
-        wrong = [f"{f.name} is {getattr(other, f.name)!r}, the model's is "
-                 f"{getattr(self, f.name)!r}" for f in fields(self)
+        wrong = [f"{f.name} is {_shown(getattr(other, f.name))!r}, the model's is "
+                 f"{_shown(getattr(self, f.name))!r}" for f in fields(self)
                  if f.name not in ("scene", "task") and getattr(other, f.name) !=
                  getattr(self, f.name)]
         if wrong:
@@ -164,6 +165,11 @@ class LearnableModel(PerceptionModel):
         if np.shape(conditions) != (len(images), spec.condition_size):
             raise InvalidInputError("conditions", f"shape {np.shape(conditions)}",
                                     f"shape ({len(images)}, {spec.condition_size})")
+
+
+def _shown(value: object) -> object:
+    """An enum by its value (``'grasp_pose'``, not ``<LabelKind.GRASP_POSE: ...>``) for messages."""
+    return value.value if isinstance(value, enum.Enum) else value
 
 
 def check_choices(name: str, value: object, allowed: Sequence[object]) -> None:

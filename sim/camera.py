@@ -3,15 +3,13 @@
 from __future__ import annotations
 
 import math
-import struct
-import zlib
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pybullet
 
+from perception.drawing import write_png as write_png  # its old home; new code imports it
 from sim.errors import InvalidInputError
 
 
@@ -159,23 +157,3 @@ class HeadCamera:
         v = (1.0 - ndc[:, 1]) * 0.5 * self.config.height_px - 1.0
         return np.stack([u, v], axis=1)
 
-
-def write_png(path: str | Path, image: np.ndarray) -> Path:
-    """Write a uint8 (H, W, 3) RGB image as a PNG file (zlib only, no imaging library)."""
-    array = np.asarray(image)
-    if array.dtype != np.uint8 or array.ndim != 3 or array.shape[2] != 3:
-        raise InvalidInputError("image", f"{array.dtype} {array.shape}", "uint8 (H, W, 3)")
-    height, width = array.shape[:2]
-    rows = np.hstack([np.zeros((height, 1), np.uint8), array.reshape(height, width * 3)])
-
-    def chunk(kind: bytes, data: bytes) -> bytes:
-        body = kind + data
-        return struct.pack(">I", len(data)) + body + struct.pack(">I", zlib.crc32(body))
-
-    header = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)  # 8-bit RGB
-    png = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header)
-    png += chunk(b"IDAT", zlib.compress(rows.tobytes(), 6)) + chunk(b"IEND", b"")
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_bytes(png)
-    return out

@@ -19,13 +19,12 @@ import numpy as np
 from tqdm import tqdm
 
 from perception.data import Dataset, DatasetMetadata, save_dataset
-from perception.interface import ConditionKind
 from perception.labels import label_vector
 from sim.errors import InvalidInputError, SimError
 from sim.records import TrialOutcome
-from sim.scene import SeedStream, check_task_fits, sample_scene
+from sim.scene import SeedStream, check_task_fits, condition_choices, sample_scene
 from sim.scenes import SCENE_NAMES, SceneSpec, get_scene_spec
-from sim.tasks import SIDES, TaskSpec, load_task
+from sim.tasks import TaskSpec, load_task
 
 MAX_REDRAW_FACTOR = 3
 """A yumi collection gives up after this many times ``size`` failed demonstrations."""
@@ -56,15 +55,6 @@ class CollectSettings:
             raise InvalidInputError("size", self.size, "an integer >= 1")
         if self.seed < 0:
             raise InvalidInputError("seed", self.seed, "an integer >= 0")
-
-
-def condition_choices(task: TaskSpec, spec: SceneSpec) -> tuple[str, ...]:
-    """The one-hot order of a task's condition in a scene."""
-    if task.condition is ConditionKind.OBJECT_TYPE:
-        return spec.object_types
-    if task.condition is ConditionKind.SIDE:
-        return SIDES
-    return ()
 
 
 def collect(settings: CollectSettings, out_path: str | Path, progress: bool = True) -> Dataset:

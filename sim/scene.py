@@ -82,6 +82,20 @@ def scene_rng(seed: int, stream: SeedStream, index: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence([seed, int(stream), index]))
 
 
+def condition_choices(task: TaskSpec, spec: SceneSpec) -> tuple[str, ...]:
+    """The one-hot order of a task's condition in a scene; () without a condition."""
+    if task.condition is ConditionKind.OBJECT_TYPE:
+        return spec.object_types
+    if task.condition is ConditionKind.SIDE:
+        return SIDES
+    return ()
+
+
+def target_count(task: TaskSpec) -> int:
+    """q, the targets of each of a task's scenes: every presented object, or the one named."""
+    return task.count if task.targets is TargetSelection.ALL else 1
+
+
 def check_task_fits(task: TaskSpec, spec: SceneSpec) -> None:
     """Raises a clear error if ``task`` cannot be drawn in ``spec``'s scene."""
     where = f"task {task.name!r} in scene {spec.name!r}"

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.camera import HeadCamera, write_png
+from perception.drawing import write_png
+from sim.camera import HeadCamera
 from sim.errors import InvalidInputError
 from sim.objects import get_object_spec
 from sim.scene import Scene

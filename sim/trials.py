@@ -4,12 +4,20 @@ Trial ``i`` of a run with seed ``s`` runs test scene ``i`` of seed ``s`` (see
 :mod:`sim.scene`), so the same seed gives the same trials, and no trial runs on a scene a model
 was trained on. Every finished trial is appended to ``trials.jsonl`` before the next one starts;
 running the same command again resumes where an interrupted run stopped.
+
+The model is named by ``TrialSettings.model``: ``"oracle"``; a checkpoint folder (``gva
+train`` writes one), checked against the task before the first trial; or
+``"package.module:Class"``, a model of your own built with no arguments. Any model but the
+oracle runs its inference on one torch thread: a trial predicts one image at a time, where more
+threads cost more than they save, and runs of trials side by side would fight for the cores.
 """
 
 from __future__ import annotations
 
+import contextlib
+import enum
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -17,14 +25,21 @@ from typing import Any
 from tqdm import tqdm
 
 from perception.files import atomic_write
-from perception.interface import PerceptionModel
-from sim.camera import HeadCamera
+from perception.interface import LabelKind, PerceptionModel
+from perception.learnable import LearnableModel, ModelSpec
+from sim.camera import CameraConfig, HeadCamera
 from sim.errors import InvalidInputError
 from sim.execution import ExecutionSettings
 from sim.oracle import OraclePerception
 from sim.records import TrialLog, TrialSummary
 from sim.runner import TrialRunner
-from sim.scene import SeedStream, check_task_fits, sample_scene
+from sim.scene import (
+    SeedStream,
+    check_task_fits,
+    condition_choices,
+    sample_scene,
+    target_count,
+)
 from sim.scenes import YUMI_SCENE
 from sim.tasks import TaskSpec, load_task
 from sim.world import World
@@ -32,7 +47,32 @@ from sim.world import World
 ModelFactory = Callable[[World, HeadCamera], PerceptionModel]
 
 MODELS: dict[str, ModelFactory] = {"oracle": OraclePerception}
-"""Perception models the trial runner can build by name."""
+"""Perception models the trial runner builds by name; a checkpoint folder or
+``"package.module:Class"`` names any other (see :func:`load_trial_model`)."""
+
+_ALLOWED_MODELS = (f"one of {', '.join(MODELS)}, a checkpoint folder (gva train writes one) or "
+                   "'package.module:Class'")
+
+
+class ModelSource(enum.Enum):
+    """Where the model of a run of trials comes from."""
+
+    BUILT_IN = "built_in"  # a name in MODELS
+    CHECKPOINT = "checkpoint"  # a checkpoint folder of a learnable model
+    CLASS = "class"  # "package.module:Class", a model built with no arguments
+
+
+def model_source(model: str) -> ModelSource:
+    """Where ``model`` (a name, a folder or ``"package.module:Class"``) comes from."""
+    if not isinstance(model, str) or not model:
+        raise InvalidInputError("model", model, _ALLOWED_MODELS)
+    if model in MODELS:
+        return ModelSource.BUILT_IN
+    if Path(model).is_dir():
+        return ModelSource.CHECKPOINT
+    if ":" in model:
+        return ModelSource.CLASS
+    raise InvalidInputError("model", model, _ALLOWED_MODELS)
 
 
 def task_identity(task: TaskSpec) -> dict[str, Any]:
@@ -50,12 +90,15 @@ class TrialSettings:
     """What a run of trials does; the fields of ``run.json``.
 
     Args:
-        model: Perception model name (see :data:`MODELS`).
+        model: ``"oracle"`` (see :data:`MODELS`), a checkpoint folder, or
+            ``"package.module:Class"`` of a model that builds with no arguments.
         task: A built-in task name, or the path of a task TOML file.
         n: Number of trials.
         seed: Seed of the test scenes.
         settle_s: Time objects settle on the table before the image is taken [s].
         execution: How picks are executed and judged.
+        model_class: For a checkpoint folder only: ``"package.module:Class"`` that loads it
+            (needed when its model is not registered); None: the model its config names.
 
     """
 
@@ -65,10 +108,13 @@ class TrialSettings:
     seed: int = 0
     settle_s: float = 0.25
     execution: ExecutionSettings = field(default_factory=ExecutionSettings)
+    model_class: str | None = None
 
     def __post_init__(self) -> None:
-        if self.model not in MODELS:
-            raise InvalidInputError("model", self.model, f"one of {', '.join(MODELS)}")
+        source = model_source(self.model)
+        if self.model_class is not None and source is not ModelSource.CHECKPOINT:
+            raise InvalidInputError("model_class", self.model_class, "None unless model is a "
+                                    "checkpoint folder (it names the class that loads it)")
         check_task_fits(self.task_spec, YUMI_SCENE)  # also: an unknown task names the allowed
         if self.n < 1:
             raise InvalidInputError("n", self.n, "an integer >= 1")
@@ -84,7 +130,114 @@ class TrialSettings:
         """What identifies a run: a folder is only resumed by a run with the same identity."""
         return {"model": self.model, "task": task_identity(self.task_spec), "seed": self.seed,
                 "scene": YUMI_SCENE.name, "settle_s": self.settle_s,
-                "execution": asdict(self.execution)}
+                "execution": asdict(self.execution)} | self._model_identity()
+
+    def _model_identity(self) -> dict[str, Any]:
+        """A checkpoint by its absolute path and weights' SHA-256: other weights, another run."""
+        if model_source(self.model) is not ModelSource.CHECKPOINT:
+            return {}
+        from perception.checkpoint import read_config
+
+        return {"model": str(Path(self.model).resolve()), "model_class": self.model_class,
+                "weights_sha256": read_config(self.model)["weights_sha256"]}
+
+
+@dataclass(frozen=True)
+class TrialModel:
+    """The perception model of a run, as :class:`TrialRunner` builds it.
+
+    Args:
+        factory: Builds the model from the runner's world and camera.
+        label: A short name for progress bars.
+        one_torch_thread: Limit torch to one thread during the trials (models that may use
+            torch: every model but the built-in ones).
+
+    """
+
+    factory: ModelFactory
+    label: str
+    one_torch_thread: bool
+
+
+def load_trial_model(settings: TrialSettings) -> TrialModel:
+    """The model ``settings.model`` names, loaded and checked against the task.
+
+    Raises:
+        InvalidInputError: The model does not predict grasp poses, was trained for another
+            task (the message names both), or a class that does not build with no arguments.
+        perception.checkpoint.CheckpointError: The checkpoint cannot be used.
+
+    """
+    source = model_source(settings.model)
+    if source is ModelSource.BUILT_IN:
+        return TrialModel(MODELS[settings.model], settings.model, one_torch_thread=False)
+    from perception.registry import load_model, model_class  # imports torch: not for the oracle
+
+    model: PerceptionModel
+    if source is ModelSource.CHECKPOINT:
+        model = load_model(settings.model, settings.model_class)
+        label = f"{model.name} {Path(settings.model).resolve().name}"
+    else:
+        cls = model_class(settings.model)
+        if issubclass(cls, LearnableModel):
+            raise InvalidInputError("model", settings.model, "a model without weights; a "
+                                    "learnable one loads from its checkpoint folder: --model "
+                                    f"FOLDER --model-class {settings.model}")
+        try:
+            model = cls()
+        except TypeError as error:
+            raise InvalidInputError("model", settings.model, "a class that builds with no "
+                                    f"arguments ({error})") from error
+        label = model.name
+    check_model_fits_task(model, settings.task_spec, settings.model)
+    return TrialModel(lambda world, camera: model, label, one_torch_thread=True)
+
+
+def check_model_fits_task(model: PerceptionModel, task: TaskSpec, where: str) -> None:
+    """Raises unless ``model`` predicts grasp poses for what ``task`` asks in the yumi scene.
+
+    A model with a :class:`~perception.learnable.ModelSpec` must have been trained on the yumi
+    scene with the task's condition (kind and choices), target count and the head camera's
+    image size. Its task may have another name (e.g. the same task under dimmer light).
+    """
+    kind = getattr(model, "label_kind", None)
+    if kind is not LabelKind.GRASP_POSE:
+        shown = kind.value if isinstance(kind, LabelKind) else kind
+        raise InvalidInputError(f"model {where}: label_kind", shown, "'grasp_pose': pick trials "
+                                "need a grasp pose (TCP position and rotation) per target; a "
+                                "position model (e.g. one trained on paper-sim) cannot pick")
+    if not isinstance(model, LearnableModel) or not isinstance(model.spec, ModelSpec):
+        return
+    spec = model.spec
+    camera = CameraConfig()
+    needed = (YUMI_SCENE.name, task.condition.value, condition_choices(task, YUMI_SCENE),
+              target_count(task), camera.height_px, camera.width_px)
+    trained = (spec.scene, spec.condition_kind.value, tuple(spec.condition_choices),
+               spec.targets, spec.image_height_px, spec.image_width_px)
+    if trained != needed:
+        raise InvalidInputError(f"model {where}", f"trained for task {spec.task} "
+                                f"{_describe(*trained)}", f"a checkpoint for trial task "
+                                f"{task.name} {_describe(*needed)}")
+
+
+def _describe(scene: str, condition: str, choices: tuple[str, ...], targets: int,
+              height_px: int, width_px: int) -> str:
+    over = f"{condition} condition over {', '.join(choices)}" if choices else "no condition"
+    return (f"on scene {scene} ({over}; {targets} target{'s' * (targets != 1)}; "
+            f"{width_px}x{height_px} px images)")
+
+
+@contextlib.contextmanager
+def _torch_threads(threads: int) -> Iterator[None]:
+    """Torch on ``threads`` CPU threads inside the block, as before after it."""
+    import torch
+
+    previous = torch.get_num_threads()
+    torch.set_num_threads(threads)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
 
 
 def run_trials(
@@ -92,14 +245,16 @@ def run_trials(
 ) -> TrialSummary:
     """Runs (or resumes) ``settings.n`` trials into ``out_dir``; writes ``summary.json``."""
     out = Path(out_dir)
+    model = load_trial_model(settings)  # a refused model leaves no run folder behind
     log = TrialLog(out, settings.identity())
     todo = [i for i in range(settings.n) if not log.done(i)]
     task = settings.task_spec
     if todo:
-        with TrialRunner(task, MODELS[settings.model], settings.settle_s,
-                         settings.execution) as runner, tqdm(
+        threads = _torch_threads(1) if model.one_torch_thread else contextlib.nullcontext()
+        with threads, TrialRunner(task, model.factory, settings.settle_s,
+                                  settings.execution) as runner, tqdm(
             total=settings.n, initial=settings.n - len(todo), disable=not progress,
-            desc=f"{settings.model} / {task.name}", unit="trial",
+            desc=f"{model.label} / {task.name}", unit="trial",
         ) as bar:
             for index in todo:
                 scene = sample_scene(task, YUMI_SCENE, settings.seed, SeedStream.TEST, index)

@@ -1,17 +1,14 @@
-"""The head camera: images, projection consistent with them, a clear view, lighting, PNGs."""
+"""The head camera: images, projection consistent with them, a clear view, lighting."""
 
 from __future__ import annotations
 
-import struct
-import zlib
 from collections.abc import Iterator
-from pathlib import Path
 
 import numpy as np
 import pybullet
 import pytest
 
-from sim.camera import CameraConfig, HeadCamera, Lighting, write_png
+from sim.camera import CameraConfig, HeadCamera, Lighting
 from sim.errors import InvalidInputError
 from sim.objects import get_object_spec
 from sim.world import World
@@ -124,18 +121,3 @@ def test_config_errors_name_field_value_and_allowed() -> None:
         Lighting(brightness=3.0)
     with pytest.raises(InvalidInputError, match=r"points_world = \(4,\) .* shape \(N, 3\)"):
         HeadCamera().project(np.zeros(4))
-
-
-def test_write_png_round_trip(tmp_path: Path) -> None:
-    image = np.random.default_rng(0).integers(0, 256, (5, 7, 3), dtype=np.uint8)
-    data = write_png(tmp_path / "sub" / "x.png", image).read_bytes()
-    assert data[:8] == b"\x89PNG\r\n\x1a\n"
-    width, height = struct.unpack(">II", data[16:24])
-    assert (width, height) == (7, 5)
-    start = data.index(b"IDAT") + 4
-    length = struct.unpack(">I", data[start - 8:start - 4])[0]
-    rows = np.frombuffer(zlib.decompress(data[start:start + length]), np.uint8).reshape(5, -1)
-    assert (rows[:, 0] == 0).all()  # filter type "none" on every row
-    np.testing.assert_array_equal(rows[:, 1:].reshape(5, 7, 3), image)
-    with pytest.raises(InvalidInputError, match=r"image = 'float64 .* uint8 \(H, W, 3\)"):
-        write_png(tmp_path / "bad.png", np.zeros((2, 2, 3)))

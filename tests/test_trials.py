@@ -1,20 +1,29 @@
 import json
+import re
 
 import numpy as np
 import pytest
+import torch
+from user_models import synthetic_dataset
 
 from experiments.cli import main
-from perception.interface import Condition, ConditionKind
+from perception.checkpoint import read_config
+from perception.interface import Condition, ConditionKind, LabelKind
+from perception.learnable import ModelSpec
+from perception.models.base import LabelScaler
+from perception.models.kqv import KqvModel
+from perception.train import TrainConfig
 from sim.camera import HeadCamera
 from sim.errors import InvalidInputError
 from sim.grasps import grasp_pose
 from sim.objects import OBJECT_TYPES, get_object_spec
 from sim.oracle import OraclePerception, TargetNotFoundError
+from sim.records import RunFolderError, TrialLog
 from sim.runner import TrialRunner
 from sim.scene import SeedStream, sample_scene
 from sim.scenes import YUMI_SCENE
 from sim.tasks import load_task
-from sim.trials import TrialSettings, run_trials
+from sim.trials import TrialSettings, load_trial_model, run_trials
 from sim.world import World
 
 
@@ -57,7 +66,8 @@ def test_scenes_are_seeded_and_test_scenes_differ_from_training(tmp_path):
 
 
 def test_unknown_model_and_task_are_refused_with_the_allowed_names():
-    with pytest.raises(InvalidInputError, match="model = 'kqv9' is not allowed: one of oracle"):
+    with pytest.raises(InvalidInputError, match="model = 'kqv9' is not allowed: one of oracle, "
+                       r"a checkpoint folder \(gva train writes one\) or 'package.module:Class'"):
         TrialSettings(model="kqv9", task="single")
     with pytest.raises(InvalidInputError, match=r"task = 'juggle' is not allowed: one of multiple, "
                        r"selected-position, selected-type, single, or the path of a \.toml file"):
@@ -143,3 +153,90 @@ def test_a_users_task_file_runs_without_code(tmp_path):
     records = [json.loads(x) for x in (tmp_path / "run" / "trials.jsonl").read_text().splitlines()]
     assert [r["outcome"] for r in records] == ["success", "success"]
     assert all(len(r["objects"]) == 2 and r["objects"][1]["distractor"] for r in records)
+
+
+def _checkpoint(folder, dataset=None, spec=None, seed=0):
+    """A kqv checkpoint: trained 1 step on ``dataset``, or untrained for ``spec``."""
+    if dataset is not None:
+        model = KqvModel.for_dataset(dataset)
+        model.fit(dataset, TrainConfig(steps=1, threads=1), progress=False)
+    else:
+        model = KqvModel(spec, KqvModel.config_class(seed=seed),
+                         LabelScaler((0.47, 0.0, 0.05), 0.1))
+    return model.save(folder)
+
+
+YUMI_SINGLE = ModelSpec("yumi", "single", LabelKind.GRASP_POSE, 1, ConditionKind.NONE, (), 128,
+                        128)
+
+
+def test_a_position_checkpoint_is_refused_for_trials(tmp_path, capsys):
+    folder = _checkpoint(tmp_path / "ckpt", synthetic_dataset(size=2))
+    assert main(["trials", "--model", str(folder), "--n", "1", "--out",
+                 str(tmp_path / "run"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert f"error: model {folder}: label_kind = 'position' is not allowed: 'grasp_pose': pick " \
+           "trials need a grasp pose (TCP position and rotation) per target" in err
+    assert not (tmp_path / "run").exists()  # refused before the run folder is made
+
+
+def test_a_checkpoint_for_another_task_is_refused_naming_both(tmp_path):
+    dataset = synthetic_dataset(size=2, conditioned=True, kind=LabelKind.GRASP_POSE)
+    folder = _checkpoint(tmp_path / "ckpt", dataset)
+    with pytest.raises(InvalidInputError, match=(
+            f"model {re.escape(str(folder))} = 'trained for task selected-type on scene synthetic "
+            r"\(object_type condition over red, green, blue; 1 target; 64x64 px images\)' is "
+            r"not allowed: a checkpoint for trial task single on scene yumi \(no condition; 1 "
+            r"target; 128x128 px images\)")):
+        load_trial_model(TrialSettings(str(folder), "single"))
+    wrong_task = _checkpoint(tmp_path / "yumi-single", spec=YUMI_SINGLE)
+    with pytest.raises(InvalidInputError, match=r"trained for task single on scene yumi \(no "
+                       r"condition; .* a checkpoint for trial task multiple on scene yumi \(no "
+                       r"condition; 3 targets;"):
+        load_trial_model(TrialSettings(str(wrong_task), "multiple"))
+
+
+def test_a_checkpoint_run_is_identified_by_its_weights(tmp_path):
+    folder = _checkpoint(tmp_path / "ckpt", spec=YUMI_SINGLE)
+    identity = TrialSettings(str(folder), "single").identity()
+    assert identity["model"] == str(folder.resolve())
+    assert identity["weights_sha256"] == read_config(folder)["weights_sha256"]
+    TrialLog(tmp_path / "run", identity)
+    _checkpoint(folder, spec=YUMI_SINGLE, seed=1)  # other weights in the same folder
+    with pytest.raises(RunFolderError, match="holds a different run"):
+        TrialLog(tmp_path / "run", TrialSettings(str(folder), "single").identity())
+    with pytest.raises(InvalidInputError, match="model_class = 'user_models:MyKqv' is not "
+                       "allowed: None unless model is a checkpoint folder"):
+        TrialSettings("oracle", "single", model_class="user_models:MyKqv")
+    with pytest.raises(InvalidInputError, match="model = 'user_models:MyKqv' is not allowed: "
+                       "a model without weights; a learnable one loads from its checkpoint "
+                       "folder: --model FOLDER --model-class user_models:MyKqv"):
+        load_trial_model(TrialSettings("user_models:MyKqv", "single"))
+
+
+def test_trials_run_a_checkpoint_on_one_torch_thread(tmp_path, monkeypatch):
+    folder = _checkpoint(tmp_path / "ckpt", spec=YUMI_SINGLE)
+    threads, seen = torch.get_num_threads(), []
+    original = KqvModel.predict_batch
+
+    def spy(self, images, conditions):
+        seen.append(torch.get_num_threads())
+        return original(self, images, conditions)
+
+    monkeypatch.setattr(KqvModel, "predict_batch", spy)
+    summary = run_trials(TrialSettings(str(folder), "single", n=1), tmp_path / "run",
+                         progress=False)
+    assert seen == [1] and torch.get_num_threads() == threads
+    (line,) = (tmp_path / "run" / "trials.jsonl").read_text().splitlines()
+    record = json.loads(line)
+    assert summary.n == 1 and record["model"] == str(folder)
+    assert record["predicted"]["rotation"] is not None
+
+
+def test_a_users_model_class_without_weights_runs_trials(tmp_path):
+    assert main(["trials", "--model", "user_models:FixedGrasp", "--n", "1", "--out",
+                 str(tmp_path), "--no-progress"]) == 0
+    (line,) = (tmp_path / "trials.jsonl").read_text().splitlines()
+    record = json.loads(line)
+    assert record["model"] == "user_models:FixedGrasp"
+    assert record["predicted"]["position_m"] == [0.47, 0.0, 0.03]

@@ -26,6 +26,7 @@ TYPES = ("red", "green", "blue")
 COLOURS = np.array([[220, 30, 30], [30, 170, 60], [40, 60, 220]], dtype=np.uint8)
 BACKGROUND = np.array([200, 170, 130], dtype=np.uint8)
 SQUARE_PX = 8
+DOWN = np.diag([1.0, -1.0, -1.0])  # a TCP pointing straight down
 
 
 class CentreModel(PerceptionModel):
@@ -44,6 +45,26 @@ class MyKqv(KqvModel):
     name = "my-kqv"
 
 
+class BlindKqv(KqvModel):
+    """A KQV model that hides its attention, as models without attention points (fcn) predict."""
+
+    name = "blind-kqv"
+
+    def to_predictions(self, out, conditions):
+        return [Prediction(p.targets) for p in super().to_predictions(out, conditions)]
+
+
+class FixedGrasp(PerceptionModel):
+    """A model without weights for pick trials: a top-down grasp at the workspace's centre."""
+
+    name = "fixed-grasp"
+    label_kind = LabelKind.GRASP_POSE
+
+    def predict(self, image: np.ndarray, condition: Condition = NO_CONDITION) -> Prediction:
+        return Prediction(targets=(Target(np.array([0.47, 0.0, 0.03]), DOWN.copy()),),
+                          attention_px=np.array([[64.0, 70.0]]))
+
+
 class NotAModel:
     """A class that is no PerceptionModel."""
 
@@ -51,9 +72,6 @@ class NotAModel:
 def rot_z(yaw: float) -> np.ndarray:
     c, s = np.cos(yaw), np.sin(yaw)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-DOWN = np.diag([1.0, -1.0, -1.0])  # a TCP pointing straight down
 
 
 def synthetic_dataset(size: int = 8, targets: int = 1, kind: LabelKind = LabelKind.POSITION,

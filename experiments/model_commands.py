@@ -1,0 +1,162 @@
+"""The ``gva train``, ``gva evaluate`` and ``gva show attention`` commands (see :mod:`.cli`).
+
+Each takes the parsed arguments, prints what a reader needs (one summary line, the file it
+wrote) and returns the exit status; errors are raised for :func:`experiments.cli.main` to
+report in one line. Torch is imported here, never by ``gva trials --model oracle``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from perception.checkpoint import CONFIG_FILE, WEIGHTS_FILE, read_config
+from perception.data import Dataset, load_dataset
+from perception.drawing import AttentionRow, attention_figure, write_png
+from perception.evaluate import evaluate
+from perception.files import atomic_write
+from perception.interface import InvalidInputError, PerceptionError, Prediction
+from perception.learnable import LearnableModel
+from perception.registry import load_model, new_model
+from perception.train import TrainConfig
+
+
+def run_train(args: argparse.Namespace) -> int:
+    """``gva train``: a fresh model, fitted on ``--data``, saved in ``--out``."""
+    out: Path = args.out
+    if out.exists() and not out.is_dir():
+        raise InvalidInputError("--out", str(out), "a folder for the checkpoint; it is a file")
+    held = [name for name in (CONFIG_FILE, WEIGHTS_FILE) if (out / name).exists()]
+    if held and not args.overwrite:
+        raise InvalidInputError("--out", str(out), f"a folder without a checkpoint; it holds "
+                                f"{' and '.join(held)} (pass --overwrite to replace them)")
+    dataset = load_dataset(args.data)
+    hyperparameters = {} if args.points is None else {"points": args.points}
+    model = new_model(args.model, dataset, seed=args.seed, **hyperparameters)
+    given = {"steps": args.steps, "batch_size": args.batch_size, "threads": args.threads}
+    config = TrainConfig(seed=args.seed, **{k: v for k, v in given.items() if v is not None})
+    report = model.fit(dataset, config, progress=not args.no_progress)
+    model.save(out)
+    meta = dataset.metadata
+    print(f"{model.name} on {meta.scene} / {meta.task}: {report.samples} samples, "
+          f"{report.steps} steps, final loss {report.final_loss:.4g}, "
+          f"{report.wall_time_s:.1f} s on {report.threads} thread(s)")
+    print(f"checkpoint: {out}" + (" (replaced)" if held else ""))
+    return 0
+
+
+def run_evaluate(args: argparse.Namespace) -> int:
+    """``gva evaluate``: a checkpoint's errors on ``--data``, printed and written as JSON."""
+    model, dataset = _model_and_dataset(args)
+    result = evaluate(model, dataset)
+    print(result.headline())
+    names = target_names(dataset)
+    print("per target, mean position error: " + ", ".join(
+        f"{_target(k, names)} {e:.2f} cm"
+        for k, e in enumerate(result.per_target_mean_position_error_cm)))
+    if result.per_target_mean_angle_error_deg is not None:
+        print("per target, mean angle error: " + ", ".join(
+            f"{_target(k, names)} {e:.1f}°"
+            for k, e in enumerate(result.per_target_mean_angle_error_deg)))
+    out: Path = args.out or args.model / f"evaluation-{args.data.stem}.json"
+    data = {"checkpoint": str(args.model.resolve()),
+            "weights_sha256": read_config(args.model)["weights_sha256"],
+            "dataset": str(args.data.resolve())} | result.to_json()
+    text = json.dumps(data, indent=2, allow_nan=False) + "\n"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write(out, lambda temporary: temporary.write_text(text, encoding="utf-8"))
+    print(f"evaluation: {out}")
+    return 0
+
+
+def run_show_attention(args: argparse.Namespace) -> int:
+    """``gva show attention``: one PNG per sample, a row per condition for top-down models."""
+    model, dataset = _model_and_dataset(args)
+    meta, count = dataset.metadata, min(args.count, len(dataset))
+    images = dataset.images[:count]  # (n, H, W, 3)
+    own = model.predict_batch(images, dataset.conditions[:count])
+    if own[0].attention_px.shape[0] == 0:
+        raise PerceptionError(f"model {model.name} ({args.model}) predicts no attention "
+                              "points, so there is nothing to draw (conv-ae and fcn have none; "
+                              "kqv, keypoint and dsae have them)")
+    choices = meta.condition_choices
+    by_condition = [model.predict_batch(images, np.repeat(np.eye(len(choices), dtype=np.float32)
+                                                          [c:c + 1], count, axis=0))
+                    for c in range(len(choices))]  # [C][n]
+    if choices:
+        print(f"rows: {', '.join(f'{c} = {name}' for c, name in enumerate(choices))} "
+              "(the sample's own condition is the white number)")
+    print("dots: attention points, numbered by head; panels: each head's heatmap")
+    for i in range(count):
+        if choices:
+            chosen = int(np.argmax(dataset.conditions[i]))
+            rows = [AttentionRow(p[i].attention_px, p[i].heatmaps, label=c,
+                                 highlighted=c == chosen) for c, p in enumerate(by_condition)]
+        else:
+            rows = [AttentionRow(own[i].attention_px, own[i].heatmaps)]
+        path = write_png(args.out / f"attention-{i:03d}.png",
+                         attention_figure(images[i], rows, args.scale))
+        condition = f", condition {choices[chosen]}" if choices else ""
+        print(f"sample {i}{condition}: {path}")
+        for line in _sample_lines(own[i], dataset.labels[i]):
+            print(f"  {line}")
+    return 0
+
+
+def _model_and_dataset(args: argparse.Namespace) -> tuple[LearnableModel, Dataset]:
+    """The checkpoint ``--model`` and the dataset ``--data``, checked to fit each other."""
+    model = load_model(args.model, args.model_class)
+    dataset = load_dataset(args.data)
+    try:
+        model.spec.check_dataset(dataset)
+    except InvalidInputError as error:
+        raise PerceptionError(f"dataset {args.data} does not fit the checkpoint {args.model} "
+                              f"({model.name}, trained on {model.spec.task}): "
+                              f"{error.value}") from error
+    if len(dataset) == 0:
+        raise InvalidInputError("--data", str(args.data), "a dataset with samples; it has none")
+    return model, dataset
+
+
+def target_names(dataset: Dataset) -> list[str | None]:
+    """Per target index, the object type it is in every sample; None where it varies."""
+    names: list[str | None] = []
+    for k in range(dataset.metadata.targets):
+        seen = {_target_type(scene, k) for scene in dataset.scenes}
+        names.append(seen.pop() if len(seen) == 1 else None)
+    return names
+
+
+def _target_type(scene: dict[str, Any], k: int) -> str | None:
+    """The type of target ``k`` in a scene record; None if the record does not say."""
+    try:
+        return str(scene["objects"][scene["targets"][k]]["type"])
+    except (KeyError, IndexError, TypeError):
+        return None
+
+
+def _target(k: int, names: Sequence[str | None]) -> str:
+    return f"{k} ({names[k]})" if names[k] else str(k)
+
+
+def _sample_lines(prediction: Prediction, labels: np.ndarray) -> list[str]:
+    """Predicted and true position of each target, then the attention points, as text."""
+    lines = []
+    for k, target in enumerate(prediction.targets):
+        truth = labels[k, :3].astype(np.float64)
+        error_cm = float(np.linalg.norm(target.position_m - truth)) * 100
+        lines.append(f"target {k}: predicted {_xyz(target.position_m)} m, true {_xyz(truth)} m,"
+                     f" {error_cm:.1f} cm apart")
+    points = ", ".join(f"{k} ({u:.1f}, {v:.1f})" for k, (u, v) in
+                       enumerate(prediction.attention_px))
+    lines.append(f"attention points (u, v) px: {points}")
+    return lines
+
+
+def _xyz(position: np.ndarray) -> str:
+    return "(" + ", ".join(f"{value:.3f}" for value in position) + ")"
