@@ -30,6 +30,7 @@ lint: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_ik.py
 	$(BIN)/python benchmarks/bench_trials.py
+	$(BIN)/python benchmarks/bench_kqv.py
 
 clean:
 	rm -rf $(VENV) runs .pytest_cache .mypy_cache .ruff_cache

@@ -3,6 +3,10 @@
     python benchmarks/bench_kqv.py [--pair TRAIN.gva TEST.gva]... [--repeats 200]
         [--steps 1000] [--out benchmarks/results/kqv.json]
 
+Without ``--pair`` it collects the issue's two pairs itself (paper-sim ``single`` and
+``selected-type``: 20 training scenes of seed 0, 100 test scenes of seed 1000) into a
+temporary folder.
+
 Inference: median wall time of ``predict(image, condition)`` at batch 1 on a 128 x 128 image
 (bar: 5 ms), for position and grasp labels. For each ``--pair`` of datasets (from ``gva
 collect``; the test set from another seed, so no test scene was trained on): the training time
@@ -18,6 +22,7 @@ import json
 import os
 import platform
 import statistics
+import tempfile
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -134,7 +139,28 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=200)
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/kqv.json"))
     args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as folder:
+        run(args, args.pair or default_pairs(Path(folder)))
 
+
+def default_pairs(folder: Path) -> list[tuple[Path, Path]]:
+    """Collects paper-sim single and selected-type: 20 scenes of seed 0, 100 of seed 1000."""
+    from sim.collect import CollectSettings, collect
+
+    pairs = []
+    for task in ERROR_BARS_CM:
+        paths = []
+        for size, seed in ((20, 0), (100, 1000)):
+            path = folder / f"paper-sim-{task}-{size}-s{seed}.gva"
+            collect(CollectSettings(scene="paper-sim", task=task, size=size, seed=seed), path,
+                    progress=False)
+            paths.append(path)
+        pairs.append((paths[0], paths[1]))
+    return pairs
+
+
+def run(args: argparse.Namespace, pairs: list[tuple[Path, Path]]) -> None:
+    """Measures inference, then trains and scores on each pair; writes ``args.out``."""
     threads = available_threads()
     inference = {}
     for kind in LabelKind:
@@ -150,7 +176,7 @@ def main() -> None:
                     "load_average_1min": os.getloadavg()[0]},
         "inference": inference | {"bar_ms": INFERENCE_BAR_MS, "repeats": args.repeats},
     }
-    result["accuracy"] = [accuracy(train, test, args.steps) for train, test in args.pair]
+    result["accuracy"] = [accuracy(train, test, args.steps) for train, test in pairs]
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(result, indent=2, default=str) + "\n")
     print(f"wrote {args.out}")

@@ -21,6 +21,7 @@ stops half-way is resumed by running the same command again.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -219,6 +220,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             return run_evaluate(args)
         if args.command == "show":
             return _run_show(args)
+    except BrokenPipeError:  # the reader went away (``gva evaluate ... | head``): not an error
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no flush error at exit
+        return 0
     except (SimError, ControlError, PerceptionError, ValueError, OSError) as error:
         print(f"gva {args.command}: error: {error}", file=sys.stderr)
         return 2
