@@ -8,14 +8,20 @@
     gva trials --model runs/kqv-multiple --task multiple --n 30 --out runs/kqv-multiple-trials
     gva show scene --scene paper-sim --task multiple --out runs/scene.png
     gva show attention --model runs/kqv-multiple --data runs/yumi-multiple-20.gva --out runs/att
+    gva reproduce sim --out runs/table2 --seeds 3 --models kqv,fcn --tasks single --sizes 4,20
 
 ``train`` takes a registered model, a preset (``keypoint-16``) or ``package.module:Class``;
 ``evaluate``, ``show attention`` and ``trials`` take a checkpoint folder, with
 ``--model-class package.module:Class`` for a model that is not registered. ``trials`` also
 takes ``oracle`` or ``package.module:Class`` of a model that needs no weights.
 
+``reproduce sim`` runs the paper's Table II in the simulator (see
+:mod:`experiments.reproduce_sim`): it collects, trains and scores every model x task x size x
+seed cell in parallel processes and writes ``table2.md``/``.json``/``.png`` and ``fig5.png``;
+it exits with status 1 when it finished but some cells failed (each failure is recorded).
+
 Bad input exits with status 2 and one line naming the value and what is allowed; a run that
-stops half-way is resumed by running the same command again.
+stops half-way (``trials``, ``reproduce sim``) is resumed by running the same command again.
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 from control.errors import ControlError
 from perception.interface import PerceptionError
@@ -44,6 +51,19 @@ def _integer(minimum: int) -> Callable[[str], int]:
         return value
 
     return parse
+
+
+def _names(text: str) -> tuple[str, ...]:
+    """An argparse type: comma-separated names (checked against the allowed ones later)."""
+    return tuple(name.strip() for name in text.split(",") if name.strip())
+
+
+def _integers(text: str) -> tuple[int, ...]:
+    """An argparse type: comma-separated integers."""
+    try:
+        return tuple(int(value) for value in _names(text))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not comma-separated integers") from None
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -144,7 +164,40 @@ def build_parser() -> argparse.ArgumentParser:
                            help="enlarge the image this many times (3)")
     attention.add_argument("--model-class", metavar="MODULE:CLASS",
                            help="the class that loads a checkpoint of an unregistered model")
+    _add_reproduce(commands)
     return parser
+
+
+def _add_reproduce(commands: Any) -> None:
+    """``gva reproduce sim`` (``reproduce real`` will join it)."""
+    from experiments.reproduce_sim import MODELS, SIZES, TASKS
+
+    reproduce = commands.add_parser("reproduce", help="the paper's experiments, end to end")
+    experiments = reproduce.add_subparsers(dest="experiment", required=True)
+    sim = experiments.add_parser(
+        "sim", help="Table II: position error of every model in the simulator",
+        description="Collects paper-sim datasets, trains every model x task x size x seed "
+        "cell in parallel processes, scores each on the task's 100 test scenes, and writes "
+        "OUT/table2.md, table2.json, table2.png and fig5.png. Re-running skips finished cells.",
+    )
+    sim.add_argument("--out", type=Path, required=True, help="run folder")
+    sim.add_argument("--seeds", type=_integer(1), default=3, help="training seeds (3)")
+    sim.add_argument("--seed", type=_integer(0), default=0,
+                     help="first training seed, also the test scenes' seed (0)")
+    sim.add_argument("--workers", type=_integer(1),
+                     help="processes at once (default: the cores this process may use)")
+    sim.add_argument("--models", type=_names, default=MODELS,
+                     help=f"comma-separated (default all: {','.join(MODELS)})")
+    sim.add_argument("--tasks", type=_names, default=TASKS,
+                     help=f"comma-separated (default all: {','.join(TASKS)})")
+    sim.add_argument("--sizes", type=_integers, default=SIZES,
+                     help=f"training set sizes, comma-separated (default all: "
+                     f"{','.join(str(s) for s in SIZES)})")
+    sim.add_argument("--steps", type=_integer(1), default=1000,
+                     help="optimiser steps per training phase (1000)")
+    sim.add_argument("--test-scenes", type=_integer(1), default=100,
+                     help="test scenes per task (100, as in the paper; fewer for a quick check)")
+    sim.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
 def _run_trials(args: argparse.Namespace) -> int:
@@ -202,9 +255,30 @@ def _run_show(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_reproduce(args: argparse.Namespace) -> int:
+    from experiments.reproduce_sim import ReproduceSimSettings, run_reproduce_sim
+
+    settings = ReproduceSimSettings(models=args.models, tasks=args.tasks, sizes=args.sizes,
+                                    seeds=args.seeds, seed=args.seed, steps=args.steps,
+                                    test_scenes=args.test_scenes, workers=args.workers)
+    report = run_reproduce_sim(settings, args.out, progress=not args.no_progress)
+    failed_now = sum(outcome.failure is not None for outcome in report.computed)
+    print(f"{len(report.computed)} cell(s) computed ({failed_now} failed), "
+          f"{len(report.skipped)} finished earlier and skipped; wall time "
+          f"{report.wall_time_s:.0f} s")
+    for record in report.failed:
+        print(f"  FAILED {record['model']}-{record['task']}-{record['size']}-s{record['seed']}: "
+              f"{record['error']}")
+    for note in report.notes:
+        print(f"  note: {note}")
+    print("wrote " + ", ".join(str(path) for path in report.outputs))
+    return 1 if report.failed else 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``gva`` command; returns the exit status."""
     args = build_parser().parse_args(argv)
+    name = f"reproduce {args.experiment}" if args.command == "reproduce" else args.command
     try:
         if args.command == "trials":
             return _run_trials(args)
@@ -220,14 +294,16 @@ def main(argv: Sequence[str] | None = None) -> int:
             return run_evaluate(args)
         if args.command == "show":
             return _run_show(args)
+        if args.command == "reproduce":
+            return _run_reproduce(args)
     except BrokenPipeError:  # the reader went away (``gva evaluate ... | head``): not an error
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no flush error at exit
         return 0
     except (SimError, ControlError, PerceptionError, ValueError, OSError) as error:
-        print(f"gva {args.command}: error: {error}", file=sys.stderr)
+        print(f"gva {name}: error: {error}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"gva {args.command}: interrupted; run the same command again to resume",
+    except KeyboardInterrupt as interrupt:
+        print(f"gva {name}: interrupted; {interrupt or 'run the same command again to resume'}",
               file=sys.stderr)
         return 130
     raise AssertionError(f"unhandled command {args.command}")  # argparse rejects others

@@ -4,7 +4,10 @@
 positions. ``yumi``: each training scene is an expert demonstration: the oracle's grasps are
 executed in the simulator, and the scene is kept only if every pick succeeded (a failed one is
 redrawn from the next scene of the training stream, and counted). Either way, scene ``i`` of a
-dataset comes from the training seed stream, never the test stream the trials use.
+dataset comes from the training seed stream, never the test stream the trials use, unless the
+settings ask for the test stream: a ``paper-sim`` test set (Table II scores models on 100 test
+scenes) is collected like a training set, from ``SeedStream.TEST``. Scene ``i`` depends on the
+seed, the stream and ``i`` alone, so a dataset of 4 scenes is the first 4 of one of 20.
 """
 
 from __future__ import annotations
@@ -38,7 +41,9 @@ class CollectSettings:
         scene: ``paper-sim`` or ``yumi``.
         task: A built-in task name or the path of a task TOML file.
         size: Number of training scenes (the paper uses 4, 20 and 100).
-        seed: Training seed; the scenes are its training stream.
+        seed: The seed the scenes are drawn from.
+        stream: Which of the seed's streams: ``TRAIN`` (a training set) or ``TEST`` (a test
+            set of untrained scenes); recorded as ``extra["stream"]`` in the metadata.
 
     """
 
@@ -46,6 +51,7 @@ class CollectSettings:
     task: str
     size: int
     seed: int = 0
+    stream: SeedStream = SeedStream.TRAIN
 
     def __post_init__(self) -> None:
         if self.scene not in SCENE_NAMES:
@@ -55,6 +61,9 @@ class CollectSettings:
             raise InvalidInputError("size", self.size, "an integer >= 1")
         if self.seed < 0:
             raise InvalidInputError("seed", self.seed, "an integer >= 0")
+        if not isinstance(self.stream, SeedStream):
+            allowed = ", ".join(f"SeedStream.{s.name}" for s in SeedStream)
+            raise InvalidInputError("stream", self.stream, f"one of {allowed}")
 
 
 def collect(settings: CollectSettings, out_path: str | Path, progress: bool = True) -> Dataset:
@@ -103,7 +112,7 @@ def _collect_paper(
     samples: list[Sample] = []
     with PaperWorld() as world:
         for index in range(settings.size):
-            scene = sample_scene(task, spec, settings.seed, SeedStream.TRAIN, index)
+            scene = sample_scene(task, spec, settings.seed, settings.stream, index)
             world.reset_scene()
             bodies = [world.add_object(o.object_type, o.position_xy_m, o.yaw_rad)
                       for o in scene.objects]
@@ -114,7 +123,7 @@ def _collect_paper(
                             scene.to_record()))
             bar.update()
         camera = _camera_json(world.camera)
-    return samples, camera, {"stream": "train"}
+    return samples, camera, {"stream": settings.stream.name.lower()}
 
 
 def _collect_yumi(
@@ -132,7 +141,7 @@ def _collect_yumi(
                     f"collect yumi / {task.name}: {len(redrawn)} of {index} demonstrations "
                     f"failed (last: {redrawn[-1]['reason']}); the task may not be pickable"
                 )
-            scene = sample_scene(task, spec, settings.seed, SeedStream.TRAIN, index)
+            scene = sample_scene(task, spec, settings.seed, settings.stream, index)
             index += 1
             bodies = runner.setup(scene)
             image = runner.render()
@@ -146,5 +155,6 @@ def _collect_yumi(
             samples.append((image, scene.condition.one_hot(), labels, scene.to_record()))
             bar.update()
         camera = _camera_json(runner.camera)
-    extra = {"stream": "train", "demonstrations_redrawn": len(redrawn), "redrawn": redrawn}
+    extra = {"stream": settings.stream.name.lower(), "demonstrations_redrawn": len(redrawn),
+             "redrawn": redrawn}
     return samples, camera, extra

@@ -19,6 +19,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from perception.files import atomic_write
 from sim.errors import SimError
 
 RECORD_FORMAT_VERSION = 1
@@ -141,6 +142,56 @@ class RunFolderError(SimError):
     """A run folder that cannot be resumed: it holds another run, or a damaged file."""
 
 
+def json_form(data: Mapping[str, Any]) -> dict[str, Any]:
+    """``data`` as it reads back from JSON (tuples become lists), so stored and asked compare."""
+    return json.loads(json.dumps(dict(data)))
+
+
+def differences(stored: Mapping[str, Any], asked: Mapping[str, Any]) -> dict[str, Any]:
+    """The keys whose values differ, as ``{key: (stored, asked)}``; nested dicts by their keys.
+
+    A key inside a nested dict is named ``outer.inner``, so a message shows what changed
+    (``model_config.temperature``) rather than two whole configurations.
+    """
+    found: dict[str, Any] = {}
+    for key in sorted(set(stored) | set(asked), key=str):
+        old, new = stored.get(key), asked.get(key)
+        if isinstance(old, Mapping) and isinstance(new, Mapping):
+            found |= {f"{key}.{inner}": pair for inner, pair in differences(old, new).items()}
+        elif old != new:
+            found[key] = (old, new)
+    return found
+
+
+def claim_run_folder(folder: Path, settings: Mapping[str, Any],
+                     name: str = "run.json") -> dict[str, Any]:
+    """Makes ``folder`` the home of the run ``settings`` identify; returns them in JSON form.
+
+    A new folder gets ``folder/name`` holding the settings (written atomically); a folder that
+    has one is accepted only if it holds the same settings.
+
+    Raises:
+        RunFolderError: The folder holds a different run (the message names what differs,
+            stored vs asked), or its settings file is damaged.
+
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    asked = json_form(settings)
+    path = folder / name
+    if not path.exists():
+        text = json.dumps(asked, indent=2, sort_keys=True) + "\n"
+        atomic_write(path, lambda temporary: temporary.write_text(text))
+        return asked
+    try:
+        stored = json.loads(path.read_text())
+    except json.JSONDecodeError as error:
+        raise RunFolderError(f"{path} is damaged ({error}); use another --out") from None
+    if stored != asked:
+        raise RunFolderError(f"{folder} holds a different run ({differences(stored, asked)}, "
+                             "stored vs asked); use another --out or remove the folder")
+    return asked
+
+
 class TrialLog:
     """The ``trials.jsonl`` + ``run.json`` pair of a run folder; see the module docstring.
 
@@ -153,28 +204,9 @@ class TrialLog:
 
     def __init__(self, folder: str | Path, settings: Mapping[str, Any]) -> None:
         self.folder = Path(folder)
-        self.folder.mkdir(parents=True, exist_ok=True)
         self.path = self.folder / "trials.jsonl"
-        # Compared in JSON form: what was stored comes back with lists where tuples went in.
-        self.settings = json.loads(json.dumps({"format_version": RECORD_FORMAT_VERSION,
-                                               **settings}))
-        settings_path = self.folder / "run.json"
-        if settings_path.exists():
-            try:
-                stored = json.loads(settings_path.read_text())
-            except json.JSONDecodeError as error:
-                raise RunFolderError(
-                    f"{settings_path} is damaged ({error}); use another --out"
-                ) from None
-            if stored != self.settings:
-                differences = {k: (stored.get(k), v) for k, v in self.settings.items()
-                               if stored.get(k) != v}
-                raise RunFolderError(
-                    f"{self.folder} holds a different run ({differences}, stored vs asked); "
-                    "use another --out or remove the folder"
-                )
-        else:
-            settings_path.write_text(json.dumps(self.settings, indent=2, sort_keys=True) + "\n")
+        self.settings = claim_run_folder(self.folder, {"format_version": RECORD_FORMAT_VERSION,
+                                                       **settings})
         self.records: dict[int, TrialRecord] = dict(self._read())
 
     def _read(self) -> Iterator[tuple[int, TrialRecord]]:

@@ -228,7 +228,7 @@ def _describe(scene: str, condition: str, choices: tuple[str, ...], targets: int
 
 
 @contextlib.contextmanager
-def _torch_threads(threads: int) -> Iterator[None]:
+def torch_threads(threads: int) -> Iterator[None]:
     """Torch on ``threads`` CPU threads inside the block, as before after it."""
     import torch
 
@@ -250,7 +250,7 @@ def run_trials(
     todo = [i for i in range(settings.n) if not log.done(i)]
     task = settings.task_spec
     if todo:
-        threads = _torch_threads(1) if model.one_torch_thread else contextlib.nullcontext()
+        threads = torch_threads(1) if model.one_torch_thread else contextlib.nullcontext()
         with threads, TrialRunner(task, model.factory, settings.settle_s,
                                   settings.execution) as runner, tqdm(
             total=settings.n, initial=settings.n - len(todo), disable=not progress,

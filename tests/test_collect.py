@@ -7,6 +7,7 @@ from perception.interface import LabelKind
 from perception.labels import split_label
 from sim.collect import CollectSettings, collect
 from sim.errors import InvalidInputError
+from sim.scene import SeedStream
 
 
 @pytest.fixture(scope="module")
@@ -76,3 +77,19 @@ def test_paper_sim_dataset_is_seeded_and_labelled_with_positions(tmp_path):
         for label, target in zip(labels, record["targets"], strict=True):
             placed = record["objects"][target]["position_xy_m"]
             assert np.linalg.norm(label[:2] - np.array(placed)) < 0.01
+
+
+def test_a_test_stream_dataset_is_recorded_and_a_smaller_set_is_a_prefix(tmp_path):
+    small = collect(CollectSettings("paper-sim", "single", size=2, seed=4), tmp_path / "a.gva",
+                    progress=False)
+    large = collect(CollectSettings("paper-sim", "single", size=3, seed=4), tmp_path / "b.gva",
+                    progress=False)
+    test = collect(CollectSettings("paper-sim", "single", size=2, seed=4,
+                                   stream=SeedStream.TEST), tmp_path / "t.gva", progress=False)
+    assert large.subset(range(2)) == small
+    assert small.metadata.extra["stream"] == "train" and test.metadata.extra["stream"] == "test"
+    assert [s["stream"] for s in test.scenes] == ["test", "test"]
+    assert not np.array_equal(test.labels, small.labels)
+    with pytest.raises(InvalidInputError, match=r"stream = 1 is not allowed: one of "
+                       r"SeedStream.TRAIN, SeedStream.TEST"):
+        CollectSettings("paper-sim", "single", 2, stream=1)  # type: ignore[arg-type]

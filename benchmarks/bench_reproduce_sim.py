@@ -1,0 +1,89 @@
+"""How long the paper's Table II takes in simulation: ``gva reproduce sim``, timed.
+
+    python benchmarks/bench_reproduce_sim.py --out runs/table2 [other gva reproduce sim options]
+    python benchmarks/bench_reproduce_sim.py --from runs/table2   # read a finished run's table
+
+Every argument but ``--from`` and ``--result`` goes to ``gva reproduce sim``. The record
+(``benchmarks/results/reproduce_sim.json`` by default) holds the wall time of the command's
+last run and how many cells it computed (a resumed run computes only the rest, so its wall
+time is the whole table's only when it computed every cell), the cell count, the median and
+total training time per model, and the machine (CPUs, load average), so a time can be judged
+against how busy the machine was.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import sys
+import time
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+from experiments.cli import build_parser, main
+from experiments.reproduce_sim import MODELS
+
+
+def record(folder: Path, measured_s: float | None) -> dict[str, Any]:
+    """The timing record of the run folder ``folder`` (its ``table2.json``)."""
+    table = json.loads((folder / "table2.json").read_text())
+    train_s: dict[str, list[float]] = defaultdict(list)
+    for cell in table["cells"]:
+        train_s[cell["model"]].append(cell["train_s"])
+    return {
+        "benchmark": "reproduce_sim",
+        "command": table["settings"]["command"],
+        "folder": str(folder),
+        "wall_time_s": round(table["wall_time_s"], 1),
+        "measured_wall_time_s": None if measured_s is None else round(measured_s, 1),
+        "cells": len(table["cells"]),
+        "cells_computed_in_last_run": table["cells_computed"],
+        "whole_table_in_last_run": table["cells_computed"] == len(table["cells"]) + len(
+            table["failed"]),
+        "failed": len(table["failed"]),
+        "workers": table["settings"]["workers"],
+        "steps": table["settings"]["train"]["steps"],
+        "seeds": table["settings"]["seeds"],
+        "median_train_s": {m: round(statistics.median(train_s[m]), 1)
+                           for m in MODELS if m in train_s},
+        "total_train_s": {m: round(sum(train_s[m]), 1) for m in MODELS if m in train_s},
+        "machine": {"cpus": os.cpu_count(), "cpus_usable": len(os.sched_getaffinity(0)),
+                    "load_average_1_5_15min": [round(v, 2) for v in os.getloadavg()],
+                    "python": platform.python_version(), "platform": platform.platform()},
+    }
+
+
+def main_bench() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
+    parser.add_argument("--from", dest="source", type=Path,
+                        help="a finished run folder: read its table2.json, run nothing")
+    parser.add_argument("--result", type=Path,
+                        default=Path("benchmarks/results/reproduce_sim.json"))
+    args, rest = parser.parse_known_args()
+    measured = None
+    folder = args.source
+    if folder is None:
+        folder = build_parser().parse_args(["reproduce", "sim", *rest]).out
+        started = time.perf_counter()
+        status = main(["reproduce", "sim", *rest])
+        measured = time.perf_counter() - started
+        if status not in (0, 1):  # 1: finished, some cells failed (the record says how many)
+            return status
+    elif rest:
+        parser.error(f"--from reads a finished run; these go nowhere: {' '.join(rest)}")
+    result = record(folder, measured)
+    args.result.parent.mkdir(parents=True, exist_ok=True)
+    args.result.write_text(json.dumps(result, indent=2) + "\n")
+    print(f"{result['cells']} cells ({result['cells_computed_in_last_run']} in the last run), "
+          f"last run {result['wall_time_s']:.0f} s on {result['workers']} worker(s); median "
+          f"training s per model: {result['median_train_s']}")
+    print(f"wrote {args.result}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main_bench())

@@ -1,0 +1,411 @@
+"""``gva reproduce sim``: the paper's Table II (position error in the simulator), resumable.
+
+The experiment. Every *cell* is one model x task x dataset size x training seed:
+
+- models: ``kqv`` (the paper's model, q = min), ``keypoint-16``, ``keypoint-min``, ``dsae-16``,
+  ``conv-ae``, ``fcn``; tasks: ``single``, ``multiple``, ``selected-type``,
+  ``selected-position``; sizes: 4, 20, 100 training scenes; seeds ``S0 .. S0 + seeds - 1``.
+- Data, scene ``paper-sim``: a training set per (task, size, seed), scenes ``0 .. size - 1`` of
+  that seed's TRAIN stream, so the 4 scenes of a size-4 set are the first 4 of the size-20 set
+  (each task and seed is collected once, at its largest size, and the smaller sets are its
+  prefixes, byte for byte what ``gva collect`` writes). One test set per task, the first
+  ``test_scenes`` (100) scenes of the TEST stream of ``S0``, scores every cell of that task:
+  test scenes never equal training scenes (the streams are disjoint), and ``--seed`` moves
+  every scene, training and test.
+- Per cell: a fresh model seeded with the training seed, trained for ``steps`` optimiser steps
+  (:class:`~perception.train.TrainConfig` defaults otherwise, torch on one thread), its
+  checkpoint saved, then its mean position error in cm on the task's test set
+  (:func:`~perception.evaluate.evaluate`).
+
+Cells run in ``workers`` processes (:mod:`experiments.jobs`), longest first, so the end of
+the run is not one straggler; one progress bar, measured in the cells' estimated cost, gives the
+time left. Resumability: every finished cell is one JSON file in
+``OUT/cells/``, written atomically and keyed by its identity (model and its hyper-parameters,
+task definition, size, seed, training settings, test seed and size). Running the command again
+skips finished cells, retries failed ones and computes the rest; an interrupted run loses only
+the cells that were still training. ``OUT/run.json`` holds the settings every cell of the
+folder shares (training settings, test seed, test scenes): a run with others is refused, as is
+a cell file computed with other settings (e.g. a model whose defaults changed since), rather
+than mixed into one table. A cell that raises is recorded in ``OUT/cells/<cell>-error.json`` and
+the run goes on; the summary names it.
+
+Layout of ``OUT``::
+
+    run.json                    the shared settings
+    datasets/<task>-train-<size>-s<seed>.gva, <task>-test-<n>-s<S0>.gva   (experiments.sim_datasets)
+    checkpoints/<model>/<task>/<size>/s<seed>/   one checkpoint per cell
+    cells/<model>-<task>-<size>-s<seed>.json     one result per cell (-error.json: it failed)
+    table2.json, table2.md, table2.png, fig5.png (see :mod:`experiments.sim_report`)
+
+The reports are rewritten from every cell file present at the end of each run, also when every
+cell was skipped.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+import traceback
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from experiments.jobs import JobPool
+from experiments.sim_datasets import SCENE, collect_datasets, dataset_jobs, dataset_path
+from perception.files import atomic_write
+from sim.errors import InvalidInputError
+from sim.records import RunFolderError, claim_run_folder, differences, json_form
+
+MODELS = ("kqv", "keypoint-16", "keypoint-min", "dsae-16", "conv-ae", "fcn")
+"""The models of Table II, in the paper's row order (names :func:`new_model` takes)."""
+TASKS = ("single", "multiple", "selected-type", "selected-position")
+"""The tasks of Table II, in the paper's column order."""
+SIZES = (4, 20, 100)
+"""Training set sizes of Table II."""
+TWO_PHASE_MODELS = ("dsae-16", "conv-ae")
+"""Models trained in two phases (autoencoder, then targets): they take longer per cell."""
+FORMAT_VERSION = 1
+
+
+def _check_choices(name: str, values: Sequence[Any], allowed: Sequence[Any]) -> None:
+    """Raises unless ``values`` is a non-empty list of distinct members of ``allowed``."""
+    shown = ", ".join(str(a) for a in allowed)
+    unknown = [v for v in values if v not in allowed]
+    if not values or unknown or len(set(values)) != len(values):
+        value = ",".join(str(v) for v in (unknown or values))
+        raise InvalidInputError(name, value, f"distinct comma-separated values from {shown}")
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One entry of Table II: a model trained on ``size`` scenes of ``task`` with ``seed``."""
+
+    model: str
+    task: str
+    size: int
+    seed: int
+
+    @property
+    def name(self) -> str:
+        """``kqv-single-20-s0``: the stem of the cell's files."""
+        return f"{self.model}-{self.task}-{self.size}-s{self.seed}"
+
+    @property
+    def cost(self) -> float:
+        """Relative training time: samples per step (batches hold at most 16) x phases."""
+        return min(self.size, 16) * (1.5 if self.model in TWO_PHASE_MODELS else 1.0)
+
+
+@dataclass(frozen=True)
+class ReproduceSimSettings:
+    """What ``gva reproduce sim`` runs.
+
+    Args:
+        models: Models, from :data:`MODELS`.
+        tasks: Tasks, from :data:`TASKS`.
+        sizes: Training set sizes, from :data:`SIZES`.
+        seeds: Number of training seeds.
+        seed: S0, the first training seed and the seed of the test scenes.
+        steps: Optimiser steps per training phase.
+        test_scenes: Test scenes per task (the paper's 100; fewer for a quick check).
+        workers: Processes running cells at once; None: the cores this process may use. One
+            runs everything in this process.
+
+    """
+
+    models: tuple[str, ...] = MODELS
+    tasks: tuple[str, ...] = TASKS
+    sizes: tuple[int, ...] = SIZES
+    seeds: int = 3
+    seed: int = 0
+    steps: int = 1000
+    test_scenes: int = 100
+    workers: int | None = None
+
+    def __post_init__(self) -> None:
+        _check_choices("models", self.models, MODELS)
+        _check_choices("tasks", self.tasks, TASKS)
+        _check_choices("sizes", self.sizes, SIZES)
+        for name, least in (("seeds", 1), ("seed", 0), ("steps", 1), ("test_scenes", 1)):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool) or value < least:
+                raise InvalidInputError(name, value, f"an integer >= {least}")
+        if self.workers is not None and (not isinstance(self.workers, int) or self.workers < 1):
+            raise InvalidInputError("workers", self.workers, "None or an integer >= 1")
+
+    @property
+    def training_seeds(self) -> range:
+        """S0 .. S0 + seeds - 1."""
+        return range(self.seed, self.seed + self.seeds)
+
+    def cells(self) -> list[Cell]:
+        """Every cell, in the paper's order (models, tasks, sizes, then seeds)."""
+        return [Cell(m, t, s, seed) for m in MODELS if m in self.models
+                for t in TASKS if t in self.tasks for s in SIZES if s in self.sizes
+                for seed in self.training_seeds]
+
+    def worker_count(self) -> int:
+        """The processes to run: ``workers``, or the cores this process may use."""
+        if self.workers is not None:
+            return self.workers
+        from perception.train import available_threads
+
+        return available_threads()
+
+    def run_identity(self) -> dict[str, Any]:
+        """What every cell of a folder shares; ``run.json`` holds it."""
+        from perception.train import TrainConfig
+
+        train = asdict(TrainConfig(steps=self.steps, threads=1))
+        train.pop("seed")  # each cell's own
+        return {"format_version": FORMAT_VERSION, "experiment": "reproduce-sim", "scene": SCENE,
+                "train": train, "test_seed": self.seed, "test_scenes": self.test_scenes}
+
+    def cell_identity(self, cell: Cell) -> dict[str, Any]:
+        """What defines a cell's result, in JSON form: a cell file is reused only if equal."""
+        from sim.tasks import load_task
+        from sim.trials import task_identity
+
+        return json_form(self.run_identity() | {
+            "model": cell.model, "model_config": model_config(cell.model, cell.seed),
+            "task": task_identity(load_task(cell.task)), "size": cell.size, "seed": cell.seed})
+
+    def command(self, out: Path) -> str:
+        """The ``gva reproduce sim`` command line of these settings (workers left out)."""
+        parts = ["gva reproduce sim", f"--out {out}", f"--seeds {self.seeds}",
+                 f"--seed {self.seed}", f"--steps {self.steps}"]
+        for name, given, everything in (("models", self.models, MODELS),
+                                        ("tasks", self.tasks, TASKS),
+                                        ("sizes", self.sizes, SIZES)):
+            if set(given) != set(everything):
+                parts.append(f"--{name} {','.join(str(v) for v in given)}")
+        if self.test_scenes != 100:
+            parts.append(f"--test-scenes {self.test_scenes}")
+        return " ".join(parts)
+
+
+def model_config(model: str, seed: int) -> dict[str, Any]:
+    """The hyper-parameters ``new_model(model, dataset, seed=seed)`` builds with, as a dict."""
+    from perception.models.torch_model import TorchModel
+    from perception.registry import PRESETS, model_class
+
+    name, preset = PRESETS.get(model, (model, {}))
+    cls = model_class(name)
+    if not issubclass(cls, TorchModel):  # every model of MODELS is one
+        raise InvalidInputError("model", model, f"a model that trains: {', '.join(MODELS)}")
+    return asdict(cls.config_class(**preset, seed=seed))
+
+
+# files of a run folder
+
+
+def cell_path(out: Path, cell: Cell) -> Path:
+    """The result file of a finished cell."""
+    return out / "cells" / f"{cell.name}.json"
+
+
+def error_path(out: Path, cell: Cell) -> Path:
+    """The record of a cell that raised."""
+    return out / "cells" / f"{cell.name}-error.json"
+
+
+def checkpoint_folder(out: Path, cell: Cell) -> Path:
+    """The checkpoint folder of a cell."""
+    return out / "checkpoints" / cell.model / cell.task / str(cell.size) / f"s{cell.seed}"
+
+
+def write_json(path: Path, data: Any) -> None:
+    """Writes ``data`` as indented JSON, atomically (parents created)."""
+    text = json.dumps(data, indent=2, allow_nan=False) + "\n"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write(path, lambda temporary: temporary.write_text(text, encoding="utf-8"))
+
+
+def read_json(path: Path) -> Any:
+    """The JSON in ``path``; a damaged file is a :class:`RunFolderError` naming it."""
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as error:
+        raise RunFolderError(f"{path} is damaged ({error}); remove it to compute it again"
+                             ) from None
+
+
+# cells
+
+
+@dataclass(frozen=True)
+class CellJob:
+    """What a worker needs to compute one cell."""
+
+    cell: Cell
+    identity: dict[str, Any]
+    steps: int
+    test_scenes: int
+    test_seed: int
+    out: Path
+
+
+@dataclass(frozen=True)
+class CellOutcome:
+    """A computed cell: its mean error [cm] and training time [s], or the error it raised."""
+
+    cell: Cell
+    error_cm: float | None
+    train_s: float
+    failure: str | None = None
+
+
+def compute_cell(job: CellJob) -> CellOutcome:
+    """Trains, saves and scores one cell; writes its result (or its failure) file."""
+    from perception.data import load_dataset
+    from perception.evaluate import evaluate
+    from perception.registry import new_model
+    from perception.train import TrainConfig
+    from sim.scene import SeedStream
+    from sim.trials import torch_threads
+
+    cell, out = job.cell, job.out
+    started = time.perf_counter()
+    try:
+        with torch_threads(1):
+            train = load_dataset(dataset_path(out, cell.task, SeedStream.TRAIN, cell.size,
+                                              cell.seed),
+                                 expect={"scene": SCENE, "task": cell.task, "size": cell.size,
+                                         "seed": cell.seed})
+            test = load_dataset(dataset_path(out, cell.task, SeedStream.TEST, job.test_scenes,
+                                             job.test_seed),
+                                expect={"scene": SCENE, "task": cell.task,
+                                        "size": job.test_scenes, "seed": job.test_seed})
+            model = new_model(cell.model, train, seed=cell.seed)
+            report = model.fit(train, TrainConfig(steps=job.steps, seed=cell.seed, threads=1),
+                               progress=False)
+            model.save(checkpoint_folder(out, cell))
+            result = evaluate(model, test)
+    except Exception as error:  # one cell's failure is recorded; the table goes on
+        failure = f"{type(error).__name__}: {error}"
+        write_json(error_path(out, cell), asdict(cell) | {
+            "error": failure, "traceback": traceback.format_exc(), "identity": job.identity})
+        return CellOutcome(cell, None, time.perf_counter() - started, failure)
+    write_json(cell_path(out, cell), asdict(cell) | {
+        "error_cm": result.mean_position_error_cm,
+        "median_error_cm": result.median_position_error_cm,
+        "per_target_error_cm": list(result.per_target_mean_position_error_cm),
+        "train_s": report.wall_time_s, "cell_s": time.perf_counter() - started,
+        "steps": report.steps, "final_loss": report.final_loss, "test_scenes": len(test),
+        "checkpoint": str(checkpoint_folder(out, cell).relative_to(out)),
+        "identity": job.identity})
+    error_path(out, cell).unlink(missing_ok=True)
+    return CellOutcome(cell, result.mean_position_error_cm, report.wall_time_s)
+
+
+def sort_cells(settings: ReproduceSimSettings, out: Path) -> tuple[list[Cell], list[Cell]]:
+    """(cells to compute, longest first; finished cells to skip).
+
+    Raises:
+        RunFolderError: A cell file of the folder (of this run's cells or any other) was
+            computed with other settings; the message lists them and what differs.
+
+    """
+    wanted = set(settings.cells())
+    done: list[Cell] = []
+    stale: list[str] = []
+    for path in sorted((out / "cells").glob("*.json")):
+        if path.name.endswith("-error.json"):
+            continue
+        stored = read_json(path)
+        cell = Cell(stored["model"], stored["task"], stored["size"], stored["seed"])
+        asked = settings.cell_identity(cell)
+        if stored["identity"] != asked:
+            stale.append(f"{path.name} ({differences(stored['identity'], asked)})")
+        elif cell in wanted:
+            done.append(cell)
+    if stale:
+        raise RunFolderError(
+            f"{out / 'cells'} holds {len(stale)} cell(s) computed with other settings, stored "
+            f"vs now: {'; '.join(stale[:3])}{' ...' if len(stale) > 3 else ''}; remove those "
+            "files to compute them again with the current code, or use another --out")
+    todo = [cell for cell in settings.cells() if cell not in done]
+    todo.sort(key=lambda cell: -cell.cost)  # stable: the paper's order among equals
+    return todo, done
+
+
+@dataclass(frozen=True)
+class ReproduceSimReport:
+    """What a run did: cells computed and skipped, the folder's failed cells, its outputs.
+
+    ``wall_time_s`` covers collecting, training and scoring, not drawing the reports after.
+    """
+
+    computed: tuple[CellOutcome, ...]
+    skipped: tuple[Cell, ...]
+    failed: tuple[dict[str, Any], ...]
+    wall_time_s: float
+    outputs: tuple[Path, ...] = field(default_factory=tuple)
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+
+def run_reproduce_sim(settings: ReproduceSimSettings, out: str | Path,
+                      progress: bool = True) -> ReproduceSimReport:
+    """Runs (or resumes) the experiment into ``out``; see the module docstring.
+
+    Raises:
+        RunFolderError: ``out`` holds a run with other shared settings, or a cell or dataset
+            file made with other settings.
+        KeyboardInterrupt: Ctrl-C; finished cells are kept and the message says so.
+
+    """
+    from experiments.sim_report import write_reports
+
+    out = Path(out)
+    started = time.perf_counter()
+    claim_run_folder(out, settings.run_identity())
+    todo, done = sort_cells(settings, out)
+    workers = settings.worker_count()
+    collections = dataset_jobs(out, settings.tasks, settings.training_seeds, settings.sizes,
+                               settings.seed, settings.test_scenes) if todo else []
+    computed: list[CellOutcome] = []
+    try:
+        with JobPool(workers) as pool:
+            with tqdm(total=len(collections), disable=not progress or not collections,
+                      desc="collect datasets", unit="set") as bar:
+                pool.run(collect_datasets, collections, lambda job: bar.update())
+            _run_cells(settings, out, todo, len(done), pool, progress, computed)
+    except KeyboardInterrupt:
+        finished = len(list((out / "cells").glob("*[0-9].json")))
+        raise KeyboardInterrupt(
+            f"{finished} finished cell(s) kept in {out / 'cells'} ({len(computed)} from this "
+            f"run); resume with: {settings.command(out)}") from None
+    wall_time_s = time.perf_counter() - started
+    outputs, failed, notes = write_reports(settings, out, wall_time_s, len(computed))
+    return ReproduceSimReport(tuple(computed), tuple(done), tuple(failed), wall_time_s,
+                              tuple(outputs), tuple(notes))
+
+
+def _run_cells(settings: ReproduceSimSettings, out: Path, todo: Sequence[Cell], skipped: int,
+               pool: JobPool, progress: bool, computed: list[CellOutcome]) -> None:
+    """Computes ``todo`` into ``computed`` under one bar whose length is the cells' cost.
+
+    Measuring the bar in estimated cost rather than in cells keeps its time-left estimate
+    honest while the long cells, which run first, are still going.
+    """
+    jobs = [CellJob(cell, settings.cell_identity(cell), settings.steps, settings.test_scenes,
+                    settings.seed, out) for cell in todo]
+    earlier = f", {skipped} done earlier" if skipped else ""
+    bar = tqdm(total=sum(cell.cost for cell in todo), disable=not progress or not jobs,
+               desc="reproduce sim", file=sys.stderr,
+               bar_format="{desc}: {percentage:3.0f}%|{bar}| [{elapsed}<{remaining}{postfix}]")
+    bar.set_postfix_str(f"0/{len(jobs)} cells{earlier}")
+
+    def done(outcome: CellOutcome) -> None:
+        computed.append(outcome)
+        shown = "FAILED" if outcome.error_cm is None else f"{outcome.error_cm:.2f} cm"
+        bar.set_postfix_str(f"{len(computed)}/{len(jobs)} cells{earlier}; last "
+                            f"{outcome.cell.name} {shown}", refresh=False)
+        bar.update(outcome.cell.cost)
+
+    with bar:
+        pool.run(compute_cell, jobs, done)

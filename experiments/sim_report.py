@@ -1,0 +1,306 @@
+"""The reports of ``gva reproduce sim``, rebuilt from every cell file of a run folder.
+
+- ``table2.json``: every cell (model, task, size, seed, error_cm, train_s), the mean and spread
+  per model, task and size, the settings, the run's wall time and the failed cells.
+- ``table2.md``: the table laid out like the paper's Table II (a row per model, a column group
+  per task, a column per training set size), ``mean ± std`` over seeds in cm (the sample
+  standard deviation; the mean alone for one seed), **bold** below 5 cm as in the paper; then
+  the paper's own numbers (:data:`PAPER_TABLE2_CM`) in the same layout, and how the table was
+  made.
+- ``table2.png``: error against training set size, one line per model, one panel per task.
+- ``fig5.png``: like the paper's Fig. 5, the attention points of ``kqv`` (top) and
+  ``keypoint-16`` (bottom) on three test images per task, at the largest size of the first seed.
+"""
+
+from __future__ import annotations
+
+import statistics
+from collections import defaultdict
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from experiments.reproduce_sim import (
+    MODELS,
+    SIZES,
+    TASKS,
+    Cell,
+    ReproduceSimSettings,
+    read_json,
+    write_json,
+)
+from experiments.sim_datasets import dataset_path
+from perception.files import atomic_write
+from sim.scene import SeedStream
+
+if TYPE_CHECKING:
+    from perception.data import Dataset
+
+BOLD_BELOW_CM = 5.0
+"""The paper bolds errors below 5 cm."""
+MODEL_TITLES = {
+    "kqv": "Ours (kqv, q=min)", "keypoint-16": "Key Point (q=16)",
+    "keypoint-min": "Key Point (q=min)", "dsae-16": "Deep Spatial AE (q=16)",
+    "conv-ae": "Convolutional AE", "fcn": "FCN",
+}
+TASK_TITLES = {"single": "Single Object", "multiple": "Multiple Objects",
+               "selected-type": "Selected Type", "selected-position": "Selected Position"}
+PAPER_TABLE2_CM: Mapping[str, Mapping[str, tuple[float, float, float]]] = {
+    # The paper's Table II: mean error [cm] per task at 4, 20 and 100 training scenes.
+    "kqv": {"single": (4.14, 2.88, 3.83), "multiple": (4.80, 3.21, 2.80),
+            "selected-type": (27.16, 4.27, 4.62), "selected-position": (32.81, 4.85, 3.95)},
+    "keypoint-16": {"single": (2.16, 3.69, 0.62), "multiple": (22.41, 3.85, 2.61),
+                    "selected-type": (33.28, 24.61, 7.94),
+                    "selected-position": (31.82, 15.75, 9.63)},
+    "keypoint-min": {"single": (18.79, 18.07, 0.65), "multiple": (41.90, 48.47, 49.02),
+                     "selected-type": (38.90, 23.54, 5.68),
+                     "selected-position": (30.10, 20.51, 9.17)},
+    "dsae-16": {"single": (15.12, 15.52, 60.05), "multiple": (22.69, 29.18, 30.26),
+                "selected-type": (27.12, 39.30, 28.55),
+                "selected-position": (43.97, 36.22, 28.41)},
+    "conv-ae": {"single": (34.07, 30.81, 17.17), "multiple": (65.84, 44.16, 46.88),
+                "selected-type": (43.84, 40.21, 39.98),
+                "selected-position": (81.79, 19.88, 40.88)},
+    "fcn": {"single": (14.91, 6.18, 1.60), "multiple": (33.94, 31.70, 30.52),
+            "selected-type": (26.74, 27.62, 28.53), "selected-position": (34.82, 19.42, 14.82)},
+}
+Y_TICKS_CM = (0.1, 0.2, 0.5, 1, 2, 5, 10, 20, 50, 100, 200)
+FINE_Y_TICKS_CM = (0.1, 0.15, 0.2, 0.3, 0.5, 0.7, 1, 1.5, 2, 3, 5, 7, 10, 15, 20, 30, 50, 70, 100)
+"""Labelled errors on the plot's log axis, plain numbers; the fine ones within a decade."""
+FIG5_MODELS = ("kqv", "keypoint-16")
+FIG5_IMAGES = 3
+FIG5_SCALE = 3  # the image enlarged 3 times before the dots are drawn: legible head numbers
+FIG5_TASKS_ACROSS = 2  # task blocks side by side; four tasks make a 2 x 2 grid
+
+Key = tuple[str, str, int]  # (model, task, size)
+
+
+def _order(record: Mapping[str, Any]) -> tuple[int, int, int, int]:
+    return (MODELS.index(record["model"]), TASKS.index(record["task"]),
+            SIZES.index(record["size"]), record["seed"])
+
+
+def read_cells(out: Path) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """(finished cells, failed cells without a finished file) of a run folder, in table order."""
+    finished: list[dict[str, Any]] = []
+    failed: list[dict[str, Any]] = []
+    for path in (out / "cells").glob("*.json"):
+        record = read_json(path)
+        (failed if path.name.endswith("-error.json") else finished).append(record)
+    names = {Cell(r["model"], r["task"], r["size"], r["seed"]) for r in finished}
+    failed = [r for r in failed if Cell(r["model"], r["task"], r["size"], r["seed"]) not in names]
+    return sorted(finished, key=_order), sorted(failed, key=_order)
+
+
+def spread(cells: Sequence[Mapping[str, Any]]) -> dict[Key, tuple[float, float | None, int]]:
+    """Per (model, task, size): mean error [cm], sample std over seeds (None for one), seeds."""
+    errors: dict[Key, list[float]] = defaultdict(list)
+    for cell in cells:
+        errors[(cell["model"], cell["task"], cell["size"])].append(cell["error_cm"])
+    return {key: (statistics.fmean(values),
+                  statistics.stdev(values) if len(values) > 1 else None, len(values))
+            for key, values in errors.items()}
+
+
+def _shown(mean: float, std: float | None) -> str:
+    text = f"{mean:.2f}" if std is None else f"{mean:.2f} ± {std:.2f}"
+    return f"**{text}**" if mean < BOLD_BELOW_CM else text
+
+
+def markdown_table(rows: Mapping[str, Mapping[tuple[str, int], str]], tasks: Sequence[str],
+                   sizes: Sequence[int]) -> list[str]:
+    """A Table II layout: a row per model, ``"<Task> 4 | 20 | 100"`` column groups."""
+    header = ["Model"] + [f"{TASK_TITLES[t]} {s}" if k == 0 else str(s)
+                          for t in tasks for k, s in enumerate(sizes)]
+    lines = ["| " + " | ".join(header) + " |", "|---" + "|---:" * (len(header) - 1) + "|"]
+    for model, values in rows.items():
+        cells = [values.get((t, s), "—") for t in tasks for s in sizes]
+        lines.append(f"| {MODEL_TITLES[model]} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def table2_markdown(cells: Sequence[Mapping[str, Any]], failed: Sequence[Mapping[str, Any]],
+                    made_by: str) -> str:
+    """``table2.md``: ours, then the paper's, in the layout of the cells present."""
+    present = [*cells, *failed]
+    models = [m for m in MODELS if any(c["model"] == m for c in present)]
+    tasks = [t for t in TASKS if any(c["task"] == t for c in present)]
+    sizes = [s for s in SIZES if any(c["size"] == s for c in present)]
+    stats = spread(cells)
+    most = max((n for _, _, n in stats.values()), default=0)
+    ours: dict[str, dict[tuple[str, int], str]] = {m: {} for m in models}
+    for record in failed:
+        ours[record["model"]][(record["task"], record["size"])] = "failed"
+    for (model, task, size), (mean, std, n) in stats.items():
+        ours[model][(task, size)] = _shown(mean, std) + (f" (n={n})" if n < most else "")
+    paper = {m: {(t, s): _shown(PAPER_TABLE2_CM[m][t][SIZES.index(s)], None)
+                 for t in tasks for s in sizes} for m in models}
+    test_scenes = {c["test_scenes"] for c in cells} or {"?"}
+    lines = [
+        "# Table II in simulation: mean position error [cm]", "",
+        f"Scene `paper-sim`, {'/'.join(str(n) for n in sorted(test_scenes, key=str))} untrained "
+        "test scenes per task. Each cell: mean ± sample standard deviation over the training "
+        f"seeds ({most} per cell{'' if most == 1 else ', fewer where marked n='}); **bold**: "
+        f"below {BOLD_BELOW_CM:g} cm, as in the paper. Columns: task, then training set size.",
+        "", *markdown_table(ours, tasks, sizes), "",
+        "## The paper's Table II", "",
+        "As published, in the same columns and with the same bold rule.", "",
+        *markdown_table(paper, tasks, sizes), "", made_by,
+    ]
+    if failed:
+        lines += ["", "Failed cells (see `cells/<cell>-error.json`):"]
+        lines += [f"- {Cell(r['model'], r['task'], r['size'], r['seed']).name}: {r['error']}"
+                  for r in failed]
+    return "\n".join(lines) + "\n"
+
+
+def write_reports(settings: ReproduceSimSettings, out: Path, wall_time_s: float,
+                  computed: int) -> tuple[list[Path], list[dict[str, Any]], list[str]]:
+    """Writes every report from the cells present: (paths written, failed cells, notes)."""
+    cells, failed = read_cells(out)
+    seeds = sorted({c["seed"] for c in cells})
+    made_by = (f"Made by `{settings.command(out)}`: training seeds "
+               f"{', '.join(str(s) for s in seeds) or '—'}, {settings.steps} optimiser steps "
+               f"per phase, test scenes from the test stream of seed {settings.seed}; last run "
+               f"{_duration(wall_time_s)} wall time, {computed} cell(s) computed, "
+               f"{len(cells) + len(failed) - computed} kept from earlier runs.")
+    stats = spread(cells)
+    table = {
+        "cells": [{k: c[k] for k in ("model", "task", "size", "seed", "error_cm", "train_s")}
+                  for c in cells],
+        "means": [{"model": m, "task": t, "size": s, "error_cm": mean, "std_cm": std,
+                   "seeds": n} for (m, t, s), (mean, std, n) in stats.items()],
+        "settings": settings.run_identity() | {
+            "command": settings.command(out), "models": list(settings.models),
+            "tasks": list(settings.tasks), "sizes": list(settings.sizes),
+            "seeds": list(settings.training_seeds), "workers": settings.worker_count()},
+        "wall_time_s": wall_time_s, "cells_computed": computed,
+        "failed": [{k: r[k] for k in ("model", "task", "size", "seed", "error")}
+                   for r in failed],
+    }
+    paths = [out / "table2.json", out / "table2.md", out / "table2.png"]
+    write_json(paths[0], table)
+    text = table2_markdown(cells, failed, made_by)
+    atomic_write(paths[1], lambda temporary: temporary.write_text(text, encoding="utf-8"))
+    notes = []
+    if cells:
+        plot_table2(stats, paths[2])
+    else:
+        paths.pop()
+        notes.append("no finished cell: table2.png not drawn")
+    fig5, fig5_notes = draw_fig5(settings, out, cells)
+    return paths + fig5, [dict(r) for r in failed], notes + fig5_notes
+
+
+def _duration(seconds: float) -> str:
+    minutes, second = divmod(round(seconds), 60)
+    hours, minute = divmod(minutes, 60)
+    return f"{hours} h {minute:02d} min" if hours else f"{minute} min {second:02d} s"
+
+
+def plot_table2(stats: Mapping[Key, tuple[float, float | None, int]], path: Path) -> None:
+    """``table2.png``: error [cm] against training set size (log-log), a panel per task."""
+    from matplotlib.figure import Figure  # Agg canvas, no global backend state
+
+    tasks = [t for t in TASKS if any(k[1] == t for k in stats)]
+    models = [m for m in MODELS if any(k[0] == m for k in stats)]
+    sizes = [s for s in SIZES if any(k[2] == s for k in stats)]
+    figure = Figure(figsize=(3.6 * len(tasks) + 1.2, 3.8), layout="constrained")
+    axes = figure.subplots(1, len(tasks), sharey=True, squeeze=False)[0]
+    for axis, task in zip(axes, tasks, strict=True):
+        for number, model in enumerate(models):
+            points = [(s, stats[(model, task, s)]) for s in sizes if (model, task, s) in stats]
+            if not points:
+                continue
+            dodge = 1.0 + 0.03 * (number - (len(models) - 1) / 2)  # bars side by side
+            axis.errorbar([s * dodge for s, _ in points], [m for _, (m, _, _) in points],
+                          yerr=[std or 0.0 for _, (_, std, _) in points], capsize=3,
+                          marker="o", color=f"C{number}", label=MODEL_TITLES[model])
+        axis.axhline(BOLD_BELOW_CM, color="grey", linestyle="--", linewidth=1,
+                     label=f"{BOLD_BELOW_CM:g} cm (paper's bold)")
+        axis.set(xscale="log", yscale="log", title=TASK_TITLES[task],
+                 xlabel="training scenes")
+        axis.set_xticks(sizes, [str(s) for s in sizes])
+        axis.set_xticks([], minor=True)
+        axis.grid(True, alpha=0.3)
+    low, high = axes[0].get_ylim()
+    ticks = [v for v in (Y_TICKS_CM if high / low > 10 else FINE_Y_TICKS_CM) if low <= v <= high]
+    axes[0].set_yticks(ticks, [f"{v:g}" for v in ticks])
+    axes[0].set_yticks([], minor=True)
+    axes[0].set_ylabel("mean position error [cm]")
+    handles, labels = axes[0].get_legend_handles_labels()
+    figure.legend(handles, labels, loc="outside right center", fontsize="small")
+    atomic_write(path, lambda temporary: figure.savefig(temporary, format="png", dpi=110))
+
+
+def draw_fig5(settings: ReproduceSimSettings, out: Path, cells: Sequence[Mapping[str, Any]]
+              ) -> tuple[list[Path], list[str]]:
+    """``fig5.png``: attention points of kqv and keypoint-16 on test images; (paths, notes)."""
+    chosen: dict[tuple[str, str], Mapping[str, Any]] = {}
+    for record in cells:  # the largest size, then the first seed
+        key = (record["model"], record["task"])
+        if record["model"] in FIG5_MODELS and (key not in chosen or (
+                -record["size"], record["seed"]) < (-chosen[key]["size"], chosen[key]["seed"])):
+            chosen[key] = record
+    models = [m for m in FIG5_MODELS if any(k[0] == m for k in chosen)]
+    notes = [f"fig5.png: {m} has no finished cell in this folder; drawn without it"
+             for m in FIG5_MODELS if m not in models]
+    tasks = [t for t in TASKS if any(k[1] == t for k in chosen)]
+    if not models:
+        return [], ["fig5.png not drawn: neither kqv nor keypoint-16 has a finished cell in "
+                    "this folder"]
+    from matplotlib.figure import Figure
+
+    from perception.data import load_dataset
+
+    across = min(FIG5_TASKS_ACROSS, len(tasks))  # task blocks side by side
+    down = -(-len(tasks) // across)
+    figure = Figure(figsize=(2.3 * FIG5_IMAGES * across, 2.5 * len(models) * down + 0.5),
+                    layout="constrained")
+    axes = figure.subplots(len(models) * down, FIG5_IMAGES * across, squeeze=False)
+    for axis in axes.flat:
+        axis.set_axis_off()  # turned on where a panel is drawn
+    for number, task in enumerate(tasks):
+        block_row, block_column = divmod(number, across)
+        test = load_dataset(dataset_path(out, task, SeedStream.TEST, settings.test_scenes,
+                                         settings.seed))
+        for row, model in enumerate(models):
+            if (model, task) in chosen:
+                first = block_row * len(models) + row, block_column * FIG5_IMAGES
+                _draw_fig5_panels(axes[first[0], first[1]:first[1] + FIG5_IMAGES], test, model,
+                                  chosen[(model, task)], out)
+        axes[block_row * len(models), block_column * FIG5_IMAGES].set_title(
+            TASK_TITLES[task], loc="left", fontsize="large", fontweight="bold")
+    figure.suptitle("Attention points on test scenes, numbered by head\nbelow each image: "
+                    "its condition (top-down tasks), its mean error")
+    path = out / "fig5.png"
+    atomic_write(path, lambda temporary: figure.savefig(temporary, format="png", dpi=100))
+    return [path], notes
+
+
+def _draw_fig5_panels(axes: np.ndarray, test: Dataset, model_name: str,
+                      cell: Mapping[str, Any], out: Path) -> None:
+    """One model's attention points on the first test images of a task, one per axis."""
+    from perception.drawing import draw_points, enlarge
+    from perception.registry import load_model
+
+    count = min(len(axes), len(test))
+    predictions = load_model(out / cell["checkpoint"]).predict_batch(
+        test.images[:count], test.conditions[:count])
+    choices = test.metadata.condition_choices
+    for k, (axis, prediction) in enumerate(zip(axes, predictions, strict=False)):
+        image = test.images[k]  # (H, W, 3)
+        panel = enlarge(image, image.shape[0] * FIG5_SCALE, image.shape[1] * FIG5_SCALE)
+        draw_points(panel, prediction.attention_px, FIG5_SCALE)
+        axis.set_axis_on()
+        axis.set_xticks([])
+        axis.set_yticks([])
+        axis.imshow(panel)
+        truth = test.labels[k, :, :3]  # (q, 3) [m]
+        error_cm = 100 * np.mean([np.linalg.norm(target.position_m - truth[j])
+                                  for j, target in enumerate(prediction.targets)])
+        wanted = f"{choices[int(np.argmax(test.conditions[k]))]}, " if choices else ""
+        axis.set_xlabel(f"{wanted}{error_cm:.1f} cm")
+    axes[0].set_ylabel(f"{MODEL_TITLES[model_name]}\n{cell['size']} scenes, seed {cell['seed']}")
