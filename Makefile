@@ -18,7 +18,7 @@ $(STAMP): pyproject.toml constraints.txt
 install: $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/gva trials --model oracle --task single --n 30 --seed 0 --out runs/demo
+	$(BIN)/gva reproduce real --out runs/demo --tasks single --models kqv --no-robustness
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -9,6 +9,7 @@
     gva show scene --scene paper-sim --task multiple --out runs/scene.png
     gva show attention --model runs/kqv-multiple --data runs/yumi-multiple-20.gva --out runs/att
     gva reproduce sim --out runs/table2 --seeds 3 --models kqv,fcn --tasks single --sizes 4,20
+    gva reproduce real --out runs/table3 --models kqv,keypoint-16,fcn
 
 ``train`` takes a registered model, a preset (``keypoint-16``) or ``package.module:Class``;
 ``evaluate``, ``show attention`` and ``trials`` take a checkpoint folder, with
@@ -19,9 +20,15 @@ takes ``oracle`` or ``package.module:Class`` of a model that needs no weights.
 :mod:`experiments.reproduce_sim`): it collects, trains and scores every model x task x size x
 seed cell in parallel processes and writes ``table2.md``/``.json``/``.png`` and ``fig5.png``;
 it exits with status 1 when it finished but some cells failed (each failure is recorded).
+``reproduce real`` runs the paper's Table III on the simulated YuMi (see
+:mod:`experiments.reproduce_real`): per task, 20 oracle demonstrations, each model trained on
+them, 30 closed-loop pick trials with the model in the loop, kqv again under darker light and
+with a distractor; it writes ``table3.md``/``.json`` and a GIF per model and task, and exits
+with status 1 when some job failed. ``make demo`` is its short form (one task, kqv).
 
 Bad input exits with status 2 and one line naming the value and what is allowed; a run that
-stops half-way (``trials``, ``reproduce sim``) is resumed by running the same command again.
+stops half-way (``trials``, ``reproduce sim``, ``reproduce real``) is resumed by running the
+same command again.
 """
 
 from __future__ import annotations
@@ -169,7 +176,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_reproduce(commands: Any) -> None:
-    """``gva reproduce sim`` (``reproduce real`` will join it)."""
+    """``gva reproduce sim`` and ``gva reproduce real``."""
     from experiments.reproduce_sim import MODELS, SIZES, TASKS
 
     reproduce = commands.add_parser("reproduce", help="the paper's experiments, end to end")
@@ -198,6 +205,37 @@ def _add_reproduce(commands: Any) -> None:
     sim.add_argument("--test-scenes", type=_integer(1), default=100,
                      help="test scenes per task (100, as in the paper; fewer for a quick check)")
     sim.add_argument("--no-progress", action="store_true", help="no progress bars")
+    _add_reproduce_real(experiments, TASKS)
+
+
+def _add_reproduce_real(experiments: Any, tasks: Sequence[str]) -> None:
+    """``gva reproduce real``: Table III, pick trials with trained models in the loop."""
+    real = experiments.add_parser(
+        "real", help="Table III: YuMi pick trials out of 30 with trained models in the loop",
+        description="Per task on the yumi scene: collects oracle-verified demonstrations, "
+        "trains each model on them, runs closed-loop pick trials at untrained positions with "
+        "the trained model in the loop (kqv also under darker light and with a distractor), "
+        "and writes OUT/table3.md, table3.json and OUT/gifs/<model>-<task>.gif. Re-running "
+        "skips what is finished.",
+    )
+    real.add_argument("--out", type=Path, required=True, help="run folder")
+    real.add_argument("--seed", type=_integer(0), default=0,
+                      help="seeds the demonstrations, the weights and the test scenes (0)")
+    real.add_argument("--workers", type=_integer(1),
+                      help="processes at once (default: the cores this process may use)")
+    real.add_argument("--tasks", type=_names, default=tuple(tasks),
+                      help=f"comma-separated (default all: {','.join(tasks)})")
+    real.add_argument("--models", type=_names, default=("kqv",),
+                      help="comma-separated names gva train takes, e.g. kqv,keypoint-16,fcn "
+                      "(default kqv)")
+    real.add_argument("--n", type=_integer(1), default=30, help="trials per model and task (30)")
+    real.add_argument("--demos", type=_integer(1), default=20,
+                      help="demonstrations per task (20)")
+    real.add_argument("--steps", type=_integer(1), default=1000,
+                      help="optimiser steps of training (1000)")
+    real.add_argument("--robustness", action=argparse.BooleanOptionalAction, default=True,
+                      help="also run kqv under darker light and with a distractor (on)")
+    real.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def _run_trials(args: argparse.Namespace) -> int:
@@ -255,22 +293,41 @@ def _run_show(args: argparse.Namespace) -> int:
     return 0
 
 
+def _print_run(report: Any, done: str, name: Callable[[dict[str, Any]], str]) -> None:
+    """The summary lines of a ``reproduce`` run: counts, wall time, failures, notes."""
+    failed_now = sum(outcome.failure is not None for outcome in report.computed)
+    print(f"{len(report.computed)} {done} ({failed_now} failed), {len(report.skipped)} "
+          f"finished earlier and skipped; wall time {report.wall_time_s:.0f} s")
+    for record in report.failed:
+        print(f"  FAILED {name(record)}: {record['error']}")
+    for note in report.notes:
+        print(f"  note: {note}")
+
+
+def _run_reproduce_real(args: argparse.Namespace) -> int:
+    from experiments.reproduce_real import ReproduceRealSettings, run_reproduce_real
+
+    settings = ReproduceRealSettings(models=args.models, tasks=args.tasks, n=args.n,
+                                     demos=args.demos, steps=args.steps, seed=args.seed,
+                                     robustness=args.robustness, workers=args.workers)
+    report = run_reproduce_real(settings, args.out, progress=not args.no_progress)
+    _print_run(report, "job(s) run", lambda record: record["job"])
+    print(report.table)
+    print(f"files: {args.out}/ (table3.md, table3.json, gifs/, trials/, checkpoints/)")
+    return 1 if report.failed else 0
+
+
 def _run_reproduce(args: argparse.Namespace) -> int:
+    if args.experiment == "real":
+        return _run_reproduce_real(args)
     from experiments.reproduce_sim import ReproduceSimSettings, run_reproduce_sim
 
     settings = ReproduceSimSettings(models=args.models, tasks=args.tasks, sizes=args.sizes,
                                     seeds=args.seeds, seed=args.seed, steps=args.steps,
                                     test_scenes=args.test_scenes, workers=args.workers)
     report = run_reproduce_sim(settings, args.out, progress=not args.no_progress)
-    failed_now = sum(outcome.failure is not None for outcome in report.computed)
-    print(f"{len(report.computed)} cell(s) computed ({failed_now} failed), "
-          f"{len(report.skipped)} finished earlier and skipped; wall time "
-          f"{report.wall_time_s:.0f} s")
-    for record in report.failed:
-        print(f"  FAILED {record['model']}-{record['task']}-{record['size']}-s{record['seed']}: "
-              f"{record['error']}")
-    for note in report.notes:
-        print(f"  note: {note}")
+    _print_run(report, "cell(s) computed",
+               lambda r: f"{r['model']}-{r['task']}-{r['size']}-s{r['seed']}")
     print("wrote " + ", ".join(str(path) for path in report.outputs))
     return 1 if report.failed else 0
 

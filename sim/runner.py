@@ -14,7 +14,7 @@ import dataclasses
 import time
 import traceback
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import pinocchio as pin
@@ -42,6 +42,19 @@ _PLAN_OUTCOMES = {
 }
 
 
+class TrialObserver(Protocol):
+    """Watches trials as they run, e.g. to record them (:class:`sim.recording.TrialRecorder`).
+
+    Watching must not change what happens: an observer reads the world, never moves it.
+    """
+
+    def saw(self, image: np.ndarray, prediction: Prediction) -> None:
+        """The image (H, W, 3) a pick's prediction was made from, and the prediction."""
+
+    def stepped(self, world: World) -> None:
+        """Called after every physics step of the runner's world."""
+
+
 def pose_json(position: np.ndarray, rotation: np.ndarray | None) -> dict[str, Any]:
     """A pose as rounded JSON-able lists."""
     data: dict[str, Any] = {"position_m": [round(float(v), 6) for v in position]}
@@ -65,6 +78,8 @@ class TrialRunner:
         settle_s: Time objects settle on the table before the first image [s].
         execution: How picks are executed and judged.
         planner: The pick planner; the YuMi's when None.
+        observer: Sees every prediction and every physics step; None (the default) costs
+            nothing.
 
     """
 
@@ -75,6 +90,7 @@ class TrialRunner:
         settle_s: float = 0.25,
         execution: ExecutionSettings | None = None,
         planner: PickPlanner | None = None,
+        observer: TrialObserver | None = None,
     ) -> None:
         self.task = task
         self.settle_s = settle_s
@@ -85,6 +101,9 @@ class TrialRunner:
                                             brightness=task.brightness)
         self.model: PerceptionModel = model(self.world, self.camera)
         self.planner = planner or make_yumi_planner()
+        self.observer = observer
+        if observer is not None:
+            self.world.step_hook = observer.stepped
 
     def close(self) -> None:
         """Releases the simulator."""
@@ -137,7 +156,10 @@ class TrialRunner:
         targets = [bodies[i] for i in scene.targets]
         picks: list[dict[str, Any]] = []
         for number, body in enumerate(targets):
-            prediction = self.model.predict(self.render(), scene.condition)
+            image = self.render()
+            prediction = self.model.predict(image, scene.condition)
+            if self.observer is not None:
+                self.observer.saw(image, prediction)
             pick, plan = self._pick_one(prediction, number, len(targets), body)
             picks.append(pick)
             if pick["outcome"] is not TrialOutcome.SUCCESS:

@@ -2,7 +2,9 @@
 
 Training and test scenes come from disjoint seed streams, so a trial never runs on a scene a
 model was trained on: scene ``index`` of stream ``stream`` under seed ``seed`` is drawn from
-``SeedSequence([seed, stream, index])``.
+``SeedSequence([seed, stream, index])``. A task's distractors are drawn after the scene, from
+``SeedSequence([seed, stream, index, 1])``: a task with distractors presents the same scene
+as the task without them (same objects, poses, targets and condition), plus the distractors.
 """
 
 from __future__ import annotations
@@ -19,6 +21,8 @@ from sim.scenes import SceneSpec
 from sim.tasks import SIDES, ObjectChoice, TargetSelection, TaskSpec
 
 MAX_PLACEMENT_TRIES = 200
+DISTRACTOR_STREAM = 1
+"""The distractors' own seed stream, beside the scene's (see the module docstring)."""
 
 
 class SeedStream(enum.IntEnum):
@@ -126,14 +130,48 @@ def sample_scene(
         types = [str(rng.choice(spec.object_types))] * task.count
     else:
         types = [str(t) for t in rng.choice(spec.object_types, size=task.count)]
-    all_types = types + list(task.distractors)
-    positions = _place(task, spec, len(all_types), rng)
-    objects = tuple(
-        PlacedObject(t, p, float(rng.uniform(*task.yaw_range_rad)), distractor=i >= len(types))
-        for i, (t, p) in enumerate(zip(all_types, positions, strict=True))
-    )
+    positions = _place(task, spec, len(types), rng)
+    objects = tuple(PlacedObject(t, p, float(rng.uniform(*task.yaw_range_rad)))
+                    for t, p in zip(types, positions, strict=True))
     condition, targets = _targets(task, spec, objects, rng)
+    if task.distractors:
+        distractor_rng = np.random.default_rng(np.random.SeedSequence(
+            [seed, int(stream), index, DISTRACTOR_STREAM]))
+        objects += _place_distractors(task, spec, objects, distractor_rng)
     return Scene(task.name, spec.name, seed, stream, index, objects, targets, condition)
+
+
+def _place_distractors(task: TaskSpec, spec: SceneSpec, objects: tuple[PlacedObject, ...],
+                       rng: np.random.Generator) -> tuple[PlacedObject, ...]:
+    """The task's distractors, ``min_spacing_m`` from every object placed before them.
+
+    Each goes in the workspace where it has room, else in a band ``min_spacing_m / 2`` wide
+    around it (three objects can leave the workspace no room for a fourth).
+    """
+    x_low, x_high = task.workspace_x_m or spec.workspace_x_m
+    y_low, y_high = task.workspace_y_m or spec.workspace_y_m
+    placed = [o.position_xy_m for o in objects]
+    added: list[PlacedObject] = []
+    for object_type in task.distractors:
+        for grow in (0.0, task.min_spacing_m / 2):
+            for _ in range(MAX_PLACEMENT_TRIES):
+                candidate = (float(rng.uniform(x_low - grow, x_high + grow)),
+                             float(rng.uniform(y_low - grow, y_high + grow)))
+                if all(np.hypot(candidate[0] - x, candidate[1] - y) >= task.min_spacing_m
+                       for x, y in placed):
+                    break
+            else:
+                continue
+            break
+        else:
+            raise InvalidInputError(
+                f"task {task.name!r} in scene {spec.name!r}: distractors.types",
+                list(task.distractors), f"distractors that fit {task.min_spacing_m} m from "
+                "every object (fewer, or lower placement.min_spacing_m)")
+        placed.append(candidate)
+        added.append(PlacedObject(object_type, candidate,
+                                  float(rng.uniform(*task.yaw_range_rad)), distractor=True))
+    return tuple(added)
 
 
 def _place(

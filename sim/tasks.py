@@ -37,6 +37,7 @@ task narrows it with ``[placement] x_m = [lo, hi]`` and ``y_m = [lo, hi]``.
 from __future__ import annotations
 
 import enum
+import json
 import math
 import tomllib
 from dataclasses import dataclass
@@ -231,6 +232,46 @@ def task_from_toml(text: str, source: str = "<string>") -> TaskSpec:
         distractors=tuple(distractors),
         source=source,
     )
+
+
+def task_to_toml(task: TaskSpec) -> str:
+    """``task`` as the text of a task file, every key written; ``task_from_toml`` reads it back.
+
+    Used to write variants of a task, e.g. the same task under dimmer light::
+
+        text = task_to_toml(dataclasses.replace(load_task("single"), name="single-dark",
+                                                brightness=0.5))
+    """
+
+    def value(item: Any) -> str:
+        if isinstance(item, bool):
+            return "true" if item else "false"
+        if isinstance(item, str):
+            return json.dumps(item)  # a JSON string is a TOML basic string
+        if isinstance(item, tuple | list):
+            return "[" + ", ".join(value(v) for v in item) + "]"
+        return repr(float(item)) if isinstance(item, float) else str(item)
+
+    placement: dict[str, Any] = {
+        "sides": task.sides,
+        "yaw_deg": [math.degrees(a) for a in task.yaw_range_rad],
+        "min_spacing_m": task.min_spacing_m}
+    if task.workspace_x_m is not None:
+        placement["x_m"] = list(task.workspace_x_m)
+    if task.workspace_y_m is not None:
+        placement["y_m"] = list(task.workspace_y_m)
+    tables: dict[str, dict[str, Any]] = {
+        "objects": {"choose": task.objects.value, "count": task.count},
+        "targets": {"select": task.targets.value},
+        "condition": {"kind": task.condition.value},
+        "placement": placement,
+        "lighting": {"brightness": task.brightness},
+        "distractors": {"types": list(task.distractors)},
+    }
+    lines = [f"name = {value(task.name)}", f"description = {value(task.description)}"]
+    for table, keys in tables.items():
+        lines += ["", f"[{table}]", *(f"{key} = {value(v)}" for key, v in keys.items())]
+    return "\n".join(lines) + "\n"
 
 
 def builtin_tasks() -> tuple[str, ...]:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from types import TracebackType
 from typing import Any
@@ -24,6 +24,8 @@ TABLE_HALF_SIZE_M = (0.75, 0.5)
 """Half the table top along x and y [m]: 1.5 m x 1.0 m."""
 ROBOT_FOOTPRINT_M = ((-0.36, 0.135), (-0.2, 0.2))
 """x and y ranges the YuMi's base covers on the table [m] (robots/yumi/specs.py BODY_BOXES)."""
+StepHook = Callable[["World"], None]
+"""Called with the world after each physics step (see :attr:`World.step_hook`)."""
 
 
 @dataclass(frozen=True)
@@ -92,6 +94,9 @@ class World:
             flags=pybullet.URDF_USE_INERTIA_FROM_FILE,
         ))
         self.steps = 0
+        self.step_hook: StepHook | None = None
+        """Called after every physics step (e.g. to record frames); None, the default, costs
+        nothing."""
         self._objects: dict[int, ObjectSpec] = {}
         self._shapes: dict[ObjectSpec, tuple[int, int]] = {}
         self.robot = SimRobot(client, robot_id, self.config.robot, step=self.step)
@@ -108,7 +113,9 @@ class World:
         for _ in range(n):
             self.robot.before_step()
             self.client.stepSimulation()
-        self.steps += n
+            self.steps += 1
+            if self.step_hook is not None:
+                self.step_hook(self)
 
     def add_object(
         self, spec: ObjectSpec, position_xy_m: tuple[float, float], yaw_rad: float

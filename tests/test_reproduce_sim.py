@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-import io
 import json
 import shutil
 from pathlib import Path
 
 import pytest
+from gva_cli import gva
 
-from experiments.cli import main
 from experiments.reproduce_sim import (
     MODELS,
     Cell,
@@ -29,17 +27,6 @@ TINY = ["--models", "kqv,fcn", "--tasks", "single", "--sizes", "4", "--seeds", "
         "--steps", "3", "--test-scenes", "5", "--no-progress"]
 TINY_SETTINGS = ReproduceSimSettings(models=("kqv", "fcn"), tasks=("single",), sizes=(4,),
                                      seeds=1, steps=3, test_scenes=5, workers=1)
-
-
-def gva(*args: object) -> tuple[int, str, str]:
-    """Runs ``gva`` in this process: (exit status, stdout, stderr); argparse's exits too."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            status = main([str(a) for a in args])
-        except SystemExit as exit:
-            status = int(exit.code or 0)
-    return status, out.getvalue(), err.getvalue()
 
 
 @pytest.fixture(scope="module")

@@ -1,3 +1,5 @@
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -76,6 +78,22 @@ def test_distractors_are_presented_but_never_targets():
         scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, index)
         assert len(scene.objects) == 2 and scene.objects[1].distractor
         assert scene.targets == (0,)
+
+
+@pytest.mark.parametrize("task_name", builtin_tasks())
+def test_distractors_join_the_same_scene_spaced_apart(task_name):
+    task = load_task(task_name)
+    with_distractors = dataclasses.replace(task, distractors=("sponge", "mug"))
+    for index in range(30):
+        plain = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, index)
+        scene = sample_scene(with_distractors, YUMI_SCENE, 0, SeedStream.TEST, index)
+        assert scene.objects[:len(plain.objects)] == plain.objects
+        assert (scene.targets, scene.condition) == (plain.targets, plain.condition)
+        assert [(o.object_type, o.distractor) for o in scene.objects[len(plain.objects):]] == [
+            ("sponge", True), ("mug", True)]
+        xy = np.array([o.position_xy_m for o in scene.objects])  # (n, 2)
+        gaps = np.linalg.norm(xy[:, None] - xy[None], axis=-1)[np.triu_indices(len(xy), 1)]
+        assert gaps.min() >= task.min_spacing_m
 
 
 def test_an_impossible_task_in_a_scene_is_named():

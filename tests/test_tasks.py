@@ -1,10 +1,18 @@
+import dataclasses
 import math
 
 import pytest
 
 from perception.interface import ConditionKind
 from sim.errors import InvalidInputError
-from sim.tasks import ObjectChoice, TargetSelection, builtin_tasks, load_task, task_from_toml
+from sim.tasks import (
+    ObjectChoice,
+    TargetSelection,
+    builtin_tasks,
+    load_task,
+    task_from_toml,
+    task_to_toml,
+)
 
 GOOD = """
 name = "mine"
@@ -76,3 +84,12 @@ def test_unknown_task_and_missing_file_are_named():
     with pytest.raises(InvalidInputError, match=r"task file = 'nowhere\.toml' is not allowed: an "
                        r"existing TOML file"):
         load_task("nowhere.toml")
+
+
+@pytest.mark.parametrize("name", builtin_tasks())
+def test_a_task_written_as_toml_reads_back_the_same(name):
+    task = load_task(name)
+    assert task_from_toml(task_to_toml(task), task.source) == task
+    variant = dataclasses.replace(task, name=f"{name}-dim \"x\"", brightness=0.4,
+                                  distractors=("sponge", "mug"), workspace_x_m=(0.4, 0.5))
+    assert task_from_toml(task_to_toml(variant), task.source) == variant

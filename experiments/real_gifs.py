@@ -1,0 +1,49 @@
+"""The GIFs of ``gva reproduce real``: a model's first trials recorded again, frame by frame.
+
+Trial ``i`` is scene ``i`` of the TEST stream, run in a fresh :class:`~sim.runner.TrialRunner`
+in the same order as the trial run did, so a recorded trial replays the logged one (the
+simulation is deterministic, and recording only renders). Each frame shows the head camera's
+image with the model's attention points (numbered by head) beside a camera watching the robot
+(:mod:`sim.recording`); the last frame of each trial names its outcome.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any
+
+from sim.camera import CameraConfig
+from sim.recording import TrialRecorder, join_trials, write_gif
+from sim.runner import TrialRunner
+from sim.scene import SeedStream, sample_scene
+from sim.scenes import YUMI_SCENE
+from sim.trials import TrialSettings, load_trial_model, torch_threads
+
+
+def record_gif(model_name: str, trials: TrialSettings, count: int, path: Path
+               ) -> list[dict[str, Any]]:
+    """Records trials ``0 .. count - 1`` of ``trials`` into the GIF ``path``; what each did.
+
+    Returns:
+        Per trial: ``index``, ``outcome``, ``reason`` and the target's ``position_error_m``.
+
+    """
+    model = load_trial_model(trials)
+    task = trials.task_spec
+    lighting = dataclasses.replace(CameraConfig().lighting, brightness=task.brightness)
+    recorder = TrialRecorder(lighting=lighting)
+    recorded: list[list[Any]] = []
+    shown: list[dict[str, Any]] = []
+    with torch_threads(1), TrialRunner(task, model.factory, trials.settle_s, trials.execution,
+                                       observer=recorder) as runner:
+        for index in range(count):
+            recorder.start(f"{model_name} / {task.name}, trial {index}")
+            scene = sample_scene(task, YUMI_SCENE, trials.seed, SeedStream.TEST, index)
+            record = runner.run(scene, index, trials.seed, trials.model)
+            recorded.append(recorder.finish(record.outcome.value))
+            shown.append({"index": index, "outcome": record.outcome.value,
+                          "reason": record.reason,
+                          "position_error_m": record.position_error_m})
+    write_gif(path, *join_trials(recorded))
+    return shown

@@ -1,0 +1,297 @@
+"""The jobs of ``gva reproduce real`` and the three phases that run them (collect, train, try).
+
+Each job is a small frozen dataclass handed to a function that runs in a worker process
+(:class:`experiments.jobs.JobPool`); it writes its files itself and returns a
+:class:`JobOutcome`. A job that raises is recorded in ``OUT/errors/<job>.json`` (message and
+traceback) and the run goes on; the jobs that needed its output are left out and named.
+Finished work is found on disk before each phase, so a re-run skips it.
+"""
+
+from __future__ import annotations
+
+import time
+import traceback
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from experiments.jobs import JobPool
+from experiments.reproduce_real import (
+    GIF_TRIALS,
+    SCENE,
+    ReproduceRealSettings,
+    TrialSet,
+    Unit,
+    Variant,
+    checkpoint_folder,
+    dataset_file,
+    error_file,
+    gif_file,
+    refuse_stale,
+    stale_checkpoints,
+    trained_file,
+    trials_folder,
+)
+from experiments.reproduce_sim import TWO_PHASE_MODELS, read_json, write_json
+from experiments.runs import cost_bar, dataset_present
+from sim.scene import SeedStream
+from sim.trials import TrialSettings
+
+# Rough seconds per unit of work on one loaded core, only for the progress bar's time left.
+COLLECT_S_PER_PICK = 1.2
+TRAIN_S_PER_STEP = 0.09
+TRIAL_S_PER_PICK = 2.0
+GIF_S_PER_PICK = 4.0
+
+
+@dataclass(frozen=True)
+class JobOutcome:
+    """A finished job: its name, how long it took [s], and its failure or a one-line result."""
+
+    name: str
+    seconds: float
+    result: str = ""
+    failure: str | None = None
+
+
+@dataclass(frozen=True)
+class CollectJob:
+    """Collect the demonstrations of one task."""
+
+    name: str  # collect-<task>, as in messages and error files
+    task: str
+    settings: ReproduceRealSettings
+    out: Path
+
+
+@dataclass(frozen=True)
+class TrainJob:
+    """Train one unit's model on its task's demonstrations."""
+
+    name: str  # train-<model>-<task>
+    unit: Unit
+    settings: ReproduceRealSettings
+    identity: dict[str, Any]
+    out: Path
+
+
+@dataclass(frozen=True)
+class TrialsJob:
+    """Run (or resume) one set of trials."""
+
+    name: str  # trials-<model>-<task>[-<variant>]
+    trial_set: TrialSet
+    trials: TrialSettings
+    out: Path
+
+
+@dataclass(frozen=True)
+class GifJob:
+    """Record a unit's first trials again, as a GIF."""
+
+    name: str  # gif-<model>-<task>
+    unit: Unit
+    trials: TrialSettings
+    count: int
+    out: Path
+
+
+Job = CollectJob | TrainJob | TrialsJob | GifJob
+
+
+def _targets(task: str) -> int:
+    from sim.scene import target_count
+    from sim.tasks import load_task
+
+    return target_count(load_task(task))
+
+
+def cost(job: Job) -> float:
+    """The job's estimated seconds on one core (for the progress bar)."""
+    if isinstance(job, CollectJob):
+        return COLLECT_S_PER_PICK * job.settings.demos * _targets(job.task)
+    if isinstance(job, TrainJob):
+        phases = 1.5 if job.unit.model in TWO_PHASE_MODELS else 1.0
+        return TRAIN_S_PER_STEP * job.settings.steps * phases
+    if isinstance(job, TrialsJob):
+        return TRIAL_S_PER_PICK * job.trials.n * _targets(job.trial_set.unit.task)
+    return GIF_S_PER_PICK * job.count * _targets(job.unit.task)
+
+
+def guarded(job: Job) -> JobOutcome:
+    """Runs one job in a worker; an exception becomes its error file and a failed outcome."""
+    started = time.perf_counter()
+    try:
+        if isinstance(job, CollectJob):
+            result = _collect(job)
+        elif isinstance(job, TrainJob):
+            result = _train(job)
+        elif isinstance(job, TrialsJob):
+            result = _trials(job)
+        else:
+            result = _gif(job)
+    except Exception as error:  # one job's failure is recorded; the others go on
+        failure = f"{type(error).__name__}: {error}"
+        write_json(error_file(job.out, job.name), {
+            "job": job.name, "error": failure, "traceback": traceback.format_exc()})
+        return JobOutcome(job.name, time.perf_counter() - started, failure=failure)
+    error_file(job.out, job.name).unlink(missing_ok=True)
+    return JobOutcome(job.name, time.perf_counter() - started, result)
+
+
+def _collect(job: CollectJob) -> str:
+    from sim.collect import CollectSettings, collect
+
+    settings = CollectSettings(SCENE, job.task, job.settings.demos, job.settings.seed,
+                               SeedStream.TRAIN)
+    dataset = collect(settings, dataset_file(job.out, job.task, job.settings), progress=False)
+    return f"{len(dataset)} demonstrations, " \
+           f"{dataset.metadata.extra.get('demonstrations_redrawn', 0)} redrawn"
+
+
+def _train(job: TrainJob) -> str:
+    from perception.data import load_dataset
+    from perception.registry import new_model
+    from perception.train import TrainConfig
+    from sim.trials import torch_threads
+
+    settings, unit = job.settings, job.unit
+    with torch_threads(1):
+        data = load_dataset(dataset_file(job.out, unit.task, settings),
+                            expect={"scene": SCENE, "task": unit.task, "size": settings.demos,
+                                    "seed": settings.seed})
+        model = new_model(unit.model, data, seed=settings.seed)
+        report = model.fit(data, TrainConfig(**settings.train_config()), progress=False)
+        model.save(checkpoint_folder(job.out, unit))
+    write_json(trained_file(job.out, unit), {  # last: it marks the checkpoint finished
+        "identity": job.identity, "train_s": report.wall_time_s, "steps": report.steps,
+        "final_loss": report.final_loss, "samples": report.samples})
+    return f"final loss {report.final_loss:.4g} in {report.wall_time_s:.0f} s"
+
+
+def _trials(job: TrialsJob) -> str:
+    from sim.trials import run_trials
+
+    summary = run_trials(job.trials, trials_folder(job.out, job.trial_set), progress=False)
+    return f"{summary.successes}/{summary.n}"
+
+
+def _gif(job: GifJob) -> str:
+    from experiments.real_gifs import record_gif
+
+    path = gif_file(job.out, job.unit)
+    shown = record_gif(job.unit.model, job.trials, job.count, path)
+    write_json(path.with_suffix(".json"), {"identity": gif_identity(job), "trials": shown})
+    return ", ".join(t["outcome"] for t in shown)
+
+
+# finding finished work
+
+
+def trials_done(job: TrialsJob) -> bool:
+    """Whether the set's ``summary.json`` holds all its trials, run with these settings."""
+    path = trials_folder(job.out, job.trial_set) / "summary.json"
+    if not path.exists():
+        return False
+    stored = read_json(path)
+    return bool(stored["n"] == job.trials.n and stored["settings"] == _summary_settings(job.trials))
+
+
+def _summary_settings(trials: TrialSettings) -> dict[str, Any]:
+    from sim.records import json_form
+
+    return json_form(trials.identity() | {"n": trials.n})
+
+
+def gif_identity(job: GifJob) -> dict[str, Any]:
+    """What a GIF shows: the trials' settings and how many of them."""
+    return _summary_settings(job.trials) | {"gif_trials": job.count}
+
+
+def gif_done(job: GifJob) -> bool:
+    """Whether the GIF exists and its ``.json`` says it shows these trials."""
+    meta = gif_file(job.out, job.unit).with_suffix(".json")
+    return (gif_file(job.out, job.unit).exists() and meta.exists()
+            and read_json(meta).get("identity") == gif_identity(job))
+
+
+# the phases
+
+
+def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
+             ) -> tuple[list[JobOutcome], list[str]]:
+    """Runs every unfinished job in three phases: (outcomes of the jobs run, names skipped)."""
+    units = settings.units()
+    refuse_stale(stale_checkpoints(settings, out, units), "checkpoint(s)")
+    tasks = sorted({u.task for u in units}, key=[u.task for u in units].index)
+    collects = [CollectJob(f"collect-{t}", t, settings, out) for t in tasks]
+    collects_todo = [j for j in collects if not dataset_present(
+        dataset_file(out, j.task, settings), SCENE, j.task, settings.demos, settings.seed,
+        SeedStream.TRAIN)]
+    trains = [TrainJob(f"train-{u.name}", u, settings, settings.train_identity(u), out)
+              for u in units]
+    trains_todo = [j for j in trains if not trained_file(out, j.unit).exists()]
+    skipped = [j.name for j in collects if j not in collects_todo]
+    skipped += [j.name for j in trains if j not in trains_todo]
+    # Trials are not known to be finished before their checkpoint exists: estimate them as
+    # to do unless their summary is there, and take finished ones off the bar later.
+    later = [_trials_estimate(settings, out, s) for s in settings.trial_sets()]
+    first: list[Job] = [*collects_todo, *trains_todo]
+    total = sum(cost(job) for job in first) + sum(later)
+    computed: list[JobOutcome] = []
+    with JobPool(settings.worker_count()) as pool, cost_bar(total, "reproduce real",
+                                                            progress) as bar:
+        def run(jobs: Sequence[Job]) -> None:
+            by_name = {job.name: job for job in jobs}
+
+            def done(outcome: JobOutcome) -> None:
+                computed.append(outcome)
+                shown = "FAILED" if outcome.failure else outcome.result
+                bar.set_postfix_str(f"{len(computed)} job(s) done; last {outcome.name}: "
+                                    f"{shown}", refresh=False)
+                bar.update(cost(by_name[outcome.name]))
+
+            ordered = sorted(jobs, key=lambda job: -cost(job))  # longest first
+            pool.run(guarded, ordered, done)
+
+        run(collects_todo)
+        run([j for j in trains_todo if dataset_file(out, j.unit.task, settings).exists()])
+        trying, skipped_now = _trial_jobs(settings, out)
+        skipped += skipped_now
+        bar.total = bar.n + sum(map(cost, trying))  # the estimate, made exact
+        bar.refresh()
+        run(trying)
+    return computed, skipped
+
+
+def _trials_estimate(settings: ReproduceRealSettings, out: Path, trial_set: TrialSet) -> float:
+    """A set's estimated cost, and its GIF's, unless they look finished already."""
+    targets = _targets(trial_set.unit.task)
+    summary = trials_folder(out, trial_set) / "summary.json"
+    estimate = 0.0 if summary.exists() else TRIAL_S_PER_PICK * settings.n * targets
+    if trial_set.variant is Variant.PLAIN and not gif_file(out, trial_set.unit).exists():
+        estimate += GIF_S_PER_PICK * min(GIF_TRIALS, settings.n) * targets
+    return estimate
+
+
+def _trial_jobs(settings: ReproduceRealSettings, out: Path) -> tuple[list[Job], list[str]]:
+    """(trial and GIF jobs to run, names of those finished), of units with a checkpoint."""
+    todo: list[Job] = []
+    skipped: list[str] = []
+    for trial_set in settings.trial_sets():
+        if not trained_file(out, trial_set.unit).exists():
+            continue  # its training failed: its error file names it
+        trials = settings.trial_settings(out, trial_set)
+        job = TrialsJob(f"trials-{trial_set.name}", trial_set, trials, out)
+        candidates: list[tuple[Job, bool]] = [(job, trials_done(job))]
+        if trial_set.variant is Variant.PLAIN:
+            gif = GifJob(f"gif-{trial_set.unit.name}", trial_set.unit, trials,
+                         min(GIF_TRIALS, settings.n), out)
+            candidates.append((gif, gif_done(gif)))
+        for candidate, finished in candidates:
+            if finished:
+                skipped.append(candidate.name)
+            else:
+                todo.append(candidate)
+    return todo, skipped

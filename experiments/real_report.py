@@ -1,0 +1,331 @@
+"""The reports of ``gva reproduce real``, rebuilt from every trial folder of a run folder.
+
+- ``table3.json``: ``tasks`` (the kqv row: per task ``successes``, ``n``, ``wilson95``,
+  ``outcomes`` and more), ``models`` (every model the same way), ``robustness`` (kqv under
+  darker light and with a distractor), the paper's numbers, the GIFs, the settings, the last
+  run's wall time and the failed jobs.
+- ``table3.md``: laid out like the paper's Table III (a column per task, ``k/30``): the paper's
+  row, then ours, one row per model, the robustness rows; the 95 % Wilson intervals and the
+  median grasp position error of each row; the failure reasons per task (outcome counts and
+  example trials); the GIFs; how it was made.
+
+A trial folder of an interrupted run counts the trials it has, marked ``*``.
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from experiments.reproduce_real import (
+    DARK_BRIGHTNESS,
+    DISTRACTOR_TYPES,
+    ROBUST_MODEL,
+    ReproduceRealSettings,
+    Variant,
+)
+from experiments.reproduce_sim import TASKS, read_json, write_json
+from experiments.runs import duration
+from experiments.sim_report import MODEL_TITLES, TASK_TITLES
+from perception.files import atomic_write
+from sim.records import TrialOutcome, TrialRecord, TrialSummary
+
+PAPER_TABLE3 = {"single": 27, "multiple": 28, "selected-type": 26, "selected-position": 27}
+"""The paper's Table III: successful picks of 30 on the real YuMi, 20 demonstrations each."""
+PAPER_TRIALS = 30
+EXAMPLES = 3
+"""Failed trials quoted per row in the failure reasons."""
+REASON_CHARS = 200
+"""A quoted reason is cut to this length (a planner's reason lists every arm and via pose)."""
+
+
+@dataclass(frozen=True)
+class TrialSetResult:
+    """The trials of one model, task and variant found in a run folder."""
+
+    model: str
+    task: str
+    variant: Variant
+    records: tuple[TrialRecord, ...]
+    expected: int  # the n the set was started with
+
+    @property
+    def summary(self) -> TrialSummary:
+        """Successes, interval and outcome counts of the trials present."""
+        return TrialSummary.of(list(self.records))
+
+    @property
+    def unfinished(self) -> bool:
+        """Whether fewer trials than asked are present."""
+        return len(self.records) < self.expected
+
+    def entry(self) -> dict[str, Any]:
+        """The set as ``table3.json`` holds it."""
+        summary = self.summary
+        errors = first_pick_errors_cm(self.records)
+        return {"successes": summary.successes, "n": summary.n,
+                "wilson95": list(summary.wilson95), "outcomes": summary.outcomes,
+                "per_object": summary.per_object, "unfinished": self.unfinished,
+                "median_position_error_cm": statistics.median(errors) if errors else None,
+                "median_wall_time_s": summary.median_wall_time_s}
+
+
+def first_pick_errors_cm(records: Sequence[TrialRecord]) -> list[float]:
+    """Each trial's first-pick grasp position error [cm], where the model predicted one."""
+    errors = []
+    for record in records:
+        first = record.picks[0] if record.picks else {}
+        error = first.get("position_error_m", record.position_error_m)
+        if error is not None:
+            errors.append(100.0 * error)
+    return errors
+
+
+def split_task(name: str) -> tuple[str, Variant]:
+    """``single-dark`` -> (``single``, DARK); ``single`` -> (``single``, PLAIN)."""
+    for variant in (Variant.DARK, Variant.DISTRACTOR):
+        if name.endswith(f"-{variant.value}"):
+            return name[:-len(variant.value) - 1], variant
+    return name, Variant.PLAIN
+
+
+def read_trial_sets(out: Path, n: int) -> list[TrialSetResult]:
+    """Every trial folder of ``out/trials`` (``<model>/<task>[-variant]``), in table order.
+
+    ``n`` is the trials each set is meant to have (the folder's ``run.json`` pins it).
+    """
+    found = []
+    for log in (out / "trials").glob("*/*/trials.jsonl"):
+        task, variant = split_task(log.parent.name)
+        if task not in TASKS:
+            continue
+        records = sorted((TrialRecord.from_json(line) for line in log.read_text().splitlines()
+                          if line.strip()), key=lambda r: r.index)
+        found.append(TrialSetResult(log.parent.parent.name, task, variant,
+                                    tuple(r for r in records if r.index < n), n))
+    found.sort(key=lambda s: (_model_order(s.model), list(Variant).index(s.variant),
+                              TASKS.index(s.task)))
+    return found
+
+
+def _model_order(model: str) -> tuple[int, str]:
+    known = list(MODEL_TITLES)
+    return (known.index(model) if model in known else len(known), model)
+
+
+def model_title(model: str) -> str:
+    """The row title of a model (the paper's names where it has them)."""
+    return MODEL_TITLES.get(model, model)
+
+
+def row_title(model: str, variant: Variant) -> str:
+    """The row title of a model under a variant."""
+    if variant is Variant.DARK:
+        return f"{model_title(model)}, darker light (brightness {DARK_BRIGHTNESS:g})"
+    if variant is Variant.DISTRACTOR:
+        return f"{model_title(model)}, + {' + '.join(DISTRACTOR_TYPES)} distractor"
+    return model_title(model)
+
+
+def shared_target_type(task: str, record: TrialRecord) -> bool:
+    """Whether a distractor has a target's type in the trial.
+
+    Nothing in the image tells such a distractor from the target (a side condition at most).
+    """
+    from sim.tasks import TargetSelection, load_task
+
+    distractors = {o["type"] for o in record.objects if o.get("distractor")}
+    if load_task(task).targets is TargetSelection.ALL:
+        targets = {o["type"] for o in record.objects if not o.get("distractor")}
+    else:
+        targets = {record.target} if record.target else set()
+    return bool(distractors & targets)
+
+
+def table3_json(sets: Sequence[TrialSetResult]) -> dict[str, Any]:
+    """The tables of ``table3.json`` (without settings and timing)."""
+    models: dict[str, dict[str, Any]] = {}
+    robustness: dict[str, dict[str, Any]] = {
+        Variant.DARK.value: {"brightness": DARK_BRIGHTNESS, "model": ROBUST_MODEL, "tasks": {}},
+        Variant.DISTRACTOR.value: {"types": list(DISTRACTOR_TYPES), "model": ROBUST_MODEL,
+                                   "tasks": {}}}
+    for result in sets:
+        if result.variant is Variant.PLAIN:
+            models.setdefault(result.model, {})[result.task] = result.entry()
+        elif result.model == ROBUST_MODEL:
+            entry = result.entry()
+            if result.variant is Variant.DISTRACTOR:
+                entry["shared_target_type"] = sum(shared_target_type(result.task, r)
+                                                  for r in result.records)
+            robustness[result.variant.value]["tasks"][result.task] = entry
+    return {"tasks": models.get(ROBUST_MODEL, {}), "models": models, "robustness": robustness,
+            "paper": {t: {"successes": k, "n": PAPER_TRIALS} for t, k in PAPER_TABLE3.items()}}
+
+
+def _cell(result: TrialSetResult | None) -> str:
+    if result is None:
+        return "—"
+    summary = result.summary
+    return f"{summary.successes}/{summary.n}" + ("*" if result.unfinished else "")
+
+
+def _interval(result: TrialSetResult | None) -> str:
+    if result is None:
+        return "—"
+    low, high = result.summary.wilson95
+    errors = first_pick_errors_cm(result.records)
+    error = f"; {statistics.median(errors):.1f} cm" if errors else ""
+    return f"{100 * low:.0f}-{100 * high:.0f} %{error}"
+
+
+_HEADER = "| | " + " | ".join(TASK_TITLES[t] for t in TASKS) + " |"
+_RULE = "|---" + "|---:" * len(TASKS) + "|"
+
+
+def _rows(sets: Sequence[TrialSetResult]) -> list[tuple[str, Variant]]:
+    """(model, variant) of each row: plain rows first, models in the paper's order."""
+    return sorted({(s.model, s.variant) for s in sets},
+                  key=lambda r: (list(Variant).index(r[1]), _model_order(r[0])))
+
+
+def successes_table(sets: Sequence[TrialSetResult]) -> str:
+    """The Table III layout: the paper's row, then a row per model and variant, ``k/30``."""
+    by_key = {(s.model, s.variant, s.task): s for s in sets}
+    lines = [_HEADER, _RULE, "| Paper (real YuMi, 20 demonstrations) | "
+             + " | ".join(f"{PAPER_TABLE3[t]}/{PAPER_TRIALS}" for t in TASKS) + " |"]
+    lines += [f"| {row_title(m, v)} | " + " | ".join(_cell(by_key.get((m, v, t))) for t in TASKS)
+              + " |" for m, v in _rows(sets)]
+    return "\n".join(lines)
+
+
+def table3_markdown(sets: Sequence[TrialSetResult], made_by: str,
+                    gifs: Mapping[str, Mapping[str, Any]] | None = None,
+                    failed: Sequence[Mapping[str, Any]] = ()) -> str:
+    """``table3.md``: the paper's row, ours, the robustness rows, then why trials failed."""
+    by_key = {(s.model, s.variant, s.task): s for s in sets}
+    lines = [
+        "# Table III in simulation: successful picks out of 30", "",
+        "Scene `yumi` (a simulated ABB YuMi in PyBullet): each model trained on oracle-verified "
+        "demonstrations of each task, then closed-loop pick trials at untrained positions with "
+        "the model in the loop. A pick succeeds when the target's lowest point rose 5 cm and "
+        "stayed pinched for 1 s; `multiple` needs all three picks. The paper's row is its real "
+        "YuMi (20 demonstrations per task). `*`: some trials are still missing (the run was "
+        "interrupted; run it again); `k/m` counts those present.", "",
+        successes_table(sets), "",
+        "95 % Wilson interval of the success rate; median grasp position error of the first "
+        "pick [cm]:", "", _HEADER, _RULE]
+    lines += [f"| {row_title(m, v)} | " + " | ".join(_interval(by_key.get((m, v, t)))
+                                                    for t in TASKS) + " |"
+              for m, v in _rows(sets)]
+    lines += ["", "## Failure reasons", ""]
+    for task in TASKS:
+        present = [s for s in sets if s.task == task]
+        if not present:
+            continue
+        lines += [f"### {TASK_TITLES[task]}", ""]
+        for result in sorted(present, key=lambda s: (list(Variant).index(s.variant),
+                                                     _model_order(s.model))):
+            lines += _reasons(result)
+        lines.append("")
+    if gifs:
+        lines += ["## GIFs", "", "The first trials of each model and task recorded again: the "
+                  "head camera's image with the attention points (numbered by head) beside a "
+                  "camera watching the robot.", ""]
+        lines += [f"- `{name}`: " + ", ".join(f"trial {t['index']} {t['outcome']}"
+                                              for t in gif["trials"]) for name, gif in gifs.items()]
+        lines.append("")
+    lines += ["## How it was made", "", made_by]
+    if failed:
+        lines += ["", "Failed jobs (see `errors/<job>.json`):"]
+        lines += [f"- {r['job']}: {r['error']}" for r in failed]
+    return "\n".join(lines) + "\n"
+
+
+def _reasons(result: TrialSetResult) -> list[str]:
+    """The failure-reason lines of one row and task: counts, then example failed trials."""
+    summary = result.summary
+    counts = ", ".join(f"{outcome} {count}" for outcome, count in summary.outcomes.items()
+                       if count)
+    objects = ", ".join(f"{name} {c['picked']}/{c['attempted']}"
+                        for name, c in summary.per_object.items())
+    line = f"- **{row_title(result.model, result.variant)}**: {counts or 'no trials'}"
+    line += f"; picks by object: {objects}" if objects else ""
+    if result.variant is Variant.DISTRACTOR:
+        shared = sum(shared_target_type(result.task, r) for r in result.records)
+        line += f"; the distractor has a target's type in {shared} of {summary.n} trials"
+    lines = [line]
+    failures = [r for r in result.records if r.outcome is not TrialOutcome.SUCCESS]
+    examples: list[TrialRecord] = []
+    for record in failures:  # one of each outcome first, then in trial order
+        if record.outcome not in {e.outcome for e in examples}:
+            examples.append(record)
+    examples += [r for r in failures if r not in examples]
+    for record in sorted(examples[:EXAMPLES], key=lambda r: r.index):
+        off = (f", {100 * record.position_error_m:.1f} cm off"
+               if record.position_error_m is not None else "")
+        reason = record.reason if len(record.reason) <= REASON_CHARS else (
+            record.reason[:REASON_CHARS - 3] + "...")
+        lines.append(f"  - trial {record.index} ({record.target or '?'}{off}): "
+                     f"{record.outcome.value}: {reason}")
+    return lines
+
+
+def read_gifs(out: Path) -> dict[str, dict[str, Any]]:
+    """The GIFs of ``out/gifs`` and the trials each shows, by file name."""
+    return {f"gifs/{meta.stem}.gif": {"trials": read_json(meta)["trials"]}
+            for meta in sorted((out / "gifs").glob("*.json"))
+            if meta.with_suffix(".gif").exists()}
+
+
+def read_failed(out: Path) -> list[dict[str, Any]]:
+    """The jobs that raised (``out/errors/*.json``): job and error."""
+    return [{k: read_json(p)[k] for k in ("job", "error")}
+            for p in sorted((out / "errors").glob("*.json"))]
+
+
+def history_wall_time_s(out: Path) -> float:
+    """The wall time of every run into ``out`` together [s] (``history.jsonl``)."""
+    path = out / "history.jsonl"
+    if not path.exists():
+        return 0.0
+    return sum(json.loads(line)["wall_time_s"] for line in path.read_text().splitlines()
+               if line.strip())
+
+
+class Reports(NamedTuple):
+    """What :func:`write_reports` wrote and found."""
+
+    paths: list[Path]  # table3.json, table3.md and the GIFs
+    failed: list[dict[str, Any]]  # jobs that raised: job, error
+    notes: list[str]
+    table: str  # the successes table, as in table3.md
+
+
+def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float) -> Reports:
+    """Writes ``table3.json`` and ``table3.md`` from what the folder holds."""
+    sets = read_trial_sets(out, settings.n)
+    gifs, failed = read_gifs(out), read_failed(out)
+    all_runs_s = history_wall_time_s(out)
+    made_by = (f"Made by `{settings.command(out)}`: {settings.demos} demonstrations per task "
+               f"(training stream of seed {settings.seed}), {settings.steps} optimiser steps, "
+               f"{settings.n} trials per task (test stream of seed {settings.seed}), "
+               f"{settings.worker_count()} worker process(es). Last run: "
+               f"{duration(wall_time_s)} wall time; every run into this folder together: "
+               f"{duration(all_runs_s)}.")
+    table = table3_json(sets) | {
+        "gifs": gifs,
+        "settings": settings.run_identity() | {
+            "command": settings.command(out), "models": list(settings.models),
+            "tasks": list(settings.tasks), "robustness": settings.robustness,
+            "workers": settings.worker_count()},
+        "wall_time_s": wall_time_s, "wall_time_all_runs_s": all_runs_s, "failed": failed}
+    paths = [out / "table3.json", out / "table3.md"]
+    write_json(paths[0], table)
+    text = table3_markdown(sets, made_by, gifs, failed)
+    atomic_write(paths[1], lambda temporary: temporary.write_text(text, encoding="utf-8"))
+    notes = [] if sets else ["no trials in this folder yet: the tables are empty"]
+    return Reports(paths + [out / name for name in gifs], failed, notes, successes_table(sets))

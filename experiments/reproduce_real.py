@@ -1,0 +1,382 @@
+"""``gva reproduce real``: the paper's Table III (YuMi picks out of 30) in simulation, resumable.
+
+The paper trains its model on 20 demonstrations per task on a real ABB YuMi, then counts
+successful picks in 30 trials with the objects at untrained positions (Table III: 27, 28, 26
+and 27 of 30 for single, multiple, selected type, selected position). Here, on the ``yumi``
+scene, for each task and each model:
+
+1. Demonstrations: ``demos`` (20) scenes of the task from the TRAIN stream of ``seed``, each
+   picked by the oracle in the simulator and kept only if every pick succeeded
+   (:func:`sim.collect.collect`); the image, the condition and the grasp pose (TCP position and
+   rotation) of each target are the training sample. One dataset per task serves every model.
+2. Training: a fresh model (any name :func:`~perception.registry.new_model` takes), seeded with
+   ``seed``, trained for ``steps`` optimiser steps on one torch thread, to predict the grasp pose
+   of each target.
+3. Trials: ``n`` (30) closed-loop trials with the trained checkpoint in the loop
+   (:func:`sim.trials.run_trials`): scene ``i`` of the TEST stream of ``seed`` (never a
+   training scene), image -> predict -> arm choice -> IK -> ruckig -> PyBullet, success judged
+   by physics (lifted 5 cm and held 1 s). ``--seed`` moves every training and test scene.
+4. Robustness (``kqv``; the paper reports it for its robot): the same checkpoint and the same
+   30 scenes under darker light (brightness :data:`DARK_BRIGHTNESS`), and with a distractor of
+   :data:`DISTRACTOR_TYPES` added to each of them, never a target (:mod:`sim.scene` draws
+   distractors from their own stream: same objects, poses, targets and conditions, plus the
+   distractor). Both are task TOML options (``[lighting] brightness``, ``[distractors]
+   types``); their files are written to ``OUT/tasks/``. The checkpoint is accepted for them
+   because trials check a model against the task's scene, condition, targets and image size,
+   not its name. The catalog has only the three target types, so the "similar-looking"
+   distractor is one of them, a sponge: where a target is a sponge too, nothing in the image
+   tells the two apart (a side condition at most), so the report counts those trials.
+5. GIFs: the first :data:`GIF_TRIALS` trials of each model and task recorded again
+   (:mod:`experiments.real_jobs`): the head image with the attention points beside the robot.
+
+Jobs run in ``workers`` processes (:mod:`experiments.jobs`) in three phases: collect, train,
+then trials and GIFs; one progress bar, measured in the jobs' estimated seconds, gives the
+time left. Resumability: a dataset, a checkpoint (with ``trained.json``), a trial folder (one
+line per finished trial, :class:`~sim.records.TrialLog`) and a GIF (with its ``.json``) each
+say what made them; a re-run skips what is finished and resumes an interrupted trial folder
+trial by trial. ``OUT/run.json`` holds the settings the folder shares (seed, demos, n, steps,
+the variants): a run with others is refused. A job that raises is recorded in
+``OUT/errors/<job>.json`` and the run goes on. Layout of ``OUT``::
+
+    run.json, history.jsonl               shared settings; one line per run (its wall time)
+    datasets/<task>-train-<demos>-s<seed>.gva
+    checkpoints/<model>/<task>/           weights, config.json, trained.json
+    tasks/<task>-dark.toml, <task>-distractor.toml
+    trials/<model>/<task>[-dark|-distractor]/   run.json, trials.jsonl, summary.json
+    gifs/<model>-<task>.gif, .json
+    table3.json, table3.md                (see experiments.real_report)
+"""
+
+from __future__ import annotations
+
+import enum
+import json
+import os
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from experiments.reproduce_sim import TASKS, model_config
+from experiments.runs import check_choices, check_counts
+from experiments.sim_datasets import dataset_path
+from perception.files import atomic_write
+from sim.records import RunFolderError, json_form
+
+if TYPE_CHECKING:
+    from sim.tasks import TaskSpec
+    from sim.trials import TrialSettings
+
+SCENE = "yumi"
+DEFAULT_MODELS = ("kqv",)
+ROBUST_MODEL = "kqv"
+"""The model whose robustness rows are run (the paper reports them for its own model)."""
+DARK_BRIGHTNESS = 0.5
+"""The darker light: half the normal light (training augments brightness by 0.7-1.3 only)."""
+DISTRACTOR_TYPES = ("sponge",)
+"""The distractor added to every scene: the flattest type, so it hides no target."""
+GIF_TRIALS = 3
+FORMAT_VERSION = 1
+
+
+class Variant(enum.Enum):
+    """The conditions a trained model is tried under."""
+
+    PLAIN = "plain"  # the task as trained
+    DARK = "dark"  # the same scenes under darker light
+    DISTRACTOR = "distractor"  # the same scenes plus a distractor that is never a target
+
+
+def allowed_models() -> tuple[str, ...]:
+    """The model names ``new_model`` takes: registered models and presets."""
+    from perception.registry import MODELS, PRESETS
+
+    return (*MODELS, *PRESETS)
+
+
+def variant_task(task: str, variant: Variant) -> TaskSpec:
+    """The task ``task`` under ``variant``: the same scenes, darker or with a distractor."""
+    from sim.tasks import load_task
+
+    base = load_task(task)
+    if variant is Variant.DARK:
+        return replace(base, name=f"{task}-dark", brightness=DARK_BRIGHTNESS,
+                       description=f"{base.description} Darker light ({DARK_BRIGHTNESS}).")
+    if variant is Variant.DISTRACTOR:
+        return replace(base, name=f"{task}-distractor",
+                       distractors=base.distractors + DISTRACTOR_TYPES,
+                       description=f"{base.description} Plus a distractor "
+                       f"({', '.join(DISTRACTOR_TYPES)}) that is never a target.")
+    return base
+
+
+@dataclass(frozen=True)
+class Unit:
+    """One model trained on one task."""
+
+    model: str
+    task: str
+
+    @property
+    def name(self) -> str:
+        """``kqv-single``: the stem of the unit's files."""
+        return f"{self.model}-{self.task}"
+
+
+@dataclass(frozen=True)
+class TrialSet:
+    """The trials of one unit under one variant."""
+
+    unit: Unit
+    variant: Variant = Variant.PLAIN
+
+    @property
+    def task_name(self) -> str:
+        """``single``, or ``single-dark``: the name of the task the trials run."""
+        suffix = "" if self.variant is Variant.PLAIN else f"-{self.variant.value}"
+        return f"{self.unit.task}{suffix}"
+
+    @property
+    def name(self) -> str:
+        """``kqv-single-dark``: the stem of the set's files."""
+        return f"{self.unit.model}-{self.task_name}"
+
+
+@dataclass(frozen=True)
+class ReproduceRealSettings:
+    """What ``gva reproduce real`` runs.
+
+    Args:
+        models: Models to train, names :func:`~perception.registry.new_model` takes.
+        tasks: Tasks, from :data:`TASKS`.
+        n: Trials per model and task (the paper's 30).
+        demos: Demonstrations per task (the paper's 20).
+        steps: Optimiser steps of training.
+        seed: Seeds the demonstrations (TRAIN stream), the weights and the trials (TEST stream).
+        robustness: Also run :data:`ROBUST_MODEL`'s trials in the dark and with a distractor.
+        workers: Processes at once; None: the cores this process may use.
+
+    """
+
+    models: tuple[str, ...] = DEFAULT_MODELS
+    tasks: tuple[str, ...] = TASKS
+    n: int = 30
+    demos: int = 20
+    steps: int = 1000
+    seed: int = 0
+    robustness: bool = True
+    workers: int | None = None
+
+    def __post_init__(self) -> None:
+        custom = tuple(m for m in self.models if ":" in m)  # package.module:Class
+        check_choices("models", self.models, (*allowed_models(), *custom))
+        check_choices("tasks", self.tasks, TASKS)
+        check_counts(self, {"n": 1, "demos": 1, "steps": 1, "seed": 0}, self.workers)
+
+    def units(self) -> list[Unit]:
+        """Every unit: models in the given order, tasks in the paper's."""
+        return [Unit(m, t) for m in self.models for t in TASKS if t in self.tasks]
+
+    def trial_sets(self) -> list[TrialSet]:
+        """Every set of trials: each unit's, and the robustness variants of kqv's units."""
+        variants = (Variant.PLAIN, Variant.DARK, Variant.DISTRACTOR)
+        return [TrialSet(unit, v) for unit in self.units() for v in variants
+                if v is Variant.PLAIN or (self.robustness and unit.model == ROBUST_MODEL)]
+
+    def worker_count(self) -> int:
+        """The processes to run: ``workers``, or the cores this process may use."""
+        from perception.train import available_threads
+
+        return self.workers if self.workers is not None else available_threads()
+
+    def train_config(self) -> dict[str, Any]:
+        """The training settings of every unit (one torch thread: units run side by side)."""
+        from perception.train import TrainConfig
+
+        return asdict(TrainConfig(steps=self.steps, seed=self.seed, threads=1))
+
+    def run_identity(self) -> dict[str, Any]:
+        """What every job of a folder shares; ``run.json`` holds it."""
+        from sim.execution import ExecutionSettings
+        from sim.trials import TrialSettings
+
+        return {"format_version": FORMAT_VERSION, "experiment": "reproduce-real",
+                "scene": SCENE, "seed": self.seed, "demos": self.demos, "n": self.n,
+                "train": self.train_config(), "settle_s": TrialSettings.settle_s,
+                "execution": asdict(ExecutionSettings()), "gif_trials": GIF_TRIALS,
+                "variants": {"dark_brightness": DARK_BRIGHTNESS,
+                             "distractor_types": list(DISTRACTOR_TYPES)}}
+
+    def train_identity(self, unit: Unit) -> dict[str, Any]:
+        """What defines a unit's checkpoint; ``trained.json`` holds it."""
+        from sim.tasks import load_task
+        from sim.trials import task_identity
+
+        return json_form({"model": unit.model, "model_config": model_config(unit.model,
+                                                                             self.seed),
+                          "task": task_identity(load_task(unit.task)), "demos": self.demos,
+                          "seed": self.seed, "train": self.train_config()})
+
+    def trial_settings(self, out: Path, trial_set: TrialSet) -> TrialSettings:
+        """The :class:`~sim.trials.TrialSettings` of a set (its checkpoint must exist)."""
+        from sim.trials import TrialSettings
+
+        task = (trial_set.unit.task if trial_set.variant is Variant.PLAIN
+                else str(variant_file(out, trial_set)))
+        return TrialSettings(model=str(checkpoint_folder(out, trial_set.unit)), task=task,
+                             n=self.n, seed=self.seed)
+
+    def command(self, out: Path) -> str:
+        """The ``gva reproduce real`` command line of these settings (workers left out)."""
+        parts = ["gva reproduce real", f"--out {out}", f"--seed {self.seed}", f"--n {self.n}",
+                 f"--demos {self.demos}", f"--steps {self.steps}"]
+        if set(self.tasks) != set(TASKS):
+            parts.append(f"--tasks {','.join(self.tasks)}")
+        if self.models != DEFAULT_MODELS:
+            parts.append(f"--models {','.join(self.models)}")
+        if not self.robustness:
+            parts.append("--no-robustness")
+        return " ".join(parts)
+
+
+# files of a run folder
+
+
+def dataset_file(out: Path, task: str, settings: ReproduceRealSettings) -> Path:
+    """The demonstrations of a task."""
+    from sim.scene import SeedStream
+
+    return dataset_path(out, task, SeedStream.TRAIN, settings.demos, settings.seed)
+
+
+def checkpoint_folder(out: Path, unit: Unit) -> Path:
+    """The checkpoint of a unit (``trained.json`` beside its weights once complete)."""
+    return out / "checkpoints" / unit.model / unit.task
+
+
+def trained_file(out: Path, unit: Unit) -> Path:
+    """What a finished checkpoint was trained with; written after the checkpoint."""
+    return checkpoint_folder(out, unit) / "trained.json"
+
+
+def variant_file(out: Path, trial_set: TrialSet) -> Path:
+    """The task TOML of a robustness variant."""
+    return out / "tasks" / f"{trial_set.task_name}.toml"
+
+
+def trials_folder(out: Path, trial_set: TrialSet) -> Path:
+    """The trial folder of a set (``run.json``, ``trials.jsonl``, ``summary.json``)."""
+    return out / "trials" / trial_set.unit.model / trial_set.task_name
+
+
+def gif_file(out: Path, unit: Unit) -> Path:
+    """The GIF of a unit's first trials; a ``.json`` beside it says what it shows."""
+    return out / "gifs" / f"{unit.name}.gif"
+
+
+def error_file(out: Path, job: str) -> Path:
+    """The record of a job that raised."""
+    return out / "errors" / f"{job}.json"
+
+
+def write_variant_tasks(settings: ReproduceRealSettings, out: Path) -> None:
+    """Writes the task TOML of every robustness variant the run needs (when it changed)."""
+    from sim.tasks import task_to_toml
+
+    for trial_set in settings.trial_sets():
+        if trial_set.variant is Variant.PLAIN:
+            continue
+        path = variant_file(out, trial_set)
+        text = (f"# {trial_set.variant.value} variant of the task {trial_set.unit.task}, "
+                "written by gva reproduce real\n"
+                + task_to_toml(variant_task(trial_set.unit.task, trial_set.variant)))
+        if not path.exists() or path.read_text(encoding="utf-8") != text:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            _write_text(path, text)
+
+
+def _write_text(path: Path, text: str) -> None:
+    atomic_write(path, lambda temporary: temporary.write_text(text, encoding="utf-8"))
+
+
+def append_history(out: Path, entry: dict[str, Any]) -> None:
+    """Appends one run's line to ``history.jsonl`` (fsynced: a run's wall time is kept)."""
+    with (out / "history.jsonl").open("a", encoding="utf-8") as handle:
+        handle.write(json.dumps(entry, sort_keys=True) + "\n")
+        handle.flush()
+        os.fsync(handle.fileno())
+
+
+@dataclass(frozen=True)
+class ReproduceRealReport:
+    """What a run did: jobs computed (with their failures) and skipped, and its outputs.
+
+    ``wall_time_s`` covers collecting, training, trials and GIFs, not the reports after.
+    """
+
+    computed: tuple[Any, ...]
+    skipped: tuple[str, ...]
+    failed: tuple[dict[str, Any], ...]
+    wall_time_s: float
+    outputs: tuple[Path, ...] = field(default_factory=tuple)
+    notes: tuple[str, ...] = field(default_factory=tuple)
+    table: str = ""  # the successes table of table3.md
+
+
+def run_reproduce_real(settings: ReproduceRealSettings, out: str | Path,
+                       progress: bool = True) -> ReproduceRealReport:
+    """Runs (or resumes) the experiment into ``out``; see the module docstring.
+
+    Raises:
+        RunFolderError: ``out`` holds a run with other shared settings, or a dataset or
+            checkpoint made with other settings.
+        KeyboardInterrupt: Ctrl-C; what finished is kept and the message says how to resume.
+
+    """
+    from experiments.real_jobs import run_jobs
+    from experiments.real_report import write_reports
+    from sim.records import claim_run_folder
+
+    out = Path(out)
+    started = time.perf_counter()
+    claim_run_folder(out, settings.run_identity())
+    write_variant_tasks(settings, out)
+    try:
+        computed, skipped = run_jobs(settings, out, progress)
+    except KeyboardInterrupt:
+        raise KeyboardInterrupt(f"finished datasets, checkpoints and trials are kept in {out}; "
+                                f"resume with: {settings.command(out)}") from None
+    wall_time_s = time.perf_counter() - started
+    append_history(out, {"command": settings.command(out), "wall_time_s": round(wall_time_s, 1),
+                         "computed": [o.name for o in computed], "skipped": len(skipped),
+                         "workers": settings.worker_count(), "finished_at": time.time()})
+    reports = write_reports(settings, out, wall_time_s)
+    return ReproduceRealReport(tuple(computed), tuple(skipped), tuple(reports.failed),
+                               wall_time_s, tuple(reports.paths), tuple(reports.notes),
+                               reports.table)
+
+
+def stale_checkpoints(settings: ReproduceRealSettings, out: Path,
+                      units: Sequence[Unit]) -> list[str]:
+    """The units whose ``trained.json`` holds other settings, as ``file (differences)``."""
+    from experiments.reproduce_sim import read_json
+    from sim.records import differences
+
+    stale = []
+    for unit in units:
+        path = trained_file(out, unit)
+        if path.exists():
+            stored, asked = read_json(path)["identity"], settings.train_identity(unit)
+            if stored != asked:
+                stale.append(f"{path} ({differences(stored, asked)})")
+    return stale
+
+
+def refuse_stale(stale: Sequence[str], what: str) -> None:
+    """Raises a :class:`RunFolderError` listing files made with other settings, if any."""
+    if stale:
+        raise RunFolderError(
+            f"{len(stale)} {what} made with other settings, stored vs now: "
+            f"{'; '.join(stale[:3])}{' ...' if len(stale) > 3 else ''}; remove them to "
+            "compute them again with the current code, or use another --out")

@@ -1,0 +1,78 @@
+"""Recording trials: the runner's observer hook, the frames, the GIF file."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from sim.errors import InvalidInputError
+from sim.recording import CAPTION_PX, RecordingSettings, TrialRecorder, join_trials, write_gif
+from sim.runner import TrialRunner
+from sim.scene import SeedStream, sample_scene
+from sim.scenes import YUMI_SCENE
+from sim.tasks import load_task
+
+
+class CountingRecorder(TrialRecorder):
+    """A recorder that also counts the hook's calls."""
+
+    def __init__(self) -> None:
+        super().__init__(RecordingSettings(frame_every_s=0.2, max_frames=12))
+        self.steps = 0
+        self.predictions = 0
+
+    def saw(self, image, prediction) -> None:
+        self.predictions += 1
+        super().saw(image, prediction)
+
+    def stepped(self, world) -> None:
+        self.steps += 1
+        super().stepped(world)
+
+
+def _comparable(record):
+    return (record.outcome, record.reason, record.lift_m, record.predicted, record.sim_time_s,
+            record.arm, record.position_error_m)
+
+
+def test_recording_a_trial_calls_the_hook_and_changes_nothing():
+    task = load_task("single")
+    scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 1)
+    with TrialRunner(task) as runner:
+        plain = runner.run(scene, 1, 0, "oracle")
+    recorder = CountingRecorder()
+    with TrialRunner(task, observer=recorder) as runner:
+        recorder.start("oracle / single, trial 1")
+        recorded = runner.run(scene, 1, 0, "oracle")
+        time_step_s = runner.world.config.time_step_s
+        frames = recorder.finish(recorded.outcome.value)
+    assert _comparable(recorded) == _comparable(plain)
+    assert recorded.success  # the oracle picks it
+    assert recorder.steps == round(recorded.sim_time_s / time_step_s)  # every physics step
+    assert recorder.predictions == 1
+    assert 2 <= len(frames) <= 12  # a 4-5 s trial at 5 frames/s, thinned to 12
+    assert all(f.shape == (CAPTION_PX + 128, 256, 3) and f.dtype == np.uint8 for f in frames)
+    assert not np.array_equal(frames[0][CAPTION_PX:, 128:], frames[-1][CAPTION_PX:, 128:])
+    assert not np.array_equal(frames[-2][:CAPTION_PX], frames[-1][:CAPTION_PX])  # the outcome
+
+
+def test_a_runner_without_an_observer_leaves_the_world_unhooked():
+    with TrialRunner(load_task("single")) as runner:
+        assert runner.observer is None and runner.world.step_hook is None
+
+
+def test_trials_join_into_one_looping_gif(tmp_path):
+    rng = np.random.default_rng(0)
+    trials = [[rng.integers(0, 255, (20, 30, 3), dtype=np.uint8) for _ in range(k)]
+              for k in (3, 2)]
+    frames, durations = join_trials(trials, frame_ms=100, last_ms=900)
+    assert durations == [100, 100, 900, 100, 900]
+    path = write_gif(tmp_path / "gifs" / "t.gif", frames, durations)
+    assert path.read_bytes()[:6] == b"GIF89a"
+    with Image.open(path) as image:
+        assert image.n_frames == 5 and image.size == (30, 20) and image.info["loop"] == 0
+    with pytest.raises(InvalidInputError, match="one duration per frame"):
+        write_gif(tmp_path / "bad.gif", frames, durations[:-1])
+    with pytest.raises(InvalidInputError, match="max_frames"):
+        RecordingSettings(max_frames=1)

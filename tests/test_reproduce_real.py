@@ -1,0 +1,179 @@
+"""``gva reproduce real``: a real tiny run, resuming, refusals, the tables, the GIF."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+from gva_cli import gva
+
+from experiments.real_report import TrialSetResult, table3_markdown
+from experiments.reproduce_real import (
+    ReproduceRealSettings,
+    TrialSet,
+    Unit,
+    Variant,
+    run_reproduce_real,
+    trained_file,
+    variant_file,
+)
+from perception.registry import load_model
+from sim.records import TrialOutcome, TrialRecord
+from sim.tasks import load_task
+from sim.trials import check_model_fits_task
+
+TINY = ["--tasks", "single", "--demos", "2", "--n", "2", "--steps", "3", "--workers", "1",
+        "--no-progress"]
+TINY_SETTINGS = ReproduceRealSettings(tasks=("single",), demos=2, n=2, steps=3, workers=1)
+UNIT = Unit("kqv", "single")
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("reproduce-real") / "run"
+    status, stdout, stderr = gva("reproduce", "real", "--out", out, *TINY)
+    assert status == 0, stderr
+    # collect, train, the trials plain, dark and with a distractor, the GIF
+    assert "6 job(s) run (0 failed), 0 finished earlier" in stdout
+    assert "| Paper (real YuMi, 20 demonstrations) | 27/30 |" in stdout
+    assert "| Ours (kqv, q=min) | " in stdout
+    assert f"files: {out}/" in stdout
+    return out
+
+
+def test_a_tiny_run_writes_the_table_and_the_gif(tiny_run):
+    table = json.loads((tiny_run / "table3.json").read_text())
+    single = table["tasks"]["single"]
+    assert single["n"] == 2 and 0 <= single["successes"] <= 2
+    assert set(single) >= {"successes", "n", "wilson95", "outcomes"}
+    assert sum(single["outcomes"].values()) == 2 and single["outcomes"]["error"] == 0
+    assert table["models"]["kqv"]["single"] == single
+    for variant in ("dark", "distractor"):
+        assert table["robustness"][variant]["tasks"]["single"]["n"] == 2
+    assert table["paper"]["single"] == {"successes": 27, "n": 30}
+    assert table["settings"]["train"]["steps"] == 3 and table["wall_time_s"] > 0
+    markdown = (tiny_run / "table3.md").read_text()
+    assert "| Paper (real YuMi, 20 demonstrations) | 27/30 | 28/30 | 26/30 | 27/30 |" in markdown
+    assert "| Ours (kqv, q=min), darker light (brightness 0.5) |" in markdown
+    assert "## Failure reasons" in markdown and "--steps 3" in markdown
+    gif = tiny_run / "gifs" / "kqv-single.gif"
+    assert gif.read_bytes()[:6] == b"GIF89a"
+    from PIL import Image
+
+    with Image.open(gif) as image:
+        assert image.n_frames > 1 and image.size == (256, 142)
+    shown = json.loads(gif.with_suffix(".json").read_text())["trials"]
+    assert [t["index"] for t in shown] == [0, 1]  # n = 2 trials, so 2 of the 3
+
+
+def test_the_gif_replays_the_logged_trials(tiny_run):
+    logged = [json.loads(line) for line in
+              (tiny_run / "trials" / "kqv" / "single" / "trials.jsonl").read_text().splitlines()]
+    shown = json.loads((tiny_run / "gifs" / "kqv-single.json").read_text())["trials"]
+    assert [(t["outcome"], t["reason"]) for t in shown] == [
+        (r["outcome"], r["reason"]) for r in sorted(logged, key=lambda r: r["index"])]
+
+
+def test_the_variants_are_task_files_the_checkpoint_is_accepted_for(tiny_run):
+    dark = load_task(variant_file(tiny_run, TrialSet(UNIT, Variant.DARK)))
+    distractor = load_task(variant_file(tiny_run, TrialSet(UNIT, Variant.DISTRACTOR)))
+    assert (dark.name, dark.brightness, dark.distractors) == ("single-dark", 0.5, ())
+    assert (distractor.name, distractor.distractors) == ("single-distractor", ("sponge",))
+    model = load_model(tiny_run / "checkpoints" / "kqv" / "single")
+    for task in (dark, distractor):
+        check_model_fits_task(model, task, "kqv")  # trained on `single`: accepted
+    def scenes(name):
+        log = tiny_run / "trials" / "kqv" / name / "trials.jsonl"
+        return {r["index"]: r["objects"] for r in map(json.loads, log.read_text().splitlines())}
+
+    plain = scenes("single")
+    assert scenes("single-dark") == plain
+    for index, objects in scenes("single-distractor").items():  # the same scene, plus a sponge
+        assert objects[:1] == plain[index]
+        assert (objects[1]["type"], objects[1]["distractor"]) == ("sponge", True)
+
+
+def test_a_rerun_skips_everything(tiny_run):
+    watched = [*(tiny_run / "trials").glob("*/*/trials.jsonl"), tiny_run / "gifs" /
+               "kqv-single.gif", trained_file(tiny_run, UNIT),
+               tiny_run / "checkpoints" / "kqv" / "single" / "weights.safetensors",
+               *(tiny_run / "datasets").glob("*.gva")]
+    before = {path: path.stat().st_mtime_ns for path in watched}
+    report = run_reproduce_real(TINY_SETTINGS, tiny_run, progress=False)
+    assert report.computed == () and len(report.skipped) == 6
+    assert {path: path.stat().st_mtime_ns for path in watched} == before
+    history = (tiny_run / "history.jsonl").read_text().splitlines()
+    assert json.loads(history[-1])["computed"] == []
+
+
+def test_a_run_with_other_steps_is_refused(tiny_run):
+    other = ["4" if before == "--steps" else value for before, value in
+             zip(["", *TINY], TINY, strict=False)]
+    status, _, stderr = gva("reproduce", "real", "--out", tiny_run, *other)
+    assert status == 2
+    assert "holds a different run ({'train.steps': (3, 4)}, stored vs asked)" in stderr
+    assert stderr.startswith("gva reproduce real: error:")
+
+
+def test_a_failing_training_is_recorded_and_the_run_goes_on(tiny_run, tmp_path, monkeypatch):
+    import perception.registry
+
+    def broken(*_, **__):
+        raise RuntimeError("out of ideas")
+
+    copied = Path(shutil.copytree(tiny_run, tmp_path / "run"))
+    trained_file(copied, UNIT).unlink()
+    monkeypatch.setattr(perception.registry, "new_model", broken)
+    status, stdout, _ = gva("reproduce", "real", "--out", copied, *TINY)
+    assert status == 1
+    assert "1 job(s) run (1 failed)" in stdout
+    assert "FAILED train-kqv-single: RuntimeError: out of ideas" in stdout
+    error = json.loads((copied / "errors" / "train-kqv-single.json").read_text())
+    assert "Traceback" in error["traceback"]
+    assert "- train-kqv-single: RuntimeError: out of ideas" in (copied / "table3.md").read_text()
+
+
+@pytest.mark.parametrize(("option", "value", "allowed"), [
+    ("--tasks", "single,juggle", "tasks = 'juggle' is not allowed: distinct comma-separated "
+     "values from single, multiple, selected-type, selected-position"),
+    ("--models", "kqv,foo", "models = 'foo' is not allowed: distinct comma-separated values "
+     "from kqv, keypoint, dsae, conv-ae, fcn, keypoint-16, keypoint-min, dsae-16"),
+])
+def test_bad_tasks_and_models_name_the_allowed_values(tmp_path, option, value, allowed):
+    status, _, stderr = gva("reproduce", "real", "--out", tmp_path / "run", option, value)
+    assert status == 2
+    assert allowed in stderr
+    assert not (tmp_path / "run").exists()
+
+
+def _record(index: int, outcome: TrialOutcome, reason: str, target: str = "sponge",
+            error_m: float | None = 0.01) -> TrialRecord:
+    return TrialRecord(index=index, seed=0, task="single", model="kqv", outcome=outcome,
+                       reason=reason, target=target, position_error_m=error_m,
+                       objects=[{"type": target, "distractor": False},
+                                {"type": "sponge", "distractor": True}])
+
+
+def test_the_markdown_has_the_papers_row_ours_and_the_failure_reasons():
+    plain = [_record(i, TrialOutcome.SUCCESS, "lifted 9.9 cm and held 1.0 s") for i in range(28)]
+    plain += [_record(28, TrialOutcome.MISSED, "the gripper closed on nothing", "mug", 0.031),
+              _record(29, TrialOutcome.IK_UNREACHABLE, "no arm reaches it", "mug", None)]
+    sets = [TrialSetResult("kqv", "single", Variant.PLAIN, tuple(plain), 30),
+            TrialSetResult("fcn", "single", Variant.PLAIN, tuple(plain[:20]), 30),
+            TrialSetResult("kqv", "single", Variant.DISTRACTOR, tuple(plain[-5:]), 5)]
+    text = table3_markdown(sets, "Made by `gva reproduce real`.")
+    lines = text.splitlines()
+    paper = lines.index("| Paper (real YuMi, 20 demonstrations) | 27/30 | 28/30 | 26/30 | 27/30 |")
+    assert lines[paper + 1] == "| Ours (kqv, q=min) | 28/30 | — | — | — |"
+    assert lines[paper + 2] == "| FCN | 20/20* | — | — | — |"  # 10 of 30 trials missing
+    assert lines[paper + 3] == "| Ours (kqv, q=min), + sponge distractor | 3/5 | — | — | — |"
+    assert "| Ours (kqv, q=min) | 79-98 %; 1.0 cm |" in text
+    reasons = text[text.index("## Failure reasons"):]
+    assert "- **Ours (kqv, q=min)**: success 28, ik_unreachable 1, missed 1; picks by object: " \
+           "mug 0/2, sponge 28/28" in reasons
+    assert "  - trial 28 (mug, 3.1 cm off): missed: the gripper closed on nothing" in reasons
+    assert "  - trial 29 (mug): ik_unreachable: no arm reaches it" in reasons
+    assert "the distractor has a target's type in 3 of 5 trials" in reasons
+    assert text.rstrip().endswith("Made by `gva reproduce real`.")
