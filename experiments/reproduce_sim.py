@@ -55,6 +55,7 @@ from typing import Any
 from tqdm import tqdm
 
 from experiments.jobs import JobPool
+from experiments.runs import check_choices, check_counts
 from experiments.sim_datasets import SCENE, collect_datasets, dataset_jobs, dataset_path
 from perception.files import atomic_write
 from sim.errors import InvalidInputError
@@ -69,15 +70,6 @@ SIZES = (4, 20, 100)
 TWO_PHASE_MODELS = ("dsae-16", "conv-ae")
 """Models trained in two phases (autoencoder, then targets): they take longer per cell."""
 FORMAT_VERSION = 1
-
-
-def _check_choices(name: str, values: Sequence[Any], allowed: Sequence[Any]) -> None:
-    """Raises unless ``values`` is a non-empty list of distinct members of ``allowed``."""
-    shown = ", ".join(str(a) for a in allowed)
-    unknown = [v for v in values if v not in allowed]
-    if not values or unknown or len(set(values)) != len(values):
-        value = ",".join(str(v) for v in (unknown or values))
-        raise InvalidInputError(name, value, f"distinct comma-separated values from {shown}")
 
 
 @dataclass(frozen=True)
@@ -127,15 +119,10 @@ class ReproduceSimSettings:
     workers: int | None = None
 
     def __post_init__(self) -> None:
-        _check_choices("models", self.models, MODELS)
-        _check_choices("tasks", self.tasks, TASKS)
-        _check_choices("sizes", self.sizes, SIZES)
-        for name, least in (("seeds", 1), ("seed", 0), ("steps", 1), ("test_scenes", 1)):
-            value = getattr(self, name)
-            if not isinstance(value, int) or isinstance(value, bool) or value < least:
-                raise InvalidInputError(name, value, f"an integer >= {least}")
-        if self.workers is not None and (not isinstance(self.workers, int) or self.workers < 1):
-            raise InvalidInputError("workers", self.workers, "None or an integer >= 1")
+        check_choices("models", self.models, MODELS)
+        check_choices("tasks", self.tasks, TASKS)
+        check_choices("sizes", self.sizes, SIZES)
+        check_counts(self, {"seeds": 1, "seed": 0, "steps": 1, "test_scenes": 1}, self.workers)
 
     @property
     def training_seeds(self) -> range:

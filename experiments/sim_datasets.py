@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from sim.records import RunFolderError, differences, json_form
+from experiments.runs import dataset_present
 
 if TYPE_CHECKING:  # sim.scene imports pinocchio: not for `gva --help`
     from sim.scene import SeedStream
@@ -56,27 +56,6 @@ def collect_datasets(job: DatasetJob) -> DatasetJob:
     return job
 
 
-def _dataset_present(path: Path, task: str, size: int, seed: int, stream: SeedStream) -> bool:
-    """Whether ``path`` holds the dataset asked for; refuses a file that holds another."""
-    if not path.exists():
-        return False
-    from perception.data import read_metadata
-    from sim.tasks import load_task
-    from sim.trials import task_identity
-
-    meta = read_metadata(path)
-    asked = json_form({"scene": SCENE, "task": task, "size": size, "seed": seed,
-                       "stream": stream.name.lower(),
-                       "definition": task_identity(load_task(task))})
-    found = {"scene": meta.scene, "task": meta.task, "size": meta.size, "seed": meta.seed,
-             "stream": meta.extra.get("stream"), "definition": meta.extra.get("task")}
-    if found != asked:
-        raise RunFolderError(f"{path} is not the dataset this run needs "
-                             f"({differences(found, asked)}, stored vs asked); remove it to "
-                             "collect it again")
-    return True
-
-
 def dataset_jobs(out: Path, tasks: Sequence[str], training_seeds: Sequence[int],
                  sizes: Sequence[int], test_seed: int, test_scenes: int) -> list[DatasetJob]:
     """The collections still to do: training sets per task and seed, a test set per task."""
@@ -87,8 +66,8 @@ def dataset_jobs(out: Path, tasks: Sequence[str], training_seeds: Sequence[int],
     wanted += [(task, test_seed, SeedStream.TEST, (test_scenes,)) for task in tasks]
     jobs = []
     for task, seed, stream, sizes in wanted:
-        missing = tuple(sorted(s for s in sizes if not _dataset_present(
-            dataset_path(out, task, stream, s, seed), task, s, seed, stream)))
+        missing = tuple(sorted(s for s in sizes if not dataset_present(
+            dataset_path(out, task, stream, s, seed), SCENE, task, s, seed, stream)))
         if missing:
             jobs.append(DatasetJob(task, seed, stream, missing, out))
     return jobs

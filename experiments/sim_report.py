@@ -31,6 +31,7 @@ from experiments.reproduce_sim import (
     read_json,
     write_json,
 )
+from experiments.runs import duration
 from experiments.sim_datasets import dataset_path
 from perception.files import atomic_write
 from sim.scene import SeedStream
@@ -164,7 +165,7 @@ def write_reports(settings: ReproduceSimSettings, out: Path, wall_time_s: float,
     made_by = (f"Made by `{settings.command(out)}`: training seeds "
                f"{', '.join(str(s) for s in seeds) or '—'}, {settings.steps} optimiser steps "
                f"per phase, test scenes from the test stream of seed {settings.seed}; last run "
-               f"{_duration(wall_time_s)} wall time, {computed} cell(s) computed, "
+               f"{duration(wall_time_s)} wall time, {computed} cell(s) computed, "
                f"{len(cells) + len(failed) - computed} kept from earlier runs.")
     stats = spread(cells)
     table = {
@@ -192,12 +193,6 @@ def write_reports(settings: ReproduceSimSettings, out: Path, wall_time_s: float,
         notes.append("no finished cell: table2.png not drawn")
     fig5, fig5_notes = draw_fig5(settings, out, cells)
     return paths + fig5, [dict(r) for r in failed], notes + fig5_notes
-
-
-def _duration(seconds: float) -> str:
-    minutes, second = divmod(round(seconds), 60)
-    hours, minute = divmod(minutes, 60)
-    return f"{hours} h {minute:02d} min" if hours else f"{minute} min {second:02d} s"
 
 
 def plot_table2(stats: Mapping[Key, tuple[float, float | None, int]], path: Path) -> None:
