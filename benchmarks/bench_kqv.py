@@ -67,6 +67,7 @@ def object_pixels(dataset: Dataset, height_m: float = 0.04) -> list[np.ndarray]:
         return {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
 
     camera = plain(dataset.metadata.camera)
+    camera.setdefault("horizontal_fov_deg", None)  # recorded before the field: square pixels
     camera["lighting"] = Lighting(**plain(camera.get("lighting", {})))
     config = CameraConfig(**camera)
     projector = HeadCamera(config)

@@ -39,7 +39,8 @@ with World() as world:
 
     print(f"{image.shape[1]} x {image.shape[0]} px in {render_ms:.1f} ms; camera at "
           f"{camera.config.position_m} m looking at {camera.config.target_m} m, "
-          f"{camera.config.vertical_fov_deg} deg field of view")
+          f"{camera.config.horizontal_fov_deg} x {camera.config.vertical_fov_deg} deg field of "
+          "view")
     for body, spec in world.objects.items():
         grasp = grasp_pose(spec, world.object_pose(body))
         u, v = camera.project(grasp.position[None, :])[0]  # (2,) [px]

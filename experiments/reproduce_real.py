@@ -210,13 +210,15 @@ class ReproduceRealSettings:
 
     def train_identity(self, unit: Unit) -> dict[str, Any]:
         """What defines a unit's checkpoint; ``trained.json`` holds it."""
+        from sim.camera import CameraConfig
         from sim.tasks import load_task
         from sim.trials import task_identity
 
         return json_form({"model": unit.model, "model_config": model_config(unit.model,
                                                                              self.seed),
                           "task": task_identity(load_task(unit.task)), "demos": self.demos,
-                          "seed": self.seed, "train": self.train_config()})
+                          "camera": asdict(CameraConfig()), "seed": self.seed,
+                          "train": self.train_config()})
 
     def trial_settings(self, out: Path, trial_set: TrialSet) -> TrialSettings:
         """The :class:`~sim.trials.TrialSettings` of a set (its checkpoint must exist)."""

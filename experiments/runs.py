@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Sequence
+from dataclasses import asdict
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -51,8 +52,8 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
                     stream: SeedStream) -> bool:
     """Whether ``path`` holds the dataset asked for; refuses a file that holds another.
 
-    Compared: scene, task name, size, seed, seed stream and the task's definition (a task whose
-    TOML changed since is another dataset).
+    Compared: scene, task name, size, seed, seed stream, the task's definition (a task whose
+    TOML changed since is another dataset) and the scene's camera (other images).
 
     Raises:
         RunFolderError: ``path`` holds another dataset; the message names what differs.
@@ -61,15 +62,19 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
     if not path.exists():
         return False
     from perception.data import read_metadata
+    from sim.scenes import scene_camera
     from sim.tasks import load_task
     from sim.trials import task_identity
 
     meta = read_metadata(path)
     asked = json_form({"scene": scene, "task": task, "size": size, "seed": seed,
                        "stream": stream.name.lower(),
-                       "definition": task_identity(load_task(task))})
+                       "definition": task_identity(load_task(task)),
+                       "camera": asdict(scene_camera(scene))})
+    camera = {"horizontal_fov_deg": None} | meta.camera  # recorded before the field: square
     found = {"scene": meta.scene, "task": meta.task, "size": meta.size, "seed": meta.seed,
-             "stream": meta.extra.get("stream"), "definition": meta.extra.get("task")}
+             "stream": meta.extra.get("stream"), "definition": meta.extra.get("task"),
+             "camera": camera}
     if found != asked:
         raise RunFolderError(f"{path} is not the dataset this run needs "
                              f"({differences(found, asked)}, stored vs asked); remove it to "

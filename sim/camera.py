@@ -48,20 +48,25 @@ class CameraConfig:
     """Intrinsics, placement and lighting of the head camera (world frame, [m] and [deg]).
 
     The defaults put the optical centre 5 cm above the front edge of the body's top (z = 0.47 m,
-    x = 0.09 m), between the two shoulders, tilted 55° down toward x = 0.46 m on the table. From
+    x = 0.09 m), between the two shoulders, tilted down toward x = 0.49 m on the table. From
     there no arm link at HOME hides any part of the workspace (x 0.30-0.55 m, y ±0.25 m, objects
     up to 17 cm tall; checked by ray casts): from further back or higher, the forward-pointing
-    first links of the arms cut off the workspace's near corners. So close to the table, the
-    0.5 m wide near edge needs a wide view: the square image takes the D435 colour sensor's
-    horizontal FOV, 69°, in both directions (its 42° vertical FOV would crop the workspace's
-    near corners). The workspace's table area then spans about u 21-107 px, v 53-85 px at
-    128 x 128, a 10 cm object 14-18 px across; the grippers at HOME show only in the bottom
-    corners.
+    first links of the arms cut off the workspace's near corners. The image is the part of the
+    D435 colour frame (69° x 42°) that holds the workspace, 58° x 37°, resized to 128 x 128, as
+    a robot's image pipeline crops its region of interest: pixels are then not square (1.7 : 1),
+    and no pixel is spent on the floor beyond the table. Every part of every object the scene
+    may place lies within u 6-122 px, v 7-107 px; 1 cm on the table is 2.0-2.7 px along x and
+    1.6-1.9 px along y (the full square
+    69° frame gave 1.0-1.3 and 1.4-1.5: attention points, and so grasps, are read from twice as
+    many pixels); the grippers at HOME stay out of view.
 
     Attributes:
         width_px: Image width [px].
         height_px: Image height [px].
-        vertical_fov_deg: Vertical field of view [deg]; the horizontal one follows the aspect.
+        vertical_fov_deg: Vertical field of view [deg].
+        horizontal_fov_deg: Horizontal field of view [deg]; None: square pixels, the horizontal
+            field following the image's aspect. Given, the image is a crop resized to
+            ``width_px x height_px``, its pixels stretched where the two disagree.
         position_m: Optical centre in the world.
         target_m: The point the optical axis passes through.
         up: World direction that appears up in the image.
@@ -73,9 +78,10 @@ class CameraConfig:
 
     width_px: int = 128
     height_px: int = 128
-    vertical_fov_deg: float = 69.0
+    vertical_fov_deg: float = 37.0
+    horizontal_fov_deg: float | None = 58.0
     position_m: tuple[float, float, float] = (0.09, 0.0, 0.52)
-    target_m: tuple[float, float, float] = (0.46, 0.0, 0.0)
+    target_m: tuple[float, float, float] = (0.49, 0.0, 0.0)
     up: tuple[float, float, float] = (0.0, 0.0, 1.0)
     near_m: float = 0.05
     far_m: float = 3.0
@@ -87,6 +93,9 @@ class CameraConfig:
                 raise InvalidInputError(name, getattr(self, name), "an integer in [8, 4096] px")
         if not 1.0 <= self.vertical_fov_deg <= 170.0:
             raise InvalidInputError("vertical_fov_deg", self.vertical_fov_deg, "in [1, 170] deg")
+        if self.horizontal_fov_deg is not None and not 1.0 <= self.horizontal_fov_deg <= 170.0:
+            raise InvalidInputError("horizontal_fov_deg", self.horizontal_fov_deg,
+                                    "None or in [1, 170] deg")
         if not 0.0 < self.near_m < self.far_m:
             raise InvalidInputError("near_m/far_m", (self.near_m, self.far_m), "0 < near < far")
         axis = np.subtract(self.target_m, self.position_m)
@@ -94,6 +103,14 @@ class CameraConfig:
             raise InvalidInputError("target_m", self.target_m, "a point away from position_m")
         if np.linalg.norm(np.cross(axis, self.up)) < 1e-6 * np.linalg.norm(axis):
             raise InvalidInputError("up", self.up, "a direction not along the optical axis")
+
+    @property
+    def projection_aspect(self) -> float:
+        """The projection's width : height in the image plane (ratio of half-FOV tangents)."""
+        if self.horizontal_fov_deg is None:
+            return self.width_px / self.height_px
+        return math.tan(math.radians(self.horizontal_fov_deg) / 2) / math.tan(
+            math.radians(self.vertical_fov_deg) / 2)
 
 
 class HeadCamera:
@@ -108,7 +125,7 @@ class HeadCamera:
         c = self.config
         self.view_matrix = pybullet.computeViewMatrix(c.position_m, c.target_m, c.up)
         self.projection_matrix = pybullet.computeProjectionMatrixFOV(
-            c.vertical_fov_deg, c.width_px / c.height_px, c.near_m, c.far_m
+            c.vertical_fov_deg, c.projection_aspect, c.near_m, c.far_m
         )
         # Column-major 4x4 lists -> row-major arrays acting on column vectors.
         view = np.array(self.view_matrix).reshape(4, 4).T

@@ -56,7 +56,8 @@ def _paper_camera() -> CameraConfig:
     # field of view frames the workspace with a 10 cm object about 16 px wide.
     distance_m, elevation = 0.50, math.radians(65.0)
     eye = (-distance_m * math.cos(elevation), 0.0, distance_m * math.sin(elevation))
-    return CameraConfig(position_m=eye, target_m=(0.0, 0.0, 0.0), vertical_fov_deg=76.0)
+    return CameraConfig(position_m=eye, target_m=(0.0, 0.0, 0.0), vertical_fov_deg=76.0,
+                        horizontal_fov_deg=None)
 
 
 @dataclass(frozen=True)

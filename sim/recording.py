@@ -34,7 +34,7 @@ from sim.errors import InvalidInputError
 from sim.world import World
 
 ROBOT_VIEW = CameraConfig(position_m=(1.1, -0.5, 0.6), target_m=(0.28, 0.0, 0.2),
-                          vertical_fov_deg=52.0)
+                          vertical_fov_deg=52.0, horizontal_fov_deg=None)
 """A camera in front of the robot, to its right, that sees both arms and the workspace."""
 CAPTION_PX = 14
 """Height of the caption strip above the two panels."""

@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from perception.interface import LabelKind
+from sim.camera import CameraConfig
 from sim.errors import InvalidInputError
 from sim.objects import OBJECT_TYPES
 
@@ -71,3 +72,13 @@ def get_scene_spec(name: str) -> SceneSpec:
     if name == "paper-sim":
         return _paper_scene()
     raise InvalidInputError("scene", name, f"one of {', '.join(SCENE_NAMES)}")
+
+
+def scene_camera(name: str) -> CameraConfig:
+    """The head camera that takes the images of the scene called ``name``."""
+    get_scene_spec(name)  # an unknown name lists the allowed ones
+    if name == "yumi":
+        return CameraConfig()
+    from sim.paper_world import PaperWorldConfig
+
+    return PaperWorldConfig().camera

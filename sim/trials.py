@@ -129,8 +129,9 @@ class TrialSettings:
     def identity(self) -> dict[str, Any]:
         """What identifies a run: a folder is only resumed by a run with the same identity."""
         return {"model": self.model, "task": task_identity(self.task_spec), "seed": self.seed,
-                "scene": YUMI_SCENE.name, "settle_s": self.settle_s,
-                "execution": asdict(self.execution)} | self._model_identity()
+                "scene": YUMI_SCENE.name, "camera": asdict(CameraConfig()),
+                "settle_s": self.settle_s, "execution": asdict(self.execution)
+                } | self._model_identity()
 
     def _model_identity(self) -> dict[str, Any]:
         """A checkpoint by its absolute path and weights' SHA-256: other weights, another run."""

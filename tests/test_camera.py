@@ -11,9 +11,12 @@ import pytest
 from sim.camera import CameraConfig, HeadCamera, Lighting
 from sim.errors import InvalidInputError
 from sim.objects import get_object_spec
+from sim.scenes import YUMI_SCENE
 from sim.world import World
 
-WORKSPACE_X_M, WORKSPACE_Y_M = (0.30, 0.55), (-0.25, 0.25)
+# (how far an object reaches from its centre [m], at what height [m]): the mug's handle reaches
+# 6.7 cm low down, its rim 4.5 cm at 9 cm; only the bottle (radius 1.9 cm) stands 17 cm tall.
+OBJECT_EXTENTS_M = ((0.07, 0.0), (0.07, 0.07), (0.045, 0.09), (0.02, 0.17))
 
 
 @pytest.fixture(scope="session")
@@ -77,10 +80,15 @@ def test_workspace_is_framed_and_not_hidden_by_the_arms_at_home(
     world: World, camera: HeadCamera
 ) -> None:
     world.reset_scene()
-    xs, ys = np.linspace(*WORKSPACE_X_M, 11), np.linspace(*WORKSPACE_Y_M, 11)
-    points = np.array([[x, y, z] for x in xs for y in ys for z in (0.0, 0.09, 0.17)])
+    points = np.array([  # every part of any object the scene may place
+        [x + reach * np.cos(angle), y + reach * np.sin(angle), z]
+        for x in np.linspace(*YUMI_SCENE.workspace_x_m, 7)
+        for y in np.linspace(*YUMI_SCENE.workspace_y_m, 9)
+        for angle in np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
+        for reach, z in OBJECT_EXTENTS_M
+    ])
     pixels = camera.project(points)
-    assert pixels.min() >= 5 and pixels.max() <= 122  # inside the image, with a margin
+    assert pixels.min() >= 3 and pixels.max() <= 125  # inside the image, with a margin
     eye = list(camera.config.position_m)
     hits = world.client.rayTestBatch([eye] * len(points), points.tolist())
     assert not [p for p, hit in zip(points, hits, strict=True) if hit[0] == world.robot.body_id]
@@ -112,9 +120,22 @@ def test_darker_lighting_darkens_the_image(world: World, camera: HeadCamera) -> 
     assert dim < 0.45 * bright
 
 
+def test_a_crop_stretches_pixels_along_its_narrower_field() -> None:
+    """A 2 : 1 crop of a square frame's field, rendered square, doubles horizontal distances."""
+    square = HeadCamera(CameraConfig(vertical_fov_deg=40.0, horizontal_fov_deg=None))
+    fov_deg = 2 * np.degrees(np.arctan(0.5 * np.tan(np.radians(20.0))))  # half the tangent
+    crop = HeadCamera(CameraConfig(vertical_fov_deg=40.0, horizontal_fov_deg=fov_deg))
+    points = np.array([[0.45, -0.1, 0.0], [0.45, 0.1, 0.0], [0.5, 0.0, 0.05]])
+    centre = np.array([64.0, 63.0])  # the optical axis (see project's pixel-centre offsets)
+    np.testing.assert_allclose(crop.project(points) - centre,
+                               (square.project(points) - centre) * [2.0, 1.0], atol=1e-9)
+
+
 def test_config_errors_name_field_value_and_allowed() -> None:
     with pytest.raises(InvalidInputError, match=r"vertical_fov_deg = 0.5 .* in \[1, 170\] deg"):
         CameraConfig(vertical_fov_deg=0.5)
+    with pytest.raises(InvalidInputError, match=r"horizontal_fov_deg = 180.0 .* None or in \[1, "):
+        CameraConfig(horizontal_fov_deg=180.0)
     with pytest.raises(InvalidInputError, match=r"up = .* not along the optical axis"):
         CameraConfig(position_m=(0.0, 0.0, 1.0), target_m=(0.0, 0.0, 0.0))
     with pytest.raises(InvalidInputError, match=r"brightness = 3.0 .* in \[0, 2\]"):

@@ -111,6 +111,17 @@ def test_a_cell_computed_with_other_model_settings_is_refused(copied_run):
         run_reproduce_sim(TINY_SETTINGS, copied_run, progress=False)
 
 
+def test_a_dataset_taken_with_another_camera_is_refused(copied_run, monkeypatch):
+    import sim.scenes
+
+    wider = dataclasses.replace(sim.scenes.scene_camera("paper-sim"), vertical_fov_deg=90.0)
+    monkeypatch.setattr(sim.scenes, "scene_camera", lambda name: wider)
+    cell_path(copied_run, Cell("kqv", "single", 4, 0)).unlink()  # to compute again
+    with pytest.raises(RunFolderError, match=r"is not the dataset this run needs \(\{'camera."
+                                             r"vertical_fov_deg': \(76.0, 90.0\)\}"):
+        run_reproduce_sim(TINY_SETTINGS, copied_run, progress=False)
+
+
 def test_a_failing_cell_is_recorded_and_the_run_goes_on(copied_run, monkeypatch):
     import perception.registry
 
