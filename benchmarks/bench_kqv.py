@@ -61,16 +61,9 @@ def inference_ms(kind: LabelKind, repeats: int, threads: int) -> float:
 
 def object_pixels(dataset: Dataset, height_m: float = 0.04) -> list[np.ndarray]:
     """Per scene, the pixels of its objects' centres (taken ``height_m`` above the table)."""
-    from sim.camera import CameraConfig, HeadCamera, Lighting
+    from sim.camera import CameraConfig, HeadCamera
 
-    def plain(data: dict[str, Any]) -> dict[str, Any]:  # JSON lists back to tuples
-        return {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
-
-    camera = plain(dataset.metadata.camera)
-    camera.setdefault("horizontal_fov_deg", None)  # recorded before the field: square pixels
-    camera["lighting"] = Lighting(**plain(camera.get("lighting", {})))
-    config = CameraConfig(**camera)
-    projector = HeadCamera(config)
+    projector = HeadCamera(CameraConfig.from_json(dataset.metadata.camera))
     return [projector.project(np.array([[*o["position_xy_m"], height_m]
                                         for o in scene["objects"]]))
             for scene in dataset.scenes]

@@ -62,6 +62,7 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
     if not path.exists():
         return False
     from perception.data import read_metadata
+    from sim.camera import CameraConfig
     from sim.scenes import scene_camera
     from sim.tasks import load_task
     from sim.trials import task_identity
@@ -71,10 +72,9 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
                        "stream": stream.name.lower(),
                        "definition": task_identity(load_task(task)),
                        "camera": asdict(scene_camera(scene))})
-    camera = {"horizontal_fov_deg": None} | meta.camera  # recorded before the field: square
     found = {"scene": meta.scene, "task": meta.task, "size": meta.size, "seed": meta.seed,
              "stream": meta.extra.get("stream"), "definition": meta.extra.get("task"),
-             "camera": camera}
+             "camera": json_form(asdict(CameraConfig.from_json(meta.camera)))}
     if found != asked:
         raise RunFolderError(f"{path} is not the dataset this run needs "
                              f"({differences(found, asked)}, stored vs asked); remove it to "

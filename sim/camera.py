@@ -104,6 +104,19 @@ class CameraConfig:
         if np.linalg.norm(np.cross(axis, self.up)) < 1e-6 * np.linalg.norm(axis):
             raise InvalidInputError("up", self.up, "a direction not along the optical axis")
 
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> CameraConfig:
+        """The config a dataset's metadata recorded (``asdict`` as JSON; lists back to tuples).
+
+        A camera recorded before ``horizontal_fov_deg`` existed had square pixels (None).
+        """
+        def plain(fields: dict[str, Any]) -> dict[str, Any]:
+            return {k: tuple(v) if isinstance(v, list) else v for k, v in fields.items()}
+
+        fields = {"horizontal_fov_deg": None} | plain(data)
+        fields["lighting"] = Lighting(**plain(data.get("lighting", {})))
+        return cls(**fields)
+
     @property
     def projection_aspect(self) -> float:
         """The projection's width : height in the image plane (ratio of half-FOV tangents)."""
