@@ -29,7 +29,8 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/trials.json"))
     args = parser.parse_args()
 
-    runs, wall, sim, picked = [], [], [], Counter()
+    runs, wall, sim = [], [], []
+    picked: Counter[str] = Counter()
     for seed in args.seeds:
         with tempfile.TemporaryDirectory() as folder:
             started = time.perf_counter()
