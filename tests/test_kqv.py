@@ -18,6 +18,7 @@ from perception.models.base import (
     symmetric_chordal_loss,
 )
 from perception.models.kqv import KqvConfig, KqvModel
+from perception.train import TrainConfig
 
 
 def spec(q=1, kind=LabelKind.POSITION, choices=(), px=64):
@@ -146,6 +147,11 @@ def test_config_errors_name_field_value_and_allowed():
         KqvConfig(temperature=0.0)
     with pytest.raises(InvalidInputError, match=r"channels = \(16,\) is not allowed: two integ"):
         KqvConfig(channels=(16,))
+    with pytest.raises(InvalidInputError, match=r"warmup_steps = -1 is not allowed: an integer "
+                                                 r">= 0"):
+        KqvConfig(warmup_steps=-1)
+    with pytest.raises(InvalidInputError, match=r"warmup_temperature = nan is not allowed"):
+        KqvConfig(warmup_temperature=float("nan"))
     with pytest.raises(InvalidInputError, match=r"similarity = 'l2' is not allowed"):
         KqvConfig(similarity="l2")
     with pytest.raises(InvalidInputError, match=r"query_mode = 'conditioned' is not allowed"):
@@ -183,3 +189,33 @@ def test_conditioned_queries_start_as_the_base_query():
     np.testing.assert_array_equal(queries[0], queries[1])
     np.testing.assert_array_equal(queries[0], queries[2])
     assert KqvModel(spec()).network.query_mlp is None  # no condition: Base Queries only
+
+
+def test_side_conditions_get_their_own_queries():
+    side = ModelSpec(scene="synthetic", task="t", label_kind=LabelKind.POSITION, targets=1,
+                     condition_kind=ConditionKind.SIDE, condition_choices=("left", "right"),
+                     image_height_px=64, image_width_px=64)
+    model = KqvModel(side)  # auto: a side names a place among look-alikes, no shared Query
+    assert model.network.base_queries is None and model.network.query_mlp is not None
+    queries = model.queries(np.eye(2, dtype=np.float32))
+    assert not np.allclose(queries[0], queries[1])  # the two sides start apart
+
+
+def test_temperature_warms_up_over_the_first_steps_then_stays():
+    dataset = synthetic_dataset(size=4)
+    model = KqvModel.for_dataset(dataset, KqvConfig(warmup_temperature=0.5, warmup_steps=4,
+                                                    temperature=0.1))
+    seen = []
+    loss = model.batch_loss
+
+    def recording(batch):
+        result = loss(batch)
+        seen.append(model.network.temperature)
+        return result
+
+    model.batch_loss = recording  # type: ignore[method-assign]
+    model.fit(dataset, TrainConfig(steps=6, augment=False, threads=1), progress=False)
+    np.testing.assert_allclose(seen, [0.4, 0.3, 0.2, 0.1, 0.1, 0.1])
+    assert model.network.temperature == 0.1  # inference runs at the final temperature
+    model.fit(dataset, TrainConfig(steps=1, augment=False, threads=1), progress=False)
+    assert seen[-1] == pytest.approx(0.4)  # a new fit warms up again
