@@ -41,10 +41,17 @@ if TYPE_CHECKING:
 
 BOLD_BELOW_CM = 5.0
 """The paper bolds errors below 5 cm."""
+RATIO_FLAGGED = 2.0
+"""Cells where ours and the paper's differ by more than this factor are listed for a look."""
+NEAR_NO_IMAGE = 0.8
+"""A mean error above this fraction of the no-image reference's counts as at its level."""
+NO_IMAGE = "no-image"
+"""The row of :func:`perception.evaluate.label_mean_error_cm` in the tables."""
 MODEL_TITLES = {
     "kqv": "Ours (kqv, q=min)", "keypoint-16": "Key Point (q=16)",
     "keypoint-min": "Key Point (q=min)", "dsae-16": "Deep Spatial AE (q=16)",
     "conv-ae": "Convolutional AE", "fcn": "FCN",
+    NO_IMAGE: "No image (training-label mean)",
 }
 TASK_TITLES = {"single": "Single Object", "multiple": "Multiple Objects",
                "selected-type": "Selected Type", "selected-position": "Selected Position"}
@@ -122,9 +129,59 @@ def markdown_table(rows: Mapping[str, Mapping[tuple[str, int], str]], tasks: Seq
     return lines
 
 
+def no_image_reference(settings: ReproduceSimSettings, out: Path,
+                       cells: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """The no-image reference's error per (task, size, seed) of the cells present."""
+    from perception.data import load_dataset
+    from perception.evaluate import label_mean_error_cm
+
+    tests: dict[str, Dataset] = {}
+    records = []
+    for task, size, seed in sorted({(c["task"], c["size"], c["seed"]) for c in cells},
+                                   key=lambda k: (TASKS.index(k[0]), k[1], k[2])):
+        train_path = dataset_path(out, task, SeedStream.TRAIN, size, seed)
+        test_path = dataset_path(out, task, SeedStream.TEST, settings.test_scenes, settings.seed)
+        if not (train_path.is_file() and test_path.is_file()):
+            continue  # a folder copied without its datasets: the row is left out
+        if task not in tests:
+            tests[task] = load_dataset(test_path)
+        records.append({"model": NO_IMAGE, "task": task, "size": size, "seed": seed,
+                        "error_cm": label_mean_error_cm(load_dataset(train_path), tests[task])})
+    return records
+
+
+def differences_markdown(stats: Mapping[Key, tuple[float, float | None, int]]) -> list[str]:
+    """The cells where ours and the paper's differ by more than :data:`RATIO_FLAGGED`."""
+    lines = ["| Model | Task | Size | Ours | Paper | Paper / ours | No image | Ours at the "
+             "no-image level | Paper above it |", "|---|---|---:|---:|---:|---:|---:|---|---|"]
+    for (model, task, size), (mean, _, _) in sorted(
+            stats.items(), key=lambda kv: (MODELS.index(kv[0][0]) if kv[0][0] in MODELS
+                                           else len(MODELS), TASKS.index(kv[0][1]), kv[0][2])):
+        if model == NO_IMAGE:
+            continue
+        paper = PAPER_TABLE2_CM[model][task][SIZES.index(size)]
+        ratio = paper / mean
+        if 1 / RATIO_FLAGGED <= ratio <= RATIO_FLAGGED:
+            continue
+        reference = stats.get((NO_IMAGE, task, size))
+        level = above = "—"
+        if reference is not None:
+            level = "yes" if mean > NEAR_NO_IMAGE * reference[0] else "no"
+            above = "yes" if paper > reference[0] else "no"
+        lines.append(f"| {MODEL_TITLES[model]} | {TASK_TITLES[task]} | {size} | {mean:.2f} | "
+                     f"{paper:.2f} | {ratio:.2f} | "
+                     f"{'—' if reference is None else f'{reference[0]:.2f}'} | {level} | "
+                     f"{above} |")
+    return lines if len(lines) > 2 else []
+
+
 def table2_markdown(cells: Sequence[Mapping[str, Any]], failed: Sequence[Mapping[str, Any]],
-                    made_by: str) -> str:
-    """``table2.md``: ours, then the paper's, in the layout of the cells present."""
+                    made_by: str, reference: Sequence[Mapping[str, Any]] = ()) -> str:
+    """``table2.md``: ours, then the paper's, in the layout of the cells present.
+
+    ``reference`` holds the no-image reference's records (:func:`no_image_reference`); given,
+    it makes the last row of our table and the reference column of the differences.
+    """
     present = [*cells, *failed]
     models = [m for m in MODELS if any(c["model"] == m for c in present)]
     tasks = [t for t in TASKS if any(c["task"] == t for c in present)]
@@ -138,6 +195,11 @@ def table2_markdown(cells: Sequence[Mapping[str, Any]], failed: Sequence[Mapping
         ours[model][(task, size)] = _shown(mean, std) + (f" (n={n})" if n < most else "")
     paper = {m: {(t, s): _shown(PAPER_TABLE2_CM[m][t][SIZES.index(s)], None)
                  for t in tasks for s in sizes} for m in models}
+    references = spread(reference)
+    if references:
+        ours[NO_IMAGE] = {(t, s): _shown(mean, std)
+                          for (_, t, s), (mean, std, _) in references.items()}
+    differences = differences_markdown({**stats, **references})
     test_scenes = {c["test_scenes"] for c in cells} or {"?"}
     lines = [
         "# Table II in simulation: mean position error [cm]", "",
@@ -148,8 +210,17 @@ def table2_markdown(cells: Sequence[Mapping[str, Any]], failed: Sequence[Mapping
         "", *markdown_table(ours, tasks, sizes), "",
         "## The paper's Table II", "",
         "As published, in the same columns and with the same bold rule.", "",
-        *markdown_table(paper, tasks, sizes), "", made_by,
+        *markdown_table(paper, tasks, sizes), "",
     ]
+    if differences:
+        lines += [
+            f"## Where ours and the paper's differ by more than {RATIO_FLAGGED:g}×", "",
+            "Each such cell beside the no-image reference (the training-label mean). \"at the "
+            f"no-image level\": our mean is above {NEAR_NO_IMAGE:g} × the reference, so the model "
+            "learned where targets tend to be, not where this one is. \"Paper above it\": the "
+            "paper's error exceeds what the reference scores on our table.", "",
+            *differences, ""]
+    lines += [made_by]
     if failed:
         lines += ["", "Failed cells (see `cells/<cell>-error.json`):"]
         lines += [f"- {Cell(r['model'], r['task'], r['size'], r['seed']).name}: {r['error']}"
@@ -168,11 +239,13 @@ def write_reports(settings: ReproduceSimSettings, out: Path, wall_time_s: float,
                f"{duration(wall_time_s)} wall time, {computed} cell(s) computed, "
                f"{len(cells) + len(failed) - computed} kept from earlier runs.")
     stats = spread(cells)
+    reference = no_image_reference(settings, out, cells)
     table = {
         "cells": [{k: c[k] for k in ("model", "task", "size", "seed", "error_cm", "train_s")}
                   for c in cells],
         "means": [{"model": m, "task": t, "size": s, "error_cm": mean, "std_cm": std,
                    "seeds": n} for (m, t, s), (mean, std, n) in stats.items()],
+        "no_image_reference": reference,
         "settings": settings.run_identity() | {
             "command": settings.command(out), "models": list(settings.models),
             "tasks": list(settings.tasks), "sizes": list(settings.sizes),
@@ -183,11 +256,11 @@ def write_reports(settings: ReproduceSimSettings, out: Path, wall_time_s: float,
     }
     paths = [out / "table2.json", out / "table2.md", out / "table2.png"]
     write_json(paths[0], table)
-    text = table2_markdown(cells, failed, made_by)
+    text = table2_markdown(cells, failed, made_by, reference)
     atomic_write(paths[1], lambda temporary: temporary.write_text(text, encoding="utf-8"))
     notes = []
     if cells:
-        plot_table2(stats, paths[2])
+        plot_table2(stats, paths[2], spread(reference))
     else:
         paths.pop()
         notes.append("no finished cell: table2.png not drawn")
@@ -195,8 +268,12 @@ def write_reports(settings: ReproduceSimSettings, out: Path, wall_time_s: float,
     return paths + fig5, [dict(r) for r in failed], notes + fig5_notes
 
 
-def plot_table2(stats: Mapping[Key, tuple[float, float | None, int]], path: Path) -> None:
-    """``table2.png``: error [cm] against training set size (log-log), a panel per task."""
+def plot_table2(stats: Mapping[Key, tuple[float, float | None, int]], path: Path,
+                reference: Mapping[Key, tuple[float, float | None, int]] | None = None) -> None:
+    """``table2.png``: error [cm] against training set size (log-log), a panel per task.
+
+    ``reference`` (the no-image reference's spread) is drawn as a dotted black line.
+    """
     from matplotlib.figure import Figure  # Agg canvas, no global backend state
 
     tasks = [t for t in TASKS if any(k[1] == t for k in stats)]
@@ -213,6 +290,11 @@ def plot_table2(stats: Mapping[Key, tuple[float, float | None, int]], path: Path
             axis.errorbar([s * dodge for s, _ in points], [m for _, (m, _, _) in points],
                           yerr=[std or 0.0 for _, (_, std, _) in points], capsize=3,
                           marker="o", color=f"C{number}", label=MODEL_TITLES[model])
+        floor = [(s, reference[(NO_IMAGE, task, s)][0]) for s in sizes
+                 if reference and (NO_IMAGE, task, s) in reference]
+        if floor:
+            axis.plot([s for s, _ in floor], [m for _, m in floor], color="black",
+                      linestyle=":", linewidth=1.5, label=MODEL_TITLES[NO_IMAGE].lower())
         axis.axhline(BOLD_BELOW_CM, color="grey", linestyle="--", linewidth=1,
                      label=f"{BOLD_BELOW_CM:g} cm (paper's bold)")
         axis.set(xscale="log", yscale="log", title=TASK_TITLES[task],

@@ -140,3 +140,35 @@ def evaluate(model: PerceptionModel, dataset: Dataset, batch_size: int = 32) -> 
             float(e) for e in angle_deg.mean(axis=0)),
         angle_errors_deg=None if angle_deg is None else table(angle_deg),
     )
+
+
+def label_mean_error_cm(train: Dataset, test: Dataset) -> float:
+    """The mean position error [cm] on ``test`` of a reference that never looks at the image.
+
+    It predicts, for each target index, the mean training position, taken over the training
+    samples with the same condition where the task has one (a side or type condition tells it
+    which half of the table or which object's spread to expect). A model whose error is near
+    this one has learned the label distribution, not where the object is.
+
+    Raises:
+        InvalidInputError: The two datasets differ in scene, task or targets, or ``train`` is
+            empty.
+
+    """
+    for field in ("scene", "task", "targets", "condition_choices"):
+        ours, theirs = getattr(train.metadata, field), getattr(test.metadata, field)
+        if ours != theirs:
+            raise InvalidInputError(f"test {field}", theirs, f"the training set's {ours!r}")
+    if len(train) == 0:
+        raise InvalidInputError("train", "0 samples", "at least one sample")
+    train_m = split_label(train.labels.astype(np.float64)).position_m  # (N, q, 3)
+    test_m = split_label(test.labels.astype(np.float64)).position_m
+    if train.metadata.condition_kind is ConditionKind.NONE:
+        predicted_m = np.broadcast_to(train_m.mean(axis=0), test_m.shape)
+    else:
+        train_choice, test_choice = train.conditions.argmax(axis=1), test.conditions.argmax(axis=1)
+        overall_m = train_m.mean(axis=0)
+        predicted_m = np.stack([
+            train_m[train_choice == c].mean(axis=0) if np.any(train_choice == c) else overall_m
+            for c in test_choice])
+    return float(np.linalg.norm(predicted_m - test_m, axis=-1).mean() * 100)

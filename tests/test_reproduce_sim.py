@@ -18,7 +18,7 @@ from experiments.reproduce_sim import (
     model_config,
     run_reproduce_sim,
 )
-from experiments.sim_report import PAPER_TABLE2_CM, table2_markdown
+from experiments.sim_report import PAPER_TABLE2_CM, no_image_reference, table2_markdown
 from perception.data import load_dataset
 from sim.errors import InvalidInputError
 from sim.records import RunFolderError
@@ -182,6 +182,33 @@ def test_the_markdown_table_has_mean_and_std_bold_below_5_cm_and_the_paper():
     assert "| FCN | 6.18 | 27.62 |" in paper
     assert "Made by `gva reproduce sim --out x`." in paper
     assert "- fcn-selected-type-20-s0: boom" in paper
+
+
+def test_cells_twice_off_the_paper_are_listed_beside_the_no_image_reference():
+    cells = [_cell("fcn", "multiple", 20, s, e) for s, e in ((0, 13.0), (1, 13.4))]  # 31.70
+    cells += [_cell("kqv", "multiple", 20, 0, 3.0)]  # paper 3.21: within 2x, not listed
+    cells += [_cell("keypoint-16", "single", 20, 0, 9.0)]  # paper 3.69: ours 2.4x worse
+    reference = [{"model": "no-image", "task": t, "size": 20, "seed": 0, "error_cm": e}
+                 for t, e in (("multiple", 13.27), ("single", 12.40))]
+    text = table2_markdown(cells, [], "Made by x.", reference)
+    assert "| No image (training-label mean) | 12.40 | 13.27 |" in text
+    listed = text.split("differ by more than 2×")[1]
+    assert "| FCN | Multiple Objects | 20 | 13.20 | 31.70 | 2.40 | 13.27 | yes | yes |" in listed
+    assert "| Key Point (q=16) | Single Object | 20 | 9.00 | 3.69 | 0.41 | 12.40 | no | no |" \
+        in listed
+    assert "Ours (kqv" not in listed
+    assert "differ by more" not in table2_markdown(cells[2:3], [], "Made by x.")
+
+
+def test_the_no_image_reference_is_scored_on_the_runs_own_datasets(tiny_run):
+    settings = dataclasses.replace(TINY_SETTINGS, seed=0)
+    records = no_image_reference(settings, tiny_run, [_cell("fcn", "single", 4, 0, 1.0)])
+    assert [(r["model"], r["task"], r["size"], r["seed"]) for r in records] == [
+        ("no-image", "single", 4, 0)]
+    assert 1.0 < records[0]["error_cm"] < 40.0  # within the table's extent
+    table = json.loads((tiny_run / "table2.json").read_text())
+    assert table["no_image_reference"][0]["error_cm"] == pytest.approx(records[0]["error_cm"])
+    assert "No image (training-label mean)" in (tiny_run / "table2.md").read_text()
 
 
 def test_the_papers_table_is_complete():

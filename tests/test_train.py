@@ -5,7 +5,7 @@ import pytest
 import torch
 from user_models import CentreModel, synthetic_dataset
 
-from perception.evaluate import evaluate
+from perception.evaluate import evaluate, label_mean_error_cm
 from perception.interface import (
     NO_CONDITION,
     Condition,
@@ -126,3 +126,34 @@ def test_evaluate_refuses_models_that_do_not_fit_the_dataset():
         evaluate(CentreModel(), grasps)
     with pytest.raises(InvalidInputError, match=r"model targets = \[1\] is not allowed: 3"):
         evaluate(CentreModel(), synthetic_dataset(size=2, targets=3))
+
+
+def _with_positions(dataset, positions_m, choices):
+    """``dataset`` with these (N, 1, 3) positions and these condition indices."""
+    import dataclasses
+
+    from perception.labels import label_vector
+
+    n = len(positions_m)
+    kept = dataset.subset(range(n))
+    conditions = np.eye(kept.conditions.shape[1], dtype=np.float32)[list(choices)]
+    return dataclasses.replace(kept, labels=label_vector(np.array(positions_m)),
+                               conditions=conditions)
+
+
+def test_the_no_image_reference_predicts_the_training_mean_per_condition():
+    base = synthetic_dataset(size=4, conditioned=True, seed=1)  # one target, three types
+    train = _with_positions(base, [[[0.0, 0.0, 0.0]], [[0.2, 0.0, 0.0]], [[0.0, 0.3, 0.0]]],
+                            [0, 0, 1])
+    # type 0 -> mean (0.1, 0, 0): 4 cm off; type 1 -> (0, 0.3, 0): exact; type 2 is never
+    # trained -> the overall mean (0.0667, 0.1, 0): 10 cm off in y, 6.67 cm in x.
+    test = _with_positions(base, [[[0.1, 0.0, 0.04]], [[0.0, 0.3, 0.0]],
+                                  [[0.2 / 3, 0.0, 0.0]]], [0, 1, 2])
+    assert label_mean_error_cm(train, test) == pytest.approx((4.0 + 0.0 + 10.0) / 3)
+    unconditioned = synthetic_dataset(size=3, seed=2)
+    mean_m = split_label(unconditioned.labels).position_m.mean(axis=0)
+    expected_cm = 100 * np.linalg.norm(split_label(unconditioned.labels).position_m - mean_m,
+                                       axis=-1).mean()
+    assert label_mean_error_cm(unconditioned, unconditioned) == pytest.approx(expected_cm)
+    with pytest.raises(InvalidInputError, match=r"test task = 'multiple' is not allowed"):
+        label_mean_error_cm(train, unconditioned)
