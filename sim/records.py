@@ -43,8 +43,10 @@ class TrialRecord:
     """Everything a trial did, as it goes into ``trials.jsonl``.
 
     Positions in [m], angles in [rad], times in [s]. ``predicted`` and ``truth`` hold the TCP
-    grasp poses as ``{"position_m": [...], "rotation": [[...], ...]}``. The top-level pick
-    fields describe the last pick tried; ``picks`` lists every pick of a multi-target trial.
+    grasp poses as ``{"position_m": [...], "rotation": [[...], ...]}``; ``raised_m`` is how
+    far the predicted grasp was lifted to keep the fingertips off the table
+    (:func:`sim.objects.clear_of_table`). The top-level pick fields describe the last pick
+    tried; ``picks`` lists every pick of a multi-target trial.
     """
 
     index: int
@@ -59,6 +61,7 @@ class TrialRecord:
     truth: dict[str, Any] | None = None
     position_error_m: float | None = None
     rotation_error_rad: float | None = None
+    raised_m: float | None = None
     plan_status: str | None = None
     arm: str | None = None
     lift_m: float | None = None

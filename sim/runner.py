@@ -27,7 +27,7 @@ from sim.camera import HeadCamera
 from sim.errors import InvalidInputError, SimError
 from sim.execution import ExecutionSettings, execute_pick
 from sim.grasps import grasp_pose, symmetric_alternatives
-from sim.objects import Pose, get_object_spec
+from sim.objects import Pose, clear_of_table, get_object_spec
 from sim.oracle import OraclePerception
 from sim.planning import make_yumi_planner, nearest_object, object_obstacles, table_obstacle
 from sim.records import TrialOutcome, TrialRecord
@@ -205,17 +205,18 @@ class TrialRunner:
         aimed = nearest_object(world, predicted.position_m)
         aimed_spec = world.object_spec(aimed) if aimed is not None else None
         opening = aimed_spec.grasp.opening_m if aimed_spec else 2 * yumi.FINGER_TRAVEL_M
+        grasp, fields["raised_m"] = clear_of_table(
+            Pose(np.asarray(predicted.position_m), np.asarray(predicted.rotation)), opening)
         obstacles = [table_obstacle(world)]
         obstacles += object_obstacles(world, [b for b in world.objects if b != aimed])
         target_shapes = object_obstacles(world, [aimed]) if aimed is not None else []
         result = self.planner.plan(PickRequest(
-            T_world_grasp=pin.SE3(np.asarray(predicted.rotation), np.asarray(predicted.position_m)),
+            T_world_grasp=grasp.as_se3(),
             q_start=self.planner.robot.q_from_dict(world.robot.joint_positions()),
             obstacles=tuple(obstacles),
             target_obstacles=tuple(target_shapes),
-            alternatives=tuple(p.as_se3() for p in symmetric_alternatives(
-                aimed_spec, Pose(np.asarray(predicted.position_m), np.asarray(predicted.rotation))
-            )) if aimed_spec else (),
+            alternatives=tuple(p.as_se3() for p in symmetric_alternatives(aimed_spec, grasp))
+            if aimed_spec else (),
             finger_opening_m=opening / 2,
             pregrasp_distance_m=aimed_spec.grasp.pregrasp_distance_m if aimed_spec else None,
         ))
