@@ -150,6 +150,8 @@ def test_config_errors_name_field_value_and_allowed():
     with pytest.raises(InvalidInputError, match=r"warmup_steps = -1 is not allowed: an integer "
                                                  r">= 0"):
         KqvConfig(warmup_steps=-1)
+    with pytest.raises(InvalidInputError, match=r"starts = 0 is not allowed: an integer >= 1"):
+        KqvConfig(starts=0)
     with pytest.raises(InvalidInputError, match=r"warmup_temperature = nan is not allowed"):
         KqvConfig(warmup_temperature=float("nan"))
     with pytest.raises(InvalidInputError, match=r"similarity = 'l2' is not allowed"):
@@ -201,10 +203,45 @@ def test_side_conditions_get_their_own_queries():
     assert not np.allclose(queries[0], queries[1])  # the two sides start apart
 
 
+def test_the_first_fit_keeps_the_start_with_the_lowest_loss(monkeypatch):
+    import perception.models.kqv as kqv
+
+    dataset = synthetic_dataset(size=4)
+    model = KqvModel.for_dataset(dataset, KqvConfig(starts=3, start_steps=3, warmup_steps=4))
+    starts = []  # (network, temperature at its first step, final loss) of each start
+    real_train = kqv.train
+
+    def recording_train(network, loss, data, config, *args, **kwargs):
+        first = []
+        original = model.batch_loss
+
+        def noting(batch):
+            loss_value = original(batch)
+            first.append(network.temperature)
+            return loss_value
+
+        report = real_train(network, noting, data, config, *args, **kwargs)
+        starts.append((network, first[0], report.final_loss, config.steps))
+        return report
+
+    monkeypatch.setattr(kqv, "train", recording_train)
+    report = model.fit(dataset, TrainConfig(steps=7, augment=False, threads=1), progress=False)
+    assert [steps for *_, steps in starts] == [3, 3, 3]
+    assert len({id(network) for network, *_ in starts}) == 3  # three fresh initialisations
+    assert all(temperature == pytest.approx(0.3 - 0.05) for _, temperature, *_ in starts)
+    best = min(starts, key=lambda start: start[2])[0]
+    assert model.network is best
+    assert report.steps == 7  # 3 of the kept start + the 4 it went on for
+    assert model.network.temperature == 0.1
+    kept = model.network
+    model.fit(dataset, TrainConfig(steps=4, augment=False, threads=1), progress=False)
+    assert model.network is kept and len(starts) == 3  # a later fit trains on, no new starts
+
+
 def test_temperature_warms_up_over_the_first_steps_then_stays():
     dataset = synthetic_dataset(size=4)
     model = KqvModel.for_dataset(dataset, KqvConfig(warmup_temperature=0.5, warmup_steps=4,
-                                                    temperature=0.1))
+                                                    temperature=0.1, starts=1))
     seen = []
     loss = model.batch_loss
 
