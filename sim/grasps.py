@@ -20,14 +20,13 @@ def grasp_pose(spec: ObjectSpec, T_world_object: Pose) -> Pose:
     most naturally; a deterministic function of the pose, continuous except at a few switch
     points (a network learns it from images):
 
-    * two-fold (sponge, the spray bottle's head): of the two half-turn equivalents, the one
-      whose closing axis points most to the robot's left, seen along the line from the robot
-      base to the object; switches where the closing axis is radial.
-    * continuous (a round object taken from the side) and none-but-turnable (mug): the turn
-      about the object's vertical axis that brings the pre-grasp point nearest the robot base,
-      i.e. a side grasp approaches along the line from the base, a rim grasp takes the rim point
-      nearest the robot; the mug's turn is clamped short of the handle, so it switches where the
-      handle faces the robot.
+    * two-fold (sponge): of the two half-turn equivalents, the one whose closing axis points
+      most to the robot's left, seen along the line from the robot base to the object;
+      switches where the closing axis is radial.
+    * continuous (bottle) and none-but-turnable (mug): the turn about the object's vertical axis
+      that brings the pre-grasp point nearest the robot base, i.e. a side grasp approaches along
+      the line from the base, a rim grasp takes the rim point nearest the robot; the mug's turn
+      is clamped short of the handle, so it switches where the handle faces the robot.
     """
     turn = _canonical_turn_rad(spec.grasp, T_world_object)
     return T_world_object.compose(Pose(np.zeros(3), rot_z(turn))).compose(spec.grasp.T_object_grasp)

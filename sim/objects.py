@@ -303,12 +303,9 @@ SPONGE = ObjectSpec(
     grasp=GraspSpec((0.0, 0.0, 0.028), _DOWN, (0.0, 1.0, 0.0), 0.05, 0.08, Symmetry.TWO_FOLD),
 )
 
-# A 38 mm bottle with a trigger head. Taken top-down across its 26 mm head (12 mm to spare per
-# side at full opening, twice what a side grasp of the body leaves), the TCP on the axis 10 mm
-# below the head's top: the fingers (21 mm wide) stay behind the trigger and the nozzle, the
-# fingertips end 5.5 mm below the head beside the neck, and the centre of mass hangs under the
-# line between the fingers. With a 1 cm error in the table plane the oracle's grasp picks it
-# 12/12 times (the side grasp: 5/12); the camera above sees the head, the point it is taken by.
+# A 38 mm bottle (6 mm to spare per side at full opening) with a trigger head. Taken from the
+# side at the body's middle; the TCP stops 6 mm short of the axis so the gripper body (21 mm
+# behind the TCP) keeps 8 mm from the bottle while the fingertips reach 15.5 mm past the axis.
 SPRAY_BOTTLE = ObjectSpec(
     name="spray_bottle",
     primitives=(
@@ -320,7 +317,9 @@ SPRAY_BOTTLE = ObjectSpec(
         Primitive(_BOX, (0.008, 0.014, 0.030), (0.028, 0.0, 0.138), _BLUE),  # trigger
     ),
     mass_kg=0.2, lateral_friction=1.0, spinning_friction_m=0.003, rolling_friction_m=0.0005,
-    grasp=GraspSpec((0.0, 0.0, 0.163), _DOWN, (0.0, 1.0, 0.0), 0.05, 0.08, Symmetry.TWO_FOLD),
+    grasp=GraspSpec(
+        (-0.006, 0.0, 0.07), _FORWARD, (0.0, 1.0, 0.0), 0.05, 0.08, Symmetry.CONTINUOUS
+    ),
 )
 
 # An 8 cm mug with 5 mm walls (12 flat segments: PyBullet's compound shapes hold 16 primitives)
