@@ -17,6 +17,7 @@ from sim.errors import InvalidInputError
 from sim.grasps import grasp_pose
 from sim.objects import (
     FINGERTIP_BEYOND_TCP_M,
+    MIN_FINGERTIP_HEIGHT_M,
     OBJECT_TYPES,
     GraspSpec,
     ObjectSpec,
@@ -24,6 +25,7 @@ from sim.objects import (
     Primitive,
     PrimitiveKind,
     Symmetry,
+    clear_of_table,
     get_object_spec,
     obstacle_shapes,
 )
@@ -43,6 +45,20 @@ def test_catalog_names_and_unknown_name() -> None:
     allowed = r"object type = 'cup' is not allowed: one of sponge, spray_bottle, mug$"
     with pytest.raises(InvalidInputError, match=allowed):
         get_object_spec("cup")
+
+
+def test_a_grasp_into_the_table_is_raised_just_clear_of_it() -> None:
+    sponge = get_object_spec("sponge")
+    canonical = Pose.from_xy_yaw(0.45, 0.1, 0.3).compose(sponge.grasp.T_object_grasp)
+    kept, raised_m = clear_of_table(canonical, sponge.grasp.opening_m)
+    assert raised_m == 0.0 and kept is canonical  # the catalog grasp is clear already
+    low = Pose(canonical.position - np.array([0.0, 0.0, 0.01]), canonical.rotation)
+    lifted, raised_m = clear_of_table(low, sponge.grasp.opening_m)
+    spare_m = sponge.grasp.lowest_finger_point_z_m() - MIN_FINGERTIP_HEIGHT_M  # 1.5 mm
+    assert raised_m == pytest.approx(0.01 - spare_m)
+    np.testing.assert_allclose(lifted.position[:2], low.position[:2])
+    np.testing.assert_array_equal(lifted.rotation, low.rotation)
+    assert clear_of_table(lifted, sponge.grasp.opening_m)[1] == pytest.approx(0.0, abs=1e-12)
 
 
 def _inside(kind: PrimitiveKind, size: tuple[float, float, float], pose: Pose,
