@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any, Self
 
 import numpy as np
 
+from perception.camera import PinholeCamera
 from perception.data import Dataset, DatasetMetadata
 from perception.interface import (
     NO_CONDITION,
@@ -52,6 +53,9 @@ class ModelSpec:
         condition_choices: The one-hot order of the condition; () for none.
         image_height_px: H of the images the model reads.
         image_width_px: W of the images the model reads.
+        camera: The geometry of the camera the images come from, where the dataset records it
+            (None: it does not, or a checkpoint from before gva kept it); a model may read
+            positions off it.
 
     """
 
@@ -63,6 +67,7 @@ class ModelSpec:
     condition_choices: tuple[str, ...]
     image_height_px: int
     image_width_px: int
+    camera: PinholeCamera | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.label_kind, LabelKind):
@@ -73,6 +78,8 @@ class ModelSpec:
             if not isinstance(getattr(self, name), int) or getattr(self, name) < 1:
                 raise InvalidInputError(name, getattr(self, name), "an integer >= 1")
         object.__setattr__(self, "condition_choices", tuple(self.condition_choices))
+        if self.camera is not None and not isinstance(self.camera, PinholeCamera):
+            raise InvalidInputError("camera", self.camera, "a PinholeCamera or None")
 
     @property
     def label_dim(self) -> int:
@@ -87,7 +94,8 @@ class ModelSpec:
     @classmethod
     def from_metadata(cls, metadata: DatasetMetadata) -> ModelSpec:
         """The spec of a model trained on a dataset with ``metadata``."""
-        return cls(**{f.name: getattr(metadata, f.name) for f in fields(cls)})
+        values = {f.name: getattr(metadata, f.name) for f in fields(cls) if f.name != "camera"}
+        return cls(**values, camera=_camera_of(metadata.camera))
 
     def check_dataset(self, dataset: Dataset) -> None:
         """An error naming every field in which ``dataset`` differs from this spec."""
@@ -102,18 +110,29 @@ class ModelSpec:
     def to_json(self) -> dict[str, Any]:
         """The spec as JSON-able data (enums by value)."""
         data = {f.name: getattr(self, f.name) for f in fields(self)}
-        data |= {"label_kind": self.label_kind.value, "condition_kind": self.condition_kind.value,
+        data |= {"camera": None if self.camera is None else self.camera.to_json(),
+                 "label_kind": self.label_kind.value, "condition_kind": self.condition_kind.value,
                  "condition_choices": list(self.condition_choices), "label_dim": self.label_dim}
         return data
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> ModelSpec:
         """The spec :meth:`to_json` wrote."""
-        values = {f.name: data[f.name] for f in fields(cls)}
+        values = {f.name: data[f.name] for f in fields(cls) if f.name != "camera"}
+        camera = data.get("camera")  # absent from checkpoints older than the field
+        values["camera"] = None if camera is None else PinholeCamera.from_json(camera)
         values["label_kind"] = LabelKind(values["label_kind"])
         values["condition_kind"] = ConditionKind(values["condition_kind"])
         values["condition_choices"] = tuple(values["condition_choices"])
         return cls(**values)
+
+
+def _camera_of(record: dict[str, Any]) -> PinholeCamera | None:
+    """The geometry a dataset's camera record gives; None for a record without one."""
+    if not all(name in record for name in ("position_m", "target_m", "up", "vertical_fov_deg",
+                                            "width_px", "height_px")):
+        return None
+    return PinholeCamera.from_json(record)
 
 
 class LearnableModel(PerceptionModel):

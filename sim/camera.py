@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import pybullet
 
+from perception.camera import PinholeCamera
 from perception.drawing import write_png as write_png  # its old home; new code imports it
 from sim.errors import InvalidInputError
 
@@ -118,6 +119,12 @@ class CameraConfig:
         return cls(**fields)
 
     @property
+    def pinhole(self) -> PinholeCamera:
+        """The camera's geometry alone (what a dataset's record gives a perception model)."""
+        return PinholeCamera(self.position_m, self.target_m, self.up, self.vertical_fov_deg,
+                             self.horizontal_fov_deg, self.width_px, self.height_px)
+
+    @property
     def projection_aspect(self) -> float:
         """The projection's width : height in the image plane (ratio of half-FOV tangents)."""
         if self.horizontal_fov_deg is None:
@@ -143,7 +150,8 @@ class HeadCamera:
         # Column-major 4x4 lists -> row-major arrays acting on column vectors.
         view = np.array(self.view_matrix).reshape(4, 4).T
         projection = np.array(self.projection_matrix).reshape(4, 4).T
-        self._clip_from_world = projection @ view  # (4, 4)
+        self.clip_from_world = projection @ view  # (4, 4), PyBullet's own
+        self.pinhole = c.pinhole
 
     def render(self, client: Any, lighting: Lighting | None = None) -> np.ndarray:
         """Render an RGB image of the world on ``client``: uint8 (H, W, 3), row 0 at the top.
@@ -171,19 +179,9 @@ class HeadCamera:
         """Pixel coordinates (u right, v down) of world points, (N, 3) -> (N, 2).
 
         Integer coordinates are pixel centres: ``round(u), round(v)`` index ``image[v, u]``.
-        Points behind the camera get NaN.
+        Points behind the camera get NaN. The geometry is :class:`perception.camera.
+        PinholeCamera`'s, the one a perception model reads from a dataset's camera record.
         """
-        points = np.atleast_2d(np.asarray(points_world, dtype=float))
-        if points.ndim != 2 or points.shape[1] != 3:
+        if np.ndim(points_world) not in (1, 2) or np.shape(points_world)[-1] != 3:
             raise InvalidInputError("points_world", np.shape(points_world), "shape (N, 3)")
-        homogeneous = np.hstack([points, np.ones((len(points), 1))])  # (N, 4)
-        clip = homogeneous @ self._clip_from_world.T  # (N, 4)
-        w = np.where(clip[:, 3] > 1e-9, clip[:, 3], np.nan)
-        ndc = clip[:, :2] / w[:, None]  # (N, 2), in [-1, 1] inside the image
-        # The software renderer samples column i at x = i, not i + 1/2, and rasterises rows
-        # bottom-up before flipping them; these offsets put its pixel centres on integers
-        # (checked against rendered markers: within 0.3 px).
-        u = (ndc[:, 0] + 1.0) * 0.5 * self.config.width_px
-        v = (1.0 - ndc[:, 1]) * 0.5 * self.config.height_px - 1.0
-        return np.stack([u, v], axis=1)
-
+        return self.pinhole.project(points_world)

@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import asdict
 
 import numpy as np
 import pybullet
 import pytest
 
+from perception.camera import PinholeCamera
+from perception.interface import InvalidInputError as PerceptionInputError
 from sim.camera import CameraConfig, HeadCamera, Lighting
 from sim.errors import InvalidInputError
 from sim.objects import get_object_spec
+from sim.paper_world import PaperWorldConfig
 from sim.scenes import YUMI_SCENE
 from sim.world import World
 
@@ -142,3 +146,37 @@ def test_config_errors_name_field_value_and_allowed() -> None:
         Lighting(brightness=3.0)
     with pytest.raises(InvalidInputError, match=r"points_world = \(4,\) .* shape \(N, 3\)"):
         HeadCamera().project(np.zeros(4))
+
+
+@pytest.mark.parametrize("config", [CameraConfig(), CameraConfig(horizontal_fov_deg=None),
+                                    PaperWorldConfig().camera])
+def test_the_pinhole_geometry_agrees_with_pybullets_matrices(config: CameraConfig) -> None:
+    camera = HeadCamera(config)
+    rng = np.random.default_rng(0)
+    points = np.column_stack([rng.uniform(0.3, 0.6, 50), rng.uniform(-0.25, 0.25, 50),
+                              rng.uniform(0.0, 0.2, 50)])  # (50, 3) on and above the table
+    clip = np.hstack([points, np.ones((50, 1))]) @ camera.clip_from_world.T  # (50, 4)
+    ndc = clip[:, :2] / clip[:, 3:]
+    expected = np.column_stack([(ndc[:, 0] + 1) * 0.5 * config.width_px,
+                                (1 - ndc[:, 1]) * 0.5 * config.height_px - 1])
+    np.testing.assert_allclose(camera.project(points), expected, atol=1e-4)  # float32 matrices
+
+
+def test_a_pixels_ray_passes_through_the_point_seen_there() -> None:
+    pinhole = CameraConfig().pinhole
+    points = np.array([[0.45, 0.1, 0.0], [0.5, -0.2, 0.15], [0.4, 0.0, 0.07]])
+    rays = pinhole.rays(pinhole.project(points))  # (3, 3)
+    along = points - np.asarray(pinhole.position_m)  # (3, 3)
+    t = (along * rays).sum(axis=1) / (rays * rays).sum(axis=1)
+    np.testing.assert_allclose(t[:, None] * rays, along, atol=1e-9)
+    assert (t > 0).all()
+
+
+def test_the_pinhole_camera_reads_back_from_a_datasets_record() -> None:
+    record = asdict(CameraConfig(lighting=Lighting(brightness=0.5)))  # as a dataset keeps it
+    assert PinholeCamera.from_json(record) == CameraConfig().pinhole  # lighting is not geometry
+    assert PinholeCamera.from_json(CameraConfig().pinhole.to_json()) == CameraConfig().pinhole
+    with pytest.raises(PerceptionInputError, match=r"camera.*target_m"):
+        PinholeCamera.from_json({"position_m": [0, 0, 1]})
+    with pytest.raises(PerceptionInputError, match="vertical_fov_deg"):
+        PinholeCamera.from_json(asdict(CameraConfig()) | {"vertical_fov_deg": 190})

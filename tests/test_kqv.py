@@ -1,8 +1,11 @@
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
 from user_models import BACKGROUND, COLOURS, DOWN, TYPES, rot_z, synthetic_dataset
 
+from perception.camera import PinholeCamera
 from perception.interface import Condition, ConditionKind, InvalidInputError, LabelKind
 from perception.labels import check_rotations
 from perception.learnable import ModelSpec
@@ -256,3 +259,62 @@ def test_temperature_warms_up_over_the_first_steps_then_stays():
     assert model.network.temperature == 0.1  # inference runs at the final temperature
     model.fit(dataset, TrainConfig(steps=1, augment=False, threads=1), progress=False)
     assert seen[-1] == pytest.approx(0.4)  # a new fit warms up again
+
+
+# A camera above and behind the synthetic scenes, looking down at 53 degrees.
+CAMERA = PinholeCamera((0.0, 0.0, 0.6), (0.45, 0.0, 0.0), (0.0, 0.0, 1.0), 40.0, None, 64, 64)
+
+
+def test_the_ray_readout_reads_a_point_where_its_ray_meets_the_height():
+    model = trained_scaler(KqvModel(replace(spec(kind=LabelKind.GRASP_POSE), camera=CAMERA)))
+    network, scaler = model.network, model.scaler
+    assert network.readout == "ray"
+    point_m = np.array([0.45, 0.12, 0.05])
+    pixels = torch.tensor(CAMERA.project(point_m[None]), dtype=torch.float32)  # (1, 2)
+    coords = pixels_to_normalised(pixels, 64, 64)[None]  # (1, 1, 2)
+    identity_6d = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+    height = (point_m[2] - scaler.centre_m[2]) / scaler.scale_m
+    out = torch.tensor([[[height, 0.0, 0.0, 0.0, *identity_6d]]])  # (1, 1, 10)
+    positions, rotations = network.rays.read(coords, out, scaler)
+    found = model.scaler.denormalise(positions)[0, 0].double().numpy()
+    np.testing.assert_allclose(found, point_m, atol=1e-5)
+    bearing = np.arctan2(point_m[1], point_m[0])
+    np.testing.assert_allclose(rotations[0, 0].double().numpy(), rot_z(bearing), atol=1e-6)
+    # the offset is turned toward the point's bearing from the origin
+    out[0, 0, 1] = 0.01 / scaler.scale_m
+    shifted = model.scaler.denormalise(network.rays.read(coords, out, scaler)[0])[0, 0]
+    np.testing.assert_allclose(shifted.double().numpy() - found,
+                               [0.01 * np.cos(bearing), 0.01 * np.sin(bearing), 0.0], atol=1e-5)
+
+
+def test_the_readout_is_chosen_by_label_and_camera_and_refused_without_one():
+    grasp, position = spec(kind=LabelKind.GRASP_POSE), spec()
+    assert KqvModel(replace(grasp, camera=CAMERA)).network.readout == "ray"
+    assert KqvModel(replace(position, camera=CAMERA)).network.readout == "mlp"
+    assert KqvModel(grasp).network.readout == "mlp"
+    assert KqvModel(replace(position, camera=CAMERA), KqvConfig(readout="ray")).network.rays
+    with pytest.raises(InvalidInputError, match=r"readout = 'ray' .* records no camera"):
+        KqvModel(grasp, KqvConfig(readout="ray"))
+    with pytest.raises(InvalidInputError, match=r"camera = '64 x 64 px' .* 32 x 32 px"):
+        KqvModel(replace(grasp, camera=CAMERA, image_height_px=32, image_width_px=32),
+                 KqvConfig(readout="ray"))
+    with pytest.raises(InvalidInputError, match=r"readout = 'rays' .* one of 'auto', 'mlp'"):
+        KqvConfig(readout="rays")
+
+
+def test_the_ray_readout_learns_positions_at_untrained_places_and_survives_a_checkpoint(
+        tmp_path):
+    train = synthetic_dataset(24, kind=LabelKind.GRASP_POSE, seed=3, camera=CAMERA)
+    test = synthetic_dataset(16, kind=LabelKind.GRASP_POSE, seed=4, camera=CAMERA)
+    model = KqvModel.for_dataset(train, KqvConfig(starts=1, warmup_steps=100))
+    model.fit(train, TrainConfig(steps=300, batch_size=8, threads=1), progress=False)
+    assert model.network.readout == "ray"
+    predicted = np.array([p.targets[0].position_m for p in
+                          model.predict_batch(test.images, test.conditions)])
+    error_m = np.linalg.norm(predicted - test.labels[:, 0, :3], axis=1)
+    assert np.median(error_m) < 0.01, error_m  # the squares span 20 cm; 1 px is about 0.5 cm
+    again = KqvModel.load(model.save(tmp_path / "ray"))
+    assert again.spec.camera == CAMERA
+    reloaded = np.array([p.targets[0].position_m for p in
+                         again.predict_batch(test.images, test.conditions)])
+    np.testing.assert_allclose(reloaded, predicted, atol=1e-6)

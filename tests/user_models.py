@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from perception.camera import PinholeCamera
 from perception.data import Dataset, DatasetMetadata
 from perception.interface import (
     NO_CONDITION,
@@ -75,11 +76,14 @@ def rot_z(yaw: float) -> np.ndarray:
 
 
 def synthetic_dataset(size: int = 8, targets: int = 1, kind: LabelKind = LabelKind.POSITION,
-                      conditioned: bool = False, seed: int = 0, image_px: int = 64) -> Dataset:
+                      conditioned: bool = False, seed: int = 0, image_px: int = 64,
+                      camera: PinholeCamera | None = None) -> Dataset:
     """``size`` scenes of coloured squares (``targets`` of them, or all three when conditioned).
 
     Labels: x = 0.3 + 0.3 v/H, y = 0.2 - 0.4 u/W [m] of the square's centre, z = 0.02 per type
-    index; grasp labels add a top-down TCP turned by a random yaw.
+    index; grasp labels add a top-down TCP turned by a random yaw. With a ``camera`` (recorded
+    in the metadata), x and y are instead where the ray through the square's centre meets the
+    plane z = 0.02 per type index: the camera sees the squares lying at their heights.
     """
     rng = np.random.default_rng(seed)
     shown = len(TYPES) if conditioned else targets
@@ -96,6 +100,10 @@ def synthetic_dataset(size: int = 8, targets: int = 1, kind: LabelKind = LabelKi
                 centre_v, centre_u = v + SQUARE_PX / 2, u + SQUARE_PX / 2
                 positions.append([0.3 + 0.3 * centre_v / image_px,
                                   0.2 - 0.4 * centre_u / image_px, 0.02 * k])
+                if camera is not None:  # pixel centres are integers: the middle is at - 0.5
+                    ray = camera.rays(np.array([[centre_u - 0.5, centre_v - 0.5]]))[0]
+                    origin = np.asarray(camera.position_m)
+                    positions[-1] = list(origin + ray * (0.02 * k - origin[2]) / ray[2])
                 rotations.append(rot_z(rng.uniform(-np.pi, np.pi)) @ DOWN)
         rotation = np.array(rotations) if kind is LabelKind.GRASP_POSE else None
         labels.append(label_vector(np.array(positions), rotation))
@@ -107,7 +115,8 @@ def synthetic_dataset(size: int = 8, targets: int = 1, kind: LabelKind = LabelKi
         seed=seed, image_height_px=image_px, image_width_px=image_px, label_kind=kind,
         targets=1 if conditioned else targets,
         condition_kind=ConditionKind.OBJECT_TYPE if conditioned else ConditionKind.NONE,
-        condition_choices=TYPES if conditioned else (), camera={})
+        condition_choices=TYPES if conditioned else (),
+        camera={} if camera is None else camera.to_json())
     return Dataset(metadata, images, np.array(conditions, dtype=np.float32).reshape(size, -1),
                    np.array(labels, dtype=np.float32), tuple(scenes))
 

@@ -1,0 +1,150 @@
+"""The pinhole geometry of the camera a dataset was taken with: world points to pixels and back.
+
+A dataset's metadata records its camera (``camera``: where it is, where it looks, its field of
+view and image size, plus lighting that geometry ignores). :class:`PinholeCamera` is that record's
+geometry, with the conventions of OpenGL's ``gluLookAt`` and ``gluPerspective`` (which PyBullet's
+``computeViewMatrix`` and ``computeProjectionMatrixFOV`` follow) and of the images: pixel
+``(u, v)``, u right and v down, integer coordinates at pixel centres (``image[v, u]``). The
+simulator projects with it (:meth:`sim.camera.HeadCamera.project`), and a perception model may
+read positions off it: a calibrated camera is what a real robot has too.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from perception.interface import InvalidInputError
+
+_FIELDS = ("position_m", "target_m", "up", "vertical_fov_deg", "horizontal_fov_deg",
+           "width_px", "height_px")
+
+
+@dataclass(frozen=True)
+class PinholeCamera:
+    """A camera's geometry (world frame, [m] and [deg]); see the module docstring.
+
+    Args:
+        position_m: Optical centre.
+        target_m: A point on the optical axis.
+        up: The world direction that appears up in the image.
+        vertical_fov_deg: Vertical field of view.
+        horizontal_fov_deg: Horizontal field of view; None: square pixels (the horizontal field
+            follows the image's aspect).
+        width_px: Image width.
+        height_px: Image height.
+
+    """
+
+    position_m: tuple[float, float, float]
+    target_m: tuple[float, float, float]
+    up: tuple[float, float, float]
+    vertical_fov_deg: float
+    horizontal_fov_deg: float | None
+    width_px: int
+    height_px: int
+
+    def __post_init__(self) -> None:
+        for name in ("position_m", "target_m", "up"):
+            value = getattr(self, name)
+            vector = tuple(float(v) for v in value) if isinstance(value, list | tuple) else ()
+            if len(vector) != 3 or not all(math.isfinite(v) for v in vector):
+                raise InvalidInputError(name, value, "three finite numbers")
+            object.__setattr__(self, name, vector)
+        for name in ("vertical_fov_deg", "horizontal_fov_deg"):
+            value = getattr(self, name)
+            if value is None and name == "horizontal_fov_deg":
+                continue
+            if not isinstance(value, int | float) or not 0.0 < value < 180.0:
+                raise InvalidInputError(name, value, "a field of view in (0, 180) deg")
+        for name in ("width_px", "height_px"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise InvalidInputError(name, value, "an integer >= 1")
+        axis = np.subtract(self.target_m, self.position_m)
+        if np.linalg.norm(axis) < 1e-6:
+            raise InvalidInputError("target_m", self.target_m, "a point away from position_m")
+        if np.linalg.norm(np.cross(axis, self.up)) < 1e-6 * np.linalg.norm(axis):
+            raise InvalidInputError("up", self.up, "a direction not along the optical axis")
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> PinholeCamera:
+        """The geometry of a recorded camera (a dataset's ``metadata.camera``); extras ignored."""
+        if not isinstance(data, Mapping):
+            raise InvalidInputError("camera", type(data).__name__, "a mapping")
+        missing = [name for name in _FIELDS if name not in data and name != "horizontal_fov_deg"]
+        if missing:
+            raise InvalidInputError("camera", f"without {', '.join(missing)}",
+                                    f"a camera record with {', '.join(_FIELDS)}")
+        values: dict[str, Any] = {name: data.get(name) for name in _FIELDS}
+        return cls(**values)
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-able fields, as :meth:`from_json` reads them."""
+        return {name: list(v) if isinstance(v := getattr(self, name), tuple) else v
+                for name in _FIELDS}
+
+    @property
+    def tan_half_fov(self) -> tuple[float, float]:
+        """Tangents of the half fields of view, (horizontal, vertical)."""
+        vertical = math.tan(math.radians(self.vertical_fov_deg) / 2)
+        if self.horizontal_fov_deg is None:
+            return vertical * self.width_px / self.height_px, vertical
+        return math.tan(math.radians(self.horizontal_fov_deg) / 2), vertical
+
+    @property
+    def world_from_camera(self) -> np.ndarray:
+        """Rotation (3, 3): the camera's right, up and backward axes (columns) in the world.
+
+        OpenGL's convention: the camera looks along its -z.
+        """
+        forward = np.subtract(self.target_m, self.position_m)
+        forward = forward / np.linalg.norm(forward)
+        right = np.cross(forward, self.up)
+        right = right / np.linalg.norm(right)
+        return np.stack([right, np.cross(right, forward), -forward], axis=1)
+
+    def project(self, points_world: np.ndarray) -> np.ndarray:
+        """Pixel coordinates (u right, v down) of world points, (N, 3) -> (N, 2).
+
+        Points at or behind the optical centre's plane get NaN.
+        """
+        points = np.atleast_2d(np.asarray(points_world, dtype=float))
+        if points.ndim != 2 or points.shape[1] != 3:
+            raise InvalidInputError("points_world", np.shape(points_world), "shape (N, 3)")
+        local = (points - np.asarray(self.position_m)) @ self.world_from_camera  # (N, 3)
+        depth = np.where(-local[:, 2] > 1e-9, -local[:, 2], np.nan)  # (N,)
+        tan_x, tan_y = self.tan_half_fov
+        ndc_x, ndc_y = local[:, 0] / depth / tan_x, local[:, 1] / depth / tan_y
+        return np.stack(self.ndc_to_pixels(ndc_x, ndc_y), axis=1)
+
+    def ndc_to_pixels(self, ndc_x: Any, ndc_y: Any) -> tuple[Any, Any]:
+        """Normalised device coordinates (x right, y up, [-1, 1] at the image's edges) to pixels.
+
+        Works on numpy arrays and torch tensors alike. PyBullet's software renderer samples
+        column i at x = i and rasterises rows bottom-up before flipping them; the offsets here
+        put its pixel centres on integers (checked against rendered markers: within 0.3 px).
+        """
+        return (ndc_x + 1.0) * 0.5 * self.width_px, (1.0 - ndc_y) * 0.5 * self.height_px - 1.0
+
+    def pixels_to_ndc(self, u_px: Any, v_px: Any) -> tuple[Any, Any]:
+        """The inverse of :meth:`ndc_to_pixels`."""
+        return 2.0 * u_px / self.width_px - 1.0, 1.0 - 2.0 * (v_px + 1.0) / self.height_px
+
+    def rays(self, points_px: np.ndarray) -> np.ndarray:
+        """World directions (N, 3), not normalised, of the rays through pixels (N, 2).
+
+        The ray through pixel p is ``position_m + t * rays(p)`` for t > 0; t = 1 reaches the
+        plane one unit in front of the camera.
+        """
+        points = np.atleast_2d(np.asarray(points_px, dtype=float))
+        if points.ndim != 2 or points.shape[1] != 2:
+            raise InvalidInputError("points_px", np.shape(points_px), "shape (N, 2)")
+        ndc_x, ndc_y = self.pixels_to_ndc(points[:, 0], points[:, 1])
+        tan_x, tan_y = self.tan_half_fov
+        local = np.stack([ndc_x * tan_x, ndc_y * tan_y, -np.ones(len(points))], axis=1)
+        return local @ self.world_from_camera.T  # (N, 3)
