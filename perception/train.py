@@ -8,9 +8,9 @@ draws batches, augments them, steps the optimiser and reports. Read top to botto
 
 Augmentation is photometric only (brightness, contrast, colour gain, pixel noise). Geometric
 augmentation (shifts, crops, flips, rotations) is not used: the labels are positions and poses
-in the world frame, and a shifted image shows a shifted scene, so its labels would have to be
-moved through the camera model, which a perception model does not have. Keeping the geometry
-fixed also keeps the image-to-table mapping the attention coordinates learn to read.
+in the world frame, and a shifted image is not the camera's view of a shifted scene (perspective
+and parallax change with the place), so no label would be right for it. Keeping the geometry
+fixed also keeps the image-to-table mapping the attention coordinates are read through.
 """
 
 from __future__ import annotations
