@@ -11,6 +11,7 @@ import pybullet
 
 from perception.camera import PinholeCamera
 from perception.drawing import write_png as write_png  # its old home; new code imports it
+from perception.interface import InvalidInputError as PerceptionInputError
 from sim.errors import InvalidInputError
 
 
@@ -99,11 +100,10 @@ class CameraConfig:
                                     "None or in [1, 170] deg")
         if not 0.0 < self.near_m < self.far_m:
             raise InvalidInputError("near_m/far_m", (self.near_m, self.far_m), "0 < near < far")
-        axis = np.subtract(self.target_m, self.position_m)
-        if np.linalg.norm(axis) < 1e-6:
-            raise InvalidInputError("target_m", self.target_m, "a point away from position_m")
-        if np.linalg.norm(np.cross(axis, self.up)) < 1e-6 * np.linalg.norm(axis):
-            raise InvalidInputError("up", self.up, "a direction not along the optical axis")
+        try:  # the placement: PinholeCamera checks it (a point to look at, an up off the axis)
+            self.pinhole  # noqa: B018
+        except PerceptionInputError as error:
+            raise InvalidInputError(error.field, error.value, error.allowed) from None
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> CameraConfig:

@@ -1,0 +1,144 @@
+"""The KQV attention model's hyper-parameters, each with what it was measured to do.
+
+:class:`KqvConfig` is what a ``kqv`` checkpoint's ``config.json`` keeps as ``hyperparameters``;
+import it from :mod:`perception.models.kqv` or from here.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from perception.interface import InvalidInputError
+from perception.learnable import check_choices
+
+QUERY_MODES = ("auto", "base", "conditioned", "conditioned+base")
+READOUTS = ("auto", "mlp", "ray")
+
+
+@dataclass(frozen=True)
+class KqvConfig:
+    """Hyper-parameters of the KQV attention model.
+
+    Args:
+        channels: Output channels of the first two conv layers of FCN1 and of FCN2; few in the
+            first (it runs at the finest resolution), more in the second.
+        key_dim: Ck, the Key's learned channels; Keys and Queries have Ck + 2 entries (the two
+            coordinate channels ride along, so a Query can prefer a place as well as a look).
+        value_dim: Cv, the Feature Value's channels (the length of ``a_feat``).
+        stride: Downsampling from image to heatmap, 1, 2 or 4 (stride 2 in the first one or two
+            layers of each FCN): 4 turns 128 x 128 images into 32 x 32 heatmaps.
+        similarity: How a Query meets the Key at each cell. ``"dot"``: the paper's scaled dot
+            product K · Q / sqrt(hw). ``"cosine"``: K and Q normalised to unit length first, so
+            the logits lie in [-1, 1] before the temperature. With the unbounded dot product the
+            network sharpens each heatmap onto a single cell (measured: 95 % of the mass), so
+            ``a_coord`` snaps to the 32 x 32 cell grid (4 px, about 2 cm on the table) and the
+            gradient that could refine it vanishes; bounded logits keep a heatmap a few cells
+            wide, and its expectation falls between cells (validation error 2.7 -> 1.4 cm on
+            the yumi ``single`` task, 20 training scenes).
+        temperature: Divides the logits before the 2-D softmax: with cosine similarity it sets
+            how peaked a heatmap can get (1 / temperature between best and worst match). 0.1
+            was best on validation scenes (yumi ``single``: 0.02 -> 1.75 cm, 0.05 -> 1.74,
+            0.1 -> 1.37-1.51 over three seeds, 0.2 -> 1.45-2.07, 0.3 -> 1.67).
+        warmup_temperature: The temperature at the first training step; it falls linearly to
+            ``temperature`` over ``warmup_steps`` steps, then stays there (inference always uses
+            ``temperature``). Trained at 0.1 from the start, a heatmap can settle on one place
+            within a few steps, where its softmax saturates and no gradient moves it again: a
+            fixed spot or a spread-out map. Soft heatmaps first let every Query find its objects
+            (paper-sim validation, 10 cells at 20 and 100 scenes over two seeds: failures above
+            5 cm 3 -> 2, ``single`` 100 scenes 7.6 -> 2.0 cm, ``selected-type`` 20 scenes
+            1.35/1.55 -> 1.07/1.20 cm).
+        warmup_steps: Length of that warm-up, in optimiser steps (0: none).
+        starts: Initialisations tried on a model's first fit; each trains ``start_steps``
+            steps, the one with the lowest training loss by then goes on for the rest of the
+            steps and the others are dropped. Even warmed up, a start now and then leaves a
+            Query's heatmap spread over the whole image, where the loss sits on a plateau for
+            hundreds of steps (paper-sim ``single`` 100 scenes, seed 1: 0.55 until step 700,
+            10.0 cm). By the end of the temperature warm-up a good start has its loss a decade
+            lower than such a one, so the choice is cheap: 1: one start, as before.
+        start_steps: Steps each start trains before the choice (they count towards the total).
+            300, the warm-up's length: chosen at step 150, mid warm-up, a start still on its way
+            down was kept over one that would have worked (``selected-type`` 20 scenes, seed 1:
+            13.7 cm; chosen at step 300: 1.3 cm). A dataset on which every start stalls stays
+            out of reach (``single`` 100 scenes, seed 1: 8.4 cm).
+        query_mode: ``"base"`` (learned vectors), ``"conditioned"`` (MLP of the one-hot
+            condition), ``"conditioned+base"`` (their sum) or ``"auto"``: base without a
+            condition, conditioned+base for an object-type condition, conditioned for a side.
+            A type names a look: with a shared Base Query, and the condition's MLP starting at
+            zero, every condition first attends to objects, then learns to prefer its own type
+            (1.2-1.9 cm and 96-100 % of scenes attended right over four seeds; paper-sim
+            ``selected-type``, 20 scenes); Conditioned Queries alone spread each heatmap over
+            all three objects and the head memorises the mixtures (17.5-21.7 cm, 0 %). A side
+            names a place among two look-alike objects, so a shared Base Query starts every
+            condition split between them, and the head memorises the training scenes instead
+            (train 0.5-0.7 cm, validation 8.4-12.0 cm, 0 % right); Conditioned Queries start
+            apart and each takes its side (1.2, 1.7, 3.8 cm and 92-100 % over three seeds;
+            ``selected-position``, 20 scenes).
+        head_features: Whether the head MLP reads ``a_feat`` besides ``a_coord``; None: for
+            grasp labels (orientation and grasp offset depend on what the object looks like) and
+            the ray readout (its heights come from it); coordinates only for positions read by
+            the MLP, as in the paper's simulator experiment: with 20 scenes a head that reads
+            features memorises them (validation 3.4 cm, against 1.4 cm from coordinates only;
+            yumi ``single``, object positions).
+        readout: How the head turns an attention point into a target. ``"mlp"``, the paper's:
+            an MLP maps ``a_coord`` (and ``a_feat``) to the target, learning the camera's
+            image-to-world mapping from the samples. ``"ray"``: the point is read through the
+            dataset's calibrated camera; the MLP, from ``a_feat`` alone, gives the height at which
+            the point's ray meets the target, a small offset and the grasp's rotation, both in
+            the frame turned toward the target's bearing from the robot base at the world origin
+            (a grasp approached from the base looks the same from every bearing). Nothing about
+            where in the image a target is needs learning then, so 20 demonstrations generalise
+            (yumi ``single``, 20 demonstrations, grasp position error on 100 untrained scenes:
+            MLP 2.27 cm mean, 2.08 median; ray 0.86 and 0.72; ``make demo`` picks 15/30 -> 28/30).
+            ``"auto"``: ray for grasp-pose labels when the dataset records its camera, MLP
+            otherwise (the paper's simulator experiment, Table II, keeps the paper's head).
+        head_width: Width of the head MLP's two hidden layers.
+        rotation_loss_weight: Weight of the chordal rotation loss against the position loss
+            (squared distance in scaled units); 0.1 weighs 1 cm (at a 0.2 m label scale) like
+            about 6 degrees of rotation.
+        seed: Seeds the initial weights.
+
+    """
+
+    channels: tuple[int, int] = (16, 32)
+    key_dim: int = 16
+    value_dim: int = 16
+    stride: int = 4
+    similarity: str = "cosine"
+    temperature: float = 0.1
+    warmup_temperature: float = 0.3
+    warmup_steps: int = 300
+    starts: int = 3
+    start_steps: int = 300
+    query_mode: str = "auto"
+    head_features: bool | None = None
+    readout: str = "auto"
+    head_width: int = 64
+    rotation_loss_weight: float = 0.1
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        channels = tuple(self.channels) if isinstance(self.channels, list | tuple) else ()
+        if len(channels) != 2 or not all(isinstance(c, int) and c >= 1 for c in channels):
+            raise InvalidInputError("channels", self.channels, "two integers >= 1")
+        object.__setattr__(self, "channels", channels)  # a JSON list reads back as the tuple
+        for name in ("key_dim", "value_dim", "head_width", "warmup_steps", "starts",
+                     "start_steps"):
+            value = getattr(self, name)
+            least = 0 if name == "warmup_steps" else 1
+            if not isinstance(value, int) or isinstance(value, bool) or value < least:
+                raise InvalidInputError(name, value, f"an integer >= {least}")
+        check_choices("stride", self.stride, (1, 2, 4))
+        check_choices("query_mode", self.query_mode, QUERY_MODES)
+        check_choices("similarity", self.similarity, ("cosine", "dot"))
+        check_choices("readout", self.readout, READOUTS)
+        for name in ("temperature", "warmup_temperature"):
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) > 0):
+                raise InvalidInputError(name, getattr(self, name), "a finite value > 0")
+        if not (math.isfinite(self.rotation_loss_weight) and self.rotation_loss_weight >= 0):
+            raise InvalidInputError("rotation_loss_weight", self.rotation_loss_weight,
+                                    "a finite value >= 0")
+        if self.head_features not in (None, True, False):
+            raise InvalidInputError("head_features", self.head_features, "None, True or False")
+        if not isinstance(self.seed, int) or self.seed < 0:
+            raise InvalidInputError("seed", self.seed, "an integer >= 0")
