@@ -22,6 +22,7 @@ from perception.interface import InvalidInputError
 
 _FIELDS = ("position_m", "target_m", "up", "vertical_fov_deg", "horizontal_fov_deg",
            "width_px", "height_px")
+_REQUIRED = tuple(name for name in _FIELDS if name != "horizontal_fov_deg")  # None: square px
 
 
 @dataclass(frozen=True)
@@ -76,12 +77,20 @@ class PinholeCamera:
         """The geometry of a recorded camera (a dataset's ``metadata.camera``); extras ignored."""
         if not isinstance(data, Mapping):
             raise InvalidInputError("camera", type(data).__name__, "a mapping")
-        missing = [name for name in _FIELDS if name not in data and name != "horizontal_fov_deg"]
+        missing = [name for name in _REQUIRED if name not in data]
         if missing:
             raise InvalidInputError("camera", f"without {', '.join(missing)}",
                                     f"a camera record with {', '.join(_FIELDS)}")
         values: dict[str, Any] = {name: data.get(name) for name in _FIELDS}
         return cls(**values)
+
+    @classmethod
+    def from_record(cls, data: Mapping[str, Any]) -> PinholeCamera | None:
+        """As :meth:`from_json`, but None for a record without the geometry.
+
+        A synthetic dataset's record, for one, is empty: its model simply has no camera.
+        """
+        return cls.from_json(data) if all(name in data for name in _REQUIRED) else None
 
     def to_json(self) -> dict[str, Any]:
         """JSON-able fields, as :meth:`from_json` reads them."""

@@ -95,7 +95,7 @@ class ModelSpec:
     def from_metadata(cls, metadata: DatasetMetadata) -> ModelSpec:
         """The spec of a model trained on a dataset with ``metadata``."""
         values = {f.name: getattr(metadata, f.name) for f in fields(cls) if f.name != "camera"}
-        return cls(**values, camera=_camera_of(metadata.camera))
+        return cls(**values, camera=PinholeCamera.from_record(metadata.camera))
 
     def check_dataset(self, dataset: Dataset) -> None:
         """An error naming every field in which ``dataset`` differs from this spec."""
@@ -125,14 +125,6 @@ class ModelSpec:
         values["condition_kind"] = ConditionKind(values["condition_kind"])
         values["condition_choices"] = tuple(values["condition_choices"])
         return cls(**values)
-
-
-def _camera_of(record: dict[str, Any]) -> PinholeCamera | None:
-    """The geometry a dataset's camera record gives; None for a record without one."""
-    if not all(name in record for name in ("position_m", "target_m", "up", "vertical_fov_deg",
-                                            "width_px", "height_px")):
-        return None
-    return PinholeCamera.from_json(record)
 
 
 class LearnableModel(PerceptionModel):
