@@ -12,6 +12,7 @@ from perception.learnable import ModelSpec
 from perception.models.base import (
     LabelScaler,
     coordinate_grid,
+    images_to_tensor,
     normalised_to_pixels,
     pixels_to_normalised,
     rotation_from_6d,
@@ -21,7 +22,7 @@ from perception.models.base import (
     symmetric_chordal_loss,
 )
 from perception.models.kqv import KqvConfig, KqvModel
-from perception.train import TrainConfig
+from perception.train import Batch, TrainConfig
 
 
 def spec(q=1, kind=LabelKind.POSITION, choices=(), px=64):
@@ -142,7 +143,7 @@ def test_replacing_the_query_moves_the_attention_point():
 
 
 def test_config_errors_name_field_value_and_allowed():
-    with pytest.raises(InvalidInputError, match=r"stride = 3 is not allowed: one of 1, 2, 4"):
+    with pytest.raises(InvalidInputError, match=r"stride = 3 is not allowed: one of None, 1, 2, 4"):
         KqvConfig(stride=3)
     with pytest.raises(InvalidInputError, match=r"query_mode = 'best' is not allowed: one of"):
         KqvConfig(query_mode="best")
@@ -279,18 +280,43 @@ def test_the_ray_readout_reads_a_point_where_its_ray_meets_the_height():
     found = model.scaler.denormalise(positions)[0, 0].double().numpy()
     np.testing.assert_allclose(found, point_m, atol=1e-5)
     bearing = np.arctan2(point_m[1], point_m[0])
-    np.testing.assert_allclose(rotations[0, 0].double().numpy(), rot_z(bearing), atol=1e-6)
+    angle = symmetric_angle_rad(rotations[0, 0].double().numpy(), rot_z(bearing))
+    assert angle == pytest.approx(0.0, abs=1e-3)
     # the offset is turned toward the point's bearing from the origin
     out[0, 0, 1] = 0.01 / scaler.scale_m
     shifted = model.scaler.denormalise(network.rays.read(coords, out, scaler)[0])[0, 0]
     np.testing.assert_allclose(shifted.double().numpy() - found,
                                [0.01 * np.cos(bearing), 0.01 * np.sin(bearing), 0.0], atol=1e-5)
+    # and projecting the point gives back where it was read
+    torch.testing.assert_close(network.rays.project(torch.tensor(point_m, dtype=torch.float32)),
+                               coords[0, 0], atol=1e-5, rtol=0)
+
+
+def test_the_point_loss_pulls_attention_onto_the_projected_grasp_point():
+    dataset = synthetic_dataset(6, kind=LabelKind.GRASP_POSE, seed=5, camera=CAMERA)
+    batch = Batch(images_to_tensor(dataset.images), torch.as_tensor(dataset.conditions),
+                  torch.as_tensor(dataset.labels))
+    losses = {}
+    for weight in (0.0, 2.0):
+        model = KqvModel.for_dataset(dataset, KqvConfig(point_loss_weight=weight))
+        model.scaler = model.network.scaler = LabelScaler.fit(dataset.labels[..., :3])
+        losses[weight] = model.batch_loss(batch).item()
+        points = model.network(batch.images, batch.conditions).points.detach().double().numpy()
+    seen = CAMERA.project(dataset.labels[:, 0, :3].astype(float))  # (N, 2) px, numpy camera
+    distance = np.square(points[:, 0] - pixels_to_normalised(
+        torch.tensor(seen), 64, 64).numpy()).sum(axis=-1).mean()
+    assert losses[2.0] - losses[0.0] == pytest.approx(2.0 * distance, rel=1e-4)
+    with pytest.raises(InvalidInputError, match=r"point_loss_weight = -1.0 .* >= 0"):
+        KqvConfig(point_loss_weight=-1.0)
 
 
 def test_the_readout_is_chosen_by_label_and_camera_and_refused_without_one():
     grasp, position = spec(kind=LabelKind.GRASP_POSE), spec()
-    assert KqvModel(replace(grasp, camera=CAMERA)).network.readout == "ray"
-    assert KqvModel(replace(position, camera=CAMERA)).network.readout == "mlp"
+    ray, mlp = KqvModel(replace(grasp, camera=CAMERA)), KqvModel(replace(position, camera=CAMERA))
+    assert (ray.network.readout, ray.network.stride) == ("ray", 2)
+    assert (mlp.network.readout, mlp.network.stride) == ("mlp", 4)
+    assert ray.network.attend(torch.zeros(1, 3, 64, 64), torch.ones(1, 1, 18)).heatmaps.shape \
+        == (1, 1, 32, 32)  # 64 px at stride 2
     assert KqvModel(grasp).network.readout == "mlp"
     assert KqvModel(replace(position, camera=CAMERA), KqvConfig(readout="ray")).network.rays
     with pytest.raises(InvalidInputError, match=r"readout = 'ray' .* records no camera"):

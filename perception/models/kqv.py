@@ -16,7 +16,8 @@ inference.
 The image is read at full size (128 x 128) but the first two layers of each FCN have stride 2
 (:attr:`KqvConfig.stride`), so the heatmaps are 32 x 32: four times fewer cells to attend over
 and sixteen times less work per layer, which keeps training on two CPU cores within minutes;
-``a_coord`` is an expectation, so it still resolves positions between cells.
+``a_coord`` is an expectation, so it still resolves positions between cells. A grasp read
+through the camera needs finer points: there only the first layer has stride 2 (64 x 64).
 """
 
 from __future__ import annotations
@@ -63,7 +64,12 @@ class KqvNet(nn.Module):
         super().__init__()
         c, key, value = config, config.key_dim, config.value_dim
         (wide1, wide2), hidden = config.channels, config.channels[1]
-        first, second = {1: (1, 1), 2: (2, 1), 4: (2, 2)}[c.stride]
+        self.readout = c.readout
+        if self.readout == "auto":
+            self.readout = "ray" if spec.label_kind is LabelKind.GRASP_POSE and \
+                spec.camera is not None else "mlp"
+        self.stride = c.stride or (2 if self.readout == "ray" else 4)
+        first, second = {1: (1, 1), 2: (2, 1), 4: (2, 2)}[self.stride]
         self.temperature = c.temperature
         self.similarity = c.similarity
         self.key_net = nn.Sequential(  # FCN1 with CoordConv: (B, 3, H, W) -> (B, Ck + 2, h, w)
@@ -94,10 +100,6 @@ class KqvNet(nn.Module):
             last = cast(nn.Linear, self.query_mlp[-1])
             nn.init.zeros_(last.weight)
             nn.init.zeros_(last.bias)
-        self.readout = c.readout
-        if self.readout == "auto":
-            self.readout = "ray" if spec.label_kind is LabelKind.GRASP_POSE and \
-                spec.camera is not None else "mlp"
         self.rays = CameraRays(spec) if self.readout == "ray" else None
         reads_features = c.head_features
         if reads_features is None:
@@ -240,13 +242,24 @@ class KqvModel(TorchModel):
         return kept, spent_s
 
     def batch_loss(self, batch: Batch) -> Tensor:
-        """The target loss, at the temperature the warm-up has reached by this step."""
+        """The target loss, at the temperature the warm-up has reached by this step.
+
+        With the ray readout, plus :attr:`KqvConfig.point_loss_weight` times the squared
+        distance (normalised image units) from each attention point to its target's grasp
+        point as the camera sees it.
+        """
         c = self.config
         done = min(1.0, (self._steps_taken + 1) / c.warmup_steps) if c.warmup_steps else 1.0
         self.network.temperature = c.warmup_temperature + done * (c.temperature -
                                                                   c.warmup_temperature)
         self._steps_taken += 1
-        return super().batch_loss(batch)
+        out = self.network(batch.images, batch.conditions)
+        loss = self.target_loss(out, batch.labels)
+        rays = self.network.rays
+        if rays is not None and c.point_loss_weight > 0 and out.points is not None:
+            seen = rays.project(batch.labels[..., :3])  # (B, q, 2)
+            loss = loss + c.point_loss_weight * (out.points - seen).square().sum(-1).mean()
+        return loss
 
     @torch.no_grad()
     def predict_batch(self, images: np.ndarray, conditions: np.ndarray,

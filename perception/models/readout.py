@@ -13,16 +13,22 @@ from torch import Tensor, nn
 
 from perception.interface import InvalidInputError
 from perception.learnable import ModelSpec
-from perception.models.base import LabelScaler, normalised_to_pixels, rotation_from_6d
+from perception.models.base import (
+    LabelScaler,
+    normalised_to_pixels,
+    pixels_to_normalised,
+    rotation_from_6d,
+)
 
 
 class CameraRays(nn.Module):
     """The ray readout: a target's pose from its attention point, through the calibrated camera.
 
-    The head's output per target is ``(height, offset (3), rotation (6-D, with grasp labels))``
-    in network units; the target is where the point's ray meets the plane z = height, plus the
-    offset, which, like the rotation, is expressed in the frame turned about z toward that
-    point's bearing from the world origin (the robot base).
+    The head's output per target is ``(height, offset (3), rotation)`` in network units, the
+    rotation as :func:`~perception.models.base.grasp_rotation`'s 9 numbers (grasp labels
+    only); the target is where the point's ray meets the plane z = height, plus the offset,
+    which, like the rotation, is expressed in the frame turned about z toward that point's
+    bearing from the world origin (the robot base).
     """
 
     tangents: Tensor  # (2,) tan of the half fields of view, horizontal and vertical
@@ -72,3 +78,18 @@ class CameraRays(nn.Module):
         positions = (point + offset_m - centre) / scaler.scale_m  # (B, q, 3)
         rotations = None if out.shape[-1] == 4 else turn @ rotation_from_6d(out[..., 4:])
         return positions, rotations
+
+    def project(self, points_m: Tensor) -> Tensor:
+        """Where world points (..., 3) [m] appear: normalised image (x, y) in [-1, 1], (..., 2).
+
+        The inverse of the ray: a target's grasp point projected so, the point its attention
+        should sit on (:attr:`~perception.models.kqv_config.KqvConfig.point_loss_weight`).
+        Points behind the camera stay finite (their depth is clamped to 1 mm).
+        """
+        camera = self.camera
+        local = (points_m - self.origin) @ self.basis  # (..., 3), camera frame
+        depth = (-local[..., 2]).clamp(min=1e-3)  # (...)
+        u_px, v_px = camera.ndc_to_pixels(local[..., 0] / depth / self.tangents[0],
+                                          local[..., 1] / depth / self.tangents[1])
+        return pixels_to_normalised(torch.stack([u_px, v_px], dim=-1), camera.height_px,
+                                    camera.width_px)  # (..., 2)
