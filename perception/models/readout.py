@@ -24,11 +24,10 @@ from perception.models.base import (
 class CameraRays(nn.Module):
     """The ray readout: a target's pose from its attention point, through the calibrated camera.
 
-    The head's output per target is ``(height, offset (3), rotation)`` in network units, the
-    rotation as :func:`~perception.models.base.grasp_rotation`'s 9 numbers (grasp labels
-    only); the target is where the point's ray meets the plane z = height, plus the offset,
-    which, like the rotation, is expressed in the frame turned about z toward that point's
-    bearing from the world origin (the robot base).
+    The head's output per target is ``(height, offset (3), rotation (6-D, with grasp labels))``
+    in network units; the target is where the point's ray meets the plane z = height, plus the
+    offset, which, like the rotation, is expressed in the frame turned about z toward that
+    point's bearing from the world origin (the robot base).
     """
 
     tangents: Tensor  # (2,) tan of the half fields of view, horizontal and vertical
