@@ -59,3 +59,19 @@ def check_rotations(name: str, rotation: np.ndarray) -> None:
     if bad.size:
         raise InvalidInputError(name, f"matrix {int(bad[0])} = {matrices[bad[0]].tolist()}",
                                 f"rotations: R Rᵀ = I within {ROTATION_TOLERANCE}, det(R) = +1")
+
+
+def nearest_rotation(name: str, rotation: np.ndarray) -> np.ndarray:
+    """The proper rotation nearest a model's (3, 3) ``rotation``, in float64.
+
+    A float32 network output is a rotation only to about 1e-6, short of what an exact consumer
+    (inverse kinematics) demands; the SVD projection makes it exact. A matrix further than
+    :data:`ROTATION_TOLERANCE` from any rotation is an error naming ``name``: a wrong output,
+    not rounding.
+    """
+    matrix = np.asarray(rotation, dtype=np.float64)
+    if matrix.shape != (3, 3) or not np.all(np.isfinite(matrix)):
+        raise InvalidInputError(name, f"shape {matrix.shape}", "a finite (3, 3) rotation")
+    check_rotations(name, matrix)
+    left, _, right = np.linalg.svd(matrix)
+    return left @ right  # det +1: check_rotations refused a reflection

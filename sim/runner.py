@@ -22,6 +22,7 @@ import pinocchio as pin
 from control.pick import PickRequest, PlanStatus
 from control.planner import PickPlanner
 from perception.interface import PerceptionError, PerceptionModel, Prediction, Target
+from perception.labels import nearest_rotation
 from robots import yumi
 from sim.camera import HeadCamera
 from sim.errors import InvalidInputError, SimError
@@ -196,17 +197,21 @@ class TrialRunner:
         if predicted.rotation is None:
             raise InvalidInputError("prediction rotation", None,
                                     "a grasp pose: pick trials need models with grasp labels")
+        try:  # a float32 output is a rotation to ~1e-6; inverse kinematics wants it exact
+            rotation = nearest_rotation("predicted rotation", predicted.rotation)
+        except PerceptionError as error:
+            return fields | {"outcome": TrialOutcome.PERCEPTION_FAILED, "reason": str(error)}, None
         fields |= {
-            "predicted": pose_json(predicted.position_m, predicted.rotation),
+            "predicted": pose_json(predicted.position_m, rotation),
             "position_error_m": float(np.linalg.norm(predicted.position_m - truth.position)),
-            "rotation_error_rad": rotation_error_rad(truth.rotation, predicted.rotation),
+            "rotation_error_rad": rotation_error_rad(truth.rotation, rotation),
         }
         # The planner avoids every object but the one the prediction points at.
         aimed = nearest_object(world, predicted.position_m)
         aimed_spec = world.object_spec(aimed) if aimed is not None else None
         opening = aimed_spec.grasp.opening_m if aimed_spec else 2 * yumi.FINGER_TRAVEL_M
         grasp, fields["raised_m"] = clear_of_table(
-            Pose(np.asarray(predicted.position_m), np.asarray(predicted.rotation)), opening)
+            Pose(np.asarray(predicted.position_m), rotation), opening)
         obstacles = [table_obstacle(world)]
         obstacles += object_obstacles(world, [b for b in world.objects if b != aimed])
         target_shapes = object_obstacles(world, [aimed]) if aimed is not None else []

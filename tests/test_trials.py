@@ -98,6 +98,35 @@ def test_unreachable_prediction_is_a_recorded_outcome():
     assert record.position_error_m == pytest.approx(0.8, abs=1e-6)
 
 
+def test_a_rounded_rotation_is_picked_and_a_wrong_one_is_a_recorded_outcome():
+    class Predicts(OraclePerception):
+        def __init__(self, change, *args):
+            super().__init__(*args)
+            self.change = change
+
+        def predict(self, image, condition=None):
+            prediction = super().predict(image)
+            target = prediction.targets[0]
+            changed = type(target)(target.position_m, self.change(target.rotation))
+            return type(prediction)((changed,))
+
+    def float32_rounded(rotation):  # off by a few 1e-6, as a network's output can be
+        shear = np.eye(3) + 3e-6 * np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+        return (rotation @ shear).astype(np.float32)
+
+    task = load_task("single")
+    scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 0)
+    outcomes = {}
+    for name, change in (("rounded", float32_rounded), ("sheared", lambda r: r + 0.05)):
+        with TrialRunner(task) as runner:
+            runner.model = Predicts(change, runner.world, runner.camera)
+            outcomes[name] = runner.run(scene, 0, 0, name)
+    assert outcomes["rounded"].outcome.value == "success", outcomes["rounded"].reason
+    assert outcomes["sheared"].outcome.value == "perception_failed"
+    assert "predicted rotation" in outcomes["sheared"].reason
+    assert "R Rᵀ = I within 0.0001" in outcomes["sheared"].reason
+
+
 @pytest.mark.slow
 def test_oracle_trials_succeed_and_resume(tmp_path):
     settings = TrialSettings("oracle", "single", n=4, seed=0)
