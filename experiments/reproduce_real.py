@@ -23,9 +23,9 @@ scene, for each task and each model:
    distractor). Both are task TOML options (``[lighting] brightness``, ``[distractors]
    types``); their files are written to ``OUT/tasks/``. The checkpoint is accepted for them
    because trials check a model against the task's scene, condition, targets and image size,
-   not its name. The catalog has only the three target types, so the "similar-looking"
-   distractor is one of them, a sponge: where a target is a sponge too, nothing in the image
-   tells the two apart (a side condition at most), so the report counts those trials.
+   not its name. The distractor is the catalog's wooden block, the sponge's size and shape but
+   never a target type, so every trial still has one right answer (a target-type distractor
+   would leave ``single`` ambiguous; the report counts such trials if a task file asks for it).
 5. GIFs: the first :data:`GIF_TRIALS` trials of each model and task recorded again
    (:mod:`experiments.real_jobs`): the head image with the attention points beside the robot.
 
@@ -74,8 +74,8 @@ ROBUST_MODEL = "kqv"
 """The model whose robustness rows are run (the paper reports them for its own model)."""
 DARK_BRIGHTNESS = 0.5
 """The darker light: half the normal light (training augments brightness by 0.7-1.3 only)."""
-DISTRACTOR_TYPES = ("sponge",)
-"""The distractor added to every scene: the flattest type, so it hides no target."""
+DISTRACTOR_TYPES = ("block",)
+"""The distractor added to every scene: the wooden block, sponge-like and never a target."""
 GIF_TRIALS = 3
 FORMAT_VERSION = 1
 

@@ -1,5 +1,7 @@
 """The object catalog of the YuMi scene: a sponge, a spray bottle and a mug, with their grasps.
 
+Plus a wooden block, presented only as a distractor (:data:`DISTRACTOR_TYPES`).
+
 Pure data and geometry (numpy only): the world turns a spec into a PyBullet body, a collision
 checker takes :func:`obstacle_shapes`; :mod:`sim.grasps` chooses among symmetric grasps.
 
@@ -289,6 +291,7 @@ _BOX, _CYL = PrimitiveKind.BOX, PrimitiveKind.CYLINDER
 _DOWN, _FORWARD = (0.0, 0.0, -1.0), (1.0, 0.0, 0.0)
 _YELLOW, _GREEN = (0.98, 0.82, 0.16, 1.0), (0.10, 0.45, 0.20, 1.0)
 _WHITE, _BLUE, _RED = (0.93, 0.94, 0.96, 1.0), (0.10, 0.32, 0.80, 1.0), (0.75, 0.12, 0.10, 1.0)
+_WOOD = (0.80, 0.62, 0.40, 1.0)
 
 # A kitchen sponge cut to 3.5 cm so the fingers (50 mm at most) close across it with 7.5 mm to
 # spare per side. The TCP sits 2 mm below its top: fingertips 6.5 mm above the table, 23.5 mm of
@@ -341,9 +344,20 @@ MUG = ObjectSpec(
                     max_turn_rad=math.radians(145.0)),
 )
 
-_CATALOG = MappingProxyType({spec.name: spec for spec in (SPONGE, SPRAY_BOTTLE, MUG)})
-OBJECT_TYPES: tuple[str, ...] = tuple(_CATALOG)
-"""Names of the catalog's object types, in a fixed order (a one-hot condition's order)."""
+# A wooden toy block the sponge's size and shape, never a target: the yumi scene's distractor,
+# a box on the table a model must not take for the sponge. Its grasp is the sponge's.
+BLOCK = ObjectSpec(
+    name="block",
+    primitives=(Primitive(_BOX, (0.085, 0.035, 0.030), (0.0, 0.0, 0.015), _WOOD),),
+    mass_kg=0.05, lateral_friction=1.0, spinning_friction_m=0.003, rolling_friction_m=0.0005,
+    grasp=GraspSpec((0.0, 0.0, 0.028), _DOWN, (0.0, 1.0, 0.0), 0.05, 0.08, Symmetry.TWO_FOLD),
+)
+
+_CATALOG = MappingProxyType({spec.name: spec for spec in (SPONGE, SPRAY_BOTTLE, MUG, BLOCK)})
+OBJECT_TYPES: tuple[str, ...] = ("sponge", "spray_bottle", "mug")
+"""Names of the object types a task targets, in a fixed order (a one-hot condition's order)."""
+DISTRACTOR_TYPES: tuple[str, ...] = ("block",)
+"""Catalog types presented only as distractors, never targets."""
 
 
 def get_object_spec(name: str) -> ObjectSpec:
@@ -351,7 +365,7 @@ def get_object_spec(name: str) -> ObjectSpec:
     try:
         return _CATALOG[name]
     except KeyError:
-        raise InvalidInputError("object type", name, f"one of {', '.join(OBJECT_TYPES)}") from None
+        raise InvalidInputError("object type", name, f"one of {', '.join(_CATALOG)}") from None
 
 
 class ObstacleShape(NamedTuple):

@@ -107,10 +107,11 @@ def check_task_fits(task: TaskSpec, spec: SceneSpec) -> None:
         raise InvalidInputError(f"{where}: objects.count", task.count,
                                 f"{len(spec.object_types)} (one of each of "
                                 f"{', '.join(spec.object_types)})")
-    unknown = [t for t in task.distractors if t not in spec.object_types]
+    presentable = spec.object_types + spec.distractor_types
+    unknown = [t for t in task.distractors if t not in presentable]
     if unknown:
         raise InvalidInputError(f"{where}: distractors.types", unknown,
-                                f"types of the scene: {', '.join(spec.object_types)}")
+                                f"types of the scene: {', '.join(presentable)}")
     for field, own, scene_range in (("x_m", task.workspace_x_m, spec.workspace_x_m),
                                     ("y_m", task.workspace_y_m, spec.workspace_y_m)):
         if own is not None and not (scene_range[0] <= own[0] and own[1] <= scene_range[1]):

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from perception.interface import LabelKind
 from sim.camera import CameraConfig
 from sim.errors import InvalidInputError
-from sim.objects import OBJECT_TYPES
+from sim.objects import DISTRACTOR_TYPES, OBJECT_TYPES
 
 
 @dataclass(frozen=True)
@@ -26,6 +26,7 @@ class SceneSpec:
     Args:
         name: ``paper-sim`` or ``yumi``.
         object_types: The scene's object types, in one-hot (and target) order.
+        distractor_types: Further types a task may present as distractors only.
         workspace_x_m, workspace_y_m: Where object centres may be placed [m].
         label_kind: What a model predicts per target in this scene.
 
@@ -36,6 +37,7 @@ class SceneSpec:
     workspace_x_m: tuple[float, float]
     workspace_y_m: tuple[float, float]
     label_kind: LabelKind
+    distractor_types: tuple[str, ...] = ()
 
     @property
     def centre_y_m(self) -> float:
@@ -52,6 +54,7 @@ YUMI_SCENE = SceneSpec(
     workspace_x_m=(0.40, 0.55),
     workspace_y_m=(-0.20, 0.20),
     label_kind=LabelKind.GRASP_POSE,
+    distractor_types=DISTRACTOR_TYPES,
 )
 
 

@@ -27,11 +27,12 @@ a user writes a new one as a TOML file and passes its path wherever a task name 
     brightness = 1.0          # 1 = the scene's normal light; 0.3 is a dim room
 
     [distractors]
-    types = []                # extra objects that are never targets
+    types = []                # extra objects that are never targets (yumi: also "block")
 
 A task is valid in both scenes: the object types come from the scene (``paper-sim``: duck,
-soccer ball, mug; ``yumi``: sponge, spray bottle, mug), and so does the workspace unless the
-task narrows it with ``[placement] x_m = [lo, hi]`` and ``y_m = [lo, hi]``.
+soccer ball, mug; ``yumi``: sponge, spray bottle, mug, plus a wooden block as a distractor
+only), and so does the workspace unless the task narrows it with ``[placement] x_m = [lo, hi]``
+and ``y_m = [lo, hi]``.
 """
 
 from __future__ import annotations

@@ -16,6 +16,7 @@ from robots import yumi
 from sim.errors import InvalidInputError
 from sim.grasps import grasp_pose
 from sim.objects import (
+    DISTRACTOR_TYPES,
     FINGERTIP_BEYOND_TCP_M,
     MIN_FINGERTIP_HEIGHT_M,
     OBJECT_TYPES,
@@ -42,7 +43,8 @@ def world() -> Iterator[World]:
 
 def test_catalog_names_and_unknown_name() -> None:
     assert OBJECT_TYPES == ("sponge", "spray_bottle", "mug")
-    allowed = r"object type = 'cup' is not allowed: one of sponge, spray_bottle, mug$"
+    assert DISTRACTOR_TYPES == ("block",)
+    allowed = r"object type = 'cup' is not allowed: one of sponge, spray_bottle, mug, block$"
     with pytest.raises(InvalidInputError, match=allowed):
         get_object_spec("cup")
 
@@ -70,7 +72,7 @@ def _inside(kind: PrimitiveKind, size: tuple[float, float, float], pose: Pose,
     return bool(math.hypot(local[0], local[1]) <= half[0] and abs(local[2]) <= half[2])
 
 
-@pytest.mark.parametrize("name", OBJECT_TYPES)
+@pytest.mark.parametrize("name", OBJECT_TYPES + DISTRACTOR_TYPES)
 def test_objects_fit_the_gripper(name: str) -> None:
     spec = get_object_spec(name)
     assert 0.0 < spec.mass_kg <= 0.5
@@ -163,7 +165,7 @@ def test_grasp_is_continuous_in_yaw_away_from_switch_points(name: str, switches:
         assert jumps == switches
 
 
-@pytest.mark.parametrize("name", OBJECT_TYPES)
+@pytest.mark.parametrize("name", OBJECT_TYPES + DISTRACTOR_TYPES)
 def test_object_rests_on_the_table(world: World, name: str) -> None:
     world.reset_scene()
     body = world.add_object(get_object_spec(name), (0.45, 0.05), 0.7)

@@ -80,7 +80,7 @@ def test_the_variants_are_task_files_the_checkpoint_is_accepted_for(tiny_run):
     dark = load_task(variant_file(tiny_run, TrialSet(UNIT, Variant.DARK)))
     distractor = load_task(variant_file(tiny_run, TrialSet(UNIT, Variant.DISTRACTOR)))
     assert (dark.name, dark.brightness, dark.distractors) == ("single-dark", 0.5, ())
-    assert (distractor.name, distractor.distractors) == ("single-distractor", ("sponge",))
+    assert (distractor.name, distractor.distractors) == ("single-distractor", ("block",))
     model = load_model(tiny_run / "checkpoints" / "kqv" / "single")
     for task in (dark, distractor):
         check_model_fits_task(model, task, "kqv")  # trained on `single`: accepted
@@ -90,9 +90,9 @@ def test_the_variants_are_task_files_the_checkpoint_is_accepted_for(tiny_run):
 
     plain = scenes("single")
     assert scenes("single-dark") == plain
-    for index, objects in scenes("single-distractor").items():  # the same scene, plus a sponge
+    for index, objects in scenes("single-distractor").items():  # the same scene, plus a block
         assert objects[:1] == plain[index]
-        assert (objects[1]["type"], objects[1]["distractor"]) == ("sponge", True)
+        assert (objects[1]["type"], objects[1]["distractor"]) == ("block", True)
 
 
 def test_a_rerun_skips_everything(tiny_run):
@@ -168,7 +168,7 @@ def test_the_markdown_has_the_papers_row_ours_and_the_failure_reasons():
     paper = lines.index("| Paper (real YuMi, 20 demonstrations) | 27/30 | 28/30 | 26/30 | 27/30 |")
     assert lines[paper + 1] == "| Ours (kqv, q=min) | 28/30 | — | — | — |"
     assert lines[paper + 2] == "| FCN | 20/20* | — | — | — |"  # 10 of 30 trials missing
-    assert lines[paper + 3] == "| Ours (kqv, q=min), + sponge distractor | 3/5 | — | — | — |"
+    assert lines[paper + 3] == "| Ours (kqv, q=min), + block distractor | 3/5 | — | — | — |"
     assert "| Ours (kqv, q=min) | 79-98 %; 1.0 cm |" in text
     reasons = text[text.index("## Failure reasons"):]
     assert "- **Ours (kqv, q=min)**: success 28, ik_unreachable 1, missed 1; picks by object: " \

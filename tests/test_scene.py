@@ -72,12 +72,15 @@ def test_multiple_targets_every_object_in_type_order():
         assert order == list(YUMI_SCENE.object_types)
 
 
-def test_distractors_are_presented_but_never_targets():
-    task = task_from_toml('name = "d"\n[objects]\ncount = 1\n[distractors]\ntypes = ["mug"]')
+@pytest.mark.parametrize("distractor", ["mug", "block"])
+def test_distractors_are_presented_but_never_targets(distractor):
+    task = task_from_toml('name = "d"\n[objects]\ncount = 1\n[distractors]\n'
+                          f'types = ["{distractor}"]')
     for index in range(20):
         scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, index)
         assert len(scene.objects) == 2 and scene.objects[1].distractor
-        assert scene.targets == (0,)
+        assert scene.objects[1].object_type == distractor
+        assert scene.targets == (0,) and scene.objects[0].object_type != "block"
 
 
 @pytest.mark.parametrize("task_name", builtin_tasks())
@@ -104,5 +107,5 @@ def test_an_impossible_task_in_a_scene_is_named():
         sample_scene(crowded, YUMI_SCENE, 0, SeedStream.TEST, 0)
     alien = task_from_toml('name = "a"\n[distractors]\ntypes = ["duck"]')
     with pytest.raises(InvalidInputError, match=r"distractors\.types = \['duck'\] is not allowed: "
-                       r"types of the scene: sponge, spray_bottle, mug"):
+                       r"types of the scene: sponge, spray_bottle, mug, block"):
         sample_scene(alien, YUMI_SCENE, 0, SeedStream.TEST, 0)
