@@ -23,7 +23,7 @@ from perception.interface import (
 )
 from perception.labels import split_label
 from perception.learnable import LearnableModel
-from perception.models.base import symmetric_angle_rad
+from perception.models.rotations import symmetric_angle_rad
 
 
 @dataclass(frozen=True)

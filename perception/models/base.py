@@ -106,46 +106,18 @@ def images_to_tensor(images: np.ndarray, device: torch.device | str = "cpu") -> 
     return tensor.permute(0, 3, 1, 2).float().div_(255.0)  # (B, 3, H, W)
 
 
-def rotation_from_6d(six: Tensor) -> Tensor:
-    """The rotation whose first two columns are Gram-Schmidt of ``six`` (..., 6) -> (..., 3, 3).
+def normalise_images(images: Tensor, per_image: bool = False) -> Tensor:
+    """Images (B, 3, H, W) in [0, 1] -> roughly zero mean and unit spread per channel.
 
-    The continuous 6-D representation of Zhou et al. (2019): unlike quaternions or Euler angles
-    it has no discontinuity a network must jump across, and any 6 numbers give a proper rotation.
+    Fixed: ``(images - 0.5) / 0.25`` for every image alike. ``per_image``: each image's channels
+    standardised by their own mean and spread, so a scene under dimmer or brighter light (every
+    pixel scaled alike, as PyBullet's renderer scales them) reads the same.
     """
-    a1, a2 = six[..., :3], six[..., 3:]  # (..., 3) each
-    b1 = torch.nn.functional.normalize(a1, dim=-1)  # (..., 3)
-    b2 = torch.nn.functional.normalize(a2 - (b1 * a2).sum(-1, keepdim=True) * b1, dim=-1)
-    b3 = torch.cross(b1, b2, dim=-1)  # (..., 3)
-    return torch.stack([b1, b2, b3], dim=-1)  # (..., 3, 3), columns b1, b2, b3
-
-
-FLIP_Z = torch.diag(torch.tensor([-1.0, -1.0, 1.0]))
-"""A half turn about the TCP z axis: ``R @ FLIP_Z`` is the same parallel-gripper grasp as ``R``."""
-
-
-def symmetric_chordal_loss(rotation: Tensor, target: Tensor) -> Tensor:
-    """||R - R*||²_F, the smaller of R* and R* turned by π about its z axis: (..., 3, 3) -> (...).
-
-    A parallel gripper turned half a turn about its approach axis makes the same grasp, so the
-    network is not punished for predicting the equivalent one.
-    """
-    flipped = target @ FLIP_Z.to(target)  # (..., 3, 3)
-    direct = (rotation - target).square().sum(dim=(-2, -1))  # (...)
-    other = (rotation - flipped).square().sum(dim=(-2, -1))  # (...)
-    return torch.minimum(direct, other)
-
-
-def symmetric_angle_rad(rotation: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """Geodesic angle [rad] between rotations (..., 3, 3), the smaller over the π-about-z twin.
-
-    From the chordal distance, ||R - R*||_F = √8 sin(θ/2), which unlike arccos of the trace
-    stays accurate for small angles.
-    """
-    def angle(other: np.ndarray) -> np.ndarray:
-        chord = np.sqrt(np.square(rotation - other).sum(axis=(-2, -1)))
-        return 2 * np.arcsin(np.clip(chord / math.sqrt(8), 0.0, 1.0))
-
-    return np.minimum(angle(target), angle(target @ np.diag([-1.0, -1.0, 1.0])))
+    if not per_image:
+        return (images - 0.5) / 0.25
+    mean = images.mean(dim=(-2, -1), keepdim=True)  # (B, 3, 1, 1)
+    spread = images.std(dim=(-2, -1), keepdim=True).clamp(min=1e-3)  # (B, 3, 1, 1)
+    return (images - mean) / spread
 
 
 @dataclass(frozen=True)

@@ -30,7 +30,7 @@ from torch import Tensor, nn
 
 from perception.interface import InvalidInputError
 from perception.learnable import ModelSpec, check_choices
-from perception.models.base import MLP
+from perception.models.base import MLP, normalise_images
 from perception.models.torch_model import NetOutput, Phase, TorchModel, pose_size, split_pose
 from perception.train import Batch
 
@@ -105,11 +105,6 @@ def conv_stack(channels: Sequence[int], kernels: Sequence[int], strides: Sequenc
         if activate_last or index < len(kernels) - 1:
             layers.append(nn.ReLU())
     return nn.Sequential(*layers)
-
-
-def normalise_images(images: Tensor) -> Tensor:
-    """Images (B, 3, H, W) in [0, 1] -> roughly zero mean, unit spread, as the KQV model reads."""
-    return (images - 0.5) / 0.25
 
 
 class Encoding(NamedTuple):

@@ -39,13 +39,15 @@ from perception.models.base import (
     LabelScaler,
     coordinate_grid,
     images_to_tensor,
+    normalise_images,
     normalised_to_pixels,
     softmax2d,
     spatial_expectation,
 )
 from perception.models.kqv_config import KqvConfig
 from perception.models.readout import CameraRays
-from perception.models.torch_model import NetOutput, TorchModel, pose_size, split_pose
+from perception.models.rotations import decode_rotation, rotation_size
+from perception.models.torch_model import NetOutput, TorchModel
 from perception.train import Batch, TrainConfig, TrainReport, train
 
 
@@ -70,6 +72,10 @@ class KqvNet(nn.Module):
                 spec.camera is not None else "mlp"
         self.stride = c.stride or (2 if self.readout == "ray" else 4)
         first, second = {1: (1, 1), 2: (2, 1), 4: (2, 2)}[self.stride]
+        norm = c.input_norm
+        if norm == "auto":
+            norm = "per-image" if spec.label_kind is LabelKind.GRASP_POSE else "fixed"
+        self.per_image = norm == "per-image"
         self.temperature = c.temperature
         self.similarity = c.similarity
         self.key_net = nn.Sequential(  # FCN1 with CoordConv: (B, 3, H, W) -> (B, Ck + 2, h, w)
@@ -114,7 +120,9 @@ class KqvNet(nn.Module):
         # The ray readout's head reads no coordinates: the camera places the point.
         head_in = (2 if self.rays is None else 0) + (value if reads_features else 0) + \
             (spec.targets if spec.targets > 1 else 0)
-        head_out = pose_size(spec.label_kind) + (1 if self.rays is not None else 0)
+        self.rotation = c.rotation if spec.label_kind is LabelKind.GRASP_POSE else None
+        self.place_size = 3 if self.rays is None else 4  # position | height and offset
+        head_out = self.place_size + (rotation_size(self.rotation) if self.rotation else 0)
         self.head = MLP((head_in, c.head_width, c.head_width, head_out))
 
     def queries(self, conditions: Tensor) -> Tensor:
@@ -129,7 +137,7 @@ class KqvNet(nn.Module):
 
     def attend(self, images: Tensor, queries: Tensor) -> Attention:
         """Selection and extraction: images (B, 3, H, W) in [0, 1], queries (B, q', Ck + 2)."""
-        x = (images - 0.5) / 0.25  # (B, 3, H, W), roughly zero mean, unit spread
+        x = normalise_images(images, self.per_image)  # (B, 3, H, W)
         keys = self.key_net(x)  # (B, Ck + 2, h, w)
         values = self.value_net(x)  # (B, Cv, h, w)
         height, width = keys.shape[-2:]
@@ -154,15 +162,19 @@ class KqvNet(nn.Module):
             parts.append(attention.features)  # (B, q, Cv)
         if self.targets > 1:
             parts.append(torch.eye(heads, device=images.device).expand(batch, -1, -1))
-        out = self.head(torch.cat(parts, dim=-1))  # (B, q, 3|9 (+1 with rays))
+        out = self.head(torch.cat(parts, dim=-1))  # (B, q, 3 | 4 (+ 6 | 9 for a rotation))
+        place, turn = out[..., :self.place_size], None
         if self.rays is None:
-            positions, rotations = split_pose(out)  # (B, q, 3), (B, q, 3, 3) | None
+            positions = place  # (B, q, 3)
         else:
             if self.scaler is None:
                 raise InvalidInputError("scaler", None, "a LabelScaler before the ray readout "
                                         "runs (KqvModel sets it on fit and load)")
-            positions, rotations = self.rays.read(attention.coords, out, self.scaler)
-        return NetOutput(positions, rotations, attention.coords, attention.heatmaps)
+            positions, turn = self.rays.read(attention.coords, place, self.scaler)
+        rotations = lines = None
+        if self.rotation is not None:  # (B, q, 3, 3), (B, q, 3, 4) | None
+            rotations, lines = decode_rotation(out[..., self.place_size:], self.rotation, turn)
+        return NetOutput(positions, rotations, attention.coords, attention.heatmaps, lines)
 
 
 class KqvModel(TorchModel):

@@ -11,9 +11,11 @@ from dataclasses import dataclass
 
 from perception.interface import InvalidInputError
 from perception.learnable import check_choices
+from perception.models.rotations import ROTATION_CODES
 
 QUERY_MODES = ("auto", "base", "conditioned", "conditioned+base")
 READOUTS = ("auto", "mlp", "ray")
+INPUT_NORMS = ("auto", "fixed", "per-image")
 
 
 @dataclass(frozen=True)
@@ -26,6 +28,14 @@ class KqvConfig:
         key_dim: Ck, the Key's learned channels; Keys and Queries have Ck + 2 entries (the two
             coordinate channels ride along, so a Query can prefer a place as well as a look).
         value_dim: Cv, the Feature Value's channels (the length of ``a_feat``).
+        input_norm: How images are scaled before the FCNs. ``"fixed"``: ``(image - 0.5) / 0.25``.
+            ``"per-image"``: each image's colour channels standardised by their own mean and
+            spread, so a darker room (PyBullet scales every pixel alike: brightness 0.5 halves
+            them) looks like the bright one the demonstrations were recorded in; training's
+            brightness augmentation (0.7-1.3) does not reach that far (yumi trials under
+            brightness 0.5 with fixed scaling: 1, 0, 1, 0 of 30). ``"auto"``: per-image for
+            grasp-pose labels (the robot's trials), fixed for positions (the paper's simulator
+            experiment, Table II, as measured).
         stride: Downsampling from image to heatmap, 1, 2 or 4 (stride 2 in the first one or two
             layers of each FCN): 4 turns 128 x 128 images into 32 x 32 heatmaps. None: 2 with
             the ray readout, 4 otherwise. A picked object needs its point to within a pixel or
@@ -111,6 +121,12 @@ class KqvConfig:
             (yumi ``multiple``, 20 demonstrations, 100 untrained scenes, bottle grasp error and
             grasps more than 8.5 mm off along the closing axis): 1 -> 0.80 cm, 16 of 100;
             10 -> 0.50 cm, 5 of 100. 0: the paper's free attention.
+        rotation: How the head gives a grasp's rotation (:mod:`perception.models.rotations`).
+            ``"6d"``: Zhou et al.'s 6-D representation. ``"axis-line"``: the approach axis and
+            the closing axis's line tensor, the same for a grasp and its half-turn twin, so the
+            sponge, whose labels switch twin where its closing axis is radial, has no seam to
+            jump (a 6-D head averages the twins there into a frame that can point anywhere:
+            yumi ``multiple`` picks approached sponges from below).
         head_width: Width of the head MLP's two hidden layers.
         rotation_loss_weight: Weight of the chordal rotation loss against the position loss
             (squared distance in scaled units); 0.1 weighs 1 cm (at a 0.2 m label scale) like
@@ -122,6 +138,7 @@ class KqvConfig:
     channels: tuple[int, int] = (16, 32)
     key_dim: int = 16
     value_dim: int = 16
+    input_norm: str = "auto"
     stride: int | None = None
     similarity: str = "cosine"
     temperature: float = 0.1
@@ -133,6 +150,7 @@ class KqvConfig:
     head_features: bool | None = None
     readout: str = "auto"
     point_loss_weight: float = 10.0
+    rotation: str = "axis-line"
     head_width: int = 64
     rotation_loss_weight: float = 0.1
     seed: int = 0
@@ -152,6 +170,8 @@ class KqvConfig:
         check_choices("query_mode", self.query_mode, QUERY_MODES)
         check_choices("similarity", self.similarity, ("cosine", "dot"))
         check_choices("readout", self.readout, READOUTS)
+        check_choices("input_norm", self.input_norm, INPUT_NORMS)
+        check_choices("rotation", self.rotation, ROTATION_CODES)
         for name in ("temperature", "warmup_temperature"):
             if not (math.isfinite(getattr(self, name)) and getattr(self, name) > 0):
                 raise InvalidInputError(name, getattr(self, name), "a finite value > 0")

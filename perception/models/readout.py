@@ -13,20 +13,15 @@ from torch import Tensor, nn
 
 from perception.interface import InvalidInputError
 from perception.learnable import ModelSpec
-from perception.models.base import (
-    LabelScaler,
-    normalised_to_pixels,
-    pixels_to_normalised,
-    rotation_from_6d,
-)
+from perception.models.base import LabelScaler, normalised_to_pixels, pixels_to_normalised
 
 
 class CameraRays(nn.Module):
     """The ray readout: a target's pose from its attention point, through the calibrated camera.
 
-    The head's output per target is ``(height, offset (3), rotation (6-D, with grasp labels))``
-    in network units; the target is where the point's ray meets the plane z = height, plus the
-    offset, which, like the rotation, is expressed in the frame turned about z toward that
+    The head's output per target begins ``(height, offset (3))`` in network units; the target is
+    where the point's ray meets the plane z = height, plus the offset, which, like the grasp's
+    rotation the head gives after them, is expressed in the frame turned about z toward that
     point's bearing from the world origin (the robot base).
     """
 
@@ -52,11 +47,11 @@ class CameraRays(nn.Module):
         self.register_buffer("basis", basis, persistent=False)
         self.register_buffer("origin", origin, persistent=False)
 
-    def read(self, coords: Tensor, out: Tensor, scaler: LabelScaler
-             ) -> tuple[Tensor, Tensor | None]:
-        """Targets from points (B, q, 2) in [-1, 1] and head outputs (B, q, 4 | 10).
+    def read(self, coords: Tensor, out: Tensor, scaler: LabelScaler) -> tuple[Tensor, Tensor]:
+        """Targets from points (B, q, 2) in [-1, 1] and head outputs (B, q, 4): height, offset.
 
-        Returns positions (B, q, 3) in the scaler's units and rotations (B, q, 3, 3) | None.
+        Returns positions (B, q, 3) in the scaler's units and the turns (B, q, 3, 3) about z
+        toward each point's bearing, which take the head's rotations to the world frame.
         """
         camera = self.camera
         pixels = normalised_to_pixels(coords, camera.height_px, camera.width_px)  # (B, q, 2)
@@ -75,8 +70,7 @@ class CameraRays(nn.Module):
                            dim=-1).unflatten(-1, (3, 3))  # (B, q, 3, 3) about z
         offset_m = scaler.scale_m * (turn @ out[..., 1:4, None])[..., 0]  # (B, q, 3)
         positions = (point + offset_m - centre) / scaler.scale_m  # (B, q, 3)
-        rotations = None if out.shape[-1] == 4 else turn @ rotation_from_6d(out[..., 4:])
-        return positions, rotations
+        return positions, turn
 
     def project(self, points_m: Tensor) -> Tensor:
         """Where world points (..., 3) [m] appear: normalised image (x, y) in [-1, 1], (..., 2).

@@ -40,13 +40,8 @@ from perception.checkpoint import (
 from perception.data import Dataset
 from perception.interface import ConditionKind, InvalidInputError, LabelKind, Prediction, Target
 from perception.learnable import LearnableModel, ModelSpec
-from perception.models.base import (
-    LabelScaler,
-    images_to_tensor,
-    normalised_to_pixels,
-    rotation_from_6d,
-    symmetric_chordal_loss,
-)
+from perception.models.base import LabelScaler, images_to_tensor, normalised_to_pixels
+from perception.models.rotations import axis_line_loss, rotation_from_6d, symmetric_chordal_loss
 from perception.train import Batch, TrainConfig, TrainReport, train
 
 
@@ -57,6 +52,8 @@ class NetOutput(NamedTuple):
     rotations: Tensor | None  # (B, q, 3, 3) proper rotations; None for position labels
     points: Tensor | None = None  # (B, p, 2) attention points, (x, y) in [-1, 1]; None: none
     heatmaps: Tensor | None = None  # (B, p, h, w), each summing to 1; None where it has none
+    rotation_lines: Tensor | None = None  # (B, q, 3, 4) axis-line codes; None: the loss reads
+    # the rotations (see perception.models.rotations)
 
 
 def pose_size(label_kind: LabelKind) -> int:
@@ -143,18 +140,20 @@ class TorchModel(LearnableModel):
         return self.target_loss(self.network(batch.images, batch.conditions), batch.labels)
 
     def target_loss(self, out: NetOutput, labels: Tensor) -> Tensor:
-        """Squared position error (scaled units) + weighted symmetric chordal rotation loss.
+        """Squared position error (scaled units) + weighted rotation loss.
 
         The position term is the squared Euclidean distance in the scaler's units, so it stays
-        proportional to the error in metres the paper reports; the rotation term counts a half
+        proportional to the error in metres the paper reports; the rotation term, the symmetric
+        chordal loss or, for a head with axis-line codes, the loss on those codes, counts a half
         turn about the TCP's approach axis as no error (the same parallel-gripper grasp).
         """
         target = self._scaler().normalise(labels[..., :3])  # (B, q, 3)
         loss = (out.positions - target).square().sum(dim=-1).mean()
         if out.rotations is not None:
             rotation = labels[..., 3:].unflatten(-1, (3, 3))  # (B, q, 3, 3), row-major
-            chordal = symmetric_chordal_loss(out.rotations, rotation).mean()
-            loss = loss + self.config.rotation_loss_weight * chordal
+            rotation_loss = symmetric_chordal_loss(out.rotations, rotation) \
+                if out.rotation_lines is None else axis_line_loss(out.rotation_lines, rotation)
+            loss = loss + self.config.rotation_loss_weight * rotation_loss.mean()
         return loss
 
     # predicting
