@@ -326,10 +326,11 @@ SPRAY_BOTTLE = ObjectSpec(
 )
 
 # An 8 cm mug with 5 mm walls (12 flat segments: PyBullet's compound shapes hold 16 primitives)
-# and a handle at +x. Taken top-down on the rim, one finger inside and one outside (40 mm
-# opening: 17.5 mm to spare per side of the wall), the TCP 5 mm below the rim. The rim grasp may
+# and a handle at +x. Taken top-down on the rim, one finger inside and one outside, opened fully
+# (50 mm: 22.5 mm to spare per side of the wall; at 40 mm, rim grasps 1.6 cm off toward the mug's
+# axis picked 7 of 12 mugs, at 50 mm 12 of 12), the TCP 5 mm below the rim. The rim grasp may
 # turn 145 deg either way from the side opposite the handle: the open outer finger (21 mm wide)
-# then clears the handle (12 mm wide) by about 18 mm.
+# then clears the handle (12 mm wide) by about 21 mm.
 MUG = ObjectSpec(
     name="mug",
     primitives=(
@@ -340,7 +341,7 @@ MUG = ObjectSpec(
         Primitive(_BOX, (0.008, 0.012, 0.058), (0.063, 0.0, 0.047), _RED),  # handle, grip
     ),
     mass_kg=0.3, lateral_friction=1.0, spinning_friction_m=0.003, rolling_friction_m=0.0005,
-    grasp=GraspSpec((-0.0375, 0.0, 0.085), _DOWN, (-1.0, 0.0, 0.0), 0.04, 0.08, Symmetry.NONE,
+    grasp=GraspSpec((-0.0375, 0.0, 0.085), _DOWN, (-1.0, 0.0, 0.0), 0.05, 0.08, Symmetry.NONE,
                     max_turn_rad=math.radians(145.0)),
 )
 

@@ -272,7 +272,7 @@ def test_grasp_lifts_and_holds(
     motion.follow(to_above, 1.5)
     motion.follow(down, 2.0)
     world.robot.close_gripper(side)
-    motion.wait(0.8)
+    motion.wait(spec.grasp.opening_m / 2 / yumi.FINGER_MAX_SPEED_M_S + 0.2)  # closed, squeezing
     squeeze_n = [sum(c[9] for c in world.client.getContactPoints(
         bodyA=world.robot.body_id, bodyB=body, linkIndexA=world.robot.joint_index(finger)))
         for finger in yumi.GRIPPER_JOINTS[side]]
