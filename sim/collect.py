@@ -23,7 +23,9 @@ from tqdm import tqdm
 
 from perception.data import Dataset, DatasetMetadata, save_dataset
 from perception.labels import label_vector
+from perception.mirror import MIRROR_FLAG
 from sim.errors import InvalidInputError, SimError
+from sim.mirror import mirror_symmetric
 from sim.records import TrialOutcome
 from sim.scene import SeedStream, check_task_fits, condition_choices, sample_scene
 from sim.scenes import SCENE_NAMES, SceneSpec, get_scene_spec
@@ -156,5 +158,5 @@ def _collect_yumi(
             bar.update()
         camera = _camera_json(runner.camera)
     extra = {"stream": settings.stream.name.lower(), "demonstrations_redrawn": len(redrawn),
-             "redrawn": redrawn}
+             "redrawn": redrawn, MIRROR_FLAG: mirror_symmetric(task, spec, runner.camera.config)}
     return samples, camera, extra

@@ -33,6 +33,7 @@ from torch import Tensor, nn
 from perception.data import Dataset
 from perception.interface import ConditionKind, InvalidInputError, LabelKind, Prediction
 from perception.learnable import ModelSpec
+from perception.mirror import MIRROR_FLAG, Mirror
 from perception.models.base import (
     MLP,
     CoordConv,
@@ -197,6 +198,7 @@ class KqvModel(TorchModel):
         return network
 
     _steps_taken = 0  # training steps of the current fit, for the temperature warm-up
+    _mirror: Mirror | None = None  # mirrors training samples (KqvConfig.mirror)
 
     def fit(self, dataset: Dataset, config: TrainConfig | None = None,
             progress: bool = True) -> TrainReport:
@@ -210,6 +212,10 @@ class KqvModel(TorchModel):
         time includes the dropped starts'.
         """
         config = config or TrainConfig()
+        mirror = self.config.mirror
+        if mirror is None:
+            mirror = dataset.metadata.extra.get(MIRROR_FLAG) is True
+        self._mirror = Mirror(self.spec, config.seed) if mirror else None
         try:
             fresh = self.scaler is None  # a first fit may try several starts; a later one not
             if fresh:
@@ -256,6 +262,8 @@ class KqvModel(TorchModel):
     def batch_loss(self, batch: Batch) -> Tensor:
         """The target loss, at the temperature the warm-up has reached by this step.
 
+        With :attr:`KqvConfig.mirror`, a random half of the batch is mirrored first.
+
         With the ray readout, plus :attr:`KqvConfig.point_loss_weight` times the squared
         distance (normalised image units) from each attention point to its target's grasp
         point as the camera sees it.
@@ -265,6 +273,8 @@ class KqvModel(TorchModel):
         self.network.temperature = c.warmup_temperature + done * (c.temperature -
                                                                   c.warmup_temperature)
         self._steps_taken += 1
+        if self._mirror is not None:
+            batch = self._mirror(batch)
         out = self.network(batch.images, batch.conditions)
         loss = self.target_loss(out, batch.labels)
         rays = self.network.rays

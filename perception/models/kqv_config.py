@@ -127,6 +127,14 @@ class KqvConfig:
             sponge, whose labels switch twin where its closing axis is radial, has no seam to
             jump (a 6-D head averages the twins there into a frame that can point anywhere:
             yumi ``multiple`` picks approached sponges from below).
+        mirror: Whether training also shows a random half of each batch mirrored across the
+            world's xz-plane, labels mirrored with it (:mod:`perception.mirror`): valid where
+            the camera sits on that plane (checked) and the task's targets are not ordered by
+            their y. None: when the dataset's collector says its task allows it (the yumi
+            collector checks camera, objects, workspace and target order: all four paper tasks
+            do). Twenty demonstrations then teach like forty: offline, yumi ``multiple``, 100
+            untrained scenes, seed 0, spray bottle grasp error 0.39 -> 0.29 cm mean, mug grasps
+            more than 8.5 mm off along the closing axis 25 -> 10 of 100.
         head_width: Width of the head MLP's two hidden layers.
         rotation_loss_weight: Weight of the chordal rotation loss against the position loss
             (squared distance in scaled units); 0.1 weighs 1 cm (at a 0.2 m label scale) like
@@ -151,6 +159,7 @@ class KqvConfig:
     readout: str = "auto"
     point_loss_weight: float = 10.0
     rotation: str = "axis-line"
+    mirror: bool | None = None
     head_width: int = 64
     rotation_loss_weight: float = 0.1
     seed: int = 0
@@ -178,6 +187,8 @@ class KqvConfig:
         for name in ("rotation_loss_weight", "point_loss_weight"):
             if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
                 raise InvalidInputError(name, getattr(self, name), "a finite value >= 0")
+        if self.mirror not in (None, True, False):
+            raise InvalidInputError("mirror", self.mirror, "None, True or False")
         if self.head_features not in (None, True, False):
             raise InvalidInputError("head_features", self.head_features, "None, True or False")
         if not isinstance(self.seed, int) or self.seed < 0:

@@ -1,0 +1,92 @@
+"""Mirror augmentation: a training sample and its mirror image across the world's xz-plane.
+
+Where the camera sits on the world's xz-plane, looking along it with z up (the yumi head
+camera: at y = 0, looking forward and down), the mirror image of a scene across that plane
+(y -> -y) is what the camera would see of the mirrored scene: the image flipped left to right.
+If the scene's objects are mirror-symmetric themselves (the sponge, the spray bottle and the
+mug are: about their own xz-planes), the mirrored scene is one more scene of the same task, and
+its labels follow from the sample's: a position's y negated, a grasp rotation ``R`` turned into
+``M R M`` with ``M = diag(1, -1, 1)`` (a proper rotation: the gripper's own y axis mirrored
+too, which a parallel gripper's symmetry allows), and a side condition's left and right swapped.
+Twenty demonstrations teach as much as forty.
+
+Not for every dataset: a task whose targets are ordered by their y (two of one type, no
+condition) would have them swapped. The simulator's collector records whether its task allows it
+(``metadata.extra[MIRROR_FLAG]``, see :mod:`sim.mirror`);
+:attr:`~perception.models.kqv_config.KqvConfig.mirror` follows that record by default. The
+light's shadows fall the other way in a mirrored image: one more lighting to learn from.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from perception.interface import ConditionKind, InvalidInputError, LabelKind
+from perception.learnable import ModelSpec
+from perception.train import Batch
+
+MIRROR_FLAG = "mirror_symmetric"
+"""The dataset ``extra`` key under which a collector says its samples may be mirrored."""
+MIRROR_Y = torch.diag(torch.tensor([1.0, -1.0, 1.0]))
+"""The world mirror across the xz-plane, ``M``."""
+TOLERANCE_M = 1e-9
+SIDE_PAIRS = {"left": "right", "right": "left"}
+
+
+class Mirror:
+    """Mirrors a random half of each training batch, for a model built to ``spec``.
+
+    Args:
+        spec: The model's spec; its camera must sit on the world's xz-plane (checked).
+        seed: Seeds which samples are mirrored.
+
+    """
+
+    def __init__(self, spec: ModelSpec, seed: int) -> None:
+        camera = spec.camera
+        if camera is None:
+            raise InvalidInputError("mirror", True, "False for a dataset that records no camera")
+        off_plane = {name: value for name, value in (("position_m", camera.position_m[1]),
+                                                     ("target_m", camera.target_m[1]),
+                                                     ("up", camera.up[1]))
+                     if abs(value) > TOLERANCE_M}
+        if off_plane:
+            raise InvalidInputError("mirror", True, "False: the camera's y components must be "
+                                    f"0 for a left-right mirror (they are {off_plane})")
+        ndc = np.asarray(camera.pixels_to_ndc(np.arange(camera.width_px, dtype=float), 0.0)[0])
+        source = np.asarray(camera.ndc_to_pixels(-ndc, 0.0)[0])  # column j shows column u(j)
+        # PyBullet samples column i at x = 2 i / W - 1, so the mirror of column j is W - j: the
+        # flip is off by one column from reversing the array; the first column repeats.
+        self.columns = torch.as_tensor(np.clip(np.rint(source), 0, camera.width_px - 1),
+                                       dtype=torch.long)  # (W,)
+        self.grasps = spec.label_kind is LabelKind.GRASP_POSE
+        self.swap: Tensor | None = None
+        if spec.condition_kind is ConditionKind.SIDE:
+            choices = list(spec.condition_choices)
+            if any(SIDE_PAIRS.get(c) not in choices for c in choices):
+                raise InvalidInputError("mirror", True, f"False for side choices {choices} "
+                                        "(needs both 'left' and 'right')")
+            self.swap = torch.tensor([choices.index(SIDE_PAIRS[c]) for c in choices])
+        self.generator = torch.Generator().manual_seed(seed)
+
+    def __call__(self, batch: Batch, flip: Tensor | None = None) -> Batch:
+        """The batch with a random half of its samples (or those ``flip`` (B,) marks) mirrored."""
+        if flip is None:
+            flip = torch.rand(batch.images.shape[0], generator=self.generator) < 0.5  # (B,)
+        if not flip.any():
+            return batch
+        images = batch.images.clone()
+        images[flip] = images[flip][..., self.columns.to(images.device)]  # (b, 3, H, W)
+        labels = batch.labels.clone()  # (B, q, 3 | 12)
+        mirrored = labels[flip]
+        mirrored[..., 1] = -mirrored[..., 1]  # y of the position
+        if self.grasps:
+            m = MIRROR_Y.to(labels)
+            mirrored[..., 3:] = (m @ mirrored[..., 3:].unflatten(-1, (3, 3)) @ m).flatten(-2)
+        labels[flip] = mirrored
+        conditions = batch.conditions.clone()
+        if self.swap is not None:
+            conditions[flip] = conditions[flip][:, self.swap.to(conditions.device)]
+        return Batch(images, conditions, labels)
