@@ -18,7 +18,8 @@ $(STAMP): pyproject.toml constraints.txt
 install: $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/gva reproduce real --out runs/demo --tasks single --models kqv --no-robustness
+	$(BIN)/gva reproduce real --out runs/demo --tasks single --models kqv --no-robustness \
+		--train-threads 2
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

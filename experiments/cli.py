@@ -223,6 +223,9 @@ def _add_reproduce_real(experiments: Any, tasks: Sequence[str]) -> None:
                       help="seeds the demonstrations, the weights and the test scenes (0)")
     real.add_argument("--workers", type=_integer(1),
                       help="processes at once (default: the cores this process may use)")
+    real.add_argument("--train-threads", type=_integer(1), default=1,
+                      help="torch threads per training job (1: jobs train side by side; a "
+                      "one-task run trains faster on all cores; results depend on it)")
     real.add_argument("--tasks", type=_names, default=tuple(tasks),
                       help=f"comma-separated (default all: {','.join(tasks)})")
     real.add_argument("--models", type=_names, default=("kqv",),
@@ -309,7 +312,8 @@ def _run_reproduce_real(args: argparse.Namespace) -> int:
 
     settings = ReproduceRealSettings(models=args.models, tasks=args.tasks, n=args.n,
                                      demos=args.demos, steps=args.steps, seed=args.seed,
-                                     robustness=args.robustness, workers=args.workers)
+                                     robustness=args.robustness, workers=args.workers,
+                                     train_threads=args.train_threads)
     report = run_reproduce_real(settings, args.out, progress=not args.no_progress)
     _print_run(report, "job(s) run", lambda record: record["job"])
     print(report.table)

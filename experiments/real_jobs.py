@@ -157,7 +157,7 @@ def _train(job: TrainJob) -> str:
     from sim.trials import torch_threads
 
     settings, unit = job.settings, job.unit
-    with torch_threads(1):
+    with torch_threads(settings.train_threads):
         data = load_dataset(dataset_file(job.out, unit.task, settings),
                             expect={"scene": SCENE, "task": unit.task, "size": settings.demos,
                                     "seed": settings.seed})

@@ -156,6 +156,10 @@ class ReproduceRealSettings:
         seed: Seeds the demonstrations (TRAIN stream), the weights and the trials (TEST stream).
         robustness: Also run :data:`ROBUST_MODEL`'s trials in the dark and with a distractor.
         workers: Processes at once; None: the cores this process may use.
+        train_threads: Torch threads of each training job. 1 lets units train side by side, one
+            per core; a run with a single unit (``make demo``) trains alone, and two threads on
+            two cores halve its training time. Results depend on it (float sums in another
+            order), so it is part of a checkpoint's identity.
 
     """
 
@@ -167,12 +171,14 @@ class ReproduceRealSettings:
     seed: int = 0
     robustness: bool = True
     workers: int | None = None
+    train_threads: int = 1
 
     def __post_init__(self) -> None:
         custom = tuple(m for m in self.models if ":" in m)  # package.module:Class
         check_choices("models", self.models, (*allowed_models(), *custom))
         check_choices("tasks", self.tasks, TASKS)
-        check_counts(self, {"n": 1, "demos": 1, "steps": 1, "seed": 0}, self.workers)
+        check_counts(self, {"n": 1, "demos": 1, "steps": 1, "seed": 0, "train_threads": 1},
+                     self.workers)
 
     def units(self) -> list[Unit]:
         """Every unit: models in the given order, tasks in the paper's."""
@@ -191,10 +197,10 @@ class ReproduceRealSettings:
         return self.workers if self.workers is not None else available_threads()
 
     def train_config(self) -> dict[str, Any]:
-        """The training settings of every unit (one torch thread: units run side by side)."""
+        """The training settings of every unit, on ``train_threads`` torch threads."""
         from perception.train import TrainConfig
 
-        return asdict(TrainConfig(steps=self.steps, seed=self.seed, threads=1))
+        return asdict(TrainConfig(steps=self.steps, seed=self.seed, threads=self.train_threads))
 
     def run_identity(self) -> dict[str, Any]:
         """What every job of a folder shares; ``run.json`` holds it."""
@@ -239,6 +245,8 @@ class ReproduceRealSettings:
             parts.append(f"--models {','.join(self.models)}")
         if not self.robustness:
             parts.append("--no-robustness")
+        if self.train_threads != 1:
+            parts.append(f"--train-threads {self.train_threads}")
         return " ".join(parts)
 
 

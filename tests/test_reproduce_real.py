@@ -117,6 +117,17 @@ def test_a_run_with_other_steps_is_refused(tiny_run):
     assert stderr.startswith("gva reproduce real: error:")
 
 
+def test_training_threads_are_part_of_the_run_and_of_its_command(tiny_run):
+    status, _, stderr = gva("reproduce", "real", "--out", tiny_run, *TINY, "--train-threads", "2")
+    assert status == 2
+    assert "holds a different run ({'train.threads': (1, 2)}, stored vs asked)" in stderr
+    two = ReproduceRealSettings(tasks=("single",), train_threads=2)
+    assert two.train_config()["threads"] == 2
+    assert two.command(Path("runs/demo")).endswith("--tasks single --train-threads 2")
+    status, _, stderr = gva("reproduce", "real", "--out", tiny_run, "--train-threads", "0")
+    assert status == 2 and "--train-threads" in stderr
+
+
 def test_a_failing_training_is_recorded_and_the_run_goes_on(tiny_run, tmp_path, monkeypatch):
     import perception.registry
 
