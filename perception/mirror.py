@@ -8,7 +8,7 @@ mug are: about their own xz-planes), the mirrored scene is one more scene of the
 its labels follow from the sample's: a position's y negated, a grasp rotation ``R`` turned into
 ``M R M`` with ``M = diag(1, -1, 1)`` (a proper rotation: the gripper's own y axis mirrored
 too, which a parallel gripper's symmetry allows), and a side condition's left and right swapped.
-Twenty demonstrations teach as much as forty.
+Twenty demonstrations then show forty scenes.
 
 Not for every dataset: a task whose targets are ordered by their y (two of one type, no
 condition) would have them swapped. The simulator's collector records whether its task allows it

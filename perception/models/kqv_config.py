@@ -132,7 +132,7 @@ class KqvConfig:
             the camera sits on that plane (checked) and the task's targets are not ordered by
             their y. None: when the dataset's collector says its task allows it (the yumi
             collector checks camera, objects, workspace and target order: all four paper tasks
-            do). Twenty demonstrations then teach like forty: offline, yumi ``multiple``, 100
+            do). Twenty demonstrations then show forty scenes: offline, yumi ``multiple``, 100
             untrained scenes, seed 0, spray bottle grasp error 0.39 -> 0.29 cm mean, mug grasps
             more than 8.5 mm off along the closing axis 25 -> 10 of 100.
         head_width: Width of the head MLP's two hidden layers.
