@@ -194,6 +194,37 @@ class Dataset:
                        self.conditions[index], self.labels[index],
                        tuple(self.scenes[i] for i in index))
 
+    def target_types(self) -> tuple[tuple[str | None, ...], ...]:
+        """(N, q) each target's object type as its scene record names it; None where it does not.
+
+        A record names target ``k``'s type as ``record["objects"][record["targets"][k]]["type"]``
+        (what the simulator's collector writes).
+        """
+        return tuple(tuple(_target_type(record, k) for k in range(self.metadata.targets))
+                     for record in self.scenes)
+
+    def target_type_indices(self) -> np.ndarray:
+        """(N, q) int64: each target's type as its index in ``metadata.extra["object_types"]``.
+
+        -1 where the record names no type, the vocabulary lacks it, or the dataset has no
+        vocabulary (one collected before gva recorded it): the labels of a model that states
+        the type it attends to.
+        """
+        vocabulary = self.metadata.extra.get("object_types") or []
+        index = {name: i for i, name in enumerate(vocabulary) if isinstance(name, str)}
+        return np.array([[index.get(name, -1) if name is not None else -1 for name in row]
+                         for row in self.target_types()],
+                        dtype=np.int64).reshape(len(self), self.metadata.targets)  # (N, q)
+
+
+def _target_type(record: Mapping[str, Any], k: int) -> str | None:
+    """The type of target ``k`` in a scene record; None if the record does not say."""
+    try:
+        name = record["objects"][record["targets"][k]]["type"]
+    except (KeyError, IndexError, TypeError):
+        return None
+    return name if isinstance(name, str) else None
+
 
 def save_dataset(dataset: Dataset, path: str | Path) -> Path:
     """Writes ``dataset`` to ``path`` (parents created) atomically; the same data, the same bytes.

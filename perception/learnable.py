@@ -56,6 +56,9 @@ class ModelSpec:
         camera: The geometry of the camera the images come from, where the dataset records it
             (None: it does not, or a checkpoint from before gva kept it); a model may read
             positions off it.
+        object_types: The scene's object types in a fixed order, the vocabulary a model may
+            state a target's type in (from ``metadata.extra["object_types"]``); (): unknown (a
+            dataset or checkpoint from before gva recorded it).
 
     """
 
@@ -68,6 +71,7 @@ class ModelSpec:
     image_height_px: int
     image_width_px: int
     camera: PinholeCamera | None = None
+    object_types: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if not isinstance(self.label_kind, LabelKind):
@@ -80,6 +84,12 @@ class ModelSpec:
         object.__setattr__(self, "condition_choices", tuple(self.condition_choices))
         if self.camera is not None and not isinstance(self.camera, PinholeCamera):
             raise InvalidInputError("camera", self.camera, "a PinholeCamera or None")
+        types = self.object_types
+        if isinstance(types, str) or not isinstance(types, Sequence) or not all(
+                isinstance(name, str) and name for name in types) or len(set(types)) != \
+                len(types):
+            raise InvalidInputError("object_types", types, "distinct non-empty strings")
+        object.__setattr__(self, "object_types", tuple(types))
 
     @property
     def label_dim(self) -> int:
@@ -94,16 +104,23 @@ class ModelSpec:
     @classmethod
     def from_metadata(cls, metadata: DatasetMetadata) -> ModelSpec:
         """The spec of a model trained on a dataset with ``metadata``."""
-        values = {f.name: getattr(metadata, f.name) for f in fields(cls) if f.name != "camera"}
-        return cls(**values, camera=PinholeCamera.from_record(metadata.camera))
+        values = {f.name: getattr(metadata, f.name) for f in fields(cls)
+                  if f.name not in ("camera", "object_types")}
+        return cls(**values, camera=PinholeCamera.from_record(metadata.camera),
+                   object_types=tuple(metadata.extra.get("object_types", ())))
 
     def check_dataset(self, dataset: Dataset) -> None:
-        """An error naming every field in which ``dataset`` differs from this spec."""
+        """An error naming every field in which ``dataset`` differs from this spec.
+
+        Scene and task names may differ. Object types are compared only where both sides name
+        them: () means unknown, not none (a dataset or checkpoint from before gva kept them).
+        """
         other = ModelSpec.from_metadata(dataset.metadata)
+        skipped = {"scene", "task"} | ({"object_types"} if not (
+            self.object_types and other.object_types) else set())
         wrong = [f"{f.name} is {_shown(getattr(other, f.name))!r}, the model's is "
                  f"{_shown(getattr(self, f.name))!r}" for f in fields(self)
-                 if f.name not in ("scene", "task") and getattr(other, f.name) !=
-                 getattr(self, f.name)]
+                 if f.name not in skipped and getattr(other, f.name) != getattr(self, f.name)]
         if wrong:
             raise InvalidInputError("dataset", "; ".join(wrong), "a dataset of the model's spec")
 
@@ -112,15 +129,18 @@ class ModelSpec:
         data = {f.name: getattr(self, f.name) for f in fields(self)}
         data |= {"camera": None if self.camera is None else self.camera.to_json(),
                  "label_kind": self.label_kind.value, "condition_kind": self.condition_kind.value,
-                 "condition_choices": list(self.condition_choices), "label_dim": self.label_dim}
+                 "condition_choices": list(self.condition_choices), "label_dim": self.label_dim,
+                 "object_types": list(self.object_types)}
         return data
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> ModelSpec:
         """The spec :meth:`to_json` wrote."""
-        values = {f.name: data[f.name] for f in fields(cls) if f.name != "camera"}
+        values = {f.name: data[f.name] for f in fields(cls)
+                  if f.name not in ("camera", "object_types")}
         camera = data.get("camera")  # absent from checkpoints older than the field
         values["camera"] = None if camera is None else PinholeCamera.from_json(camera)
+        values["object_types"] = tuple(data.get("object_types", ()))  # absent: older, too
         values["label_kind"] = LabelKind(values["label_kind"])
         values["condition_kind"] = ConditionKind(values["condition_kind"])
         values["condition_choices"] = tuple(values["condition_choices"])

@@ -85,7 +85,8 @@ def collect(settings: CollectSettings, out_path: str | Path, progress: bool = Tr
         image_height_px=first.shape[0], image_width_px=first.shape[1],
         label_kind=spec.label_kind, targets=labels[0].shape[0],
         condition_kind=task.condition, condition_choices=condition_choices(task, spec),
-        camera=camera, extra=extra | {"task": _task_json(task)},
+        camera=camera,
+        extra=extra | {"task": _task_json(task), "object_types": list(spec.object_types)},
     )
     dataset = Dataset(metadata, np.stack(images), np.stack(conditions).astype(np.float32),
                       np.stack(labels).astype(np.float32), tuple(scenes))

@@ -1,3 +1,4 @@
+import dataclasses
 import json
 import re
 
@@ -155,6 +156,26 @@ def test_subset_keeps_the_chosen_samples_in_order(tmp_path):
     for bad, allowed in (([6], r"\[0, 6\)"), ([1, 1], "distinct"), ([True], "integers")):
         with pytest.raises(InvalidInputError, match=allowed):
             dataset.subset(bad)
+
+
+def test_target_types_come_from_the_scene_records_and_index_the_vocabulary(tmp_path):
+    dataset = make(size=4, q=2)  # its records name objects but no targets
+    records = ({"objects": [{"type": "mug"}, {"type": "box"}], "targets": [1, 0]},
+               {"objects": [{"type": "can"}, {"type": "mug"}], "targets": [0, 1]},
+               {"objects": [{"type": "box"}], "targets": [0]},  # a second target unnamed
+               {"index": 3})
+    typed = dataclasses.replace(dataset, scenes=records, metadata=dataclasses.replace(
+        dataset.metadata, extra={"object_types": ["mug", "box"]}))
+    assert typed.target_types() == (("box", "mug"), ("can", "mug"), ("box", None),
+                                    (None, None))
+    indices = typed.target_type_indices()
+    assert indices.dtype == np.int64
+    np.testing.assert_array_equal(indices, [[1, 0], [-1, 0], [1, -1], [-1, -1]])  # can: unknown
+    loaded = load_dataset(save_dataset(typed, tmp_path / "typed.gva"))
+    np.testing.assert_array_equal(loaded.target_type_indices(), indices)
+    untyped = dataclasses.replace(typed, metadata=dataset.metadata)  # no vocabulary
+    np.testing.assert_array_equal(untyped.target_type_indices(), np.full((4, 2), -1))
+    assert typed.subset([]).target_type_indices().shape == (0, 2)
 
 
 def test_missing_odd_or_foreign_files_are_refused(tmp_path):
