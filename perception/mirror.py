@@ -89,4 +89,4 @@ class Mirror:
         conditions = batch.conditions.clone()
         if self.swap is not None:
             conditions[flip] = conditions[flip][:, self.swap.to(conditions.device)]
-        return Batch(images, conditions, labels)
+        return batch._replace(images=images, conditions=conditions, labels=labels)  # types stay

@@ -102,6 +102,16 @@ class Batch(NamedTuple):
     images: Tensor  # (B, 3, H, W) float32 in [0, 1], augmented
     conditions: Tensor  # (B, C) float32 one-hot
     labels: Tensor  # (B, q, D) float32, as the dataset holds them (not yet scaled)
+    type_indices: Tensor | None = None  # (B, q) int64: each target's type in the dataset's
+    # object_types (Dataset.target_type_indices), -1 unknown; None: not given
+
+
+class PhaseSummary(NamedTuple):
+    """One named phase of a training that ran in several: its length and where its loss ended."""
+
+    name: str
+    steps: int
+    final_loss: float
 
 
 @dataclass(frozen=True)
@@ -111,11 +121,15 @@ class TrainReport:
     Args:
         steps: Optimiser steps taken.
         samples: Training samples in the dataset.
-        final_loss: Mean loss over the last ``log_every`` steps.
+        final_loss: Mean loss over the last ``log_every`` steps; where phases were chained, the
+            last phase's, unless the model keeps its target loss's (kqv's object-type phase
+            trains a side head after the targets: ``final_loss`` stays the targets').
         losses: (step, mean loss over the ``log_every`` steps up to it) pairs: the loss curve.
         wall_time_s: Wall time of the loop [s].
         threads: CPU threads torch used.
         config: The configuration trained with.
+        phases: Each phase's name, steps and final loss, in order, where the training ran in
+            named phases; () for a single run.
 
     """
 
@@ -126,29 +140,36 @@ class TrainReport:
     wall_time_s: float
     threads: int
     config: TrainConfig
+    phases: tuple[PhaseSummary, ...] = ()
 
     def to_json(self) -> dict[str, Any]:
         """The report as JSON-able data."""
         data = asdict(self)
         data["losses"] = [list(point) for point in self.losses]
+        data["phases"] = [phase._asdict() for phase in self.phases]
         return data
 
     @classmethod
-    def chain(cls, reports: Sequence[TrainReport]) -> TrainReport:
+    def chain(cls, reports: Sequence[TrainReport], names: Sequence[str] = ()) -> TrainReport:
         """One report for phases trained one after the other: steps and times add up.
 
         The loss curve runs on across phases (a later phase's steps follow the earlier ones');
         its losses are each phase's own, so the curve jumps where a phase changes its loss.
+        ``names``, one per report, name the phases in :attr:`phases`; () records none.
         """
         if not reports:
             raise InvalidInputError("reports", "none", "at least one training report")
+        if names and len(names) != len(reports):
+            raise InvalidInputError("names", list(names), f"one per report ({len(reports)})")
         losses, offset = [], 0
         for report in reports:
             losses += [(offset + step, loss) for step, loss in report.losses]
             offset += report.steps
         last = reports[-1]
+        phases = tuple(PhaseSummary(name, report.steps, report.final_loss)
+                       for name, report in zip(names, reports, strict=True)) if names else ()
         return cls(offset, last.samples, last.final_loss, tuple(losses),
-                   sum(r.wall_time_s for r in reports), last.threads, last.config)
+                   sum(r.wall_time_s for r in reports), last.threads, last.config, phases)
 
 
 def available_threads() -> int:
@@ -220,6 +241,7 @@ def train(
                                                                      config.steps)))
     conditions = torch.from_numpy(dataset.conditions).to(device)  # (N, C)
     labels = torch.from_numpy(dataset.labels).to(device)  # (N, q, D)
+    type_indices = torch.from_numpy(dataset.target_type_indices()).to(device)  # (N, q)
     losses: list[tuple[int, float]] = []
     window: list[float] = []
     started = time.perf_counter()
@@ -231,7 +253,8 @@ def train(
             images = images_to_tensor(dataset.images[index], device)  # (B, 3, H, W)
             if config.augment:
                 images = photometric_augment(images, generator)
-            loss = batch_loss(Batch(images, conditions[index], labels[index]))
+            loss = batch_loss(Batch(images, conditions[index], labels[index],
+                                    type_indices[index]))
             if not torch.isfinite(loss):
                 raise TrainingError(f"{description}: the loss became {loss.item()} at step "
                                     f"{step}; try a lower learning_rate (now "

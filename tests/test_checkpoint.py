@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 import torch
 from safetensors.torch import load_file, save_file
+from test_kqv import typed_dataset
 from user_models import synthetic_dataset
 
 from perception.checkpoint import (
@@ -151,3 +152,40 @@ def test_load_checkpoint_reads_tensors_without_pickle(saved):
     checkpoint = load_checkpoint(saved[2], "kqv")
     assert all(isinstance(t, torch.Tensor) for t in checkpoint.tensors.values())
     assert checkpoint.config["model"] == "kqv"
+
+
+def test_a_checkpoint_from_before_object_types_loads_and_predicts_as_before(saved, tmp_path):
+    model, dataset, folder = saved
+    old = copy_of(folder, tmp_path)
+
+    def forget(config):  # what gva wrote before the vocabulary and the type head
+        del config["spec"]["object_types"]
+        del config["hyperparameters"]["type_head"], config["hyperparameters"]["type_steps"]
+        del config["training"]["phases"]
+
+    edit_config(old, forget)
+    loaded = KqvModel.load(old)
+    assert loaded.spec.object_types == () and loaded.network.type_head is None
+    before = model.predict_batch(dataset.images, dataset.conditions)
+    after = loaded.predict_batch(dataset.images, dataset.conditions)
+    for a, b in zip(before, after, strict=True):
+        for x, y in zip(a.targets, b.targets, strict=True):
+            np.testing.assert_array_equal(x.position_m, y.position_m)
+            np.testing.assert_array_equal(x.rotation, y.rotation)
+            assert x.object_type is None and y.object_type is None
+
+
+def test_a_type_head_is_saved_and_states_the_same_types_after_loading(tmp_path):
+    dataset = typed_dataset(4, seed=9, targets=2)
+    model = KqvModel.for_dataset(dataset, KqvConfig(type_steps=3))
+    model.fit(dataset, TrainConfig(steps=2, batch_size=2, threads=1), progress=False)
+    loaded = KqvModel.load(model.save(tmp_path / "typed"))
+    config = json.loads((tmp_path / "typed" / CONFIG_FILE).read_text())
+    assert config["spec"]["object_types"] == ["red", "green", "blue"]
+    assert [p["name"] for p in config["training"]["phases"]] == ["targets", "object types"]
+    assert loaded.spec == model.spec and loaded.network.type_head is not None
+    before = model.predict_batch(dataset.images, dataset.conditions)
+    after = loaded.predict_batch(dataset.images, dataset.conditions)
+    stated = [[t.object_type for t in p.targets] for p in before]
+    assert all(name in ("red", "green", "blue") for row in stated for name in row)
+    assert stated == [[t.object_type for t in p.targets] for p in after]

@@ -11,7 +11,9 @@ seen by a calibrated camera, reads the target off the ray through ``a_coord`` at
 MLP gives from ``a_feat`` (:class:`CameraRays`, ``KqvConfig.readout``). Queries are learnable
 Base Queries, Conditioned Queries ``MLP(one-hot condition)``, or their sum; :meth:`KqvModel.attend`
 runs the selection with Queries supplied from outside, so the top-down target can be replaced at
-inference.
+inference. Where the dataset names its object types, a small type head reads each ``a_feat`` too
+and states the type of what the head attends to (``KqvConfig.type_head``); it trains after the
+pose, on the frozen network, so a pick can take its grip from what the model sees.
 
 The image is read at full size (128 x 128) but the first two layers of each FCN have stride 2
 (:attr:`KqvConfig.stride`), so the heatmaps are 32 x 32: four times fewer cells to attend over
@@ -48,7 +50,7 @@ from perception.models.base import (
 from perception.models.kqv_config import KqvConfig
 from perception.models.readout import CameraRays
 from perception.models.rotations import decode_rotation, rotation_size
-from perception.models.torch_model import NetOutput, TorchModel
+from perception.models.torch_model import NetOutput, Phase, TorchModel
 from perception.train import Batch, TrainConfig, TrainReport, train
 
 
@@ -61,7 +63,7 @@ class Attention(NamedTuple):
 
 
 class KqvNet(nn.Module):
-    """The network: FCN1 (Key), FCN2 (Feature Value), the Queries and the head MLP."""
+    """The network: FCN1 (Key), FCN2 (Feature Value), the Queries, the head MLP, the type head."""
 
     def __init__(self, spec: ModelSpec, config: KqvConfig) -> None:
         super().__init__()
@@ -125,6 +127,19 @@ class KqvNet(nn.Module):
         self.place_size = 3 if self.rays is None else 4  # position | height and offset
         head_out = self.place_size + (rotation_size(self.rotation) if self.rotation else 0)
         self.head = MLP((head_in, c.head_width, c.head_width, head_out))
+        # Built after every other module, so theirs draw the same random weights either way.
+        # It reads a_feat alone, no head index: it states what the head sees, not its slot.
+        types = spec.object_types
+        wanted = c.type_head
+        if wanted is None:
+            wanted = spec.label_kind is LabelKind.GRASP_POSE and bool(types)
+        if wanted and not types:
+            raise InvalidInputError("type_head", c.type_head, "None or False for a dataset "
+                                    "that names no object types")
+        # a_feat differs little between objects next to its own size (a heatmap mixes object
+        # and table): the head standardises it first, so its differences are what it reads.
+        self.type_head = nn.Sequential(nn.LayerNorm(value), MLP((value, c.head_width,
+                                                                 len(types)))) if wanted else None
 
     def queries(self, conditions: Tensor) -> Tensor:
         """The Query vectors for one-hot conditions (B, C): (B, q, Ck + 2)."""
@@ -175,7 +190,9 @@ class KqvNet(nn.Module):
         rotations = lines = None
         if self.rotation is not None:  # (B, q, 3, 3), (B, q, 3, 4) | None
             rotations, lines = decode_rotation(out[..., self.place_size:], self.rotation, turn)
-        return NetOutput(positions, rotations, attention.coords, attention.heatmaps, lines)
+        types = None if self.type_head is None else self.type_head(attention.features)
+        return NetOutput(positions, rotations, attention.coords, attention.heatmaps, lines,
+                         types)  # types: (B, q, T) | None
 
 
 class KqvModel(TorchModel):
@@ -210,6 +227,10 @@ class KqvModel(TorchModel):
         fit, :attr:`KqvConfig.starts` initialisations train :attr:`KqvConfig.start_steps` steps
         each and the best goes on; ``config.steps`` counts its steps, and the report's wall
         time includes the dropped starts'.
+
+        With a type head, :attr:`KqvConfig.type_steps` more steps then train it alone; the
+        report chains the two phases (``"targets"``, ``"object types"``) and its ``final_loss``
+        stays the targets'. A dataset that names no target's type trains no type phase.
         """
         config = config or TrainConfig()
         mirror = self.config.mirror
@@ -217,23 +238,45 @@ class KqvModel(TorchModel):
             mirror = dataset.metadata.extra.get(MIRROR_FLAG) is True
         self._mirror = Mirror(self.spec, config.seed) if mirror else None
         try:
-            fresh = self.scaler is None  # a first fit may try several starts; a later one not
-            if fresh:
-                self.spec.check_dataset(dataset)
-                self.scaler = LabelScaler.fit(dataset.labels[..., :3])
-                self.network.scaler = self.scaler
-            if not fresh or self.config.starts == 1 or config.steps <= self.config.start_steps:
-                self._steps_taken = 0
-                return super().fit(dataset, config, progress)
-            start, spent_s = self._best_start(dataset, config, progress)
-            rest = super().fit(dataset, replace(config, steps=config.steps - start.steps),
-                               progress)  # the warm-up goes on from the step the start reached
-            chained = TrainReport.chain([start, rest])
-            self.report = replace(chained, config=config,
-                                  wall_time_s=chained.wall_time_s + spent_s)
-            return self.report
+            pose = self._fit_pose(dataset, config, progress)
         finally:
             self.network.temperature = self.config.temperature
+        if self.network.type_head is None or not (dataset.target_type_indices() >= 0).any():
+            return pose
+        types = train(self.network, self.type_loss, dataset,
+                      replace(config, steps=self.config.type_steps), progress,
+                      description=f"{self.name} {self.spec.task} [object types]",
+                      parameters=self.network.type_head.parameters())
+        chained = TrainReport.chain([pose, types], ("targets", "object types"))
+        self.report = replace(chained, final_loss=pose.final_loss, config=config)
+        return self.report
+
+    def _fit_pose(self, dataset: Dataset, config: TrainConfig, progress: bool) -> TrainReport:
+        """The pose training of :meth:`fit`: the starts, then the rest of the steps."""
+        fresh = self.scaler is None  # a first fit may try several starts; a later one not
+        if fresh:
+            self.spec.check_dataset(dataset)
+            self.scaler = LabelScaler.fit(dataset.labels[..., :3])
+            self.network.scaler = self.scaler
+        if not fresh or self.config.starts == 1 or config.steps <= self.config.start_steps:
+            self._steps_taken = 0
+            return super().fit(dataset, config, progress)
+        start, spent_s = self._best_start(dataset, config, progress)
+        rest = super().fit(dataset, replace(config, steps=config.steps - start.steps),
+                           progress)  # the warm-up goes on from the step the start reached
+        chained = TrainReport.chain([start, rest])
+        self.report = replace(chained, config=config, wall_time_s=chained.wall_time_s + spent_s)
+        return self.report
+
+    def phases(self) -> list[Phase]:
+        """One phase: the target loss on every parameter but the type head's (see :meth:`fit`)."""
+        return [Phase("targets", self.batch_loss, self._pose_parameters())]
+
+    def _pose_parameters(self) -> list[nn.Parameter]:
+        """The network's parameters that the pose training moves: all but the type head's."""
+        head = self.network.type_head
+        skipped = set() if head is None else {id(p) for p in head.parameters()}
+        return [p for p in self.network.parameters() if id(p) not in skipped]
 
     def _best_start(self, dataset: Dataset, config: TrainConfig, progress: bool
                     ) -> tuple[TrainReport, float]:
@@ -252,7 +295,7 @@ class KqvModel(TorchModel):
             self._steps_taken = 0
             report = train(self.network, self.batch_loss, dataset, short, progress,
                            description=f"{self.name} {self.spec.task} [start {number + 1}/"
-                           f"{self.config.starts}]")
+                           f"{self.config.starts}]", parameters=self._pose_parameters())
             tried.append((report.final_loss, number, self.network, report))
         _, _, self.network, kept = min(tried, key=lambda t: (t[0], t[1]))
         self._steps_taken = self.config.start_steps
@@ -282,6 +325,28 @@ class KqvModel(TorchModel):
             seen = rays.project(batch.labels[..., :3])  # (B, q, 2)
             loss = loss + c.point_loss_weight * (out.points - seen).square().sum(-1).mean()
         return loss
+
+    def type_loss(self, batch: Batch) -> Tensor:
+        """The type head's cross-entropy on the frozen network's attended features.
+
+        Targets of unknown type (index -1) count for nothing. The batch is mirrored as in
+        :meth:`batch_loss` (a type is the same in the mirror); the network runs at its final
+        temperature, as it predicts.
+        """
+        if self._mirror is not None:
+            batch = self._mirror(batch)
+        head, indices = self.network.type_head, batch.type_indices  # indices: (B, q)
+        if head is None or indices is None:
+            raise InvalidInputError("type_loss", "no type head or no type indices",
+                                    "a network with a type head and a batch with type_indices")
+        with torch.no_grad():  # the pose network stays as the pose training left it
+            queries = self.network.queries(batch.conditions)  # (B, q, Ck + 2)
+            features = self.network.attend(batch.images, queries).features  # (B, q, Cv)
+        logits = head(features)  # (B, q, T)
+        known = indices >= 0  # (B, q)
+        if not known.any():
+            return logits.sum() * 0.0  # no type known in this batch: nothing to learn
+        return nn.functional.cross_entropy(logits[known], indices[known])  # (n, T) vs (n,)
 
     @torch.no_grad()
     def predict_batch(self, images: np.ndarray, conditions: np.ndarray,

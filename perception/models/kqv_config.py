@@ -135,10 +135,16 @@ class KqvConfig:
             do). Twenty demonstrations then show forty scenes: offline, yumi ``multiple``, 100
             untrained scenes, seed 0, spray bottle grasp error 0.39 -> 0.29 cm mean, mug grasps
             more than 8.5 mm off along the closing axis 25 -> 10 of 100.
-        head_width: Width of the head MLP's two hidden layers.
+        head_width: Width of the head MLP's two hidden layers (and of the type head's one).
         rotation_loss_weight: Weight of the chordal rotation loss against the position loss
             (squared distance in scaled units); 0.1 weighs 1 cm (at a 0.2 m label scale) like
             about 6 degrees of rotation.
+        type_head: Whether a small MLP reads each head's ``a_feat`` and states the object type
+            it attends to (over the dataset's ``object_types``). It trains after the pose, on
+            the frozen network, and leaves the pose weights as they would be without it. None:
+            for grasp-pose labels where the dataset names its object types.
+        type_steps: Optimiser steps of that type phase (batch size, rate and augmentation as
+            the pose training's).
         seed: Seeds the initial weights.
 
     """
@@ -162,6 +168,8 @@ class KqvConfig:
     mirror: bool | None = None
     head_width: int = 64
     rotation_loss_weight: float = 0.1
+    type_head: bool | None = None
+    type_steps: int = 300
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -170,7 +178,7 @@ class KqvConfig:
             raise InvalidInputError("channels", self.channels, "two integers >= 1")
         object.__setattr__(self, "channels", channels)  # a JSON list reads back as the tuple
         for name in ("key_dim", "value_dim", "head_width", "warmup_steps", "starts",
-                     "start_steps"):
+                     "start_steps", "type_steps"):
             value = getattr(self, name)
             least = 0 if name == "warmup_steps" else 1
             if not isinstance(value, int) or isinstance(value, bool) or value < least:
@@ -189,7 +197,8 @@ class KqvConfig:
                 raise InvalidInputError(name, getattr(self, name), "a finite value >= 0")
         if self.mirror not in (None, True, False):
             raise InvalidInputError("mirror", self.mirror, "None, True or False")
-        if self.head_features not in (None, True, False):
-            raise InvalidInputError("head_features", self.head_features, "None, True or False")
+        for name in ("head_features", "type_head"):
+            if getattr(self, name) not in (None, True, False):
+                raise InvalidInputError(name, getattr(self, name), "None, True or False")
         if not isinstance(self.seed, int) or self.seed < 0:
             raise InvalidInputError("seed", self.seed, "an integer >= 0")

@@ -54,6 +54,8 @@ class NetOutput(NamedTuple):
     heatmaps: Tensor | None = None  # (B, p, h, w), each summing to 1; None where it has none
     rotation_lines: Tensor | None = None  # (B, q, 3, 4) axis-line codes; None: the loss reads
     # the rotations (see perception.models.rotations)
+    type_logits: Tensor | None = None  # (B, q, T) over the spec's object_types; None: the
+    # network states no type
 
 
 def pose_size(label_kind: LabelKind) -> int:
@@ -121,7 +123,8 @@ class TorchModel(LearnableModel):
             progress: bool = True) -> TrainReport:
         """Trains on ``dataset``; the label scaler comes from its labels on the first fit.
 
-        Each :meth:`phases` stage runs ``config.steps`` steps; the report chains them.
+        Each :meth:`phases` stage runs ``config.steps`` steps; the report chains them (and
+        names them in its ``phases`` where there are several).
         """
         self.spec.check_dataset(dataset)
         if self.scaler is None:
@@ -132,7 +135,8 @@ class TorchModel(LearnableModel):
                          description=f"{self.name} {self.spec.task}" +
                          (f" [{phase.name}]" if len(phases) > 1 else ""),
                          parameters=phase.parameters) for phase in phases]
-        self.report = TrainReport.chain(reports)
+        self.report = TrainReport.chain(reports, [phase.name for phase in phases]
+                                        if len(phases) > 1 else ())
         return self.report
 
     def batch_loss(self, batch: Batch) -> Tensor:
@@ -166,20 +170,28 @@ class TorchModel(LearnableModel):
         return self.to_predictions(out, conditions)
 
     def to_predictions(self, out: NetOutput, conditions: np.ndarray) -> list[Prediction]:
-        """The network's output for a batch as one :class:`Prediction` per image."""
+        """The network's output for a batch as one :class:`Prediction` per image.
+
+        Each target states its object type: the condition's under an object-type condition,
+        else the type the network's type logits give most weight, where it has them.
+        """
         spec = self.spec
         positions = self._scaler().denormalise(out.positions).double().numpy()  # (B, q, 3) [m]
         rotations = None if out.rotations is None else out.rotations.double().numpy()
         points = None if out.points is None else normalised_to_pixels(
             out.points, spec.image_height_px, spec.image_width_px).double().numpy()  # (B, p, 2)
         heatmaps = None if out.heatmaps is None else out.heatmaps.numpy()  # (B, p, h, w)
+        seen = None if out.type_logits is None else out.type_logits.argmax(dim=-1).numpy()
         predictions = []
         for b in range(len(positions)):
-            object_type = None
+            object_types: list[str | None] = [None] * spec.targets
             if spec.condition_kind is ConditionKind.OBJECT_TYPE:
-                object_type = spec.condition_choices[int(np.argmax(conditions[b]))]
+                object_types = [spec.condition_choices[int(np.argmax(conditions[b]))]] * \
+                    spec.targets
+            elif seen is not None:  # (B, q) indices into spec.object_types
+                object_types = [spec.object_types[int(i)] for i in seen[b]]
             targets = tuple(Target(positions[b, i], None if rotations is None else
-                                   rotations[b, i], object_type) for i in range(spec.targets))
+                                   rotations[b, i], object_types[i]) for i in range(spec.targets))
             predictions.append(Prediction(
                 targets, np.zeros((0, 2)) if points is None else points[b],
                 None if heatmaps is None else heatmaps[b]))
