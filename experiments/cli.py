@@ -99,12 +99,15 @@ def build_parser() -> argparse.ArgumentParser:
     collect = commands.add_parser(
         "collect",
         help="collect a training dataset (yumi: oracle demonstrations kept when they succeed)",
-        description="Collects SIZE training scenes of a task into one dataset file.",
+        description="Collects SIZE scenes of a task into one dataset file: training scenes, "
+        "or untrained test scenes with --stream test.",
     )
     collect.add_argument("--scene", required=True, help="paper-sim or yumi")
     collect.add_argument("--task", required=True, help="built-in task name or task TOML path")
-    collect.add_argument("--size", type=_integer(1), required=True, help="training scenes")
-    collect.add_argument("--seed", type=_integer(0), default=0, help="training seed (0)")
+    collect.add_argument("--size", type=_integer(1), required=True, help="number of scenes")
+    collect.add_argument("--seed", type=_integer(0), default=0, help="seed of the scenes (0)")
+    collect.add_argument("--stream", choices=("train", "test"), default="train",
+                         help="seed stream: train, or test for untrained scenes (train)")
     collect.add_argument("--out", type=Path, required=True, help="dataset file to write")
     collect.add_argument("--no-progress", action="store_true", help="no progress bar")
 
@@ -261,12 +264,16 @@ def _run_trials(args: argparse.Namespace) -> int:
 
 def _run_collect(args: argparse.Namespace) -> int:
     from sim.collect import CollectSettings, collect
+    from sim.scene import SeedStream
 
-    settings = CollectSettings(scene=args.scene, task=args.task, size=args.size, seed=args.seed)
+    stream = SeedStream.TRAIN if args.stream == "train" else SeedStream.TEST
+    settings = CollectSettings(scene=args.scene, task=args.task, size=args.size, seed=args.seed,
+                               stream=stream)
     dataset = collect(settings, args.out, progress=not args.no_progress)
     meta = dataset.metadata
     redrawn = meta.extra.get("demonstrations_redrawn")
-    print(f"{meta.size} scenes of {meta.scene} / {meta.task} (seed {meta.seed}), "
+    print(f"{meta.size} scenes of {meta.scene} / {meta.task} (seed {meta.seed}, "
+          f"{meta.extra.get('stream', args.stream)} stream), "
           f"{meta.targets} target(s) each, {meta.label_kind.value} labels"
           + (f"; {redrawn} failed demonstrations redrawn" if redrawn is not None else ""))
     print(f"dataset: {args.out}")

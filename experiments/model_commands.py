@@ -11,7 +11,6 @@ import argparse
 import json
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -46,6 +45,9 @@ def run_train(args: argparse.Namespace) -> int:
     print(f"{model.name} on {meta.scene} / {meta.task}: {report.samples} samples, "
           f"{report.steps} steps, final loss {report.final_loss:.4g}, "
           f"{report.wall_time_s:.1f} s on {report.threads} thread(s)")
+    if report.phases:
+        print("phases: " + "; ".join(f"{phase.name} {phase.steps} steps, final loss "
+                                     f"{phase.final_loss:.4g}" for phase in report.phases))
     print(f"checkpoint: {out}" + (" (replaced)" if held else ""))
     return 0
 
@@ -63,6 +65,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
         print("per target, mean angle error: " + ", ".join(
             f"{_target(k, names)} {e:.1f}°"
             for k, e in enumerate(result.per_target_mean_angle_error_deg)))
+    if result.type_accuracy is not None:
+        print(f"object type stated right: {100 * result.type_accuracy:.1f} % of targets")
     out: Path = args.out or args.model / f"evaluation-{args.data.stem}.json"
     data = {"checkpoint": str(args.model.resolve()),
             "weights_sha256": read_config(args.model)["weights_sha256"],
@@ -126,18 +130,11 @@ def _model_and_dataset(args: argparse.Namespace) -> tuple[LearnableModel, Datase
 def target_names(dataset: Dataset) -> list[str | None]:
     """Per target index, the object type it is in every sample; None where it varies."""
     names: list[str | None] = []
+    types = dataset.target_types()  # (N, q)
     for k in range(dataset.metadata.targets):
-        seen = {_target_type(scene, k) for scene in dataset.scenes}
+        seen = {row[k] for row in types}
         names.append(seen.pop() if len(seen) == 1 else None)
     return names
-
-
-def _target_type(scene: dict[str, Any], k: int) -> str | None:
-    """The type of target ``k`` in a scene record; None if the record does not say."""
-    try:
-        return str(scene["objects"][scene["targets"][k]]["type"])
-    except (KeyError, IndexError, TypeError):
-        return None
 
 
 def _target(k: int, names: Sequence[str | None]) -> str:

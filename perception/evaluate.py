@@ -3,7 +3,8 @@
 The headline number is the mean position error in cm over every target of every sample (paper
 Table II). For grasp-pose labels the angle between predicted and true TCP rotations is reported
 too, in degrees, counting a half turn about the TCP's z (approach) axis as no error: a parallel
-gripper turned that way makes the same grasp.
+gripper turned that way makes the same grasp. Where the model states the object type of each
+target and the dataset's scene records name it, the fraction stated right is reported as well.
 """
 
 from __future__ import annotations
@@ -44,6 +45,9 @@ class EvaluationResult:
         median_angle_error_deg: Median rotation error [deg] (grasp labels), else None.
         per_target_mean_angle_error_deg: (q,) [deg] (grasp labels), else None.
         angle_errors_deg: (N, q) [deg] (grasp labels), else None.
+        type_accuracy: Fraction of the targets of known type whose stated ``object_type`` is
+            their true type (a target stating none counts as wrong); None where the model
+            states no type or the dataset's scene records name none.
 
     """
 
@@ -60,6 +64,7 @@ class EvaluationResult:
     median_angle_error_deg: float | None = None
     per_target_mean_angle_error_deg: tuple[float, ...] | None = None
     angle_errors_deg: tuple[tuple[float, ...], ...] | None = None
+    type_accuracy: float | None = None
 
     def to_json(self) -> dict[str, Any]:
         """The result as JSON-able data (tuples become lists)."""
@@ -139,7 +144,21 @@ def evaluate(model: PerceptionModel, dataset: Dataset, batch_size: int = 32) -> 
         per_target_mean_angle_error_deg=None if angle_deg is None else tuple(
             float(e) for e in angle_deg.mean(axis=0)),
         angle_errors_deg=None if angle_deg is None else table(angle_deg),
+        type_accuracy=type_accuracy(predictions, dataset),
     )
+
+
+def type_accuracy(predictions: list[Prediction], dataset: Dataset) -> float | None:
+    """The fraction of targets of known type that ``predictions`` state right; None: no type.
+
+    None where no prediction states a type or no scene record names one.
+    """
+    if not any(t.object_type is not None for p in predictions for t in p.targets):
+        return None
+    right = [stated.object_type == true for p, row in zip(predictions, dataset.target_types(),
+                                                          strict=True)
+             for stated, true in zip(p.targets, row, strict=True) if true is not None]
+    return float(np.mean(right)) if right else None
 
 
 def label_mean_error_cm(train: Dataset, test: Dataset) -> float:

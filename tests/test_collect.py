@@ -1,5 +1,6 @@
 import numpy as np
 import pytest
+from user_models import synthetic_dataset
 
 from experiments.cli import main
 from perception.data import DatasetError, load_dataset
@@ -8,6 +9,7 @@ from perception.labels import split_label
 from sim.collect import CollectSettings, collect
 from sim.errors import InvalidInputError
 from sim.scene import SeedStream
+from sim.scenes import get_scene_spec
 
 
 @pytest.fixture(scope="module")
@@ -35,6 +37,8 @@ def test_yumi_dataset_holds_grasp_labels_conditions_and_scene_records(yumi_files
     assert meta.condition_choices == ("sponge", "spray_bottle", "mug")
     assert data.images.shape == (2, 128, 128, 3) and data.images.dtype == np.uint8
     assert meta.extra["stream"] == "train" and meta.extra["demonstrations_redrawn"] >= 0
+    assert meta.extra["object_types"] == list(meta.condition_choices)  # the scene's vocabulary
+    np.testing.assert_array_equal(data.target_type_indices()[:, 0], data.conditions.argmax(1))
     for condition, label, record in zip(data.conditions, data.labels, data.scenes, strict=True):
         named = meta.condition_choices[int(np.argmax(condition))]
         assert record["condition"]["value"] == named
@@ -65,6 +69,29 @@ def test_cli_collect_reports_a_bad_task(tmp_path, capsys):
     assert "task = 'juggle' is not allowed" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(("given", "stream"), [([], SeedStream.TRAIN),
+                                              (["--stream", "test"], SeedStream.TEST)])
+def test_cli_collect_passes_the_stream_to_the_settings(tmp_path, capsys, monkeypatch, given,
+                                                      stream):
+    import sim.collect
+
+    asked = []
+
+    def collected(settings, out_path, progress=True):
+        asked.append(settings)
+        return synthetic_dataset(size=2)
+
+    monkeypatch.setattr(sim.collect, "collect", collected)
+    assert main(["collect", "--scene", "yumi", "--task", "single", "--size", "100", "--seed",
+                 "0", *given, "--out", str(tmp_path / "x.gva"), "--no-progress"]) == 0
+    assert asked == [CollectSettings("yumi", "single", 100, 0, stream)]
+    assert f"{stream.name.lower()} stream" in capsys.readouterr().out
+    with pytest.raises(SystemExit):  # argparse names the choices
+        main(["collect", "--scene", "yumi", "--task", "single", "--size", "2", "--stream",
+              "validation", "--out", str(tmp_path / "x.gva")])
+    assert "invalid choice: 'validation' (choose from" in capsys.readouterr().err
+
+
 def test_paper_sim_dataset_is_seeded_and_labelled_with_positions(tmp_path):
     paths = [tmp_path / f"{i}.gva" for i in range(3)]
     for path, seed in zip(paths, (0, 0, 1), strict=True):
@@ -73,6 +100,10 @@ def test_paper_sim_dataset_is_seeded_and_labelled_with_positions(tmp_path):
     assert paths[0].read_bytes() != paths[2].read_bytes()
     data = load_dataset(paths[0], expect={"scene": "paper-sim", "label_kind": "position"})
     assert data.labels.shape == (3, 3, 3) and data.conditions.shape == (3, 0)
+    vocabulary = data.metadata.extra["object_types"]
+    assert vocabulary == list(get_scene_spec("paper-sim").object_types)
+    assert [[vocabulary[i] for i in row] for row in data.target_type_indices()] == \
+        [[record["objects"][t]["type"] for t in record["targets"]] for record in data.scenes]
     for labels, record in zip(data.labels, data.scenes, strict=True):
         for label, target in zip(labels, record["targets"], strict=True):
             placed = record["objects"][target]["position_xy_m"]

@@ -1,10 +1,15 @@
+import dataclasses
 import json
+import re
 
 import numpy as np
 import pytest
 import torch
-from user_models import CentreModel, synthetic_dataset
+from test_kqv import typed_dataset
+from user_models import TYPES, CentreModel, synthetic_dataset
 
+from experiments.cli import main
+from perception.data import save_dataset
 from perception.evaluate import evaluate, label_mean_error_cm
 from perception.interface import (
     NO_CONDITION,
@@ -16,9 +21,10 @@ from perception.interface import (
     Target,
 )
 from perception.labels import split_label
+from perception.learnable import ModelSpec
 from perception.models.base import LabelScaler
 from perception.models.kqv import KqvConfig, KqvModel
-from perception.train import TrainConfig, batch_indices, photometric_augment
+from perception.train import TrainConfig, TrainReport, batch_indices, photometric_augment, train
 
 FAST = TrainConfig(steps=60, batch_size=8, learning_rate=3e-3, log_every=10, threads=1)
 
@@ -157,3 +163,110 @@ def test_the_no_image_reference_predicts_the_training_mean_per_condition():
     assert label_mean_error_cm(unconditioned, unconditioned) == pytest.approx(expected_cm)
     with pytest.raises(InvalidInputError, match=r"test task = 'multiple' is not allowed"):
         label_mean_error_cm(train, unconditioned)
+
+
+
+class Typed(PerceptionModel):
+    """A top-down grasp at the table centre per target, stating the dataset's own target types.
+
+    ``stated`` maps (image bytes, target index) to the type stated instead of the true one.
+    """
+
+    name = "typed"
+    label_kind = LabelKind.GRASP_POSE
+
+    def __init__(self, dataset, stated=None):
+        self.types = {image.tobytes(): row
+                      for image, row in zip(dataset.images, dataset.target_types(), strict=True)}
+        self.stated = stated or {}
+
+    def predict(self, image: np.ndarray, condition: Condition = NO_CONDITION) -> Prediction:
+        key = image.tobytes()
+        return Prediction(tuple(Target(np.array([0.4, 0.0, 0.0]), np.diag([1.0, -1.0, -1.0]),
+                                       self.stated.get((key, k), name))
+                                for k, name in enumerate(self.types[key])))
+
+
+def test_evaluate_reports_the_fraction_of_types_stated_right():
+    dataset = typed_dataset(4, seed=5, targets=2)  # 8 targets of known type
+    first = dataset.images[0].tobytes()
+    other = next(name for name in TYPES if name != dataset.target_types()[0][1])
+    assert evaluate(Typed(dataset), dataset).type_accuracy == 1.0
+    assert evaluate(Typed(dataset, {(first, 1): other}), dataset).type_accuracy == 7 / 8
+    assert evaluate(Typed(dataset, {(first, 1): None}), dataset).type_accuracy == 7 / 8
+    silent = {(image.tobytes(), k): None for image in dataset.images for k in range(2)}
+    assert evaluate(Typed(dataset, silent), dataset).type_accuracy is None  # states no type
+    unnamed = dataclasses.replace(dataset, scenes=({},) * 4)  # records that name no type
+    assert evaluate(Typed(dataset), unnamed).type_accuracy is None
+    assert json.loads(json.dumps(evaluate(Typed(dataset), dataset).to_json()))[
+        "type_accuracy"] == 1.0
+
+
+def test_train_hands_the_batch_each_targets_type_index():
+    dataset = typed_dataset(6, seed=6)
+    model = KqvModel.for_dataset(dataset, KqvConfig(type_head=False))
+    model.scaler = model.network.scaler = LabelScaler.fit(dataset.labels[..., :3])
+    seen = []
+
+    def recording(batch):
+        seen.append((batch.labels.clone(), batch.type_indices.clone()))
+        return model.batch_loss(batch)
+
+    train(model.network, recording, dataset, TrainConfig(steps=3, batch_size=4, threads=1),
+          progress=False)
+    by_label = {tuple(label[0, :3].tolist()): int(index[0])
+                for label, index in zip(dataset.labels, dataset.target_type_indices(),
+                                        strict=True)}
+    for labels, indices in seen:
+        assert indices.dtype == torch.int64 and indices.shape == (4, 1)
+        assert [by_label[tuple(label[0, :3].tolist())] for label in labels] == \
+            indices[:, 0].tolist()
+    assert {index for _, indices in seen for index in indices.flatten().tolist()} <= {0, 1, 2}
+
+
+def test_a_chained_report_names_its_phases():
+    config = TrainConfig(steps=2)
+    first = TrainReport(2, 4, 0.5, ((1, 0.6), (2, 0.5)), 1.0, 1, config)
+    second = TrainReport(3, 4, 0.2, ((3, 0.2),), 2.0, 1, config)
+    chained = TrainReport.chain([first, second], ("targets", "object types"))
+    assert chained.phases == (("targets", 2, 0.5), ("object types", 3, 0.2))
+    assert chained.steps == 5 and chained.losses == ((1, 0.6), (2, 0.5), (5, 0.2))
+    assert json.loads(json.dumps(chained.to_json()))["phases"][1] == {
+        "name": "object types", "steps": 3, "final_loss": 0.2}
+    assert TrainReport.chain([first, second]).phases == ()
+    with pytest.raises(InvalidInputError, match=r"names = \['targets'\] is not allowed: one per"):
+        TrainReport.chain([first, second], ("targets",))
+
+
+def test_the_spec_reads_the_object_types_and_compares_them_where_both_name_them():
+    typed = typed_dataset(2, seed=7)
+    spec = ModelSpec.from_metadata(typed.metadata)
+    assert spec.object_types == TYPES
+    assert ModelSpec.from_json(json.loads(json.dumps(spec.to_json()))) == spec
+    old = {k: v for k, v in spec.to_json().items() if k != "object_types"}  # before the field
+    assert ModelSpec.from_json(old).object_types == ()
+    untyped = dataclasses.replace(typed, metadata=dataclasses.replace(typed.metadata, extra={}))
+    spec.check_dataset(untyped)  # () is unknown, not other types
+    dataclasses.replace(spec, object_types=()).check_dataset(typed)
+    reordered = dataclasses.replace(typed, metadata=dataclasses.replace(
+        typed.metadata, extra={"object_types": ["blue", "red", "green"]}))
+    with pytest.raises(InvalidInputError, match=r"object_types is \('blue', 'red', 'green'\), "
+                                                 r"the model's is \('red', 'green', 'blue'\)"):
+        spec.check_dataset(reordered)
+
+
+def test_gva_train_names_the_phases_and_evaluate_prints_the_type_accuracy(tmp_path, capsys):
+    data = save_dataset(typed_dataset(6, seed=8), tmp_path / "typed.gva")
+    fast = ["--steps", "5", "--batch-size", "4", "--threads", "1", "--no-progress"]
+    assert main(["train", "--model", "kqv", "--data", str(data), "--out",
+                 str(tmp_path / "kqv"), *fast]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("kqv on synthetic / multiple: 6 samples, 305 steps, final loss ")
+    assert re.fullmatch(r"phases: targets 5 steps, final loss \S+; object types 300 steps, "
+                        r"final loss \S+", lines[1]), lines
+    assert main(["evaluate", "--model", str(tmp_path / "kqv"), "--data", str(data)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    saved = json.loads((tmp_path / "kqv" / "evaluation-typed.json").read_text())
+    accuracy = saved["type_accuracy"]
+    assert accuracy in {k / 6 for k in range(7)}
+    assert f"object type stated right: {100 * accuracy:.1f} % of targets" in lines
