@@ -1,7 +1,8 @@
 """Collision checking with Pinocchio's geometry model (coal).
 
 The robot is checked against itself and against obstacles handed in as plain shapes (the
-table, the objects that are not the target).
+table, a box in the way) or as height fields (what a depth camera saw standing on the table,
+see :mod:`control.depth_obstacles`).
 """
 
 from __future__ import annotations
@@ -62,6 +63,67 @@ class Obstacle:
         if self.kind is ShapeKind.CYLINDER:
             return coal.Cylinder(*self.size)
         return coal.Sphere(self.size[0])
+
+
+@dataclass(frozen=True, eq=False)
+class HeightField:
+    """Occupied space over a horizontal grid: each cell solid from ``base_z_m`` up to its height.
+
+    A depth camera looking down at a table sees surfaces; a height field keeps them with the
+    space below each one filled (objects stand on the table). Heights are given at the grid's
+    vertices, so a cell is solid up to the surface through its four corners (coal's
+    ``HeightFieldOBBRSS``).
+
+    Args:
+        name: Shown in collision reports (``"depth"``, ``"target"``).
+        origin_xy_m: World (x, y) of vertex ``[0, 0]``, the grid's corner at the least x and y.
+        cell_m: Distance between neighbouring vertices [m].
+        heights_m: (ny, nx) vertex heights [m] above ``base_z_m``, row index along +y, column
+            index along +x; at least 2 x 2.
+        base_z_m: World height of the field's floor [m] (the table top).
+
+    """
+
+    name: str
+    origin_xy_m: tuple[float, float]
+    cell_m: float
+    heights_m: np.ndarray  # (ny, nx)
+    base_z_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        heights = np.asarray(self.heights_m, dtype=float)
+        if heights.ndim != 2 or min(heights.shape) < 2:
+            raise InvalidInputError(f"height field {self.name!r} heights_m", heights.shape,
+                                    "a 2-D array of at least 2 x 2 vertex heights")
+        if not np.all(np.isfinite(heights)) or heights.min() < 0.0:
+            raise InvalidInputError(f"height field {self.name!r} heights_m",
+                                    "negative or non-finite values", "finite heights >= 0 m")
+        if not self.cell_m > 0.0:
+            raise InvalidInputError(f"height field {self.name!r} cell_m", self.cell_m, "> 0 m")
+        object.__setattr__(self, "heights_m", heights)
+
+    @property
+    def size_m(self) -> tuple[float, float]:
+        """Extent along x and y [m]."""
+        ny, nx = self.heights_m.shape
+        return (nx - 1) * self.cell_m, (ny - 1) * self.cell_m
+
+    @property
+    def T_world_shape(self) -> pin.SE3:
+        """Pose of the grid's centre on its floor (coal centres a height field on its origin)."""
+        x, y = self.origin_xy_m
+        width_m, depth_m = self.size_m
+        return pin.SE3(np.eye(3), np.array([x + width_m / 2, y + depth_m / 2, self.base_z_m]))
+
+    def geometry(self) -> coal.HeightFieldOBBRSS:
+        """The coal height field (coal's row 0 lies at +y, so the rows are flipped)."""
+        width_m, depth_m = self.size_m
+        heights = np.ascontiguousarray(self.heights_m[::-1])
+        return coal.HeightFieldOBBRSS(width_m, depth_m, heights, 0.0)
+
+
+AnyObstacle = Obstacle | HeightField
+"""What a :class:`CollisionChecker` checks the robot against."""
 
 
 @dataclass(frozen=True)
@@ -132,10 +194,10 @@ class CollisionChecker:
         self._moving = [
             i for i, g in enumerate(self._robot_geom.geometryObjects) if g.parentJoint != 0
         ]
-        self.obstacles: tuple[Obstacle, ...] = ()
+        self.obstacles: tuple[AnyObstacle, ...] = ()
         self._rebuild()
 
-    def set_obstacles(self, obstacles: Iterable[Obstacle]) -> None:
+    def set_obstacles(self, obstacles: Iterable[AnyObstacle]) -> None:
         """Replaces the obstacles checked against the robot's moving links."""
         self.obstacles = tuple(obstacles)
         names = [o.name for o in self.obstacles]

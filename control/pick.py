@@ -13,7 +13,7 @@ from dataclasses import KW_ONLY, dataclass
 import numpy as np
 import pinocchio as pin
 
-from control.collision import Obstacle
+from control.collision import AnyObstacle
 from control.errors import InvalidInputError
 from control.trajectory import JointTrajectory
 
@@ -130,8 +130,8 @@ class PickRequest:
     T_world_grasp: pin.SE3
     q_start: np.ndarray
     _: KW_ONLY
-    obstacles: tuple[Obstacle, ...] = ()
-    target_obstacles: tuple[Obstacle, ...] = ()
+    obstacles: tuple[AnyObstacle, ...] = ()
+    target_obstacles: tuple[AnyObstacle, ...] = ()
     alternatives: tuple[pin.SE3, ...] = ()
     finger_opening_m: float = 0.025
     pregrasp_distance_m: float | None = None

@@ -1,0 +1,287 @@
+"""Obstacles from a depth camera: what stands on the table, as height fields for the checker.
+
+A robot that plans from its own camera has, instead of object shapes, the points its depth
+image shows. :func:`depth_obstacles` keeps the points above the table inside the workspace,
+bins them into a grid of ``cell_m`` cells (each cell solid from the table up to its highest
+point: what stands on a table fills the space below what the camera sees of it) and hands the
+result to :class:`~control.collision.CollisionChecker` as a :class:`~control.collision.HeightField`.
+
+The target is what the open fingers close on. The points are split into clusters (Euclidean
+clustering, as tabletop segmentation has done since PCL: points closer than ``cluster_m`` are
+one object; the table between two objects parts them), and every cluster with a point inside
+the fingers' box at the predicted grasp (grown by ``target_margin_m``) is the target's. Its
+points form a separate field, avoided on the approach and ignored from the descend on (the
+fingers close around it and lift it: :class:`~control.pick.PickRequest`'s
+``target_obstacles``); everything else is an obstacle for the whole pick.
+
+What the camera cannot see: space outside its view is taken as free (the workcell beyond the
+workspace is kept clear); space hidden behind what it sees is free or occupied as
+:class:`OccludedSpace` says (occupied: every ray is extended past the surface it hit, down to
+the table, and the points along it count as seen).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+from scipy import sparse
+from scipy.sparse import csgraph
+from scipy.spatial import cKDTree
+
+from control.collision import HeightField
+from control.errors import InvalidInputError
+
+MAX_SHADOW_SAMPLES = 400
+"""Most samples along one ray's hidden stretch (a 2 m shadow at 5 mm cells)."""
+
+
+class OccludedSpace(enum.Enum):
+    """How the planner treats space the camera's view of the scene hides."""
+
+    FREE = "free"  # only what is seen (and the space below it) is occupied
+    OCCUPIED = "occupied"  # the space behind each seen surface, down to the table, is too
+
+
+@dataclass(frozen=True)
+class FingerBox:
+    """The open fingers of a parallel gripper as one box in the TCP frame.
+
+    The fingers close along the TCP's x axis and reach along its z axis (the approach); the box
+    spans both fingers at an opening, from the finger roots to the fingertips.
+
+    Args:
+        tip_beyond_tcp_m: How far the fingertips reach past the TCP along z [m].
+        length_m: Finger length along z [m].
+        half_width_m: Half a finger's width along y [m].
+        thickness_m: One finger's thickness along x [m].
+
+    """
+
+    tip_beyond_tcp_m: float
+    length_m: float
+    half_width_m: float
+    thickness_m: float
+
+    def __post_init__(self) -> None:
+        for name in ("length_m", "half_width_m", "thickness_m"):
+            if not getattr(self, name) > 0.0:
+                raise InvalidInputError(name, getattr(self, name), "a length > 0 m")
+
+    def box(self, T_world_tcp: pin.SE3, opening_m: float, margin_m: float
+            ) -> tuple[pin.SE3, np.ndarray]:
+        """The box's pose in the world and its half extents (3,) [m], grown by ``margin_m``."""
+        half = np.array([opening_m / 2 + self.thickness_m, self.half_width_m,
+                         self.length_m / 2]) + margin_m
+        centre = pin.SE3(np.eye(3), np.array([0.0, 0.0, self.tip_beyond_tcp_m -
+                                              self.length_m / 2]))
+        return T_world_tcp * centre, half
+
+
+@dataclass(frozen=True)
+class GraspRegion:
+    """Where the fingers will close: the grasp's TCP pose and the opening they approach with."""
+
+    T_world_tcp: pin.SE3
+    opening_m: float
+
+
+@dataclass(frozen=True)
+class DepthObstacleConfig:
+    """How depth points become obstacles; see the module docstring.
+
+    Args:
+        fingers: The gripper's fingers (they mark the target's columns).
+        x_range_m: The workspace along the world x axis [m]; points outside are dropped.
+        y_range_m: The workspace along y [m].
+        table_z_m: Height of the table top [m].
+        min_height_m: Points lower than this above the table are the table [m]; thinner
+            objects are invisible to the planner (a D435 at half a metre is good to a few mm).
+        max_height_m: Points higher than this above the table are dropped [m].
+        cell_m: Grid cell size [m]: about one pixel's footprint on the workspace, so a surface
+            the camera sees leaves no empty cell between its points.
+        cluster_m: Points closer than this belong to one object [m]: more than the points'
+            spacing on a steep face or across an overhang, less than the gap between objects.
+        target_margin_m: Grows the fingers' box whose points mark the target's clusters [m].
+        occluded: How hidden space is treated.
+
+    """
+
+    fingers: FingerBox
+    x_range_m: tuple[float, float]
+    y_range_m: tuple[float, float]
+    table_z_m: float = 0.0
+    min_height_m: float = 0.01
+    max_height_m: float = 0.5
+    cell_m: float = 0.005
+    cluster_m: float = 0.02
+    target_margin_m: float = 0.005
+    occluded: OccludedSpace = OccludedSpace.FREE
+
+    def __post_init__(self) -> None:
+        for name in ("x_range_m", "y_range_m"):
+            low, high = getattr(self, name)
+            if not (math.isfinite(low) and math.isfinite(high) and low < high):
+                raise InvalidInputError(name, getattr(self, name), "(low, high) finite, low < high")
+        if not 0.0 < self.min_height_m < self.max_height_m:
+            raise InvalidInputError("min_height_m/max_height_m",
+                                    (self.min_height_m, self.max_height_m), "0 < min < max")
+        if not 0.0 < self.cell_m <= 0.1:
+            raise InvalidInputError("cell_m", self.cell_m, "in (0, 0.1] m")
+        if not self.cluster_m > 0.0:
+            raise InvalidInputError("cluster_m", self.cluster_m, "> 0 m")
+        if self.target_margin_m < 0.0:
+            raise InvalidInputError("target_margin_m", self.target_margin_m, ">= 0 m")
+        if not isinstance(self.occluded, OccludedSpace):
+            allowed = ", ".join(f"OccludedSpace.{member.name}" for member in OccludedSpace)
+            raise InvalidInputError("occluded", self.occluded, f"one of {allowed}")
+
+
+@dataclass(frozen=True)
+class DepthObstacles:
+    """The planner's view of a scene from one depth image.
+
+    Args:
+        obstacles: The height field of everything but the target (none if nothing is seen).
+        target_obstacles: The target's clusters (none if the fingers close on no point).
+        points: Depth points above the table inside the workspace.
+        hidden_points: Samples added along rays behind seen surfaces (``OCCUPIED`` only).
+        obstacle_cells: Occupied cells of ``obstacles``.
+        target_cells: Occupied cells of ``target_obstacles``.
+
+    """
+
+    obstacles: tuple[HeightField, ...]
+    target_obstacles: tuple[HeightField, ...]
+    points: int
+    hidden_points: int
+    obstacle_cells: int
+    target_cells: int
+
+    def to_record(self) -> dict[str, Any]:
+        """The counts, for a trial record."""
+        return {"points": self.points, "hidden_points": self.hidden_points,
+                "obstacle_cells": self.obstacle_cells, "target_cells": self.target_cells}
+
+
+def depth_obstacles(points_world: np.ndarray, camera_position_m: np.ndarray,
+                    config: DepthObstacleConfig, grasp: GraspRegion | None = None
+                    ) -> DepthObstacles:
+    """Obstacles from a depth image's points (H, W, 3) in the world (NaN: no depth).
+
+    With ``grasp``, the clusters its fingers close on are the target's; without, all is
+    obstacle. ``camera_position_m`` is the optical centre the image was taken from.
+    """
+    points = np.asarray(points_world, dtype=float)
+    if points.ndim != 3 or points.shape[2] != 3:
+        raise InvalidInputError("points_world", f"shape {points.shape}", "shape (H, W, 3)")
+    camera = np.asarray(camera_position_m, dtype=float)
+    if camera.shape != (3,) or not np.all(np.isfinite(camera)):
+        raise InvalidInputError("camera_position_m", camera_position_m, "three finite numbers")
+    seen = points[_in_workspace(points, config)]  # (n, 3)
+    labels = _clusters(seen, config.cluster_m)  # (n,)
+    hidden, hidden_labels = np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
+    if config.occluded is OccludedSpace.OCCUPIED:
+        hidden, owners = _hidden_samples(seen, camera, config)
+        hidden_labels = labels[owners]
+    solid = np.concatenate([seen, hidden])  # (n + m, 3)
+    target = np.zeros(len(solid), dtype=bool)
+    if grasp is not None:
+        pose, half = config.fingers.box(grasp.T_world_tcp, grasp.opening_m, config.target_margin_m)
+        inside = np.all(np.abs((seen - pose.translation) @ pose.rotation) <= half, axis=1)
+        target = np.isin(np.concatenate([labels, hidden_labels]), labels[inside])
+    fields = [_height_field(name, solid[mask], config)
+              for name, mask in (("depth", ~target), ("target", target))]
+    return DepthObstacles(
+        obstacles=tuple(f for f in fields[:1] if f is not None),
+        target_obstacles=tuple(f for f in fields[1:] if f is not None),
+        points=len(seen), hidden_points=len(hidden),
+        obstacle_cells=_occupied_cells(solid[~target], config),
+        target_cells=_occupied_cells(solid[target], config),
+    )
+
+
+def _clusters(points: np.ndarray, distance_m: float) -> np.ndarray:
+    """A cluster label per point (N,).
+
+    Points closer than ``distance_m`` to each other, directly or through others, share one.
+    """
+    pairs = cKDTree(points).query_pairs(distance_m, output_type="ndarray")  # (P, 2)
+    graph = sparse.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])),
+                              shape=(len(points), len(points)))
+    return csgraph.connected_components(graph, directed=False)[1]
+
+
+def _in_workspace(points: np.ndarray, config: DepthObstacleConfig) -> np.ndarray:
+    """Whether each point (..., 3) lies in the workspace, above the table, below the limit."""
+    (x0, x1), (y0, y1) = config.x_range_m, config.y_range_m
+    x, y, height = points[..., 0], points[..., 1], points[..., 2] - config.table_z_m
+    with np.errstate(invalid="ignore"):  # NaN (no depth) compares False: not kept
+        return ((x >= x0) & (x <= x1) & (y >= y0) & (y <= y1) &
+                (height > config.min_height_m) & (height < config.max_height_m))
+
+
+def _hidden_samples(points: np.ndarray, camera: np.ndarray, config: DepthObstacleConfig
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Samples (M, 3) every half cell along each ray past its point, down to the table.
+
+    Also the index of the point each sample came from (M,).
+    """
+    rise = camera[2] - points[:, 2]  # (n,); a point level with the camera hides nothing below
+    source = np.flatnonzero(rise > 1e-6)
+    beyond = (points[source, 2] - config.table_z_m) / rise[source]  # ray parameter to the table
+    length_m = beyond * np.linalg.norm(points[source, :2] - camera[:2], axis=1)  # horizontal
+    counts = np.clip(np.ceil(length_m / (config.cell_m / 2)), 1, MAX_SHADOW_SAMPLES).astype(int)
+    owner = np.repeat(np.arange(len(source)), counts)  # (M,)
+    step = np.arange(len(owner)) - np.repeat(np.cumsum(counts) - counts, counts) + 1  # 1..k
+    fraction = beyond[owner] * step / counts[owner]  # (M,)
+    start = points[source[owner]]  # (M, 3)
+    samples = start + fraction[:, None] * (start - camera)  # (M, 3)
+    keep = _in_workspace(samples, config)
+    return samples[keep], source[owner][keep]
+
+
+def _grid(points: np.ndarray, cell_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Cell indices (N, 2) of points on a grid aligned to multiples of ``cell_m``.
+
+    Also the index of the grid's first cell (2,): one empty cell before the first point's.
+    """
+    cells = np.floor(points[:, :2] / cell_m).astype(np.int64)  # (N, 2) as (x, y)
+    first = cells.min(axis=0) - 1
+    return cells - first, first
+
+
+def _occupied_cells(points: np.ndarray, config: DepthObstacleConfig) -> int:
+    """How many grid cells hold at least one of the points."""
+    if not len(points):
+        return 0
+    cells, _ = _grid(points, config.cell_m)
+    return len(np.unique(cells, axis=0))
+
+
+def _height_field(name: str, points: np.ndarray, config: DepthObstacleConfig
+                  ) -> HeightField | None:
+    """The height field of points (N, 3), or None for no points.
+
+    Each cell is at its highest point, with one empty cell around them all; each vertex at
+    the highest of its four cells, so every occupied cell is solid to its full height (and
+    slopes down over one cell into its empty neighbours).
+    """
+    if not len(points):
+        return None
+    cells, first = _grid(points, config.cell_m)
+    nx, ny = cells.max(axis=0) + 2
+    heights = np.zeros((ny, nx))  # (ny, nx) cells, row = y
+    np.maximum.at(heights, (cells[:, 1], cells[:, 0]), points[:, 2] - config.table_z_m)
+    vertices = np.zeros((ny + 1, nx + 1))  # (ny + 1, nx + 1)
+    for dy in (0, 1):
+        for dx in (0, 1):
+            corner = vertices[dy:dy + ny, dx:dx + nx]
+            np.maximum(corner, heights, out=corner)
+    origin = first * config.cell_m
+    return HeightField(name, (float(origin[0]), float(origin[1])), config.cell_m, vertices,
+                       config.table_z_m)
