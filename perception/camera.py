@@ -6,7 +6,9 @@ geometry, with the conventions of OpenGL's ``gluLookAt`` and ``gluPerspective`` 
 ``computeViewMatrix`` and ``computeProjectionMatrixFOV`` follow) and of the images: pixel
 ``(u, v)``, u right and v down, integer coordinates at pixel centres (``image[v, u]``). The
 simulator projects with it (:meth:`sim.camera.HeadCamera.project`), and a perception model may
-read positions off it: a calibrated camera is what a real robot has too.
+read positions off it: a calibrated camera is what a real robot has too. :class:`RgbdFrame` is
+one image of such a camera with its depth, as an RGB-D camera (the YuMi's RealSense D435) gives
+it; :meth:`PinholeCamera.points_from_depth` turns the depth into points in the world.
 """
 
 from __future__ import annotations
@@ -157,3 +159,51 @@ class PinholeCamera:
         tan_x, tan_y = self.tan_half_fov
         local = np.stack([ndc_x * tan_x, ndc_y * tan_y, -np.ones(len(points))], axis=1)
         return local @ self.world_from_camera.T  # (N, 3)
+
+    def points_from_depth(self, depth_m: np.ndarray) -> np.ndarray:
+        """World points (H, W, 3) of a depth image (H, W) of this camera; NaN where no depth.
+
+        Depth is the distance along the optical axis [m] (a RealSense's depth image, not the
+        length of the ray); a pixel without a return holds 0, NaN or inf.
+        """
+        depth = np.asarray(depth_m, dtype=float)
+        if depth.shape != (self.height_px, self.width_px):
+            raise InvalidInputError("depth_m", f"shape {depth.shape}",
+                                    f"shape ({self.height_px}, {self.width_px})")
+        u_px, v_px = np.meshgrid(np.arange(self.width_px), np.arange(self.height_px))
+        rays = self.rays(np.stack([u_px.ravel(), v_px.ravel()], axis=1))  # (H W, 3)
+        valid = np.isfinite(depth) & (depth > 0.0)
+        along = np.where(valid, depth, np.nan).reshape(-1, 1)  # (H W, 1)
+        points = np.asarray(self.position_m) + along * rays  # (H W, 3)
+        return points.reshape(self.height_px, self.width_px, 3)
+
+
+@dataclass(frozen=True, eq=False)
+class RgbdFrame:
+    """One RGB-D image and the calibrated camera that took it.
+
+    Args:
+        rgb: (H, W, 3) uint8 colour image, row 0 at the top.
+        depth_m: (H, W) float32 depth along the optical axis [m]; 0 or inf where none.
+        camera: The camera's geometry (intrinsics and pose in the world).
+
+    """
+
+    rgb: np.ndarray  # (H, W, 3) uint8
+    depth_m: np.ndarray  # (H, W) float32
+    camera: PinholeCamera
+
+    def __post_init__(self) -> None:
+        size = (self.camera.height_px, self.camera.width_px)
+        if not isinstance(self.rgb, np.ndarray) or self.rgb.dtype != np.uint8 or \
+                self.rgb.shape != (*size, 3):
+            raise InvalidInputError("rgb", f"{getattr(self.rgb, 'dtype', '')} "
+                                    f"{np.shape(self.rgb)}", f"uint8 of shape ({size[0]}, "
+                                    f"{size[1]}, 3)")
+        if np.shape(self.depth_m) != size:
+            raise InvalidInputError("depth_m", f"shape {np.shape(self.depth_m)}",
+                                    f"shape {size}")
+
+    def points_world(self) -> np.ndarray:
+        """The depth image's points in the world, (H, W, 3); NaN where no depth."""
+        return self.camera.points_from_depth(self.depth_m)

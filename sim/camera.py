@@ -1,4 +1,8 @@
-"""The head camera: a RealSense D435 stand-in on top of the YuMi body, looking at the workspace."""
+"""The head camera: a RealSense D435 stand-in on top of the YuMi body, looking at the workspace.
+
+It renders colour and depth from one call (:meth:`HeadCamera.render_rgbd`), as the D435 gives
+both: the models read the colour, the planner the depth.
+"""
 
 from __future__ import annotations
 
@@ -9,7 +13,7 @@ from typing import Any
 import numpy as np
 import pybullet
 
-from perception.camera import PinholeCamera
+from perception.camera import PinholeCamera, RgbdFrame
 from perception.drawing import write_png as write_png  # its old home; new code imports it
 from perception.interface import InvalidInputError as PerceptionInputError
 from sim.errors import InvalidInputError
@@ -161,8 +165,16 @@ class HeadCamera:
             lighting: Overrides the config's light for this image (e.g. a darker room).
 
         """
+        return self.render_rgbd(client, lighting).rgb
+
+    def render_rgbd(self, client: Any, lighting: Lighting | None = None) -> RgbdFrame:
+        """Render colour and depth together, with the camera's geometry (see :meth:`render`).
+
+        Depth is along the optical axis [m], from PyBullet's depth buffer (OpenGL's non-linear
+        [0, 1]); pixels that see nothing within ``far_m`` hold inf.
+        """
         c, light = self.config, self.config.lighting if lighting is None else lighting
-        _, _, rgba, _, _ = client.getCameraImage(
+        _, _, rgba, buffer, _ = client.getCameraImage(
             c.width_px, c.height_px, self.view_matrix, self.projection_matrix,
             lightDirection=list(light.direction),
             lightColor=[light.brightness] * 3,
@@ -173,7 +185,12 @@ class HeadCamera:
             renderer=pybullet.ER_TINY_RENDERER,
         )
         image = np.asarray(rgba, dtype=np.uint8).reshape(c.height_px, c.width_px, 4)
-        return np.ascontiguousarray(image[:, :, :3])
+        rgb = np.ascontiguousarray(image[:, :, :3])
+        buffer = np.asarray(buffer, dtype=np.float64).reshape(c.height_px, c.width_px)
+        with np.errstate(divide="ignore"):
+            depth = c.far_m * c.near_m / (c.far_m - (c.far_m - c.near_m) * buffer)
+        depth = np.where(buffer >= 1.0, np.inf, depth).astype(np.float32)  # (H, W)
+        return RgbdFrame(rgb, depth, self.pinhole)
 
     def project(self, points_world: np.ndarray) -> np.ndarray:
         """Pixel coordinates (u right, v down) of world points, (N, 3) -> (N, 2).

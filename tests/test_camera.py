@@ -180,3 +180,38 @@ def test_the_pinhole_camera_reads_back_from_a_datasets_record() -> None:
         PinholeCamera.from_json({"position_m": [0, 0, 1]})
     with pytest.raises(PerceptionInputError, match="vertical_fov_deg"):
         PinholeCamera.from_json(asdict(CameraConfig()) | {"vertical_fov_deg": 190})
+
+
+def test_depth_reads_back_the_table_and_an_objects_top_where_they_are(
+    world: World, camera: HeadCamera
+) -> None:
+    world.reset_scene()
+    mug = get_object_spec("mug")
+    world.add_object(mug, (0.45, 0.1), 0.0)
+    frame = camera.render_rgbd(world.client)
+    assert frame.depth_m.dtype == np.float32 and frame.depth_m.shape == (128, 128)
+    np.testing.assert_array_equal(frame.rgb, camera.render(world.client))
+    points = frame.points_world()  # (H, W, 3)
+    assert points.shape == (128, 128, 3)
+    table = points[np.abs(points[..., 1] - 0.1) > 0.1]  # away from the mug: the table top
+    assert np.abs(table[..., 2]).max() < 2e-3  # depth-buffer precision at ~0.6 m
+    rim = camera.project(np.array([[0.45 - 0.0375, 0.1, mug.height_m]]))[0]  # the near rim
+    seen = points[round(rim[1]), round(rim[0])]
+    assert abs(seen[2] - mug.height_m) < 5e-3 and abs(seen[0] - 0.4125) < 5e-3
+
+
+def test_points_from_depth_inverts_the_projection() -> None:
+    camera = CameraConfig().pinhole
+    rng = np.random.default_rng(0)
+    flat = rng.choice(camera.width_px * camera.height_px, 50, replace=False)
+    v, u = np.unravel_index(flat, (camera.height_px, camera.width_px))
+    depth = np.full((camera.height_px, camera.width_px), np.inf)
+    depth[v, u] = rng.uniform(0.3, 0.8, 50)
+    points = camera.points_from_depth(depth)  # (H, W, 3)
+    seen = points[v, u]  # (50, 3)
+    np.testing.assert_allclose(camera.project(seen), np.column_stack([u, v]), atol=1e-9)
+    along = (seen - np.asarray(camera.position_m)) @ -camera.world_from_camera[:, 2]
+    np.testing.assert_allclose(along, depth[v, u])  # depth is along the optical axis
+    assert np.isnan(np.delete(points.reshape(-1, 3), flat, axis=0)).all()  # no depth: NaN
+    with pytest.raises(PerceptionInputError, match=r"depth_m = 'shape \(4, 4\)' is not allowed"):
+        camera.points_from_depth(np.zeros((4, 4)))
