@@ -96,19 +96,26 @@ class Target:
         position_m: (3,) position [m]: the object's, or the TCP's for a grasp.
         rotation: (3, 3) TCP orientation for a grasp (columns: the TCP x, y, z axes in the world;
             z is the approach direction); None for position-only predictions.
-        object_type: The object type the model believes it attends to, where it knows.
+        object_type: The object type the model believes it attends to, where it knows. A pick
+            takes the catalog grasp's opening, pre-grasp distance and symmetric alternatives
+            from it; None: the trial's default grip (the gripper fully open).
+        opening_m: The finger gap to approach with [m], where the model says; it overrides
+            the type's.
 
     """
 
     position_m: np.ndarray
     rotation: np.ndarray | None = None
     object_type: str | None = None
+    opening_m: float | None = None
 
     def __post_init__(self) -> None:
         if np.shape(self.position_m) != (3,):
             raise InvalidInputError("position_m", np.shape(self.position_m), "shape (3,)")
         if self.rotation is not None and np.shape(self.rotation) != (3, 3):
             raise InvalidInputError("rotation", np.shape(self.rotation), "shape (3, 3) or None")
+        if self.opening_m is not None and not self.opening_m > 0.0:
+            raise InvalidInputError("opening_m", self.opening_m, "a gap > 0 m, or None")
 
 
 @dataclass(frozen=True)

@@ -30,6 +30,7 @@ FINGERTIP_BEYOND_TCP_M = (
 """How far the fingertips reach past the TCP along the approach axis [m] (about 21.5 mm)."""
 FINGER_HALF_WIDTH_M = 0.5 * yumi_specs.FINGER_BOX.size[1]
 FINGER_THICKNESS_M = yumi_specs.FINGER_BOX.size[0]
+FINGER_LENGTH_M = yumi_specs.FINGER_BOX.size[2]
 MAX_OPENING_M = 2.0 * yumi_specs.FINGER_TRAVEL_M
 MIN_FINGERTIP_HEIGHT_M = 0.005
 """Fingertips must stay this far above the table at the grasp [m]."""
@@ -359,6 +360,11 @@ OBJECT_TYPES: tuple[str, ...] = ("sponge", "spray_bottle", "mug")
 """Names of the object types a task targets, in a fixed order (a one-hot condition's order)."""
 DISTRACTOR_TYPES: tuple[str, ...] = ("block",)
 """Catalog types presented only as distractors, never targets."""
+
+
+def catalog_names() -> tuple[str, ...]:
+    """Every type of the catalog, targets and distractors."""
+    return tuple(_CATALOG)
 
 
 def get_object_spec(name: str) -> ObjectSpec:

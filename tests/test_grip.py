@@ -1,0 +1,54 @@
+"""The grip comes from what a model states: its type's catalog grasp, its opening, or a default."""
+
+import numpy as np
+import pytest
+
+from perception.interface import InvalidInputError as PerceptionInputError
+from perception.interface import Target
+from sim.errors import InvalidInputError
+from sim.grasps import grasp_pose
+from sim.grip import DEFAULT_GRIP, GripSource, grip_of
+from sim.objects import MAX_OPENING_M, Pose, catalog_names, get_object_spec
+
+HERE = np.array([0.45, 0.0, 0.05])
+
+
+def test_a_named_type_brings_its_catalog_grasp_and_symmetric_alternatives():
+    bottle = get_object_spec("spray_bottle")
+    grip = grip_of(Target(HERE, np.eye(3), object_type="spray_bottle"))
+    assert grip.source is GripSource.OBJECT_TYPE and grip.spec is bottle
+    assert grip.opening_m == bottle.grasp.opening_m
+    assert grip.pregrasp_distance_m == bottle.grasp.pregrasp_distance_m
+    grasp = grasp_pose(bottle, Pose.from_xy_yaw(0.45, 0.1, 0.3))
+    assert len(grip.alternatives(grasp)) == 4  # a bottle is the same from every side
+    assert grip_of(Target(HERE, np.eye(3), object_type="sponge")).alternatives(grasp) == ()
+    assert grip.to_record() == {"source": "object_type", "object_type": "spray_bottle",
+                                "opening_m": 0.05, "pregrasp_distance_m": 0.08}
+
+
+def test_a_stated_opening_is_taken_and_overrides_the_types():
+    assert grip_of(Target(HERE, np.eye(3), opening_m=0.03)).opening_m == 0.03
+    assert grip_of(Target(HERE, np.eye(3), opening_m=0.03)).source is GripSource.OPENING
+    typed = grip_of(Target(HERE, np.eye(3), object_type="mug", opening_m=0.04))
+    assert (typed.opening_m, typed.spec) == (0.04, get_object_spec("mug"))
+
+
+def test_a_model_that_states_nothing_gets_the_default_that_opens_as_far_as_any_grasp():
+    assert grip_of(Target(HERE, np.eye(3))) is DEFAULT_GRIP
+    assert DEFAULT_GRIP.source is GripSource.DEFAULT and DEFAULT_GRIP.alternatives(
+        Pose(HERE, np.eye(3))) == ()
+    for name in catalog_names():
+        grasp = get_object_spec(name).grasp
+        assert grasp.opening_m <= DEFAULT_GRIP.opening_m == MAX_OPENING_M
+        assert grasp.pregrasp_distance_m == DEFAULT_GRIP.pregrasp_distance_m
+
+
+def test_an_unknown_type_or_an_impossible_opening_is_refused_by_name():
+    with pytest.raises(InvalidInputError, match="target object_type = 'cup' is not allowed: one "
+                       "of sponge, spray_bottle, mug, block or None"):
+        grip_of(Target(HERE, np.eye(3), object_type="cup"))
+    with pytest.raises(InvalidInputError, match=r"target opening_m = 0\.08 is not allowed: in "
+                       r"\(0, 0\.05\] m, the gripper's stroke"):
+        grip_of(Target(HERE, np.eye(3), opening_m=0.08))
+    with pytest.raises(PerceptionInputError, match="opening_m = nan is not allowed"):
+        Target(HERE, np.eye(3), opening_m=float("nan"))
