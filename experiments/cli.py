@@ -94,6 +94,9 @@ def build_parser() -> argparse.ArgumentParser:
     trials.add_argument("--n", type=_integer(1), default=30, help="number of trials (30)")
     trials.add_argument("--seed", type=_integer(0), default=0, help="seed of the test scenes (0)")
     trials.add_argument("--out", type=Path, required=True, help="run folder")
+    trials.add_argument("--obstacles", choices=("depth", "truth"), default="depth",
+                        help="what picks are planned around: the head camera's depth image "
+                        "(default), or the simulator's true shapes, to debug the planner only")
     trials.add_argument("--no-progress", action="store_true", help="no progress bar")
 
     collect = commands.add_parser(
@@ -245,10 +248,12 @@ def _add_reproduce_real(experiments: Any, tasks: Sequence[str]) -> None:
 
 
 def _run_trials(args: argparse.Namespace) -> int:
+    from sim.planning import ObstacleSource
     from sim.trials import TrialSettings, run_trials
 
     settings = TrialSettings(model=args.model, task=args.task, n=args.n, seed=args.seed,
-                             model_class=args.model_class)
+                             model_class=args.model_class,
+                             obstacles=ObstacleSource(args.obstacles))
     summary = run_trials(settings, args.out, progress=not args.no_progress)
     print(summary.headline())
     for outcome, count in summary.outcomes.items():

@@ -205,12 +205,13 @@ class ReproduceRealSettings:
     def run_identity(self) -> dict[str, Any]:
         """What every job of a folder shares; ``run.json`` holds it."""
         from sim.execution import ExecutionSettings
-        from sim.trials import TrialSettings
+        from sim.trials import TrialSettings, obstacle_identity
 
         return {"format_version": FORMAT_VERSION, "experiment": "reproduce-real",
                 "scene": SCENE, "seed": self.seed, "demos": self.demos, "n": self.n,
                 "train": self.train_config(), "settle_s": TrialSettings.settle_s,
-                "execution": asdict(ExecutionSettings()), "gif_trials": GIF_TRIALS,
+                "execution": asdict(ExecutionSettings()),
+                "obstacles": obstacle_identity(TrialSettings.obstacles), "gif_trials": GIF_TRIALS,
                 "variants": {"dark_brightness": DARK_BRIGHTNESS,
                              "distractor_types": list(DISTRACTOR_TYPES)}}
 

@@ -1,22 +1,49 @@
-"""The YuMi's pick planner and the obstacles of a simulated scene, as the planner wants them."""
+"""The YuMi's pick planner and the obstacles of a scene, as the planner wants them.
+
+A pick is planned against the table (a fixed, known fixture) and what the head camera's depth
+image shows (:func:`yumi_depth_config`, :mod:`control.depth_obstacles`): the default, and the
+only source of the paper's tables. :attr:`ObstacleSource.TRUTH` gives the planner the
+simulator's true object shapes instead; it exists to debug the planner (does a failure come
+from what the camera saw?) and reads what no real robot knows.
+"""
 
 from __future__ import annotations
 
+import enum
 from collections.abc import Iterable
 
 import numpy as np
 import pinocchio as pin
 
 from control.collision import CollisionChecker, Obstacle, ShapeKind
+from control.depth_obstacles import DepthObstacleConfig, FingerBox
 from control.ik import IkOptions
 from control.pick import PickPlannerConfig, build_arm_specs
 from control.planner import PickPlanner
 from control.robot_model import RobotModel
 from robots import yumi
-from sim.objects import PrimitiveKind, obstacle_shapes
-from sim.world import TABLE_HALF_SIZE_M, World
+from sim.objects import (
+    FINGER_HALF_WIDTH_M,
+    FINGER_LENGTH_M,
+    FINGER_THICKNESS_M,
+    FINGERTIP_BEYOND_TCP_M,
+    PrimitiveKind,
+    obstacle_shapes,
+)
+from sim.world import ROBOT_FOOTPRINT_M, TABLE_HALF_SIZE_M, World, WorldConfig
 
 TABLE_THICKNESS_M = 0.05  # table/table.urdf's top slab
+
+YUMI_FINGERS = FingerBox(FINGERTIP_BEYOND_TCP_M, FINGER_LENGTH_M, FINGER_HALF_WIDTH_M,
+                         FINGER_THICKNESS_M)
+"""The YuMi gripper's open fingers, which mark the target's columns in a depth image."""
+
+
+class ObstacleSource(enum.Enum):
+    """What a pick is planned around, besides the table."""
+
+    DEPTH = "depth"  # the head camera's depth image: what a real robot has
+    TRUTH = "truth"  # the simulator's true shapes: for debugging the planner only
 
 # The planner restarts IK itself with new seeds, so each solve gives up early.
 PLANNER_IK_OPTIONS = IkOptions(max_restarts=3)
@@ -31,6 +58,18 @@ def make_yumi_planner(config: PickPlannerConfig | None = None) -> PickPlanner:
         yumi.MAX_JERK_RAD_S3, {side: f"yumi_link_2_{side}" for side in yumi.ARM_SIDES},
     )
     return PickPlanner(robot, checker, arms, config, PLANNER_IK_OPTIONS)
+
+
+def yumi_depth_config(config: WorldConfig | None = None) -> DepthObstacleConfig:
+    """Depth obstacles over the table top in front of the robot's base.
+
+    The robot's own body stands behind ``x = ROBOT_FOOTPRINT_M`` and is left out; the camera
+    sees no arm link at the start of a pick (the arms rest at HOME, out of its view).
+    """
+    config = config or WorldConfig()
+    (cx, cy), (hx, hy) = config.table_center_xy_m, TABLE_HALF_SIZE_M
+    return DepthObstacleConfig(YUMI_FINGERS, x_range_m=(ROBOT_FOOTPRINT_M[0][1], cx + hx),
+                               y_range_m=(cy - hy, cy + hy))
 
 
 def table_obstacle(world: World) -> Obstacle:

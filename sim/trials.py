@@ -31,6 +31,7 @@ from sim.camera import CameraConfig, HeadCamera
 from sim.errors import InvalidInputError
 from sim.execution import ExecutionSettings
 from sim.oracle import OraclePerception
+from sim.planning import ObstacleSource, yumi_depth_config
 from sim.records import TrialLog, TrialSummary
 from sim.runner import TrialRunner
 from sim.scene import (
@@ -85,6 +86,15 @@ def task_identity(task: TaskSpec) -> dict[str, Any]:
     return data
 
 
+def obstacle_identity(source: ObstacleSource) -> dict[str, Any]:
+    """What a run's picks are planned around, as ``run.json`` and ``summary.json`` show it."""
+    if source is not ObstacleSource.DEPTH:
+        return {"source": source.value}
+    depth = asdict(yumi_depth_config())
+    depth["occluded"] = depth["occluded"].value
+    return {"source": source.value, "depth": depth}
+
+
 @dataclass(frozen=True)
 class TrialSettings:
     """What a run of trials does; the fields of ``run.json``.
@@ -99,6 +109,9 @@ class TrialSettings:
         execution: How picks are executed and judged.
         model_class: For a checkpoint folder only: ``"package.module:Class"`` that loads it
             (needed when its model is not registered); None: the model its config names.
+        obstacles: What picks are planned around besides the table: the head camera's depth
+            image (the default), or ``ObstacleSource.TRUTH``, the simulator's true shapes, to
+            debug the planner (never for results: no real robot knows them).
 
     """
 
@@ -109,8 +122,12 @@ class TrialSettings:
     settle_s: float = 0.25
     execution: ExecutionSettings = field(default_factory=ExecutionSettings)
     model_class: str | None = None
+    obstacles: ObstacleSource = ObstacleSource.DEPTH
 
     def __post_init__(self) -> None:
+        if not isinstance(self.obstacles, ObstacleSource):
+            allowed = ", ".join(repr(s.value) for s in ObstacleSource)
+            raise InvalidInputError("obstacles", self.obstacles, f"one of {allowed}")
         source = model_source(self.model)
         if self.model_class is not None and source is not ModelSource.CHECKPOINT:
             raise InvalidInputError("model_class", self.model_class, "None unless model is a "
@@ -130,8 +147,8 @@ class TrialSettings:
         """What identifies a run: a folder is only resumed by a run with the same identity."""
         return {"model": self.model, "task": task_identity(self.task_spec), "seed": self.seed,
                 "scene": YUMI_SCENE.name, "camera": asdict(CameraConfig()),
-                "settle_s": self.settle_s, "execution": asdict(self.execution)
-                } | self._model_identity()
+                "settle_s": self.settle_s, "execution": asdict(self.execution),
+                "obstacles": obstacle_identity(self.obstacles)} | self._model_identity()
 
     def _model_identity(self) -> dict[str, Any]:
         """A checkpoint by its absolute path and weights' SHA-256: other weights, another run."""
@@ -252,8 +269,8 @@ def run_trials(
     task = settings.task_spec
     if todo:
         threads = torch_threads(1) if model.one_torch_thread else contextlib.nullcontext()
-        with threads, TrialRunner(task, model.factory, settings.settle_s,
-                                  settings.execution) as runner, tqdm(
+        with threads, TrialRunner(task, model.factory, settings.settle_s, settings.execution,
+                                  obstacles=settings.obstacles) as runner, tqdm(
             total=settings.n, initial=settings.n - len(todo), disable=not progress,
             desc=f"{model.label} / {task.name}", unit="trial",
         ) as bar:

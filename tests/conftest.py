@@ -38,3 +38,49 @@ def top_down(x: float, y: float, z: float, yaw: float = np.pi / 2) -> pin.SE3:
     """A TCP pose pointing straight down, fingers closing along the yawed x axis."""
     down = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
     return pin.SE3(pin.utils.rotate("z", yaw) @ down, np.array([x, y, z]))
+
+
+class DepthView:
+    """What the head camera's depth image makes of a scene of boxes: the planner's obstacles.
+
+    Each box (an :class:`~control.collision.Obstacle` of kind BOX) is put into a PyBullet world
+    as a static body, the camera renders, and the points become height fields as in a trial.
+    """
+
+    def __init__(self) -> None:
+        from sim.camera import HeadCamera
+        from sim.world import World
+
+        self.world, self.camera = World(), HeadCamera()
+        self.world.reset_scene()
+
+    def obstacles(self, boxes, grasp: pin.SE3 | None = None, opening_m: float = 0.05):
+        """(obstacles, target obstacles) the depth image of ``boxes`` gives, table excluded."""
+        import pybullet
+
+        from control.depth_obstacles import GraspRegion, depth_obstacles
+        from sim.planning import yumi_depth_config
+
+        client, bodies = self.world.client, []
+        for box in boxes:
+            half = [s / 2 for s in box.size]
+            shape = client.createCollisionShape(pybullet.GEOM_BOX, halfExtents=half)
+            look = client.createVisualShape(pybullet.GEOM_BOX, halfExtents=half)
+            bodies.append(client.createMultiBody(0.0, shape, look, box.T_world_shape.translation
+                                                 .tolist()))
+        try:
+            frame = self.camera.render_rgbd(client)
+        finally:
+            for body in bodies:
+                client.removeBody(body)
+        region = None if grasp is None else GraspRegion(grasp, opening_m)
+        seen = depth_obstacles(frame.points_world(), np.asarray(frame.camera.position_m),
+                               yumi_depth_config(), region)
+        return seen.obstacles, seen.target_obstacles
+
+
+@pytest.fixture(scope="session")
+def depth_view():
+    view = DepthView()
+    yield view
+    view.world.close()

@@ -5,11 +5,13 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from control.depth_obstacles import GraspRegion, depth_obstacles
 from control.pick import PickRequest, PlanStatus
+from sim.camera import HeadCamera
 from sim.execution import ExecutionSettings, execute_pick
 from sim.grasps import grasp_pose
 from sim.objects import get_object_spec
-from sim.planning import object_obstacles, table_obstacle
+from sim.planning import object_obstacles, table_obstacle, yumi_depth_config
 from sim.records import TrialOutcome
 from sim.scene import SeedStream, sample_scene
 from sim.scenes import YUMI_SCENE
@@ -25,19 +27,30 @@ def world():
         yield w
 
 
-def plan_for(planner, world, target, others, grasp=None, with_obstacles=True):
+def plan_for(planner, world, target, others, grasp=None, with_obstacles=True, source="shapes"):
+    """Plans the pick of ``target`` around the table and the ``others``' true shapes, or, with
+    ``source="depth"``, around what the head camera's depth image shows (as a trial does)."""
     spec = world.object_spec(target)
     grasp = grasp or grasp_pose(spec, world.object_pose(target)).as_se3()
-    obstacles = [table_obstacle(world), *object_obstacles(world, others)] if with_obstacles else []
+    obstacles, own = [], []
+    if with_obstacles and source == "shapes":
+        obstacles = [table_obstacle(world), *object_obstacles(world, others)]
+    elif with_obstacles:
+        frame = HeadCamera().render_rgbd(world.client)
+        seen = depth_obstacles(frame.points_world(), np.asarray(frame.camera.position_m),
+                               yumi_depth_config(), GraspRegion(grasp, spec.grasp.opening_m))
+        obstacles, own = [table_obstacle(world), *seen.obstacles], list(seen.target_obstacles)
     q_start = planner.robot.q_from_dict(world.robot.joint_positions())
     return planner.plan(PickRequest(grasp, q_start, obstacles=tuple(obstacles),
+                                    target_obstacles=tuple(own),
                                     finger_opening_m=spec.grasp.opening_m / 2,
                                     pregrasp_distance_m=spec.grasp.pregrasp_distance_m))
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("source", ["shapes", "depth"])
 @pytest.mark.parametrize("index", range(4))
-def test_checked_plans_touch_nothing_but_the_target(world, yumi_planner, index):
+def test_checked_plans_touch_nothing_but_the_target(world, yumi_planner, index, source):
     scene = sample_scene(CLUTTER, YUMI_SCENE, seed=7, stream=SeedStream.TEST, index=index)
     for target_number in range(3):
         world.reset_scene()
@@ -45,7 +58,8 @@ def test_checked_plans_touch_nothing_but_the_target(world, yumi_planner, index):
                   for o in scene.objects]
         world.step(60)
         target = bodies[target_number]
-        result = plan_for(yumi_planner, world, target, [b for b in bodies if b != target])
+        result = plan_for(yumi_planner, world, target, [b for b in bodies if b != target],
+                          source=source)
         if result.status is not PlanStatus.SUCCESS:
             assert result.status is PlanStatus.COLLISION, result.reason  # a named refusal
             continue

@@ -8,7 +8,7 @@ from user_models import synthetic_dataset
 
 from experiments.cli import main
 from perception.checkpoint import read_config
-from perception.interface import Condition, ConditionKind, LabelKind
+from perception.interface import Condition, ConditionKind, LabelKind, Prediction, Target
 from perception.learnable import ModelSpec
 from perception.models.base import LabelScaler
 from perception.models.kqv import KqvModel
@@ -18,6 +18,7 @@ from sim.errors import InvalidInputError
 from sim.grasps import grasp_pose
 from sim.objects import OBJECT_TYPES, get_object_spec
 from sim.oracle import OraclePerception, TargetNotFoundError
+from sim.planning import ObstacleSource
 from sim.records import RunFolderError, TrialLog
 from sim.runner import TrialRunner
 from sim.scene import SeedStream, sample_scene
@@ -127,6 +128,114 @@ def test_a_rounded_rotation_is_picked_and_a_wrong_one_is_a_recorded_outcome():
     assert "R Rᵀ = I within 0.0001" in outcomes["sheared"].reason
 
 
+TRUTH_ACCESSORS = ("object_pose", "object_spec", "object_bottom_z_m", "objects")
+CLIENT_TRUTH = ("getBasePositionAndOrientation", "getAABB", "getContactPoints",
+                "getClosestPoints", "getOverlappingObjects", "getCollisionShapeData",
+                "getVisualShapeData", "getBaseVelocity", "getDynamicsInfo")
+
+
+@pytest.fixture
+def sealed_planning(monkeypatch):
+    """Every pick's plan phase runs with the simulator's truth accessors failing.
+
+    The world's object pose, type and shape accessors, and PyBullet's own ways to read a body,
+    raise inside :meth:`TrialRunner.plan_pick`; the camera and the robot's joints still work.
+    Returns the list of reads that were tried.
+    """
+    reads: list[str] = []
+    planning = []
+
+    def guarded(name, original):
+        def read(*args, **kwargs):
+            if planning:
+                reads.append(name)
+                raise RuntimeError(f"{name} read the true scene during planning")
+            return original(*args, **kwargs)
+        return read
+
+    for name in TRUTH_ACCESSORS:
+        original = getattr(World, name)
+        if isinstance(original, property):
+            monkeypatch.setattr(World, name, property(guarded(name, original.fget)))
+        else:
+            monkeypatch.setattr(World, name, guarded(name, original))
+    plan_pick = TrialRunner.plan_pick
+
+    def sealed(self, *args, **kwargs):
+        client = self.world.client
+        for name in CLIENT_TRUTH:  # an instance attribute hides BulletClient's forwarding
+            setattr(client, name, guarded(name, getattr(client, name)))
+        planning.append(True)
+        try:
+            return plan_pick(self, *args, **kwargs)
+        finally:
+            planning.clear()
+            for name in CLIENT_TRUTH:
+                delattr(client, name)
+
+    monkeypatch.setattr(TrialRunner, "plan_pick", sealed)
+    return reads
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("task", "index"), [("multiple", 0), ("selected-type", 1)])
+def test_planning_reads_nothing_of_the_true_scene(sealed_planning, task, index):
+    spec = load_task(task)
+    with TrialRunner(spec) as runner:
+        record = runner.run(sample_scene(spec, YUMI_SCENE, 0, SeedStream.TEST, index), index, 0,
+                            "oracle")
+    assert sealed_planning == []
+    assert record.outcome.value == "success", record.reason
+    assert all(p["obstacles"]["source"] == "depth" for p in record.picks)
+    assert all(p["obstacles"]["target_cells"] > 0 for p in record.picks)  # the camera saw it
+
+
+def test_the_seal_catches_a_planner_that_reads_the_truth(sealed_planning):
+    task = load_task("single")
+    with TrialRunner(task, obstacles=ObstacleSource.TRUTH) as runner:
+        record = runner.run(sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 0), 0, 0, "x")
+    assert sealed_planning == ["objects"]
+    assert record.outcome.value == "error"
+    assert "objects read the true scene during planning" in record.reason
+
+
+def test_a_record_keeps_the_grip_and_obstacles_the_planner_was_given():
+    class Silent(OraclePerception):  # says where to grasp, not what the object is
+        def predict(self, image, condition=None):
+            (target,) = super().predict(image).targets
+            return Prediction((Target(target.position_m, target.rotation),))
+
+    task = load_task("single")
+    scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 0)
+    with TrialRunner(task) as runner:
+        typed = runner.run(scene, 0, 0, "oracle")
+        runner.model = Silent(runner.world, runner.camera)
+        silent = runner.run(scene, 0, 0, "silent")
+    kind = scene.objects[0].object_type
+    assert typed.grip == {"source": "object_type", "object_type": kind, "opening_m": 0.05,
+                          "pregrasp_distance_m": 0.08}
+    assert silent.grip == {"source": "default", "object_type": None, "opening_m": 0.05,
+                           "pregrasp_distance_m": 0.08}
+    assert silent.outcome.value == typed.outcome.value == "success", silent.reason
+    assert typed.obstacles["source"] == "depth" and typed.obstacles["points"] > 100
+    assert typed.obstacles["target_cells"] > 0 and typed.obstacles["obstacle_cells"] == 0
+
+
+def test_a_type_outside_the_catalog_is_the_models_recorded_failure():
+    class Guesses(OraclePerception):
+        def predict(self, image, condition=None):
+            (target,) = super().predict(image).targets
+            return Prediction((Target(target.position_m, target.rotation, "teapot"),))
+
+    task = load_task("single")
+    with TrialRunner(task) as runner:
+        runner.model = Guesses(runner.world, runner.camera)
+        record = runner.run(sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 0), 0, 0, "x")
+    assert record.outcome.value == "perception_failed"
+    assert "target object_type = 'teapot' is not allowed: one of sponge" in record.reason
+    assert record.predicted is not None and record.position_error_m < 1e-6
+
+
 @pytest.mark.slow
 def test_oracle_trials_succeed_and_resume(tmp_path):
     settings = TrialSettings("oracle", "single", n=4, seed=0)
@@ -138,6 +247,10 @@ def test_oracle_trials_succeed_and_resume(tmp_path):
     assert summary.successes == 4, [json.loads(line)["reason"] for line in lines]
     stored = json.loads((tmp_path / "summary.json").read_text())
     assert stored["successes"] == 4 and stored["n"] == 4
+    assert stored["settings"]["obstacles"]["source"] == "depth"
+    assert stored["settings"]["obstacles"]["depth"]["cell_m"] == 0.005
+    run = json.loads((tmp_path / "run.json").read_text())
+    assert run["obstacles"] == stored["settings"]["obstacles"]
 
 
 def test_grasp_of_a_missing_object_is_a_recorded_outcome():
