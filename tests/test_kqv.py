@@ -436,7 +436,7 @@ def test_a_type_condition_states_its_own_type_and_other_models_what_their_head_s
     images = np.broadcast_to(BACKGROUND, (3, 64, 64, 3)).copy()
     conditioned = trained_scaler(KqvModel(replace(spec(kind=LabelKind.GRASP_POSE, choices=TYPES),
                                                   object_types=TYPES)))
-    assert conditioned.network.type_head is not None
+    assert conditioned.network.type_head is None  # the condition names the type: no head
     stated = conditioned.predict_batch(images, np.eye(3, dtype=np.float32)[[2, 0, 1]])
     assert [p.targets[0].object_type for p in stated] == ["blue", "red", "green"]
     model = trained_scaler(KqvModel(replace(spec(q=2, kind=LabelKind.GRASP_POSE),

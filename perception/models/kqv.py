@@ -131,8 +131,9 @@ class KqvNet(nn.Module):
         # It reads a_feat alone, no head index: it states what the head sees, not its slot.
         types = spec.object_types
         wanted = c.type_head
-        if wanted is None:
-            wanted = spec.label_kind is LabelKind.GRASP_POSE and bool(types)
+        if wanted is None:  # an object-type condition names the type itself
+            wanted = spec.label_kind is LabelKind.GRASP_POSE and bool(types) and \
+                spec.condition_kind is not ConditionKind.OBJECT_TYPE
         if wanted and not types:
             raise InvalidInputError("type_head", c.type_head, "None or False for a dataset "
                                     "that names no object types")

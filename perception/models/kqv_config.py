@@ -142,7 +142,8 @@ class KqvConfig:
         type_head: Whether a small MLP reads each head's ``a_feat`` and states the object type
             it attends to (over the dataset's ``object_types``). It trains after the pose, on
             the frozen network, and leaves the pose weights as they would be without it. None:
-            for grasp-pose labels where the dataset names its object types.
+            for grasp-pose labels where the dataset names its object types, unless the
+            condition is an object type (it names the type).
         type_steps: Optimiser steps of that type phase (batch size, rate and augmentation as
             the pose training's).
         seed: Seeds the initial weights.
