@@ -8,7 +8,14 @@ from user_models import synthetic_dataset
 
 from experiments.cli import main
 from perception.checkpoint import read_config
-from perception.interface import Condition, ConditionKind, LabelKind, Prediction, Target
+from perception.interface import (
+    NO_CONDITION,
+    Condition,
+    ConditionKind,
+    LabelKind,
+    Prediction,
+    Target,
+)
 from perception.learnable import ModelSpec
 from perception.models.base import LabelScaler
 from perception.models.kqv import KqvModel
@@ -82,46 +89,35 @@ def test_cli_reports_bad_input_in_one_line(tmp_path, capsys):
         main(["trials", "--n", "0", "--out", str(tmp_path)])
 
 
-def test_unreachable_prediction_is_a_recorded_outcome():
-    class FarAway(OraclePerception):
-        def predict(self, image, condition=None):
-            prediction = super().predict(image)
-            target = prediction.targets[0]
-            moved = type(target)(target.position_m + np.array([0.8, 0.0, 0.0]), target.rotation)
-            return type(prediction)((moved,))
+def changed_oracle_trial(change, task="single", index=0):
+    """One trial of test scene ``index`` with the oracle's targets changed by ``change``."""
+    class Changed(OraclePerception):
+        def predict(self, image, condition=NO_CONDITION):
+            return Prediction(tuple(change(t) for t in super().predict(image, condition).targets))
 
-    task = load_task("single")
-    with TrialRunner(task) as runner:
-        runner.model = FarAway(runner.world, runner.camera)
-        record = runner.run(sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 0), 0, 0, "far")
+    spec = load_task(task)
+    with TrialRunner(spec, Changed) as runner:
+        return runner.run(sample_scene(spec, YUMI_SCENE, 0, SeedStream.TEST, index), index, 0,
+                          "changed")
+
+
+def test_unreachable_prediction_is_a_recorded_outcome():
+    record = changed_oracle_trial(lambda t: Target(t.position_m + np.array([0.8, 0.0, 0.0]),
+                                                   t.rotation))
     assert record.outcome.value == "ik_unreachable"
     assert "no in-limit IK solution" in record.reason
     assert record.position_error_m == pytest.approx(0.8, abs=1e-6)
 
 
 def test_a_rounded_rotation_is_picked_and_a_wrong_one_is_a_recorded_outcome():
-    class Predicts(OraclePerception):
-        def __init__(self, change, *args):
-            super().__init__(*args)
-            self.change = change
-
-        def predict(self, image, condition=None):
-            prediction = super().predict(image)
-            target = prediction.targets[0]
-            changed = type(target)(target.position_m, self.change(target.rotation))
-            return type(prediction)((changed,))
-
     def float32_rounded(rotation):  # off by a few 1e-6, as a network's output can be
         shear = np.eye(3) + 3e-6 * np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
         return (rotation @ shear).astype(np.float32)
 
-    task = load_task("single")
-    scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 0)
-    outcomes = {}
-    for name, change in (("rounded", float32_rounded), ("sheared", lambda r: r + 0.05)):
-        with TrialRunner(task) as runner:
-            runner.model = Predicts(change, runner.world, runner.camera)
-            outcomes[name] = runner.run(scene, 0, 0, name)
+    outcomes = {name: changed_oracle_trial(lambda t, c=change: Target(t.position_m,
+                                                                      c(t.rotation)))
+                for name, change in (("rounded", float32_rounded),
+                                     ("sheared", lambda r: r + 0.05))}
     assert outcomes["rounded"].outcome.value == "success", outcomes["rounded"].reason
     assert outcomes["sheared"].outcome.value == "perception_failed"
     assert "predicted rotation" in outcomes["sheared"].reason
@@ -200,20 +196,11 @@ def test_the_seal_catches_a_planner_that_reads_the_truth(sealed_planning):
 
 
 def test_a_record_keeps_the_grip_and_obstacles_the_planner_was_given():
-    class Silent(OraclePerception):  # says where to grasp, not what the object is
-        def predict(self, image, condition=None):
-            (target,) = super().predict(image).targets
-            return Prediction((Target(target.position_m, target.rotation),))
-
-    task = load_task("single")
-    scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 0)
-    with TrialRunner(task) as runner:
-        typed = runner.run(scene, 0, 0, "oracle")
-        runner.model = Silent(runner.world, runner.camera)
-        silent = runner.run(scene, 0, 0, "silent")
-    kind = scene.objects[0].object_type
-    assert typed.grip == {"source": "object_type", "object_type": kind, "opening_m": 0.05,
-                          "pregrasp_distance_m": 0.08}
+    kind = sample_scene(load_task("single"), YUMI_SCENE, 0, SeedStream.TEST, 0).objects[0]
+    typed = changed_oracle_trial(lambda t: t)
+    silent = changed_oracle_trial(lambda t: Target(t.position_m, t.rotation))  # no type said
+    assert typed.grip == {"source": "object_type", "object_type": kind.object_type,
+                          "opening_m": 0.05, "pregrasp_distance_m": 0.08}
     assert silent.grip == {"source": "default", "object_type": None, "opening_m": 0.05,
                            "pregrasp_distance_m": 0.08}
     assert silent.outcome.value == typed.outcome.value == "success", silent.reason
@@ -222,15 +209,7 @@ def test_a_record_keeps_the_grip_and_obstacles_the_planner_was_given():
 
 
 def test_a_type_outside_the_catalog_is_the_models_recorded_failure():
-    class Guesses(OraclePerception):
-        def predict(self, image, condition=None):
-            (target,) = super().predict(image).targets
-            return Prediction((Target(target.position_m, target.rotation, "teapot"),))
-
-    task = load_task("single")
-    with TrialRunner(task) as runner:
-        runner.model = Guesses(runner.world, runner.camera)
-        record = runner.run(sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 0), 0, 0, "x")
+    record = changed_oracle_trial(lambda t: Target(t.position_m, t.rotation, "teapot"))
     assert record.outcome.value == "perception_failed"
     assert "target object_type = 'teapot' is not allowed: one of sponge" in record.reason
     assert record.predicted is not None and record.position_error_m < 1e-6
