@@ -2,9 +2,9 @@
 
 A robot that plans from its own camera has, instead of object shapes, the points its depth
 image shows. :func:`depth_obstacles` keeps the points above the table inside the workspace,
-bins them into a grid of ``cell_m`` cells (each cell solid from the table up to its highest
-point: what stands on a table fills the space below what the camera sees of it) and hands the
-result to :class:`~control.collision.CollisionChecker` as a :class:`~control.collision.HeightField`.
+raises a grid of ``cell_m`` spacing to their heights (solid from the table up: what stands on a
+table fills the space below what the camera sees of it) and hands the result to
+:class:`~control.collision.CollisionChecker` as a :class:`~control.collision.HeightField`.
 
 The target is what the open fingers close on. The points are split into clusters (Euclidean
 clustering, as tabletop segmentation has done since PCL: points closer than ``cluster_m`` are
@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
-from scipy import sparse
+from scipy import ndimage, sparse
 from scipy.sparse import csgraph
 from scipy.spatial import cKDTree
 
@@ -102,8 +102,8 @@ class DepthObstacleConfig:
         min_height_m: Points lower than this above the table are the table [m]; thinner
             objects are invisible to the planner (a D435 at half a metre is good to a few mm).
         max_height_m: Points higher than this above the table are dropped [m].
-        cell_m: Grid cell size [m]: about one pixel's footprint on the workspace, so a surface
-            the camera sees leaves no empty cell between its points.
+        cell_m: Grid spacing [m]: about one pixel's footprint on the workspace; outlines are
+            kept to half of it.
         cluster_m: Points closer than this belong to one object [m]: more than the points'
             spacing on a steep face or across an overhang, less than the gap between objects.
         target_margin_m: Grows the fingers' box whose points mark the target's clusters [m].
@@ -150,8 +150,8 @@ class DepthObstacles:
         target_obstacles: The target's clusters (none if the fingers close on no point).
         points: Depth points above the table inside the workspace.
         hidden_points: Samples added along rays behind seen surfaces (``OCCUPIED`` only).
-        obstacle_cells: Occupied cells of ``obstacles``.
-        target_cells: Occupied cells of ``target_obstacles``.
+        obstacle_cells: Grid vertices of ``obstacles`` above the table.
+        target_cells: Grid vertices of ``target_obstacles`` above the table.
 
     """
 
@@ -194,14 +194,13 @@ def depth_obstacles(points_world: np.ndarray, camera_position_m: np.ndarray,
         pose, half = config.fingers.box(grasp.T_world_tcp, grasp.opening_m, config.target_margin_m)
         inside = np.all(np.abs((seen - pose.translation) @ pose.rotation) <= half, axis=1)
         target = np.isin(np.concatenate([labels, hidden_labels]), labels[inside])
-    fields = [_height_field(name, solid[mask], config)
-              for name, mask in (("depth", ~target), ("target", target))]
+    others, own = (_height_field(name, solid[mask], config)
+                   for name, mask in (("depth", ~target), ("target", target)))
     return DepthObstacles(
-        obstacles=tuple(f for f in fields[:1] if f is not None),
-        target_obstacles=tuple(f for f in fields[1:] if f is not None),
+        obstacles=() if others is None else (others,),
+        target_obstacles=() if own is None else (own,),
         points=len(seen), hidden_points=len(hidden),
-        obstacle_cells=_occupied_cells(solid[~target], config),
-        target_cells=_occupied_cells(solid[target], config),
+        obstacle_cells=_occupied(others), target_cells=_occupied(own),
     )
 
 
@@ -245,43 +244,28 @@ def _hidden_samples(points: np.ndarray, camera: np.ndarray, config: DepthObstacl
     return samples[keep], source[owner][keep]
 
 
-def _grid(points: np.ndarray, cell_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """Cell indices (N, 2) of points on a grid aligned to multiples of ``cell_m``.
-
-    Also the index of the grid's first cell (2,): one empty cell before the first point's.
-    """
-    cells = np.floor(points[:, :2] / cell_m).astype(np.int64)  # (N, 2) as (x, y)
-    first = cells.min(axis=0) - 1
-    return cells - first, first
-
-
-def _occupied_cells(points: np.ndarray, config: DepthObstacleConfig) -> int:
-    """How many grid cells hold at least one of the points."""
-    if not len(points):
-        return 0
-    cells, _ = _grid(points, config.cell_m)
-    return len(np.unique(cells, axis=0))
-
-
 def _height_field(name: str, points: np.ndarray, config: DepthObstacleConfig
                   ) -> HeightField | None:
     """The height field of points (N, 3), or None for no points.
 
-    Each cell is at its highest point, with one empty cell around them all; each vertex at
-    the highest of its four cells, so every occupied cell is solid to its full height (and
-    slopes down over one cell into its empty neighbours).
+    Each point raises the grid vertex nearest it to its height, so an outline stays within half
+    a cell of the points; a grey closing over 3 x 3 vertices then fills the vertices a surface's
+    points fell between (they lie up to a cell apart) without growing its outline.
     """
     if not len(points):
         return None
-    cells, first = _grid(points, config.cell_m)
-    nx, ny = cells.max(axis=0) + 2
-    heights = np.zeros((ny, nx))  # (ny, nx) cells, row = y
-    np.maximum.at(heights, (cells[:, 1], cells[:, 0]), points[:, 2] - config.table_z_m)
-    vertices = np.zeros((ny + 1, nx + 1))  # (ny + 1, nx + 1)
-    for dy in (0, 1):
-        for dx in (0, 1):
-            corner = vertices[dy:dy + ny, dx:dx + nx]
-            np.maximum(corner, heights, out=corner)
+    nearest = np.rint(points[:, :2] / config.cell_m).astype(np.int64)  # (N, 2) as (x, y)
+    first = nearest.min(axis=0) - 2  # two empty vertices around, for the closing
+    index = nearest - first
+    nx, ny = index.max(axis=0) + 3
+    heights = np.zeros((ny, nx))  # (ny, nx) vertices, row = y
+    np.maximum.at(heights, (index[:, 1], index[:, 0]), points[:, 2] - config.table_z_m)
+    heights = ndimage.grey_closing(heights, size=(3, 3), mode="constant", cval=0.0)
     origin = first * config.cell_m
-    return HeightField(name, (float(origin[0]), float(origin[1])), config.cell_m, vertices,
+    return HeightField(name, (float(origin[0]), float(origin[1])), config.cell_m, heights,
                        config.table_z_m)
+
+
+def _occupied(field: HeightField | None) -> int:
+    """How many of a field's vertices stand above the table."""
+    return 0 if field is None else int(np.count_nonzero(field.heights_m))

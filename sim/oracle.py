@@ -1,8 +1,10 @@
 """The oracle: a perception model that reads the simulator's true object poses.
 
-It answers through the same ``predict(image, condition)`` interface learned models use, so the
-trial runner cannot tell them apart; it sets the ceiling a learned model is measured against and
-produces the expert demonstrations.
+It is the one part of a trial that acts on the simulator's truth, and the only model that may:
+it answers through the same ``predict(image, condition)`` interface learned models use, so the
+trial runner cannot tell them apart, and the plan that follows sees only its prediction and the
+camera. It sets the ceiling a learned model is measured against and produces the expert
+demonstrations.
 """
 
 from __future__ import annotations

@@ -82,7 +82,11 @@ def table_obstacle(world: World) -> Obstacle:
 
 
 def object_obstacles(world: World, bodies: Iterable[int]) -> list[Obstacle]:
-    """The primitives of the given objects, at their current poses."""
+    """The true primitives of the given objects, at their current poses.
+
+    What :attr:`ObstacleSource.TRUTH` plans around: for tests and debugging, never a trial's
+    default.
+    """
     obstacles = []
     for body in bodies:
         spec = world.object_spec(body)
@@ -97,7 +101,11 @@ def object_obstacles(world: World, bodies: Iterable[int]) -> list[Obstacle]:
 
 
 def nearest_object(world: World, position_m: np.ndarray) -> int | None:
-    """The object whose centre lies nearest a point (in the table plane), or None if none."""
+    """The object whose centre lies nearest a point (in the table plane), or None if none.
+
+    :attr:`ObstacleSource.TRUTH`'s guess at the target; a trial's default finds it in the
+    depth image instead.
+    """
     bodies = list(world.objects)
     if not bodies:
         return None

@@ -21,10 +21,10 @@ CAMERA = np.array([0.0, 0.0, 0.6])
 DOWN = np.diag([1.0, -1.0, -1.0])  # TCP z pointing down, fingers closing along world x
 
 
-def block_surface(centre_xy, size_xy, height_m, spacing_m=0.004):
+def block_surface(centre_xy, size_xy, height_m, spacing_m=(0.004, 0.004)):
     """Points a camera above sees of a block: its top face, on a grid (rows of an image)."""
-    xs = np.arange(-size_xy[0] / 2, size_xy[0] / 2 + 1e-9, spacing_m) + centre_xy[0]
-    ys = np.arange(-size_xy[1] / 2, size_xy[1] / 2 + 1e-9, spacing_m) + centre_xy[1]
+    xs = np.arange(-size_xy[0] / 2, size_xy[0] / 2 + 1e-9, spacing_m[0]) + centre_xy[0]
+    ys = np.arange(-size_xy[1] / 2, size_xy[1] / 2 + 1e-9, spacing_m[1]) + centre_xy[1]
     x, y = np.meshgrid(xs, ys)
     return np.stack([x, y, np.full_like(x, height_m)], axis=-1)  # (H, W, 3)
 
@@ -61,6 +61,17 @@ def test_a_seen_block_is_solid_from_the_table_to_its_top_and_free_around():
     assert touches(field, (0.7, -0.1, 0.02)) and not touches(field, (0.7, -0.1, 0.04))
     assert not touches(field, (0.5, -0.1, 0.06))  # rows run along +y: not mirrored
     assert not touches(field, (0.7, 0.1, 0.02))
+
+
+def test_points_sparser_than_the_grid_leave_no_hole_and_the_outline_stays_tight():
+    # 6 mm between rows, as the head camera's pixels fall on the table along y: more than a cell.
+    seen = depth_obstacles(block_surface((0.5, 0.0), (0.06, 0.06), 0.05, (0.004, 0.006)),
+                           CAMERA, CONFIG)
+    (field,) = seen.obstacles
+    inside = np.linspace(-0.028, 0.028, 15)
+    assert all(touches(field, (0.5 + x, y, 0.045), radius=0.001) for x in inside for y in inside)
+    for outside in ((0.535, 0.0), (0.465, 0.0), (0.5, 0.035), (0.5, -0.035)):  # 5 mm beyond
+        assert not touches(field, (*outside, 0.045), radius=0.001), outside
 
 
 def test_the_table_points_beyond_the_workspace_and_no_depth_are_dropped():
