@@ -4,8 +4,7 @@ import numpy as np
 import pytest
 import torch
 from safetensors.torch import load_file, save_file
-from test_kqv import typed_dataset
-from user_models import synthetic_dataset
+from user_models import synthetic_dataset, typed_dataset
 
 from perception.checkpoint import (
     CONFIG_FILE,

@@ -3,9 +3,17 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import torch
-from user_models import BACKGROUND, COLOURS, TYPES, rot_z, synthetic_dataset
+from user_models import (
+    BACKGROUND,
+    CAMERA,
+    COLOURS,
+    TYPES,
+    rot_z,
+    spec,
+    synthetic_dataset,
+    trained_scaler,
+)
 
-from perception.camera import PinholeCamera
 from perception.interface import Condition, ConditionKind, InvalidInputError, LabelKind
 from perception.labels import check_rotations
 from perception.learnable import ModelSpec
@@ -20,17 +28,6 @@ from perception.models.base import (
 )
 from perception.models.kqv import KqvConfig, KqvModel
 from perception.train import Batch, TrainConfig
-
-
-def spec(q=1, kind=LabelKind.POSITION, choices=(), px=64):
-    return ModelSpec(scene="synthetic", task="t", label_kind=kind, targets=q,
-                     condition_kind=ConditionKind.OBJECT_TYPE if choices else ConditionKind.NONE,
-                     condition_choices=choices, image_height_px=px, image_width_px=px)
-
-
-def trained_scaler(model):
-    model.scaler = LabelScaler((0.4, 0.0, 0.02), 0.2)
-    return model
 
 
 def test_softmax2d_sums_to_one_per_head():
@@ -265,7 +262,6 @@ def test_temperature_warms_up_over_the_first_steps_then_stays():
 
 
 # A camera above and behind the synthetic scenes, looking down at 53 degrees.
-CAMERA = PinholeCamera((0.0, 0.0, 0.6), (0.45, 0.0, 0.0), (0.0, 0.0, 1.0), 40.0, None, 64, 64)
 
 
 def test_the_ray_readout_reads_a_point_where_its_ray_meets_the_height():

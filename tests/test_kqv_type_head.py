@@ -5,35 +5,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import torch
-from test_kqv import CAMERA, spec, trained_scaler
-from user_models import BACKGROUND, COLOURS, TYPES, synthetic_dataset
+from user_models import BACKGROUND, TYPES, spec, trained_scaler, typed_dataset
 
-from perception.data import Dataset
 from perception.interface import InvalidInputError, LabelKind
 from perception.learnable import ModelSpec
 from perception.mirror import Mirror
 from perception.models.base import images_to_tensor
 from perception.models.kqv import KqvConfig, KqvModel
 from perception.train import Batch, TrainConfig
-
-
-def typed_dataset(size, seed, targets=1):
-    """Grasp scenes seen by ``CAMERA`` whose squares each take a random type (its colour).
-
-    The scene records name each target's type and the metadata the vocabulary, as the
-    simulator's collector writes them.
-    """
-    base = synthetic_dataset(size, targets=targets, kind=LabelKind.GRASP_POSE, seed=seed,
-                             camera=CAMERA)
-    types = np.random.default_rng([seed, 1]).integers(len(TYPES), size=(size, targets))
-    images = base.images.copy()
-    for n in range(size):
-        for k in range(targets):
-            images[n][(base.images[n] == COLOURS[k]).all(axis=-1)] = COLOURS[types[n, k]]
-    scenes = tuple({"objects": [{"type": TYPES[t]} for t in row], "targets": list(range(targets))}
-                   for row in types)
-    return Dataset(replace(base.metadata, extra={"object_types": list(TYPES)}), images,
-                   base.conditions, base.labels, scenes)
 
 
 @pytest.fixture(scope="module")

@@ -5,8 +5,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import torch
-from test_kqv import CAMERA
-from user_models import COLOURS, synthetic_dataset
+from user_models import CAMERA, COLOURS, synthetic_dataset
 
 from perception.camera import PinholeCamera
 from perception.interface import ConditionKind, InvalidInputError, LabelKind

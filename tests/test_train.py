@@ -5,8 +5,7 @@ import re
 import numpy as np
 import pytest
 import torch
-from test_kqv import typed_dataset
-from user_models import TYPES, CentreModel, synthetic_dataset
+from user_models import TYPES, CentreModel, synthetic_dataset, typed_dataset
 
 from experiments.cli import main
 from perception.data import save_dataset

@@ -1,4 +1,5 @@
-"""A user's own models (found by the registry as ``"user_models:Class"``) and tiny synthetic data.
+"""A user's own models (found by the registry as ``"user_models:Class"``), tiny synthetic data,
+and the small helpers the model tests share (a spec, a camera, a typed dataset).
 
 The synthetic scenes: coloured squares on a wood-coloured background; square ``k`` has type
 ``TYPES[k]`` and its label is an affine function of where it lies in the image, so a model that
@@ -6,6 +7,8 @@ finds the square can predict the label.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -21,6 +24,8 @@ from perception.interface import (
     Target,
 )
 from perception.labels import label_vector
+from perception.learnable import ModelSpec
+from perception.models.base import LabelScaler
 from perception.models.kqv import KqvModel
 
 TYPES = ("red", "green", "blue")
@@ -28,6 +33,8 @@ COLOURS = np.array([[220, 30, 30], [30, 170, 60], [40, 60, 220]], dtype=np.uint8
 BACKGROUND = np.array([200, 170, 130], dtype=np.uint8)
 SQUARE_PX = 8
 DOWN = np.diag([1.0, -1.0, -1.0])  # a TCP pointing straight down
+CAMERA = PinholeCamera((0.0, 0.0, 0.6), (0.45, 0.0, 0.0), (0.0, 0.0, 1.0), 40.0, None, 64, 64)
+"""A camera above a synthetic table, for grasp datasets a ray readout can read."""
 
 
 class CentreModel(PerceptionModel):
@@ -68,6 +75,19 @@ class FixedGrasp(PerceptionModel):
 
 class NotAModel:
     """A class that is no PerceptionModel."""
+
+
+def spec(q=1, kind=LabelKind.POSITION, choices=(), px=64):
+    """A synthetic task's model spec: q targets, a type condition when ``choices``."""
+    return ModelSpec(scene="synthetic", task="t", label_kind=kind, targets=q,
+                     condition_kind=ConditionKind.OBJECT_TYPE if choices else ConditionKind.NONE,
+                     condition_choices=choices, image_height_px=px, image_width_px=px)
+
+
+def trained_scaler(model):
+    """``model`` with a label scaler, as a fit would leave it."""
+    model.scaler = LabelScaler((0.4, 0.0, 0.02), 0.2)
+    return model
 
 
 def rot_z(yaw: float) -> np.ndarray:
@@ -129,3 +149,22 @@ def _spaced_corners(rng: np.random.Generator, count: int, image_px: int) -> list
         if all(max(abs(v - a), abs(u - b)) > SQUARE_PX + 2 for a, b in corners):
             corners.append((v, u))
     return corners
+
+
+def typed_dataset(size, seed, targets=1):
+    """Grasp scenes seen by ``CAMERA`` whose squares each take a random type (its colour).
+
+    The scene records name each target's type and the metadata the vocabulary, as the
+    simulator's collector writes them.
+    """
+    base = synthetic_dataset(size, targets=targets, kind=LabelKind.GRASP_POSE, seed=seed,
+                             camera=CAMERA)
+    types = np.random.default_rng([seed, 1]).integers(len(TYPES), size=(size, targets))
+    images = base.images.copy()
+    for n in range(size):
+        for k in range(targets):
+            images[n][(base.images[n] == COLOURS[k]).all(axis=-1)] = COLOURS[types[n, k]]
+    scenes = tuple({"objects": [{"type": TYPES[t]} for t in row], "targets": list(range(targets))}
+                   for row in types)
+    return Dataset(replace(base.metadata, extra={"object_types": list(TYPES)}), images,
+                   base.conditions, base.labels, scenes)
