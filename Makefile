@@ -31,6 +31,7 @@ lint: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_ik.py
 	$(BIN)/python benchmarks/bench_trials.py
+	$(BIN)/python benchmarks/bench_depth_obstacles.py
 	$(BIN)/python benchmarks/bench_kqv.py
 
 clean:

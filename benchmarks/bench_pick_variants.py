@@ -57,12 +57,16 @@ def run(variant: str, task_name: str, n: int, seed: int) -> dict[str, Any]:
         if variant == "occupied" else None
     outcomes: Counter[str] = Counter()
     picked: dict[str, list[int]] = {}
+    failures: list[dict[str, Any]] = []
     started = time.perf_counter()
     with TrialRunner(task, model, depth=depth) as runner:
         for index in tqdm(range(n), desc=f"{variant} / {task_name} / seed {seed}", unit="trial"):
             scene = sample_scene(task, YUMI_SCENE, seed, SeedStream.TEST, index)
             record = runner.run(scene, index, seed, f"oracle-{variant}")
             outcomes[record.outcome.value] += 1
+            if not record.success:
+                failures.append({"index": index, "target": record.target,
+                                 "outcome": record.outcome.value, "reason": record.reason[:300]})
             for pick in record.picks:
                 counts = picked.setdefault(pick["target"], [0, 0])
                 counts[0] += pick["outcome"] == "success"
@@ -70,7 +74,7 @@ def run(variant: str, task_name: str, n: int, seed: int) -> dict[str, Any]:
     return {"variant": variant, "task": task_name, "seed": seed, "n": n,
             "successes": outcomes["success"], "outcomes": dict(outcomes),
             "picks_by_object": {k: f"{v[0]}/{v[1]}" for k, v in sorted(picked.items())},
-            "wall_s": round(time.perf_counter() - started, 1)}
+            "failures": failures, "wall_s": round(time.perf_counter() - started, 1)}
 
 
 def main() -> None:
