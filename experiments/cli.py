@@ -277,7 +277,9 @@ def _run_collect(args: argparse.Namespace) -> int:
     dataset = collect(settings, args.out, progress=not args.no_progress)
     meta = dataset.metadata
     redrawn = meta.extra.get("demonstrations_redrawn")
-    print(f"{meta.size} scenes of {meta.scene} / {meta.task} (seed {meta.seed}, "
+    scenes = meta.extra.get("demonstrations", meta.size)
+    images = f" ({meta.size} images: one before each pick)" if scenes != meta.size else ""
+    print(f"{scenes} scenes{images} of {meta.scene} / {meta.task} (seed {meta.seed}, "
           f"{meta.extra.get('stream', args.stream)} stream), "
           f"{meta.targets} target(s) each, {meta.label_kind.value} labels"
           + (f"; {redrawn} failed demonstrations redrawn" if redrawn is not None else ""))

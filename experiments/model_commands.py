@@ -65,6 +65,10 @@ def run_evaluate(args: argparse.Namespace) -> int:
         print("per target, mean angle error: " + ", ".join(
             f"{_target(k, names)} {e:.1f}°"
             for k, e in enumerate(result.per_target_mean_angle_error_deg)))
+    if len(result.per_stage_mean_position_error_cm) > 1:
+        print("per pick stage (targets already picked), mean position error: " + ", ".join(
+            f"{stage}: {e:.2f} cm" for stage, e in
+            enumerate(result.per_stage_mean_position_error_cm)))
     if result.type_accuracy is not None:
         print(f"object type stated right: {100 * result.type_accuracy:.1f} % of targets")
     out: Path = args.out or args.model / f"evaluation-{args.data.stem}.json"

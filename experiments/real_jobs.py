@@ -146,8 +146,9 @@ def _collect(job: CollectJob) -> str:
     settings = CollectSettings(SCENE, job.task, job.settings.demos, job.settings.seed,
                                SeedStream.TRAIN)
     dataset = collect(settings, dataset_file(job.out, job.task, job.settings), progress=False)
-    return f"{len(dataset)} demonstrations, " \
-           f"{dataset.metadata.extra.get('demonstrations_redrawn', 0)} redrawn"
+    extra = dataset.metadata.extra
+    return f"{extra.get('demonstrations', len(dataset))} demonstrations ({len(dataset)} " \
+           f"images), {extra.get('demonstrations_redrawn', 0)} redrawn"
 
 
 def _train(job: TrainJob) -> str:

@@ -77,7 +77,8 @@ DARK_BRIGHTNESS = 0.5
 DISTRACTOR_TYPES = ("block",)
 """The distractor added to every scene: the wooden block, sponge-like and never a target."""
 GIF_TRIALS = 3
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+"""What a run folder holds; 2: a demonstration keeps the image before each of its picks."""
 
 
 class Variant(enum.Enum):

@@ -203,18 +203,34 @@ class Dataset:
         return tuple(tuple(_target_type(record, k) for k in range(self.metadata.targets))
                      for record in self.scenes)
 
+    def target_present(self) -> np.ndarray:
+        """(N, q) bool: whether each target is in its sample's image.
+
+        A demonstration with several picks keeps the image taken before each pick; its record
+        lists under ``"taken"`` the targets already picked and set aside by then. Their labels
+        are kept (finite, where they were) but say nothing of that image: losses and scores skip
+        them. A record without ``"taken"`` has every target present.
+        """
+        present = np.ones((len(self), self.metadata.targets), dtype=bool)  # (N, q)
+        for n, record in enumerate(self.scenes):
+            for k in record.get("taken", ()):
+                if isinstance(k, int) and 0 <= k < self.metadata.targets:
+                    present[n, k] = False
+        return present
+
     def target_type_indices(self) -> np.ndarray:
         """(N, q) int64: each target's type as its index in ``metadata.extra["object_types"]``.
 
-        -1 where the record names no type, the vocabulary lacks it, or the dataset has no
-        vocabulary (one collected before gva recorded it): the labels of a model that states
-        the type it attends to.
+        -1 where the record names no type, the vocabulary lacks it, the dataset has no
+        vocabulary (one collected before gva recorded it), or the target is not in the image
+        (:meth:`target_present`): the labels of a model that states the type it attends to.
         """
         vocabulary = self.metadata.extra.get("object_types") or []
         index = {name: i for i, name in enumerate(vocabulary) if isinstance(name, str)}
-        return np.array([[index.get(name, -1) if name is not None else -1 for name in row]
-                         for row in self.target_types()],
-                        dtype=np.int64).reshape(len(self), self.metadata.targets)  # (N, q)
+        indices = np.array([[index.get(name, -1) if name is not None else -1 for name in row]
+                            for row in self.target_types()],
+                           dtype=np.int64).reshape(len(self), self.metadata.targets)  # (N, q)
+        return np.where(self.target_present(), indices, -1)
 
 
 def _target_type(record: Mapping[str, Any], k: int) -> str | None:

@@ -1,10 +1,13 @@
 """Scores a perception model on a dataset of untrained scenes, as the paper reports it.
 
 The headline number is the mean position error in cm over every target of every sample (paper
-Table II). For grasp-pose labels the angle between predicted and true TCP rotations is reported
-too, in degrees, counting a half turn about the TCP's z (approach) axis as no error: a parallel
-gripper turned that way makes the same grasp. Where the model states the object type of each
-target and the dataset's scene records name it, the fraction stated right is reported as well.
+Table II), counting only the targets in the image: a demonstration of several picks keeps the
+image before each pick, and the ones already picked are gone from it
+(``Dataset.target_present``); each pick stage is scored on its own too. For grasp-pose labels
+the angle between predicted and true TCP rotations is reported too, in degrees, counting a half
+turn about the TCP's z (approach) axis as no error: a parallel gripper turned that way makes the
+same grasp. Where the model states the object type of each target and the dataset's scene
+records name it, the fraction stated right is reported as well.
 """
 
 from __future__ import annotations
@@ -37,14 +40,17 @@ class EvaluationResult:
         task: The dataset's task.
         samples: N, images evaluated.
         targets: q, targets per image.
-        mean_position_error_cm: Mean over all N x q targets [cm].
-        median_position_error_cm: Median over all N x q targets [cm].
+        mean_position_error_cm: Mean over the targets in the images [cm].
+        median_position_error_cm: Median over the targets in the images [cm].
         per_target_mean_position_error_cm: (q,) mean per target index [cm].
-        position_errors_cm: (N, q) every error [cm].
+        position_errors_cm: (N, q) every error [cm]; None for a target not in its image.
         mean_angle_error_deg: Mean rotation error [deg] (grasp labels), else None.
         median_angle_error_deg: Median rotation error [deg] (grasp labels), else None.
         per_target_mean_angle_error_deg: (q,) [deg] (grasp labels), else None.
         angle_errors_deg: (N, q) [deg] (grasp labels), else None.
+        per_stage_mean_position_error_cm: Mean per pick stage [cm]: stage s holds the images
+            taken after s targets were picked, in order, those with a target left to score
+            (one stage where every image shows every target).
         type_accuracy: Fraction of the targets of known type whose stated ``object_type`` is
             their true type (a target stating none counts as wrong); None where the model
             states no type or the dataset's scene records name none.
@@ -59,12 +65,13 @@ class EvaluationResult:
     mean_position_error_cm: float
     median_position_error_cm: float
     per_target_mean_position_error_cm: tuple[float, ...]
-    position_errors_cm: tuple[tuple[float, ...], ...]
+    position_errors_cm: tuple[tuple[float | None, ...], ...]
     mean_angle_error_deg: float | None = None
     median_angle_error_deg: float | None = None
     per_target_mean_angle_error_deg: tuple[float, ...] | None = None
-    angle_errors_deg: tuple[tuple[float, ...], ...] | None = None
+    angle_errors_deg: tuple[tuple[float | None, ...], ...] | None = None
     type_accuracy: float | None = None
+    per_stage_mean_position_error_cm: tuple[float, ...] = ()
 
     def to_json(self) -> dict[str, Any]:
         """The result as JSON-able data (tuples become lists)."""
@@ -130,34 +137,48 @@ def evaluate(model: PerceptionModel, dataset: Dataset, batch_size: int = 32) -> 
         rotations = np.array([[t.rotation for t in p.targets] for p in predictions])
         angle_deg = np.degrees(symmetric_angle_rad(rotations, truth.rotation))  # (N, q)
 
-    def table(errors: np.ndarray) -> tuple[tuple[float, ...], ...]:
-        return tuple(tuple(float(e) for e in row) for row in errors)
+    present = dataset.target_present()  # (N, q)
+    stage = (~present).sum(axis=1)  # (N,) targets already picked
+
+    def table(errors: np.ndarray) -> tuple[tuple[float | None, ...], ...]:
+        return tuple(tuple(float(e) if seen else None for e, seen in zip(row, shown, strict=True))
+                     for row, shown in zip(errors, present, strict=True))
+
+    def per_target(errors: np.ndarray) -> tuple[float, ...]:
+        return tuple(float(errors[present[:, k], k].mean()) for k in range(meta.targets))
 
     return EvaluationResult(
         model=model.name, scene=meta.scene, task=meta.task, samples=len(dataset),
-        targets=meta.targets, mean_position_error_cm=float(position_cm.mean()),
-        median_position_error_cm=float(np.median(position_cm)),
-        per_target_mean_position_error_cm=tuple(float(e) for e in position_cm.mean(axis=0)),
+        targets=meta.targets, mean_position_error_cm=float(position_cm[present].mean()),
+        median_position_error_cm=float(np.median(position_cm[present])),
+        per_target_mean_position_error_cm=per_target(position_cm),
         position_errors_cm=table(position_cm),
-        mean_angle_error_deg=None if angle_deg is None else float(angle_deg.mean()),
-        median_angle_error_deg=None if angle_deg is None else float(np.median(angle_deg)),
-        per_target_mean_angle_error_deg=None if angle_deg is None else tuple(
-            float(e) for e in angle_deg.mean(axis=0)),
+        mean_angle_error_deg=None if angle_deg is None else float(angle_deg[present].mean()),
+        median_angle_error_deg=None if angle_deg is None else float(
+            np.median(angle_deg[present])),
+        per_target_mean_angle_error_deg=None if angle_deg is None else per_target(angle_deg),
         angle_errors_deg=None if angle_deg is None else table(angle_deg),
         type_accuracy=type_accuracy(predictions, dataset),
+        per_stage_mean_position_error_cm=tuple(
+            float(position_cm[scored].mean()) for scored in
+            ((stage == s)[:, None] & present for s in range(int(stage.max()) + 1))
+            if scored.any()),
     )
 
 
 def type_accuracy(predictions: list[Prediction], dataset: Dataset) -> float | None:
     """The fraction of targets of known type that ``predictions`` state right; None: no type.
 
-    None where no prediction states a type or no scene record names one.
+    Targets not in their image are left out. None where no prediction states a type or no
+    scene record names one.
     """
     if not any(t.object_type is not None for p in predictions for t in p.targets):
         return None
-    right = [stated.object_type == true for p, row in zip(predictions, dataset.target_types(),
-                                                          strict=True)
-             for stated, true in zip(p.targets, row, strict=True) if true is not None]
+    right = [stated.object_type == true
+             for p, row, shown in zip(predictions, dataset.target_types(),
+                                      dataset.target_present(), strict=True)
+             for stated, true, seen in zip(p.targets, row, shown, strict=True)
+             if true is not None and seen]
     return float(np.mean(right)) if right else None
 
 

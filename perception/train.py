@@ -104,6 +104,8 @@ class Batch(NamedTuple):
     labels: Tensor  # (B, q, D) float32, as the dataset holds them (not yet scaled)
     type_indices: Tensor | None = None  # (B, q) int64: each target's type in the dataset's
     # object_types (Dataset.target_type_indices), -1 unknown; None: not given
+    present: Tensor | None = None  # (B, q) bool: the target is in the image
+    # (Dataset.target_present); None: every target is
 
 
 class PhaseSummary(NamedTuple):
@@ -242,6 +244,7 @@ def train(
     conditions = torch.from_numpy(dataset.conditions).to(device)  # (N, C)
     labels = torch.from_numpy(dataset.labels).to(device)  # (N, q, D)
     type_indices = torch.from_numpy(dataset.target_type_indices()).to(device)  # (N, q)
+    present = torch.from_numpy(dataset.target_present()).to(device)  # (N, q)
     losses: list[tuple[int, float]] = []
     window: list[float] = []
     started = time.perf_counter()
@@ -254,7 +257,7 @@ def train(
             if config.augment:
                 images = photometric_augment(images, generator)
             loss = batch_loss(Batch(images, conditions[index], labels[index],
-                                    type_indices[index]))
+                                    type_indices[index], present[index]))
             if not torch.isfinite(loss):
                 raise TrainingError(f"{description}: the loss became {loss.item()} at step "
                                     f"{step}; try a lower learning_rate (now "

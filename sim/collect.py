@@ -3,11 +3,16 @@
 ``paper-sim``: each training scene is placed and rendered; the labels are the targets' true
 positions. ``yumi``: each training scene is an expert demonstration: the oracle's grasps are
 executed in the simulator, and the scene is kept only if every pick succeeded (a failed one is
-redrawn from the next scene of the training stream, and counted). Either way, scene ``i`` of a
-dataset comes from the training seed stream, never the test stream the trials use, unless the
-settings ask for the test stream: a ``paper-sim`` test set (Table II scores models on 100 test
-scenes) is collected like a training set, from ``SeedStream.TEST``. Scene ``i`` depends on the
-seed, the stream and ``i`` alone, so a dataset of 4 scenes is the first 4 of one of 20.
+redrawn from the next scene of the training stream, and counted). A demonstration keeps the
+image the camera takes before each of its picks, as a trial sees them: a ``multiple`` scene
+gives three samples, the second without the first target, the third with the last alone; a
+sample's record lists the targets already taken under ``"taken"`` (their labels say where they
+were; :meth:`perception.data.Dataset.target_present` marks them absent). Either way, scene
+``i`` of a dataset comes from the training seed stream, never the test stream the trials use,
+unless the settings ask for the test stream: a ``paper-sim`` test set (Table II scores models
+on 100 test scenes) is collected like a training set, from ``SeedStream.TEST``. Scene ``i``
+depends on the seed, the stream and ``i`` alone, so a dataset of 4 scenes is the first 4 of
+one of 20.
 """
 
 from __future__ import annotations
@@ -22,14 +27,17 @@ import numpy as np
 from tqdm import tqdm
 
 from perception.data import Dataset, DatasetMetadata, save_dataset
+from perception.interface import Prediction
 from perception.labels import label_vector
 from perception.mirror import MIRROR_FLAG
 from sim.errors import InvalidInputError, SimError
 from sim.mirror import mirror_symmetric
 from sim.records import TrialOutcome
+from sim.runner import TrialRunner
 from sim.scene import SeedStream, check_task_fits, condition_choices, sample_scene
 from sim.scenes import SCENE_NAMES, SceneSpec, get_scene_spec
 from sim.tasks import TaskSpec, load_task
+from sim.world import World
 
 MAX_REDRAW_FACTOR = 3
 """A yumi collection gives up after this many times ``size`` failed demonstrations."""
@@ -42,7 +50,8 @@ class CollectSettings:
     Args:
         scene: ``paper-sim`` or ``yumi``.
         task: A built-in task name or the path of a task TOML file.
-        size: Number of training scenes (the paper uses 4, 20 and 100).
+        size: Number of training scenes (the paper uses 4, 20 and 100); a ``yumi`` scene with
+            several targets gives one sample per pick.
         seed: The seed the scenes are drawn from.
         stream: Which of the seed's streams: ``TRAIN`` (a training set) or ``TEST`` (a test
             set of untrained scenes); recorded as ``extra["stream"]`` in the metadata.
@@ -129,16 +138,49 @@ def _collect_paper(
     return samples, camera, {"stream": settings.stream.name.lower()}
 
 
+class _PickImages:
+    """Watches a demonstration: the image before each pick, every target's label just then.
+
+    A :class:`~sim.runner.TrialObserver`; ``saw`` comes after the image is taken and before the
+    plan, so the world is as the image shows it. A target already set aside keeps the label it
+    had when it was last on the table.
+    """
+
+    def __init__(self, runner: TrialRunner) -> None:
+        self.runner = runner
+        self.start([])
+
+    def start(self, targets: list[int]) -> None:
+        """Watches a new demonstration whose targets are these bodies, in target order."""
+        self.targets = targets
+        self.labels: dict[int, np.ndarray] = {}
+        self.stages: list[tuple[np.ndarray, np.ndarray, list[int]]] = []
+
+    def saw(self, image: np.ndarray, prediction: Prediction) -> None:
+        """Keeps ``image`` with every target's label and the targets already taken."""
+        on_table = self.runner.world.objects
+        for k, body in enumerate(self.targets):
+            if body in on_table:
+                pose = self.runner.truth(body)
+                self.labels[k] = label_vector(pose.position, pose.rotation)
+        taken = [k for k, body in enumerate(self.targets) if body not in on_table]
+        labels = np.stack([self.labels[k] for k in range(len(self.targets))])  # (q, 12)
+        self.stages.append((image, labels, taken))
+
+    def stepped(self, world: World) -> None:
+        """Nothing to watch between images."""
+
+
 def _collect_yumi(
     task: TaskSpec, spec: SceneSpec, settings: CollectSettings, bar: tqdm
 ) -> tuple[list[Sample], dict[str, Any], dict[str, Any]]:
-    from sim.runner import TrialRunner
-
     samples: list[Sample] = []
     redrawn: list[dict[str, Any]] = []
-    index = 0
+    index = kept = 0
     with TrialRunner(task) as runner:
-        while len(samples) < settings.size:
+        images = _PickImages(runner)
+        runner.observer = images
+        while kept < settings.size:
             if len(redrawn) > MAX_REDRAW_FACTOR * settings.size:
                 raise SimError(
                     f"collect yumi / {task.name}: {len(redrawn)} of {index} demonstrations "
@@ -147,17 +189,20 @@ def _collect_yumi(
             scene = sample_scene(task, spec, settings.seed, settings.stream, index)
             index += 1
             bodies = runner.setup(scene)
-            image = runner.render()
-            labels = np.stack([label_vector(pose.position, pose.rotation)
-                               for pose in (runner.truth(bodies[t]) for t in scene.targets)])
+            images.start([bodies[t] for t in scene.targets])
             outcome = runner.pick_targets(scene, bodies)
             if outcome["outcome"] is not TrialOutcome.SUCCESS:
                 redrawn.append({"scene_index": scene.index, "reason": outcome["reason"]})
                 bar.set_postfix_str(f"{len(redrawn)} redrawn")
                 continue
-            samples.append((image, scene.condition.one_hot(), labels, scene.to_record()))
+            record = scene.to_record()
+            samples += [(image, scene.condition.one_hot(), labels,
+                         record | {"taken": taken} if taken else record)
+                        for image, labels, taken in images.stages]
+            kept += 1
             bar.update()
         camera = _camera_json(runner.camera)
-    extra = {"stream": settings.stream.name.lower(), "demonstrations_redrawn": len(redrawn),
-             "redrawn": redrawn, MIRROR_FLAG: mirror_symmetric(task, spec, runner.camera.config)}
+    extra = {"stream": settings.stream.name.lower(), "demonstrations": settings.size,
+             "demonstrations_redrawn": len(redrawn), "redrawn": redrawn,
+             MIRROR_FLAG: mirror_symmetric(task, spec, runner.camera.config)}
     return samples, camera, extra

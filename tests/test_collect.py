@@ -24,6 +24,23 @@ def yumi_files(tmp_path_factory):
 
 
 @pytest.mark.slow
+def test_a_demonstration_of_several_picks_keeps_the_image_before_each(tmp_path):
+    data = collect(CollectSettings("yumi", "multiple", size=1, seed=0), tmp_path / "m.gva",
+                   progress=False)
+    assert len(data) == 3 and data.metadata.extra["demonstrations"] == 1
+    assert [record.get("taken", []) for record in data.scenes] == [[], [0], [0, 1]]
+    np.testing.assert_array_equal(data.target_present(), [[True] * 3, [False, True, True],
+                                                          [False, False, True]])
+    # A picked target keeps its last label; the others stay within a millimetre of theirs.
+    np.testing.assert_array_equal(data.labels[1, 0], data.labels[0, 0])
+    np.testing.assert_array_equal(data.labels[2, :2], data.labels[1, :2])
+    np.testing.assert_allclose(data.labels[1:, 2], data.labels[:2, 2], atol=1e-3)
+    assert all(len(record["objects"]) == 3 for record in data.scenes)  # the scene, as drawn
+    for before, after in ((0, 1), (1, 2)):  # the picked object is gone from the next image
+        assert np.any(data.images[before] != data.images[after], axis=-1).sum() > 100
+
+
+@pytest.mark.slow
 def test_same_seed_gives_a_byte_identical_dataset(yumi_files):
     assert yumi_files["a"].read_bytes() == yumi_files["b"].read_bytes()
     assert yumi_files["a"].read_bytes() != yumi_files["c"].read_bytes()

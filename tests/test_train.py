@@ -269,3 +269,43 @@ def test_gva_train_names_the_phases_and_evaluate_prints_the_type_accuracy(tmp_pa
     accuracy = saved["type_accuracy"]
     assert accuracy in {k / 6 for k in range(7)}
     assert f"object type stated right: {100 * accuracy:.1f} % of targets" in lines
+
+
+def staged(dataset, taken):
+    """``dataset`` with target indices ``taken[n]`` marked as picked before image n."""
+    scenes = tuple(record | {"taken": list(t)} if t else record
+                   for record, t in zip(dataset.scenes, taken, strict=True))
+    return dataclasses.replace(dataset, scenes=scenes)
+
+
+def test_a_target_picked_before_the_image_is_absent_from_losses_types_and_scores():
+    dataset = staged(typed_dataset(3, seed=8, targets=2), [(), (0,), (0, 1)])
+    np.testing.assert_array_equal(dataset.target_present(),
+                                  [[True, True], [False, True], [False, False]])
+    assert (dataset.target_type_indices()[[1, 2, 2], [0, 0, 1]] == -1).all()
+    assert (dataset.target_type_indices()[[0, 0, 1], [0, 1, 1]] >= 0).all()
+    result = evaluate(Typed(dataset), dataset)
+    assert result.position_errors_cm[1][0] is None and result.position_errors_cm[1][1] > 0
+    errors = np.array([[e for e in row] for row in result.position_errors_cm], dtype=float)
+    assert result.mean_position_error_cm == pytest.approx(np.nanmean(errors))
+    assert result.per_stage_mean_position_error_cm == pytest.approx(
+        (np.mean(errors[0]), errors[1, 1]))  # stage 2 has no target left: not scored
+    json.dumps(result.to_json(), allow_nan=False)
+
+
+def test_the_target_loss_skips_absent_targets_and_is_the_plain_mean_when_all_are_there():
+    dataset = typed_dataset(4, seed=9, targets=2)
+    model = KqvModel.for_dataset(dataset, KqvConfig(type_head=False))
+    model.scaler = model.network.scaler = LabelScaler.fit(dataset.labels[..., :3])
+    images = torch.rand(4, 3, 64, 64)
+    labels = torch.from_numpy(dataset.labels)
+    out = model.network(images, torch.from_numpy(dataset.conditions))
+    everyone = torch.ones(4, 2, dtype=torch.bool)
+    assert torch.equal(model.target_loss(out, labels, everyone), model.target_loss(out, labels))
+    gone = everyone.clone()
+    gone[1:, 1] = False
+    garbage = labels.clone()
+    garbage[1:, 1, :3] += 5.0  # where an absent target's label says it is does not count
+    assert torch.allclose(model.target_loss(out, garbage, gone), model.target_loss(out, labels,
+                                                                                   gone))
+    assert not torch.allclose(model.target_loss(out, garbage), model.target_loss(out, labels))

@@ -211,4 +211,5 @@ class AutoencoderModel(BaselineModel):
         """Phase 2's loss: the target loss, the encoder frozen."""
         with torch.no_grad():
             encoding = self.network.encode(batch.images)
-        return self.target_loss(self.network.targets(encoding, batch.conditions), batch.labels)
+        return self.target_loss(self.network.targets(encoding, batch.conditions), batch.labels,
+                                batch.present)

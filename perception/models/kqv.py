@@ -50,7 +50,7 @@ from perception.models.base import (
 from perception.models.kqv_config import KqvConfig
 from perception.models.readout import CameraRays
 from perception.models.rotations import decode_rotation, rotation_size
-from perception.models.torch_model import NetOutput, Phase, TorchModel
+from perception.models.torch_model import NetOutput, Phase, TorchModel, present_mean
 from perception.train import Batch, TrainConfig, TrainReport, train
 
 
@@ -320,11 +320,12 @@ class KqvModel(TorchModel):
         if self._mirror is not None:
             batch = self._mirror(batch)
         out = self.network(batch.images, batch.conditions)
-        loss = self.target_loss(out, batch.labels)
+        loss = self.target_loss(out, batch.labels, batch.present)
         rays = self.network.rays
         if rays is not None and c.point_loss_weight > 0 and out.points is not None:
             seen = rays.project(batch.labels[..., :3])  # (B, q, 2)
-            loss = loss + c.point_loss_weight * (out.points - seen).square().sum(-1).mean()
+            loss = loss + c.point_loss_weight * present_mean(
+                (out.points - seen).square().sum(-1), batch.present)
         return loss
 
     def type_loss(self, batch: Batch) -> Tensor:

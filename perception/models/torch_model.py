@@ -69,6 +69,16 @@ def split_pose(out: Tensor) -> tuple[Tensor, Tensor | None]:
     return out[..., :3], rotations
 
 
+def present_mean(values: Tensor, present: Tensor | None) -> Tensor:
+    """The mean of per-target ``values`` (B, q) over the targets ``present`` (B, q) marks.
+
+    With every target present (or ``present`` None) it is the plain mean, to the bit.
+    """
+    if present is None or bool(present.all()):
+        return values.mean()
+    return (values * present).sum() / present.sum().clamp(min=1)
+
+
 class Phase(NamedTuple):
     """One stage of training: the loss to lower and the parameters that lower it."""
 
@@ -141,23 +151,26 @@ class TorchModel(LearnableModel):
 
     def batch_loss(self, batch: Batch) -> Tensor:
         """The target loss of the network's prediction for ``batch``."""
-        return self.target_loss(self.network(batch.images, batch.conditions), batch.labels)
+        return self.target_loss(self.network(batch.images, batch.conditions), batch.labels,
+                                batch.present)
 
-    def target_loss(self, out: NetOutput, labels: Tensor) -> Tensor:
-        """Squared position error (scaled units) + weighted rotation loss.
+    def target_loss(self, out: NetOutput, labels: Tensor, present: Tensor | None = None
+                    ) -> Tensor:
+        """Squared position error (scaled units) + weighted rotation loss, over present targets.
 
         The position term is the squared Euclidean distance in the scaler's units, so it stays
         proportional to the error in metres the paper reports; the rotation term, the symmetric
         chordal loss or, for a head with axis-line codes, the loss on those codes, counts a half
         turn about the TCP's approach axis as no error (the same parallel-gripper grasp).
+        ``present`` (B, q) leaves out targets no longer in the image (:attr:`Batch.present`).
         """
         target = self._scaler().normalise(labels[..., :3])  # (B, q, 3)
-        loss = (out.positions - target).square().sum(dim=-1).mean()
+        loss = present_mean((out.positions - target).square().sum(dim=-1), present)
         if out.rotations is not None:
             rotation = labels[..., 3:].unflatten(-1, (3, 3))  # (B, q, 3, 3), row-major
             rotation_loss = symmetric_chordal_loss(out.rotations, rotation) \
                 if out.rotation_lines is None else axis_line_loss(out.rotation_lines, rotation)
-            loss = loss + self.config.rotation_loss_weight * rotation_loss.mean()
+            loss = loss + self.config.rotation_loss_weight * present_mean(rotation_loss, present)
         return loss
 
     # predicting
