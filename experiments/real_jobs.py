@@ -152,16 +152,20 @@ def _collect(job: CollectJob) -> str:
 
 
 def _train(job: TrainJob) -> str:
-    from perception.data import load_dataset
+    from perception.data import DatasetError, load_dataset
     from perception.registry import new_model
     from perception.train import TrainConfig
     from sim.trials import torch_threads
 
     settings, unit = job.settings, job.unit
     with torch_threads(settings.train_threads):
-        data = load_dataset(dataset_file(job.out, unit.task, settings),
-                            expect={"scene": SCENE, "task": unit.task, "size": settings.demos,
-                                    "seed": settings.seed})
+        path = dataset_file(job.out, unit.task, settings)
+        data = load_dataset(path, expect={"scene": SCENE, "task": unit.task,
+                                          "seed": settings.seed})
+        demonstrations = data.metadata.extra.get("demonstrations", len(data))
+        if demonstrations != settings.demos:  # a demonstration has an image per pick
+            raise DatasetError(path, f"holds {demonstrations} demonstrations, the run asks "
+                               f"for {settings.demos}")
         model = new_model(unit.model, data, seed=settings.seed)
         report = model.fit(data, TrainConfig(**settings.train_config()), progress=False)
         model.save(checkpoint_folder(job.out, unit))

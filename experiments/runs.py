@@ -52,8 +52,9 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
                     stream: SeedStream) -> bool:
     """Whether ``path`` holds the dataset asked for; refuses a file that holds another.
 
-    Compared: scene, task name, size, seed, seed stream, the task's definition (a task whose
-    TOML changed since is another dataset) and the scene's camera (other images).
+    Compared: scene, task name, size (in scenes: a yumi demonstration has an image per pick),
+    seed, seed stream, the task's definition (a task whose TOML changed since is another
+    dataset) and the scene's camera (other images).
 
     Raises:
         RunFolderError: ``path`` holds another dataset; the message names what differs.
@@ -72,7 +73,8 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
                        "stream": stream.name.lower(),
                        "definition": task_identity(load_task(task)),
                        "camera": asdict(scene_camera(scene))})
-    found = {"scene": meta.scene, "task": meta.task, "size": meta.size, "seed": meta.seed,
+    scenes = meta.extra.get("demonstrations", meta.size)  # a demonstration: an image per pick
+    found = {"scene": meta.scene, "task": meta.task, "size": scenes, "seed": meta.seed,
              "stream": meta.extra.get("stream"), "definition": meta.extra.get("task"),
              "camera": json_form(asdict(CameraConfig.from_json(meta.camera)))}
     if found != asked:

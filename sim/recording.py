@@ -82,11 +82,12 @@ class TrialRecorder:
         self.caption = ""
         self.frames: list[np.ndarray] = []
         self._seen: np.ndarray | None = None  # the head panel: last image with its points
+        self._world: World | None = None  # the world of the last physics step
         self._next_frame_s = 0.0
 
     def start(self, caption: str) -> None:
         """Starts a new trial's recording, captioned ``caption``."""
-        self.caption, self.frames, self._seen = caption, [], None
+        self.caption, self.frames, self._seen, self._world = caption, [], None, None
         self._next_frame_s = 0.0
 
     def saw(self, image: np.ndarray, prediction: Prediction) -> None:
@@ -103,13 +104,19 @@ class TrialRecorder:
 
     def stepped(self, world: World) -> None:
         """After a physics step: a frame every ``frame_every_s``, from the first prediction on."""
+        self._world = world
         if self._seen is None or world.time_s + 1e-9 < self._next_frame_s:
             return
         self._next_frame_s = world.time_s + self.settings.frame_every_s
         self.frames.append(self._frame(world, self._seen))
 
     def finish(self, ending: str) -> list[np.ndarray]:
-        """The trial's frames (at most ``max_frames``), the last captioned with ``ending``."""
+        """The trial's frames (at most ``max_frames``), the last captioned with ``ending``.
+
+        A trial that ended before the robot moved (a refused plan) still gets one frame.
+        """
+        if not self.frames and self._seen is not None and self._world is not None:
+            self.frames.append(self._frame(self._world, self._seen))
         frames = self.frames
         if len(frames) > self.settings.max_frames:
             kept = np.linspace(0, len(frames) - 1, self.settings.max_frames).round().astype(int)

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from perception.interface import Prediction, Target
 from sim.errors import InvalidInputError
 from sim.recording import CAPTION_PX, RecordingSettings, TrialRecorder, join_trials, write_gif
 from sim.runner import TrialRunner
@@ -55,6 +56,29 @@ def test_recording_a_trial_calls_the_hook_and_changes_nothing():
     assert all(f.shape == (CAPTION_PX + 128, 256, 3) and f.dtype == np.uint8 for f in frames)
     assert not np.array_equal(frames[0][CAPTION_PX:, 128:], frames[-1][CAPTION_PX:, 128:])
     assert not np.array_equal(frames[-2][:CAPTION_PX], frames[-1][:CAPTION_PX])  # the outcome
+
+
+def test_a_trial_refused_before_the_robot_moves_still_gets_a_frame():
+    task = load_task("single")
+    scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 0)
+    recorder = TrialRecorder()
+    with TrialRunner(task, observer=recorder) as runner:
+        oracle = runner.model
+
+        class FarAway:  # a grasp 80 cm beyond the target: no arm reaches it, nothing moves
+            name = "far"
+
+            def predict(self, image, condition):
+                (target,) = oracle.predict(image, condition).targets
+                return Prediction((Target(target.position_m + np.array([0.8, 0.0, 0.0]),
+                                          target.rotation),))
+
+        runner.model = FarAway()
+        recorder.start("far / single, trial 0")
+        record = runner.run(scene, 0, 0, "far")
+        frames = recorder.finish(record.outcome.value)
+    assert record.outcome.value == "ik_unreachable"
+    assert len(frames) == 1 and frames[0].shape == (CAPTION_PX + 128, 256, 3)
 
 
 def test_a_runner_without_an_observer_leaves_the_world_unhooked():

@@ -188,3 +188,17 @@ def test_the_markdown_has_the_papers_row_ours_and_the_failure_reasons():
     assert "  - trial 29 (mug): ik_unreachable: no arm reaches it" in reasons
     assert "the distractor has a target's type in 3 of 5 trials" in reasons
     assert text.rstrip().endswith("Made by `gva reproduce real`.")
+
+
+@pytest.mark.slow
+def test_a_multiple_run_trains_on_the_image_before_each_pick_and_resumes(tmp_path):
+    out = tmp_path / "run"
+    args = ("reproduce", "real", "--out", out, "--tasks", "multiple", "--demos", "1", "--n",
+            "1", "--steps", "2", "--workers", "1", "--no-robustness", "--no-progress")
+    status, stdout, stderr = gva(*args)
+    assert status == 0, stderr
+    assert "4 job(s) run (0 failed)" in stdout
+    trained = json.loads(trained_file(out, Unit("kqv", "multiple")).read_text())
+    assert trained["samples"] == 3  # one demonstration, an image before each of its 3 picks
+    status, stdout, _ = gva(*args)
+    assert status == 0 and "0 job(s) run (0 failed), 4 finished earlier" in stdout
