@@ -79,7 +79,7 @@ class EvaluationResult:
 
     def headline(self) -> str:
         """One line: the mean and median errors."""
-        line = (f"{self.model} on {self.scene} / {self.task} ({self.samples} scenes): position "
+        line = (f"{self.model} on {self.scene} / {self.task} ({self.samples} images): position "
                 f"error mean {self.mean_position_error_cm:.2f} cm, median "
                 f"{self.median_position_error_cm:.2f} cm")
         if self.mean_angle_error_deg is not None:

@@ -108,7 +108,7 @@ def test_evaluate_prints_cm_and_writes_the_json(files: dict[str, Path]) -> None:
     status, out, err = gva("evaluate", "--model", files["kqv-two"], "--data", files["two"])
     assert status == 0, err
     lines = out.splitlines()
-    assert lines[0].startswith("kqv on synthetic / multiple (6 scenes): position error mean ")
+    assert lines[0].startswith("kqv on synthetic / multiple (6 images): position error mean ")
     assert lines[0].endswith(" cm")
     assert lines[1].startswith("per target, mean position error: 0 ")
     path = files["kqv-two"] / "evaluation-two.json"
