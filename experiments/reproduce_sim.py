@@ -50,7 +50,7 @@ import traceback
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from tqdm import tqdm
 
@@ -61,6 +61,9 @@ from perception.files import atomic_write
 from sim.errors import InvalidInputError
 from sim.records import RunFolderError, claim_run_folder, differences, json_form
 
+if TYPE_CHECKING:
+    from perception.data import Dataset
+
 MODELS = ("kqv", "keypoint-16", "keypoint-min", "dsae-16", "conv-ae", "fcn")
 """The models of Table II, in the paper's row order (names :func:`new_model` takes)."""
 TASKS = ("single", "multiple", "selected-type", "selected-position")
@@ -69,7 +72,9 @@ SIZES = (4, 20, 100)
 """Training set sizes of Table II."""
 TWO_PHASE_MODELS = ("dsae-16", "conv-ae")
 """Models trained in two phases (autoencoder, then targets): they take longer per cell."""
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+"""What a run folder holds; 2: a training scene of a task with a condition is asked each value
+(:class:`sim.collect.CollectSettings` ``every_condition``)."""
 
 
 @dataclass(frozen=True)
@@ -246,9 +251,23 @@ class CellOutcome:
     failure: str | None = None
 
 
+def load_scenes(path: Path, task: str, scenes: int, seed: int) -> Dataset:
+    """The dataset at ``path``, checked to hold ``scenes`` scenes of ``task`` under ``seed``.
+
+    A scene may give several samples (one per condition value, or per pick): counted are
+    scenes (``extra["scenes"]``), not samples.
+    """
+    from perception.data import DatasetError, load_dataset
+
+    dataset = load_dataset(path, expect={"scene": SCENE, "task": task, "seed": seed})
+    held = dataset.metadata.extra.get("scenes", len(dataset))
+    if held != scenes:
+        raise DatasetError(path, f"holds {held} scenes, the cell asks for {scenes}")
+    return dataset
+
+
 def compute_cell(job: CellJob) -> CellOutcome:
     """Trains, saves and scores one cell; writes its result (or its failure) file."""
-    from perception.data import load_dataset
     from perception.evaluate import evaluate
     from perception.registry import new_model
     from perception.train import TrainConfig
@@ -259,14 +278,11 @@ def compute_cell(job: CellJob) -> CellOutcome:
     started = time.perf_counter()
     try:
         with torch_threads(1):
-            train = load_dataset(dataset_path(out, cell.task, SeedStream.TRAIN, cell.size,
-                                              cell.seed),
-                                 expect={"scene": SCENE, "task": cell.task, "size": cell.size,
-                                         "seed": cell.seed})
-            test = load_dataset(dataset_path(out, cell.task, SeedStream.TEST, job.test_scenes,
-                                             job.test_seed),
-                                expect={"scene": SCENE, "task": cell.task,
-                                        "size": job.test_scenes, "seed": job.test_seed})
+            train = load_scenes(dataset_path(out, cell.task, SeedStream.TRAIN, cell.size,
+                                             cell.seed), cell.task, cell.size, cell.seed)
+            test = load_scenes(dataset_path(out, cell.task, SeedStream.TEST, job.test_scenes,
+                                            job.test_seed), cell.task, job.test_scenes,
+                               job.test_seed)
             model = new_model(cell.model, train, seed=cell.seed)
             report = model.fit(train, TrainConfig(steps=job.steps, seed=cell.seed, threads=1),
                                progress=False)
@@ -281,8 +297,11 @@ def compute_cell(job: CellJob) -> CellOutcome:
         "error_cm": result.mean_position_error_cm,
         "median_error_cm": result.median_position_error_cm,
         "per_target_error_cm": list(result.per_target_mean_position_error_cm),
+        "per_condition_error_cm": result.per_condition_mean_position_error_cm,
+        "per_stage_error_cm": list(result.per_stage_mean_position_error_cm),
         "train_s": report.wall_time_s, "cell_s": time.perf_counter() - started,
-        "steps": report.steps, "final_loss": report.final_loss, "test_scenes": len(test),
+        "steps": report.steps, "final_loss": report.final_loss,
+        "test_scenes": test.metadata.extra.get("scenes", len(test)),
         "checkpoint": str(checkpoint_folder(out, cell).relative_to(out)),
         "identity": job.identity})
     error_path(out, cell).unlink(missing_ok=True)

@@ -52,9 +52,11 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
                     stream: SeedStream) -> bool:
     """Whether ``path`` holds the dataset asked for; refuses a file that holds another.
 
-    Compared: scene, task name, size (in scenes: a yumi demonstration has an image per pick),
-    seed, seed stream, the task's definition (a task whose TOML changed since is another
-    dataset) and the scene's camera (other images).
+    Compared: scene, task name, size (in scenes: a yumi demonstration has an image per pick,
+    a training scene of a task with a condition a sample per condition value), seed, seed
+    stream, whether each scene is asked every condition (:class:`sim.collect.CollectSettings`
+    ``every_condition``, at its default for the stream), the task's definition (a task whose
+    TOML changed since is another dataset) and the scene's camera (other images).
 
     Raises:
         RunFolderError: ``path`` holds another dataset; the message names what differs.
@@ -64,6 +66,7 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
         return False
     from perception.data import read_metadata
     from sim.camera import CameraConfig
+    from sim.collect import CollectSettings
     from sim.scenes import scene_camera
     from sim.tasks import load_task
     from sim.trials import task_identity
@@ -71,11 +74,15 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
     meta = read_metadata(path)
     asked = json_form({"scene": scene, "task": task, "size": size, "seed": seed,
                        "stream": stream.name.lower(),
+                       "every_condition": CollectSettings(scene, task, size, seed,
+                                                          stream).asks_every_condition,
                        "definition": task_identity(load_task(task)),
                        "camera": asdict(scene_camera(scene))})
-    scenes = meta.extra.get("demonstrations", meta.size)  # a demonstration: an image per pick
+    scenes = meta.extra.get("scenes", meta.size)  # a scene may give several samples
     found = {"scene": meta.scene, "task": meta.task, "size": scenes, "seed": meta.seed,
-             "stream": meta.extra.get("stream"), "definition": meta.extra.get("task"),
+             "stream": meta.extra.get("stream"),
+             "every_condition": meta.extra.get("every_condition", False),
+             "definition": meta.extra.get("task"),
              "camera": json_form(asdict(CameraConfig.from_json(meta.camera)))}
     if found != asked:
         raise RunFolderError(f"{path} is not the dataset this run needs "

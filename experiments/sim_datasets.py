@@ -51,7 +51,7 @@ def collect_datasets(job: DatasetJob) -> DatasetJob:
                    progress=False)
     for size in job.sizes:
         if size != largest:
-            save_dataset(full.subset(range(size)),
+            save_dataset(full.first_scenes(size),
                          dataset_path(job.out, job.task, job.stream, size, job.seed))
     return job
 

@@ -194,6 +194,24 @@ class Dataset:
                        self.conditions[index], self.labels[index],
                        tuple(self.scenes[i] for i in index))
 
+    def first_scenes(self, count: int) -> Dataset:
+        """The samples of the dataset's first ``count`` scenes, with ``extra["scenes"]`` set.
+
+        A scene may give several samples (an image before each pick of a demonstration; one
+        per condition value, :mod:`sim.collect`): they share their record's ``"index"``. A
+        record without one is a scene of its own.
+        """
+        if not isinstance(count, int) or count < 0:
+            raise InvalidInputError("count", count, "an integer >= 0")
+        keys = [record.get("index", -1 - n) for n, record in enumerate(self.scenes)]
+        kept = list(dict.fromkeys(keys))[:count]
+        if len(kept) < count:
+            raise InvalidInputError("count", count, f"at most the dataset's {len(kept)} scenes")
+        wanted = set(kept)
+        part = self.subset([n for n, key in enumerate(keys) if key in wanted])
+        meta = replace(part.metadata, extra=part.metadata.extra | {"scenes": count})
+        return Dataset(meta, part.images, part.conditions, part.labels, part.scenes)
+
     def target_types(self) -> tuple[tuple[str | None, ...], ...]:
         """(N, q) each target's object type as its scene record names it; None where it does not.
 

@@ -54,6 +54,9 @@ class EvaluationResult:
         type_accuracy: Fraction of the targets of known type whose stated ``object_type`` is
             their true type (a target stating none counts as wrong); None where the model
             states no type or the dataset's scene records name none.
+        per_condition_mean_position_error_cm: Mean per condition value, over the images
+            given it [cm] (a Query that memorised its few demonstrations shows here, where
+            the overall mean hides it); None for a task without a condition.
 
     """
 
@@ -72,6 +75,7 @@ class EvaluationResult:
     angle_errors_deg: tuple[tuple[float | None, ...], ...] | None = None
     type_accuracy: float | None = None
     per_stage_mean_position_error_cm: tuple[float, ...] = ()
+    per_condition_mean_position_error_cm: dict[str, float] | None = None
 
     def to_json(self) -> dict[str, Any]:
         """The result as JSON-able data (tuples become lists)."""
@@ -163,7 +167,20 @@ def evaluate(model: PerceptionModel, dataset: Dataset, batch_size: int = 32) -> 
             float(position_cm[scored].mean()) for scored in
             ((stage == s)[:, None] & present for s in range(int(stage.max()) + 1))
             if scored.any()),
+        per_condition_mean_position_error_cm=per_condition(position_cm, present, dataset),
     )
+
+
+def per_condition(errors: np.ndarray, present: np.ndarray, dataset: Dataset
+                  ) -> dict[str, float] | None:
+    """Mean of ``errors`` (N, q) over the present targets of each condition's images."""
+    meta = dataset.metadata
+    if meta.condition_kind is ConditionKind.NONE:
+        return None
+    chosen = dataset.conditions.argmax(axis=1)  # (N,)
+    return {value: float(errors[(chosen == c)[:, None] & present].mean())
+            for c, value in enumerate(meta.condition_choices)
+            if ((chosen == c)[:, None] & present).any()}
 
 
 def type_accuracy(predictions: list[Prediction], dataset: Dataset) -> float | None:

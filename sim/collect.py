@@ -34,7 +34,7 @@ from sim.errors import InvalidInputError, SimError
 from sim.mirror import mirror_symmetric
 from sim.records import TrialOutcome
 from sim.runner import TrialRunner
-from sim.scene import SeedStream, check_task_fits, condition_choices, sample_scene
+from sim.scene import Scene, SeedStream, check_task_fits, condition_choices, sample_scene
 from sim.scenes import SCENE_NAMES, SceneSpec, get_scene_spec
 from sim.tasks import TaskSpec, load_task
 from sim.world import World
@@ -55,6 +55,13 @@ class CollectSettings:
         seed: The seed the scenes are drawn from.
         stream: Which of the seed's streams: ``TRAIN`` (a training set) or ``TEST`` (a test
             set of untrained scenes); recorded as ``extra["stream"]`` in the metadata.
+        every_condition: Whether a scene of a task with a condition gives one sample per
+            condition value, each labelled with the object that value names (the same image;
+            a yumi demonstration picks the drawn value's object, the others' labels are their
+            grasps in that image). Then every Query learns from every scene and from the
+            contrast between them, not from the third of the scenes its value was drawn for
+            (``docs/decisions/every-condition.md``). None: for the training stream; a test
+            set keeps the one drawn value per scene.
 
     """
 
@@ -63,6 +70,7 @@ class CollectSettings:
     size: int
     seed: int = 0
     stream: SeedStream = SeedStream.TRAIN
+    every_condition: bool | None = None
 
     def __post_init__(self) -> None:
         if self.scene not in SCENE_NAMES:
@@ -75,6 +83,23 @@ class CollectSettings:
         if not isinstance(self.stream, SeedStream):
             allowed = ", ".join(f"SeedStream.{s.name}" for s in SeedStream)
             raise InvalidInputError("stream", self.stream, f"one of {allowed}")
+        if self.every_condition not in (None, True, False):
+            raise InvalidInputError("every_condition", self.every_condition,
+                                    "None, True or False")
+
+    @property
+    def asks_every_condition(self) -> bool:
+        """Whether each scene gives a sample per condition value (see ``every_condition``)."""
+        if self.every_condition is None:
+            return self.stream is SeedStream.TRAIN
+        return self.every_condition
+
+
+def asked(scene: Scene, every_condition: bool) -> tuple[Scene, ...]:
+    """The scene as drawn, then (with ``every_condition``) under each other value it can be."""
+    others = [value for value in scene.askable() if value != scene.condition.value]
+    return (scene,) + (tuple(scene.asking(value) for value in others)
+                       if every_condition else ())
 
 
 def collect(settings: CollectSettings, out_path: str | Path, progress: bool = True) -> Dataset:
@@ -129,13 +154,16 @@ def _collect_paper(
             bodies = [world.add_object(o.object_type, o.position_xy_m, o.yaw_rad)
                       for o in scene.objects]
             world.settle()
-            labels = np.stack([label_vector(world.object_position_m(bodies[t]))
-                               for t in scene.targets])
-            samples.append((world.render(task.brightness), scene.condition.one_hot(), labels,
-                            scene.to_record()))
+            image = world.render(task.brightness)
+            for question in asked(scene, settings.asks_every_condition):
+                labels = np.stack([label_vector(world.object_position_m(bodies[t]))
+                                   for t in question.targets])
+                samples.append((image, question.condition.one_hot(), labels,
+                                question.to_record()))
             bar.update()
         camera = _camera_json(world.camera)
-    return samples, camera, {"stream": settings.stream.name.lower()}
+    return samples, camera, {"stream": settings.stream.name.lower(), "scenes": settings.size,
+                             "every_condition": settings.asks_every_condition}
 
 
 class _PickImages:
@@ -155,14 +183,16 @@ class _PickImages:
         self.targets = targets
         self.labels: dict[int, np.ndarray] = {}
         self.stages: list[tuple[np.ndarray, np.ndarray, list[int]]] = []
+        self.first: dict[int, np.ndarray] = {}  # every object's label in the first image
 
     def saw(self, image: np.ndarray, prediction: Prediction) -> None:
         """Keeps ``image`` with every target's label and the targets already taken."""
-        on_table = self.runner.world.objects
-        for k, body in enumerate(self.targets):
-            if body in on_table:
-                pose = self.runner.truth(body)
-                self.labels[k] = label_vector(pose.position, pose.rotation)
+        on_table = {body: label_vector(*self.runner.truth(body))
+                    for body in self.runner.world.objects}
+        if not self.stages:
+            self.first = on_table
+        self.labels |= {k: on_table[body] for k, body in enumerate(self.targets)
+                        if body in on_table}
         taken = [k for k, body in enumerate(self.targets) if body not in on_table]
         labels = np.stack([self.labels[k] for k in range(len(self.targets))])  # (q, 12)
         self.stages.append((image, labels, taken))
@@ -199,10 +229,16 @@ def _collect_yumi(
             samples += [(image, scene.condition.one_hot(), labels,
                          record | {"taken": taken} if taken else record)
                         for image, labels, taken in images.stages]
+            first = images.stages[0][0]
+            samples += [(first, question.condition.one_hot(),
+                         np.stack([images.first[bodies[t]] for t in question.targets]),
+                         question.to_record())
+                        for question in asked(scene, settings.asks_every_condition)[1:]]
             kept += 1
             bar.update()
         camera = _camera_json(runner.camera)
-    extra = {"stream": settings.stream.name.lower(), "demonstrations": settings.size,
+    extra = {"stream": settings.stream.name.lower(), "scenes": settings.size,
+             "every_condition": settings.asks_every_condition,
              "demonstrations_redrawn": len(redrawn), "redrawn": redrawn,
              MIRROR_FLAG: mirror_symmetric(task, spec, runner.camera.config)}
     return samples, camera, extra

@@ -9,6 +9,7 @@ as the task without them (same objects, poses, targets and condition), plus the 
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 from dataclasses import dataclass
 from typing import Any
@@ -77,6 +78,32 @@ class Scene:
             "targets": list(self.targets),
             "condition": {"kind": self.condition.kind.value, "value": self.condition.value},
         }
+
+    def asking(self, value: str) -> Scene:
+        """The same scene, objects and poses, asked for condition ``value`` and its target.
+
+        A collector shows one image under every condition of its task this way (each with the
+        target that condition names), so every Query learns from every scene.
+
+        Raises:
+            InvalidInputError: The scene has no condition, or ``value`` is not one of its
+                choices.
+
+        """
+        if value not in self.askable():
+            raise InvalidInputError("condition value", value,
+                                    f"one of {list(self.askable())}" if self.askable()
+                                    else "nothing: the scene's task has no condition")
+        asked = Condition(self.condition.kind, value, self.condition.choices)
+        target = _target_of(self.objects, asked)
+        assert target is not None  # askable() holds only values with a target
+        return dataclasses.replace(self, condition=asked, targets=(target,))
+
+    def askable(self) -> tuple[str, ...]:
+        """The condition values this scene has a target for, in one-hot order (() for none)."""
+        kind, choices = self.condition.kind, self.condition.choices
+        return tuple(value for value in choices
+                     if _target_of(self.objects, Condition(kind, value, choices)) is not None)
 
 
 def scene_rng(seed: int, stream: SeedStream, index: int) -> np.random.Generator:
@@ -217,9 +244,19 @@ def _targets(
     if task.condition is ConditionKind.OBJECT_TYPE:
         value = str(rng.choice([objects[i].object_type for i in candidates]))
         condition = Condition(ConditionKind.OBJECT_TYPE, value, spec.object_types)
-        target = next(i for i in candidates if objects[i].object_type == value)
-        return condition, (target,)
-    value = str(rng.choice(SIDES))
-    condition = Condition(ConditionKind.SIDE, value, SIDES)
+    else:
+        condition = Condition(ConditionKind.SIDE, str(rng.choice(SIDES)), SIDES)
+    target = _target_of(objects, condition)
+    assert target is not None  # a type drawn from the objects', a side of two or more
+    return condition, (target,)
+
+
+def _target_of(objects: tuple[PlacedObject, ...], condition: Condition) -> int | None:
+    """The index of the object ``condition`` names (the first of its type, or the side's)."""
+    candidates = [i for i, o in enumerate(objects) if not o.distractor]
+    if condition.kind is ConditionKind.NONE or not candidates:
+        return None
+    if condition.kind is ConditionKind.OBJECT_TYPE:
+        return next((i for i in candidates if objects[i].object_type == condition.value), None)
     by_y = sorted(candidates, key=lambda i: objects[i].position_xy_m[1])
-    return condition, (by_y[-1] if value == "left" else by_y[0],)
+    return by_y[-1] if condition.value == "left" else by_y[0]

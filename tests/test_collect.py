@@ -27,7 +27,7 @@ def yumi_files(tmp_path_factory):
 def test_a_demonstration_of_several_picks_keeps_the_image_before_each(tmp_path):
     data = collect(CollectSettings("yumi", "multiple", size=1, seed=0), tmp_path / "m.gva",
                    progress=False)
-    assert len(data) == 3 and data.metadata.extra["demonstrations"] == 1
+    assert len(data) == 3 and data.metadata.extra["scenes"] == 1
     assert [record.get("taken", []) for record in data.scenes] == [[], [0], [0, 1]]
     np.testing.assert_array_equal(data.target_present(), [[True] * 3, [False, True, True],
                                                           [False, False, True]])
@@ -52,7 +52,13 @@ def test_yumi_dataset_holds_grasp_labels_conditions_and_scene_records(yumi_files
     meta = data.metadata
     assert meta.label_kind is LabelKind.GRASP_POSE and meta.targets == 1
     assert meta.condition_choices == ("sponge", "spray_bottle", "mug")
-    assert data.images.shape == (2, 128, 128, 3) and data.images.dtype == np.uint8
+    assert data.images.shape == (6, 128, 128, 3) and data.images.dtype == np.uint8
+    assert meta.extra["scenes"] == 2 and meta.extra["every_condition"] is True
+    for scene in (0, 1):  # one image of each scene, asked each of the three types
+        shown = [n for n, record in enumerate(data.scenes) if record["index"] == data.scenes[
+            3 * scene]["index"]]
+        assert len(shown) == 3 and sorted(data.conditions[shown].argmax(1)) == [0, 1, 2]
+        assert all(np.array_equal(data.images[n], data.images[shown[0]]) for n in shown)
     assert meta.extra["stream"] == "train" and meta.extra["demonstrations_redrawn"] >= 0
     assert meta.extra["object_types"] == list(meta.condition_choices)  # the scene's vocabulary
     np.testing.assert_array_equal(data.target_type_indices()[:, 0], data.conditions.argmax(1))
@@ -134,10 +140,32 @@ def test_a_test_stream_dataset_is_recorded_and_a_smaller_set_is_a_prefix(tmp_pat
                     progress=False)
     test = collect(CollectSettings("paper-sim", "single", size=2, seed=4,
                                    stream=SeedStream.TEST), tmp_path / "t.gva", progress=False)
-    assert large.subset(range(2)) == small
+    assert large.first_scenes(2) == small
     assert small.metadata.extra["stream"] == "train" and test.metadata.extra["stream"] == "test"
     assert [s["stream"] for s in test.scenes] == ["test", "test"]
     assert not np.array_equal(test.labels, small.labels)
     with pytest.raises(InvalidInputError, match=r"stream = 1 is not allowed: one of "
                        r"SeedStream.TRAIN, SeedStream.TEST"):
         CollectSettings("paper-sim", "single", 2, stream=1)  # type: ignore[arg-type]
+
+
+def test_a_training_scene_is_asked_every_condition_and_a_test_scene_its_own(tmp_path):
+    train = collect(CollectSettings("paper-sim", "selected-position", size=3, seed=2),
+                    tmp_path / "a.gva", progress=False)
+    test = collect(CollectSettings("paper-sim", "selected-position", size=3, seed=2,
+                                   stream=SeedStream.TEST), tmp_path / "t.gva", progress=False)
+    one = collect(CollectSettings("paper-sim", "selected-position", size=3, seed=2,
+                                  every_condition=False), tmp_path / "b.gva", progress=False)
+    assert (len(train), len(test), len(one)) == (6, 3, 3)
+    assert train.metadata.extra["scenes"] == 3 and train.metadata.extra["every_condition"]
+    assert not test.metadata.extra["every_condition"]
+    # the drawn question first, as the one-question dataset has it, then the other side
+    np.testing.assert_array_equal(train.images[::2], one.images)
+    np.testing.assert_array_equal(train.labels[::2], one.labels)
+    for first, second in zip(train.scenes[::2], train.scenes[1::2], strict=True):
+        assert first["index"] == second["index"] and first["objects"] == second["objects"]
+        assert {first["condition"]["value"], second["condition"]["value"]} == {"left", "right"}
+        ys = {record["condition"]["value"]: record["objects"][record["targets"][0]]
+              ["position_xy_m"][1] for record in (first, second)}
+        assert ys["left"] > ys["right"]  # the robot's left is +y
+    assert train.first_scenes(2).metadata.extra["scenes"] == 2 and len(train.first_scenes(2)) == 4

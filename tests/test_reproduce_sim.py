@@ -18,7 +18,12 @@ from experiments.reproduce_sim import (
     model_config,
     run_reproduce_sim,
 )
-from experiments.sim_report import PAPER_TABLE2_CM, no_image_reference, table2_markdown
+from experiments.sim_report import (
+    PAPER_TABLE2_CM,
+    failures,
+    no_image_reference,
+    table2_markdown,
+)
 from perception.data import load_dataset
 from sim.errors import InvalidInputError
 from sim.records import RunFolderError
@@ -171,13 +176,15 @@ def _cell(model, task, size, seed, error_cm):
 def test_the_markdown_table_has_mean_and_std_bold_below_5_cm_and_the_paper():
     cells = [_cell("kqv", "single", 20, s, e) for s, e in ((0, 1.0), (1, 2.0), (2, 3.0))]
     cells += [_cell("fcn", "single", 20, s, e) for s, e in ((0, 6.0), (1, 8.0))]
+    assert failures(cells)[("kqv", "single", 20)] == (0, 3.0)
+    assert failures(cells)[("fcn", "single", 20)] == (2, 8.0)
     cells += [_cell("kqv", "selected-type", 20, 0, 4.5)]
     failed = [{"model": "fcn", "task": "selected-type", "size": 20, "seed": 0, "error": "boom"}]
     text = table2_markdown(cells, failed, "Made by `gva reproduce sim --out x`.")
     ours, paper = text.split("## The paper's Table II")
     assert "| Model | Single Object 20 | Selected Type 20 |" in ours
     assert "| Ours (kqv, q=min) | **2.00 ± 1.00** | **4.50** (n=1) |" in ours
-    assert "| FCN | 7.00 ± 1.41 (n=2) | failed |" in ours
+    assert "| FCN | 7.00 ± 1.41 (n=2) [2/2 > 5, worst 8.0] | failed |" in ours
     assert "| Ours (kqv, q=min) | **2.88** | **4.27** |" in paper
     assert "| FCN | 6.18 | 27.62 |" in paper
     assert "Made by `gva reproduce sim --out x`." in paper
