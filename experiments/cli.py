@@ -111,6 +111,10 @@ def build_parser() -> argparse.ArgumentParser:
     collect.add_argument("--seed", type=_integer(0), default=0, help="seed of the scenes (0)")
     collect.add_argument("--stream", choices=("train", "test"), default="train",
                          help="seed stream: train, or test for untrained scenes (train)")
+    collect.add_argument("--every-condition", action=argparse.BooleanOptionalAction,
+                         default=None,
+                         help="a sample per condition value of each scene, each labelled with "
+                         "the object that value names (default: for the train stream)")
     collect.add_argument("--out", type=Path, required=True, help="dataset file to write")
     collect.add_argument("--no-progress", action="store_true", help="no progress bar")
 
@@ -132,6 +136,15 @@ def build_parser() -> argparse.ArgumentParser:
                        help="attention points of models that have the setting (keypoint)")
     train.add_argument("--threads", type=_integer(1),
                        help="torch CPU threads (default: the cores it may use)")
+    train.add_argument("--holdout", type=float,
+                       help="fraction of the training scenes held out to check the trained "
+                       "model (default: CheckConfig's; 0: no check)")
+    train.add_argument("--check-limit-cm", type=float,
+                       help="largest held-out mean error, of the whole, each condition and each "
+                       "head [cm] (default: CheckConfig's)")
+    train.add_argument("--attempts", type=_integer(1),
+                       help="trainings tried from other starts before the checkpoint is marked "
+                       "failed (default: CheckConfig's)")
     train.add_argument("--overwrite", action="store_true",
                        help="replace a checkpoint already in --out")
     train.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -221,12 +234,14 @@ def _add_reproduce_real(experiments: Any, tasks: Sequence[str]) -> None:
         description="Per task on the yumi scene: collects oracle-verified demonstrations, "
         "trains each model on them, runs closed-loop pick trials at untrained positions with "
         "the trained model in the loop (kqv also under darker light and with a distractor), "
-        "and writes OUT/table3.md, table3.json and OUT/gifs/<model>-<task>.gif. Re-running "
-        "skips what is finished.",
+        "each seed in OUT/s<seed>/, and writes OUT/table3.md and table3.json over the seeds "
+        "and OUT/s<seed>/gifs/<model>-<task>.gif. Re-running skips what is finished.",
     )
     real.add_argument("--out", type=Path, required=True, help="run folder")
+    real.add_argument("--seeds", type=_integer(1), default=1,
+                      help="runs of the whole experiment, seeds S0 .. S0 + SEEDS - 1 (1)")
     real.add_argument("--seed", type=_integer(0), default=0,
-                      help="seeds the demonstrations, the weights and the test scenes (0)")
+                      help="S0: seeds the demonstrations, the weights and the test scenes (0)")
     real.add_argument("--workers", type=_integer(1),
                       help="processes at once (default: the cores this process may use)")
     real.add_argument("--train-threads", type=_integer(1), default=1,
@@ -242,6 +257,9 @@ def _add_reproduce_real(experiments: Any, tasks: Sequence[str]) -> None:
                       help="demonstrations per task (20)")
     real.add_argument("--steps", type=_integer(1), default=1000,
                       help="optimiser steps of training (1000)")
+    real.add_argument("--holdout", type=float,
+                      help="fraction of each task's demonstrations held out to check its "
+                      "trained model (default: CheckConfig's; 0: train on all, check nothing)")
     real.add_argument("--robustness", action=argparse.BooleanOptionalAction, default=True,
                       help="also run kqv under darker light and with a distractor (on)")
     real.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -249,11 +267,16 @@ def _add_reproduce_real(experiments: Any, tasks: Sequence[str]) -> None:
 
 def _run_trials(args: argparse.Namespace) -> int:
     from sim.planning import ObstacleSource
-    from sim.trials import TrialSettings, run_trials
+    from sim.trials import TrialSettings, held_out_check, run_trials
 
     settings = TrialSettings(model=args.model, task=args.task, n=args.n, seed=args.seed,
                              model_class=args.model_class,
                              obstacles=ObstacleSource(args.obstacles))
+    check = held_out_check(settings)
+    if check is not None and not check.passed:
+        print(f"WARNING: checkpoint {args.model} failed its training's held-out check "
+              f"({check.reason}): these trials measure a model known to be poor",
+              file=sys.stderr)
     summary = run_trials(settings, args.out, progress=not args.no_progress)
     print(summary.headline())
     for outcome, count in summary.outcomes.items():
@@ -273,12 +296,14 @@ def _run_collect(args: argparse.Namespace) -> int:
 
     stream = SeedStream.TRAIN if args.stream == "train" else SeedStream.TEST
     settings = CollectSettings(scene=args.scene, task=args.task, size=args.size, seed=args.seed,
-                               stream=stream)
+                               stream=stream, every_condition=args.every_condition)
     dataset = collect(settings, args.out, progress=not args.no_progress)
     meta = dataset.metadata
     redrawn = meta.extra.get("demonstrations_redrawn")
-    scenes = meta.extra.get("demonstrations", meta.size)
-    images = f" ({meta.size} images: one before each pick)" if scenes != meta.size else ""
+    scenes = meta.extra.get("scenes", meta.size)
+    why = ("one per condition value" if meta.extra.get("every_condition") and meta.targets == 1
+           else "one before each pick")
+    images = f" ({meta.size} samples: {why})" if scenes != meta.size else ""
     print(f"{scenes} scenes{images} of {meta.scene} / {meta.task} (seed {meta.seed}, "
           f"{meta.extra.get('stream', args.stream)} stream), "
           f"{meta.targets} target(s) each, {meta.label_kind.value} labels"
@@ -326,13 +351,22 @@ def _run_reproduce_real(args: argparse.Namespace) -> int:
 
     settings = ReproduceRealSettings(models=args.models, tasks=args.tasks, n=args.n,
                                      demos=args.demos, steps=args.steps, seed=args.seed,
+                                     seeds=args.seeds, check=_check_config(args),
                                      robustness=args.robustness, workers=args.workers,
                                      train_threads=args.train_threads)
     report = run_reproduce_real(settings, args.out, progress=not args.no_progress)
     _print_run(report, "job(s) run", lambda record: record["job"])
     print(report.table)
-    print(f"files: {args.out}/ (table3.md, table3.json, gifs/, trials/, checkpoints/)")
+    print(f"files: {args.out}/ (table3.md, table3.json; per seed s<seed>/: gifs/, trials/, "
+          "checkpoints/)")
     return 1 if report.failed else 0
+
+
+def _check_config(args: argparse.Namespace) -> Any:
+    """The :class:`~perception.validation.CheckConfig` of ``--holdout`` (defaults otherwise)."""
+    from perception.validation import CheckConfig
+
+    return CheckConfig() if args.holdout is None else CheckConfig(holdout=args.holdout)
 
 
 def _run_reproduce(args: argparse.Namespace) -> int:

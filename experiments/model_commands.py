@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -23,6 +24,7 @@ from perception.interface import InvalidInputError, PerceptionError, Prediction
 from perception.learnable import LearnableModel
 from perception.registry import load_model, new_model
 from perception.train import TrainConfig
+from perception.validation import CHECK_FILE, CheckConfig, fit_checked, write_check
 
 
 def run_train(args: argparse.Namespace) -> int:
@@ -36,11 +38,16 @@ def run_train(args: argparse.Namespace) -> int:
                                 f"{' and '.join(held)} (pass --overwrite to replace them)")
     dataset = load_dataset(args.data)
     hyperparameters = {} if args.points is None else {"points": args.points}
-    model = new_model(args.model, dataset, seed=args.seed, **hyperparameters)
     given = {"steps": args.steps, "batch_size": args.batch_size, "threads": args.threads}
     config = TrainConfig(seed=args.seed, **{k: v for k, v in given.items() if v is not None})
-    report = model.fit(dataset, config, progress=not args.no_progress)
+    check = CheckConfig(**{name: value for name, value in (
+        ("holdout", args.holdout), ("limit_cm", args.check_limit_cm),
+        ("attempts", args.attempts)) if value is not None})
+    fit = fit_checked(lambda seed: new_model(args.model, dataset, seed=seed, **hyperparameters),
+                      dataset, config, check, progress=not args.no_progress, log=print)
+    model, report = fit.model, fit.report
     model.save(out)
+    write_check(out, fit)
     meta = dataset.metadata
     print(f"{model.name} on {meta.scene} / {meta.task}: {report.samples} samples, "
           f"{report.steps} steps, final loss {report.final_loss:.4g}, "
@@ -49,6 +56,11 @@ def run_train(args: argparse.Namespace) -> int:
         print("phases: " + "; ".join(f"{phase.name} {phase.steps} steps, final loss "
                                      f"{phase.final_loss:.4g}" for phase in report.phases))
     print(f"checkpoint: {out}" + (" (replaced)" if held else ""))
+    if fit.check is not None and not fit.check.passed:
+        print(f"WARNING: {out} failed its held-out check after {len(fit.checks)} attempt(s): "
+              f"{fit.check.reason}; the trials will say so (see {out / CHECK_FILE})",
+              file=sys.stderr)
+        return 1
     return 0
 
 
@@ -69,6 +81,10 @@ def run_evaluate(args: argparse.Namespace) -> int:
         print("per pick stage (targets already picked), mean position error: " + ", ".join(
             f"{stage}: {e:.2f} cm" for stage, e in
             enumerate(result.per_stage_mean_position_error_cm)))
+    if result.per_condition_mean_position_error_cm is not None:
+        print("per condition, mean position error: " + ", ".join(
+            f"{value} {e:.2f} cm" for value, e in
+            result.per_condition_mean_position_error_cm.items()))
     if result.type_accuracy is not None:
         print(f"object type stated right: {100 * result.type_accuracy:.1f} % of targets")
     out: Path = args.out or args.model / f"evaluation-{args.data.stem}.json"

@@ -29,6 +29,7 @@ from experiments.reproduce_real import (
     error_file,
     gif_file,
     refuse_stale,
+    seed_folder,
     stale_checkpoints,
     trained_file,
     trials_folder,
@@ -59,7 +60,7 @@ class JobOutcome:
 class CollectJob:
     """Collect the demonstrations of one task."""
 
-    name: str  # collect-<task>, as in messages and error files
+    name: str  # collect-<task>-s<seed>, as in messages and error files
     task: str
     settings: ReproduceRealSettings
     out: Path
@@ -69,7 +70,7 @@ class CollectJob:
 class TrainJob:
     """Train one unit's model on its task's demonstrations."""
 
-    name: str  # train-<model>-<task>
+    name: str  # train-<model>-<task>-s<seed>
     unit: Unit
     settings: ReproduceRealSettings
     identity: dict[str, Any]
@@ -80,7 +81,7 @@ class TrainJob:
 class TrialsJob:
     """Run (or resume) one set of trials."""
 
-    name: str  # trials-<model>-<task>[-<variant>]
+    name: str  # trials-<model>-<task>[-<variant>]-s<seed>
     trial_set: TrialSet
     trials: TrialSettings
     out: Path
@@ -90,7 +91,7 @@ class TrialsJob:
 class GifJob:
     """Record a unit's first trials again, as a GIF."""
 
-    name: str  # gif-<model>-<task>
+    name: str  # gif-<model>-<task>-s<seed>
     unit: Unit
     trials: TrialSettings
     count: int
@@ -147,14 +148,15 @@ def _collect(job: CollectJob) -> str:
                                SeedStream.TRAIN)
     dataset = collect(settings, dataset_file(job.out, job.task, job.settings), progress=False)
     extra = dataset.metadata.extra
-    return f"{extra.get('demonstrations', len(dataset))} demonstrations ({len(dataset)} " \
-           f"images), {extra.get('demonstrations_redrawn', 0)} redrawn"
+    return f"{extra.get('scenes', len(dataset))} demonstrations ({len(dataset)} " \
+           f"samples), {extra.get('demonstrations_redrawn', 0)} redrawn"
 
 
 def _train(job: TrainJob) -> str:
     from perception.data import DatasetError, load_dataset
     from perception.registry import new_model
     from perception.train import TrainConfig
+    from perception.validation import fit_checked, write_check
     from sim.trials import torch_threads
 
     settings, unit = job.settings, job.unit
@@ -162,17 +164,22 @@ def _train(job: TrainJob) -> str:
         path = dataset_file(job.out, unit.task, settings)
         data = load_dataset(path, expect={"scene": SCENE, "task": unit.task,
                                           "seed": settings.seed})
-        demonstrations = data.metadata.extra.get("demonstrations", len(data))
+        demonstrations = data.metadata.extra.get("scenes", len(data))
         if demonstrations != settings.demos:  # a demonstration has an image per pick
             raise DatasetError(path, f"holds {demonstrations} demonstrations, the run asks "
                                f"for {settings.demos}")
-        model = new_model(unit.model, data, seed=settings.seed)
-        report = model.fit(data, TrainConfig(**settings.train_config()), progress=False)
-        model.save(checkpoint_folder(job.out, unit))
+        fit = fit_checked(lambda seed: new_model(unit.model, data, seed=seed), data,
+                          TrainConfig(**settings.train_config()), settings.check,
+                          progress=False)
+        fit.model.save(checkpoint_folder(job.out, unit))
+        write_check(checkpoint_folder(job.out, unit), fit)
+    report, check = fit.report, fit.check
     write_json(trained_file(job.out, unit), {  # last: it marks the checkpoint finished
         "identity": job.identity, "train_s": report.wall_time_s, "steps": report.steps,
-        "final_loss": report.final_loss, "samples": report.samples})
-    return f"final loss {report.final_loss:.4g} in {report.wall_time_s:.0f} s"
+        "final_loss": report.final_loss, "samples": report.samples,
+        "attempts": len(fit.checks), "check": None if check is None else check.to_json()})
+    shown = "" if check is None else "; " + check.headline()
+    return f"final loss {report.final_loss:.4g} in {report.wall_time_s:.0f} s{shown}"
 
 
 def _trials(job: TrialsJob) -> str:
@@ -226,22 +233,33 @@ def gif_done(job: GifJob) -> bool:
 
 def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
              ) -> tuple[list[JobOutcome], list[str]]:
-    """Runs every unfinished job in three phases: (outcomes of the jobs run, names skipped)."""
-    units = settings.units()
-    refuse_stale(stale_checkpoints(settings, out, units), "checkpoint(s)")
-    tasks = sorted({u.task for u in units}, key=[u.task for u in units].index)
-    collects = [CollectJob(f"collect-{t}", t, settings, out) for t in tasks]
+    """Runs every unfinished job of every seed in three phases: (outcomes run, names skipped).
+
+    Each phase runs the jobs of all seeds side by side, so a run of several seeds keeps every
+    worker busy until its last trials.
+    """
+    runs = [(settings.for_seed(seed), seed_folder(out, seed))
+            for seed in settings.training_seeds]
+    collects: list[CollectJob] = []
+    trains: list[TrainJob] = []
+    for run_settings, folder in runs:
+        units = run_settings.units()
+        refuse_stale(stale_checkpoints(run_settings, folder, units), "checkpoint(s)")
+        tasks = sorted({u.task for u in units}, key=[u.task for u in units].index)
+        collects += [CollectJob(f"collect-{t}-s{run_settings.seed}", t, run_settings, folder)
+                     for t in tasks]
+        trains += [TrainJob(f"train-{u.name}-s{run_settings.seed}", u, run_settings,
+                            run_settings.train_identity(u), folder) for u in units]
     collects_todo = [j for j in collects if not dataset_present(
-        dataset_file(out, j.task, settings), SCENE, j.task, settings.demos, settings.seed,
-        SeedStream.TRAIN)]
-    trains = [TrainJob(f"train-{u.name}", u, settings, settings.train_identity(u), out)
-              for u in units]
-    trains_todo = [j for j in trains if not trained_file(out, j.unit).exists()]
+        dataset_file(j.out, j.task, j.settings), SCENE, j.task, j.settings.demos,
+        j.settings.seed, SeedStream.TRAIN)]
+    trains_todo = [j for j in trains if not trained_file(j.out, j.unit).exists()]
     skipped = [j.name for j in collects if j not in collects_todo]
     skipped += [j.name for j in trains if j not in trains_todo]
     # Trials are not known to be finished before their checkpoint exists: estimate them as
     # to do unless their summary is there, and take finished ones off the bar later.
-    later = [_trials_estimate(settings, out, s) for s in settings.trial_sets()]
+    later = [_trials_estimate(s, folder, trial_set) for s, folder in runs
+             for trial_set in s.trial_sets()]
     first: list[Job] = [*collects_todo, *trains_todo]
     total = sum(cost(job) for job in first) + sum(later)
     computed: list[JobOutcome] = []
@@ -261,9 +279,12 @@ def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
             pool.run(guarded, ordered, done)
 
         run(collects_todo)
-        run([j for j in trains_todo if dataset_file(out, j.unit.task, settings).exists()])
-        trying, skipped_now = _trial_jobs(settings, out)
-        skipped += skipped_now
+        run([j for j in trains_todo if dataset_file(j.out, j.unit.task, j.settings).exists()])
+        trying: list[Job] = []
+        for run_settings, folder in runs:
+            todo, skipped_now = _trial_jobs(run_settings, folder)
+            trying += todo
+            skipped += skipped_now
         bar.total = bar.n + sum(map(cost, trying))  # the estimate, made exact
         bar.refresh()
         run(trying)
@@ -288,10 +309,10 @@ def _trial_jobs(settings: ReproduceRealSettings, out: Path) -> tuple[list[Job], 
         if not trained_file(out, trial_set.unit).exists():
             continue  # its training failed: its error file names it
         trials = settings.trial_settings(out, trial_set)
-        job = TrialsJob(f"trials-{trial_set.name}", trial_set, trials, out)
+        job = TrialsJob(f"trials-{trial_set.name}-s{settings.seed}", trial_set, trials, out)
         candidates: list[tuple[Job, bool]] = [(job, trials_done(job))]
         if trial_set.variant is Variant.PLAIN:
-            gif = GifJob(f"gif-{trial_set.unit.name}", trial_set.unit, trials,
+            gif = GifJob(f"gif-{trial_set.unit.name}-s{settings.seed}", trial_set.unit, trials,
                          min(GIF_TRIALS, settings.n), out)
             candidates.append((gif, gif_done(gif)))
         for candidate, finished in candidates:

@@ -1,13 +1,15 @@
-"""The reports of ``gva reproduce real``, rebuilt from every trial folder of a run folder.
+"""The reports of ``gva reproduce real``, rebuilt from every trial folder of every seed's folder.
 
-- ``table3.json``: ``tasks`` (the kqv row: per task ``successes``, ``n``, ``wilson95``,
-  ``outcomes`` and more), ``models`` (every model the same way), ``robustness`` (kqv under
-  darker light and with a distractor), the paper's numbers, the GIFs, the settings, the last
-  run's wall time and the failed jobs.
-- ``table3.md``: laid out like the paper's Table III (a column per task, ``k/30``): the paper's
-  row, then ours, one row per model, the robustness rows; the 95 % Wilson intervals and the
-  median grasp position error of each row; the failure reasons per task (outcome counts and
-  example trials); the GIFs; how it was made.
+- ``table3.json``: ``seeds``; ``tasks`` (the kqv row: per task ``per_seed`` (seed, successes,
+  n), the ``mean`` and ``std`` of the successes over the seeds, and over every seed's trials
+  pooled ``successes``, ``n``, ``wilson95``, ``outcomes`` and more), ``models`` (every model
+  the same way), ``robustness`` (kqv under darker light and with a distractor), the paper's
+  numbers, the GIFs, the settings, the last run's wall time and the failed jobs.
+- ``table3.md``: laid out like the paper's Table III (a column per task): ``k/30`` for one
+  seed, ``mean ± std`` with each seed's count for several; the paper's row, then ours, one row
+  per model, the robustness rows; the pooled 95 % Wilson intervals and the median grasp
+  position error of each row; the failure reasons per task (outcome counts and example
+  trials); the GIFs; how it was made.
 
 A trial folder of an interrupted run counts the trials it has, marked ``*``.
 """
@@ -27,6 +29,7 @@ from experiments.reproduce_real import (
     ROBUST_MODEL,
     ReproduceRealSettings,
     Variant,
+    seed_folder,
 )
 from experiments.reproduce_sim import TASKS, read_json, write_json
 from experiments.runs import duration
@@ -45,29 +48,58 @@ REASON_CHARS = 200
 
 @dataclass(frozen=True)
 class TrialSetResult:
-    """The trials of one model, task and variant found in a run folder."""
+    """The trials of one model, task and variant found in a run folder, over its seeds.
+
+    ``per_seed`` holds each seed's trials (seed, records), in seed order; the summary pools
+    them.
+    """
 
     model: str
     task: str
     variant: Variant
-    records: tuple[TrialRecord, ...]
-    expected: int  # the n the set was started with
+    per_seed: tuple[tuple[int, tuple[TrialRecord, ...]], ...]
+    expected: int  # the n each seed's set was started with
+
+    @property
+    def records(self) -> tuple[TrialRecord, ...]:
+        """Every seed's trials, seed by seed."""
+        return tuple(record for _, records in self.per_seed for record in records)
 
     @property
     def summary(self) -> TrialSummary:
-        """Successes, interval and outcome counts of the trials present."""
+        """Successes, interval and outcome counts of every trial present, pooled."""
         return TrialSummary.of(list(self.records))
 
     @property
+    def counts(self) -> list[int]:
+        """Each seed's successes."""
+        return [sum(r.success for r in records) for _, records in self.per_seed]
+
+    @property
+    def mean(self) -> float:
+        """The mean of the seeds' successes."""
+        return statistics.fmean(self.counts)
+
+    @property
+    def std(self) -> float:
+        """The sample standard deviation of the seeds' successes (0 for one seed)."""
+        return statistics.stdev(self.counts) if len(self.counts) > 1 else 0.0
+
+    @property
     def unfinished(self) -> bool:
-        """Whether fewer trials than asked are present."""
-        return len(self.records) < self.expected
+        """Whether a seed has fewer trials than asked."""
+        return any(len(records) < self.expected for _, records in self.per_seed)
 
     def entry(self) -> dict[str, Any]:
-        """The set as ``table3.json`` holds it."""
+        """The set as ``table3.json`` holds it: per seed, mean and spread, then pooled."""
         summary = self.summary
         errors = first_pick_errors_cm(self.records)
-        return {"successes": summary.successes, "n": summary.n,
+        return {"per_seed": [{"seed": seed, "successes": count, "n": len(records),
+                              "unfinished": len(records) < self.expected}
+                             for (seed, records), count in zip(self.per_seed, self.counts,
+                                                               strict=True)],
+                "mean": self.mean, "std": self.std,
+                "successes": summary.successes, "n": summary.n,
                 "wilson95": list(summary.wilson95), "outcomes": summary.outcomes,
                 "per_object": summary.per_object, "unfinished": self.unfinished,
                 "median_position_error_cm": statistics.median(errors) if errors else None,
@@ -93,20 +125,25 @@ def split_task(name: str) -> tuple[str, Variant]:
     return name, Variant.PLAIN
 
 
-def read_trial_sets(out: Path, n: int) -> list[TrialSetResult]:
-    """Every trial folder of ``out/trials`` (``<model>/<task>[-variant]``), in table order.
+def read_trial_sets(out: Path, seeds: Sequence[int], n: int) -> list[TrialSetResult]:
+    """Every trial folder of each seed's ``trials/`` (``<model>/<task>[-variant]``), in table order.
 
-    ``n`` is the trials each set is meant to have (the folder's ``run.json`` pins it).
+    ``n`` is the trials each set is meant to have (the folder's ``run.json`` pins it). A row
+    holds the seeds that have its trial folder.
     """
-    found = []
-    for log in (out / "trials").glob("*/*/trials.jsonl"):
-        task, variant = split_task(log.parent.name)
-        if task not in TASKS:
-            continue
-        records = sorted((TrialRecord.from_json(line) for line in log.read_text().splitlines()
-                          if line.strip()), key=lambda r: r.index)
-        found.append(TrialSetResult(log.parent.parent.name, task, variant,
-                                    tuple(r for r in records if r.index < n), n))
+    rows: dict[tuple[str, str, Variant], list[tuple[int, tuple[TrialRecord, ...]]]] = {}
+    for seed in seeds:
+        for log in sorted((seed_folder(out, seed) / "trials").glob("*/*/trials.jsonl")):
+            task, variant = split_task(log.parent.name)
+            if task not in TASKS:
+                continue
+            records = sorted((TrialRecord.from_json(line) for line in
+                              log.read_text().splitlines() if line.strip()),
+                             key=lambda r: r.index)
+            rows.setdefault((log.parent.parent.name, task, variant), []).append(
+                (seed, tuple(r for r in records if r.index < n)))
+    found = [TrialSetResult(model, task, variant, tuple(per_seed), n)
+             for (model, task, variant), per_seed in rows.items()]
     found.sort(key=lambda s: (_model_order(s.model), list(Variant).index(s.variant),
                               TASKS.index(s.task)))
     return found
@@ -167,10 +204,15 @@ def table3_json(sets: Sequence[TrialSetResult]) -> dict[str, Any]:
 
 
 def _cell(result: TrialSetResult | None) -> str:
+    """``29/30`` for one seed; ``28.6 ± 1.1 (29, 30, 27, 28, 29)`` for several."""
     if result is None:
         return "—"
-    summary = result.summary
-    return f"{summary.successes}/{summary.n}" + ("*" if result.unfinished else "")
+    mark = "*" if result.unfinished else ""
+    if len(result.per_seed) == 1:
+        summary = result.summary
+        return f"{summary.successes}/{summary.n}{mark}"
+    return (f"{result.mean:.1f} ± {result.std:.1f}{mark} "
+            f"({', '.join(str(count) for count in result.counts)})")
 
 
 def _interval(result: TrialSetResult | None) -> str:
@@ -204,7 +246,8 @@ def successes_table(sets: Sequence[TrialSetResult]) -> str:
 
 def table3_markdown(sets: Sequence[TrialSetResult], made_by: str,
                     gifs: Mapping[str, Mapping[str, Any]] | None = None,
-                    failed: Sequence[Mapping[str, Any]] = ()) -> str:
+                    failed: Sequence[Mapping[str, Any]] = (),
+                    checks: Sequence[Mapping[str, Any]] = ()) -> str:
     """``table3.md``: the paper's row, ours, the robustness rows, then why trials failed."""
     by_key = {(s.model, s.variant, s.task): s for s in sets}
     lines = [
@@ -213,15 +256,18 @@ def table3_markdown(sets: Sequence[TrialSetResult], made_by: str,
         "demonstrations of each task, then closed-loop pick trials at untrained positions with "
         "the model in the loop. A pick succeeds when the target's lowest point rose 5 cm and "
         "stayed pinched for 1 s; `multiple` needs all three picks. The paper's row is its real "
-        "YuMi (20 demonstrations per task). `*`: some trials are still missing (the run was "
-        "interrupted; run it again); `k/m` counts those present.", "",
+        "YuMi (20 demonstrations per task). Over several seeds (each moves the "
+        "demonstrations, the weights and the test scenes) a cell is the mean ± standard "
+        "deviation of the seeds' successes, each seed's count in brackets. `*`: some trials "
+        "are still missing (the run was interrupted; run it again); the counts are of those "
+        "present.", "",
         successes_table(sets), "",
-        "95 % Wilson interval of the success rate; median grasp position error of the first "
-        "pick [cm]:", "", _HEADER, _RULE]
+        "95 % Wilson interval of the success rate (every seed's trials pooled); median grasp "
+        "position error of the first pick [cm]:", "", _HEADER, _RULE]
     lines += [f"| {row_title(m, v)} | " + " | ".join(_interval(by_key.get((m, v, t)))
                                                     for t in TASKS) + " |"
               for m, v in _rows(sets)]
-    lines += ["", "## Failure reasons", ""]
+    lines += ["", *checks_markdown(checks), "## Failure reasons", ""]
     for task in TASKS:
         present = [s for s in sets if s.task == task]
         if not present:
@@ -240,7 +286,7 @@ def table3_markdown(sets: Sequence[TrialSetResult], made_by: str,
         lines.append("")
     lines += ["## How it was made", "", made_by]
     if failed:
-        lines += ["", "Failed jobs (see `errors/<job>.json`):"]
+        lines += ["", "Failed jobs (see `s<seed>/errors/<job>.json`):"]
         lines += [f"- {r['job']}: {r['error']}" for r in failed]
     return "\n".join(lines) + "\n"
 
@@ -258,33 +304,67 @@ def _reasons(result: TrialSetResult) -> list[str]:
         shared = sum(shared_target_type(result.task, r) for r in result.records)
         line += f"; the distractor has a target's type in {shared} of {summary.n} trials"
     lines = [line]
+    seeds = len(result.per_seed) > 1
     failures = [r for r in result.records if r.outcome is not TrialOutcome.SUCCESS]
     examples: list[TrialRecord] = []
     for record in failures:  # one of each outcome first, then in trial order
         if record.outcome not in {e.outcome for e in examples}:
             examples.append(record)
     examples += [r for r in failures if r not in examples]
-    for record in sorted(examples[:EXAMPLES], key=lambda r: r.index):
+    for record in sorted(examples[:EXAMPLES], key=lambda r: (r.seed, r.index)):
         off = (f", {100 * record.position_error_m:.1f} cm off"
                if record.position_error_m is not None else "")
         reason = record.reason if len(record.reason) <= REASON_CHARS else (
             record.reason[:REASON_CHARS - 3] + "...")
-        lines.append(f"  - trial {record.index} ({record.target or '?'}{off}): "
+        where = f"seed {record.seed} trial {record.index}" if seeds else f"trial {record.index}"
+        lines.append(f"  - {where} ({record.target or '?'}{off}): "
                      f"{record.outcome.value}: {reason}")
     return lines
 
 
-def read_gifs(out: Path) -> dict[str, dict[str, Any]]:
-    """The GIFs of ``out/gifs`` and the trials each shows, by file name."""
-    return {f"gifs/{meta.stem}.gif": {"trials": read_json(meta)["trials"]}
-            for meta in sorted((out / "gifs").glob("*.json"))
+def read_gifs(out: Path, seeds: Sequence[int]) -> dict[str, dict[str, Any]]:
+    """The GIFs of each seed's ``gifs/`` and the trials each shows, by path in ``out``."""
+    return {f"{seed_folder(out, seed).name}/gifs/{meta.stem}.gif":
+            {"trials": read_json(meta)["trials"]}
+            for seed in seeds for meta in sorted((seed_folder(out, seed) / "gifs").glob("*.json"))
             if meta.with_suffix(".gif").exists()}
 
 
-def read_failed(out: Path) -> list[dict[str, Any]]:
-    """The jobs that raised (``out/errors/*.json``): job and error."""
-    return [{k: read_json(p)[k] for k in ("job", "error")}
-            for p in sorted((out / "errors").glob("*.json"))]
+def read_failed(out: Path, seeds: Sequence[int]) -> list[dict[str, Any]]:
+    """The jobs that raised (each seed's ``errors/*.json``): job and error."""
+    return [{k: read_json(p)[k] for k in ("job", "error")} for seed in seeds
+            for p in sorted((seed_folder(out, seed) / "errors").glob("*.json"))]
+
+
+def read_checks(out: Path, seeds: Sequence[int]) -> list[dict[str, Any]]:
+    """Each finished training's held-out check (``trained.json``): seed, model, task, check."""
+    found = []
+    for seed in seeds:
+        for trained in sorted((seed_folder(out, seed) / "checkpoints").glob("*/*/trained.json")):
+            check = read_json(trained).get("check")
+            if check is not None:
+                found.append({"seed": seed, "model": trained.parent.parent.name,
+                              "task": trained.parent.name, "passed": check["passed"],
+                              "reason": check["reason"],
+                              "attempts": read_json(trained).get("attempts", 1),
+                              "mean_position_error_cm": check["mean_position_error_cm"]})
+    return found
+
+
+def checks_markdown(checks: Sequence[Mapping[str, Any]]) -> list[str]:
+    """The held-out checks section: how many passed, and every failed one by name."""
+    if not checks:
+        return []
+    failed = [c for c in checks if not c["passed"]]
+    retried = sum(c["attempts"] > 1 for c in checks if c["passed"])
+    lines = ["## Held-out checks", "",
+             f"Each training held out part of its own demonstrations and scored the trained "
+             f"model on them (`perception.validation`): {len(checks) - len(failed)} of "
+             f"{len(checks)} passed" + (f", {retried} of them at a later start" if retried
+                                        else "") + "."]
+    lines += [f"- **FAILED**: {c['model']} {c['task']} seed {c['seed']} after {c['attempts']} "
+              f"attempt(s): {c['reason']}" for c in failed]
+    return [*lines, ""]
 
 
 def history_wall_time_s(out: Path) -> float:
@@ -307,25 +387,32 @@ class Reports(NamedTuple):
 
 def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float) -> Reports:
     """Writes ``table3.json`` and ``table3.md`` from what the folder holds."""
-    sets = read_trial_sets(out, settings.n)
-    gifs, failed = read_gifs(out), read_failed(out)
+    seeds = list(settings.training_seeds)
+    sets = read_trial_sets(out, seeds, settings.n)
+    gifs, failed = read_gifs(out, seeds), read_failed(out, seeds)
+    checks = read_checks(out, seeds)
     all_runs_s = history_wall_time_s(out)
+    named = (f"seed {seeds[0]}" if len(seeds) == 1 else
+             f"seeds {seeds[0]}-{seeds[-1]}, each its own")
     made_by = (f"Made by `{settings.command(out)}`: {settings.demos} demonstrations per task "
-               f"(training stream of seed {settings.seed}), {settings.steps} optimiser steps, "
-               f"{settings.n} trials per task (test stream of seed {settings.seed}), "
+               f"(training stream of {named}), {settings.steps} optimiser steps, "
+               f"{settings.n} trials per task (test stream of the same seed), "
                f"{settings.worker_count()} worker process(es). Last run: "
                f"{duration(wall_time_s)} wall time; every run into this folder together: "
                f"{duration(all_runs_s)}.")
-    table = table3_json(sets) | {
+    table = {"seeds": seeds} | table3_json(sets) | {
         "gifs": gifs,
-        "settings": settings.run_identity() | {
+        "settings": settings.shared_identity() | {
             "command": settings.command(out), "models": list(settings.models),
             "tasks": list(settings.tasks), "robustness": settings.robustness,
             "workers": settings.worker_count()},
-        "wall_time_s": wall_time_s, "wall_time_all_runs_s": all_runs_s, "failed": failed}
+        "wall_time_s": wall_time_s, "wall_time_all_runs_s": all_runs_s, "failed": failed,
+        "checks": checks}
     paths = [out / "table3.json", out / "table3.md"]
     write_json(paths[0], table)
-    text = table3_markdown(sets, made_by, gifs, failed)
+    text = table3_markdown(sets, made_by, gifs, failed, checks)
     atomic_write(paths[1], lambda temporary: temporary.write_text(text, encoding="utf-8"))
     notes = [] if sets else ["no trials in this folder yet: the tables are empty"]
+    notes += [f"WARNING: {c['model']} {c['task']} seed {c['seed']} failed its held-out check: "
+              f"{c['reason']}" for c in checks if not c["passed"]]
     return Reports(paths + [out / name for name in gifs], failed, notes, successes_table(sets))

@@ -7,8 +7,10 @@ scene, for each task and each model:
 
 1. Demonstrations: ``demos`` (20) scenes of the task from the TRAIN stream of ``seed``, each
    picked by the oracle in the simulator and kept only if every pick succeeded
-   (:func:`sim.collect.collect`); the image, the condition and the grasp pose (TCP position and
-   rotation) of each target are the training sample. One dataset per task serves every model.
+   (:func:`sim.collect.collect`); the image before each pick, the condition and the grasp pose
+   (TCP position and rotation) of each target are a training sample, and a scene of a task
+   with a condition is shown under each of its values. One dataset per task serves every
+   model.
 2. Training: a fresh model (any name :func:`~perception.registry.new_model` takes), seeded with
    ``seed``, trained for ``steps`` optimiser steps on one torch thread, to predict the grasp pose
    of each target.
@@ -28,23 +30,29 @@ scene, for each task and each model:
    would leave ``single`` ambiguous; the report counts such trials if a task file asks for it).
 5. GIFs: the first :data:`GIF_TRIALS` trials of each model and task recorded again
    (:mod:`experiments.real_jobs`): the head image with the attention points beside the robot.
+6. Seeds: ``seeds`` runs of all the above, seeds ``S0 .. S0 + seeds - 1``, each in its own
+   folder ``OUT/s<seed>/``; a seed moves the demonstrations, the weights and the test scenes.
+   The tables report each seed's count, their mean and spread, and the pooled rate
+   (:mod:`experiments.real_report`): a result that holds at one seed only is a lucky draw.
 
 Jobs run in ``workers`` processes (:mod:`experiments.jobs`) in three phases: collect, train,
 then trials and GIFs; one progress bar, measured in the jobs' estimated seconds, gives the
 time left. Resumability: a dataset, a checkpoint (with ``trained.json``), a trial folder (one
 line per finished trial, :class:`~sim.records.TrialLog`) and a GIF (with its ``.json``) each
 say what made them; a re-run skips what is finished and resumes an interrupted trial folder
-trial by trial. ``OUT/run.json`` holds the settings the folder shares (seed, demos, n, steps,
-the variants): a run with others is refused. A job that raises is recorded in
-``OUT/errors/<job>.json`` and the run goes on. Layout of ``OUT``::
+trial by trial. ``OUT/run.json`` holds the settings the folder shares (demos, n, steps, the
+variants), and each seed folder's ``run.json`` its seed too: a run with others is refused; a run
+with more seeds adds seed folders. A job that raises is recorded in
+``OUT/s<seed>/errors/<job>.json`` and the run goes on. Layout of ``OUT``::
 
     run.json, history.jsonl               shared settings; one line per run (its wall time)
-    datasets/<task>-train-<demos>-s<seed>.gva
-    checkpoints/<model>/<task>/           weights, config.json, trained.json
-    tasks/<task>-dark.toml, <task>-distractor.toml
-    trials/<model>/<task>[-dark|-distractor]/   run.json, trials.jsonl, summary.json
-    gifs/<model>-<task>.gif, .json
-    table3.json, table3.md                (see experiments.real_report)
+    table3.json, table3.md                over every seed (see experiments.real_report)
+    s<seed>/run.json                      the shared settings and the seed
+    s<seed>/datasets/<task>-train-<demos>-s<seed>.gva
+    s<seed>/checkpoints/<model>/<task>/   weights, config.json, trained.json
+    s<seed>/tasks/<task>-dark.toml, <task>-distractor.toml
+    s<seed>/trials/<model>/<task>[-dark|-distractor]/   run.json, trials.jsonl, summary.json
+    s<seed>/gifs/<model>-<task>.gif, .json
 """
 
 from __future__ import annotations
@@ -62,6 +70,7 @@ from experiments.reproduce_sim import TASKS, model_config
 from experiments.runs import check_choices, check_counts
 from experiments.sim_datasets import dataset_path
 from perception.files import atomic_write
+from perception.validation import CheckConfig
 from sim.records import RunFolderError, json_form
 
 if TYPE_CHECKING:
@@ -77,8 +86,9 @@ DARK_BRIGHTNESS = 0.5
 DISTRACTOR_TYPES = ("block",)
 """The distractor added to every scene: the wooden block, sponge-like and never a target."""
 GIF_TRIALS = 3
-FORMAT_VERSION = 2
-"""What a run folder holds; 2: a demonstration keeps the image before each of its picks."""
+FORMAT_VERSION = 3
+"""What a run folder holds; 2: a demonstration keeps the image before each of its picks;
+3: a folder per seed, and a scene with a condition shown under each of its values."""
 
 
 class Variant(enum.Enum):
@@ -154,9 +164,14 @@ class ReproduceRealSettings:
         n: Trials per model and task (the paper's 30).
         demos: Demonstrations per task (the paper's 20).
         steps: Optimiser steps of training.
-        seed: Seeds the demonstrations (TRAIN stream), the weights and the trials (TEST stream).
+        seed: S0: seeds the demonstrations (TRAIN stream), the weights and the trials (TEST
+            stream); with ``seeds`` > 1 the first of the seeds.
+        seeds: Runs of the whole experiment, seeds ``S0 .. S0 + seeds - 1``.
         robustness: Also run :data:`ROBUST_MODEL`'s trials in the dark and with a distractor.
         workers: Processes at once; None: the cores this process may use.
+        check: How each training checks itself on demonstrations it holds out
+            (:class:`~perception.validation.CheckConfig`); a model that fails is marked in its
+            checkpoint and in the tables.
         train_threads: Torch threads of each training job. 1 lets units train side by side, one
             per core; a run with a single unit (``make demo``) trains alone, and two threads on
             two cores halve its training time. Results depend on it (float sums in another
@@ -170,16 +185,27 @@ class ReproduceRealSettings:
     demos: int = 20
     steps: int = 1000
     seed: int = 0
+    seeds: int = 1
     robustness: bool = True
     workers: int | None = None
     train_threads: int = 1
+    check: CheckConfig = field(default_factory=CheckConfig)
 
     def __post_init__(self) -> None:
         custom = tuple(m for m in self.models if ":" in m)  # package.module:Class
         check_choices("models", self.models, (*allowed_models(), *custom))
         check_choices("tasks", self.tasks, TASKS)
-        check_counts(self, {"n": 1, "demos": 1, "steps": 1, "seed": 0, "train_threads": 1},
-                     self.workers)
+        check_counts(self, {"n": 1, "demos": 1, "steps": 1, "seed": 0, "seeds": 1,
+                            "train_threads": 1}, self.workers)
+
+    @property
+    def training_seeds(self) -> range:
+        """S0 .. S0 + seeds - 1."""
+        return range(self.seed, self.seed + self.seeds)
+
+    def for_seed(self, seed: int) -> ReproduceRealSettings:
+        """The settings of one seed's run (its folder is :func:`seed_folder`)."""
+        return replace(self, seed=seed, seeds=1)
 
     def units(self) -> list[Unit]:
         """Every unit: models in the given order, tasks in the paper's."""
@@ -204,13 +230,19 @@ class ReproduceRealSettings:
         return asdict(TrainConfig(steps=self.steps, seed=self.seed, threads=self.train_threads))
 
     def run_identity(self) -> dict[str, Any]:
-        """What every job of a folder shares; ``run.json`` holds it."""
+        """What every job of one seed's folder shares; its ``run.json`` holds it."""
+        return self.shared_identity() | {"seed": self.seed, "train": self.train_config()}
+
+    def shared_identity(self) -> dict[str, Any]:
+        """What every seed of a run folder shares; ``OUT/run.json`` holds it."""
         from sim.execution import ExecutionSettings
         from sim.trials import TrialSettings, obstacle_identity
 
+        train = self.train_config()
+        train.pop("seed")  # each seed's own
         return {"format_version": FORMAT_VERSION, "experiment": "reproduce-real",
-                "scene": SCENE, "seed": self.seed, "demos": self.demos, "n": self.n,
-                "train": self.train_config(), "settle_s": TrialSettings.settle_s,
+                "scene": SCENE, "demos": self.demos, "n": self.n,
+                "train": train, "settle_s": TrialSettings.settle_s,
                 "execution": asdict(ExecutionSettings()),
                 "obstacles": obstacle_identity(TrialSettings.obstacles), "gif_trials": GIF_TRIALS,
                 "variants": {"dark_brightness": DARK_BRIGHTNESS,
@@ -226,7 +258,7 @@ class ReproduceRealSettings:
                                                                              self.seed),
                           "task": task_identity(load_task(unit.task)), "demos": self.demos,
                           "camera": asdict(CameraConfig()), "seed": self.seed,
-                          "train": self.train_config()})
+                          "train": self.train_config(), "check": asdict(self.check)})
 
     def trial_settings(self, out: Path, trial_set: TrialSet) -> TrialSettings:
         """The :class:`~sim.trials.TrialSettings` of a set (its checkpoint must exist)."""
@@ -241,6 +273,8 @@ class ReproduceRealSettings:
         """The ``gva reproduce real`` command line of these settings (workers left out)."""
         parts = ["gva reproduce real", f"--out {out}", f"--seed {self.seed}", f"--n {self.n}",
                  f"--demos {self.demos}", f"--steps {self.steps}"]
+        if self.seeds != 1:
+            parts.append(f"--seeds {self.seeds}")
         if set(self.tasks) != set(TASKS):
             parts.append(f"--tasks {','.join(self.tasks)}")
         if self.models != DEFAULT_MODELS:
@@ -249,10 +283,17 @@ class ReproduceRealSettings:
             parts.append("--no-robustness")
         if self.train_threads != 1:
             parts.append(f"--train-threads {self.train_threads}")
+        if self.check.holdout != CheckConfig.holdout:
+            parts.append(f"--holdout {self.check.holdout:g}")
         return " ".join(parts)
 
 
 # files of a run folder
+
+
+def seed_folder(out: Path, seed: int) -> Path:
+    """The folder of one seed's run: datasets, checkpoints, trials, GIFs, errors."""
+    return out / f"s{seed}"
 
 
 def dataset_file(out: Path, task: str, settings: ReproduceRealSettings) -> Path:
@@ -352,8 +393,10 @@ def run_reproduce_real(settings: ReproduceRealSettings, out: str | Path,
 
     out = Path(out)
     started = time.perf_counter()
-    claim_run_folder(out, settings.run_identity())
-    write_variant_tasks(settings, out)
+    claim_run_folder(out, settings.shared_identity())
+    for seed in settings.training_seeds:
+        claim_run_folder(seed_folder(out, seed), settings.for_seed(seed).run_identity())
+        write_variant_tasks(settings, seed_folder(out, seed))
     try:
         computed, skipped = run_jobs(settings, out, progress)
     except KeyboardInterrupt:

@@ -27,6 +27,7 @@ from tqdm import tqdm
 from perception.files import atomic_write
 from perception.interface import LabelKind, PerceptionModel
 from perception.learnable import LearnableModel, ModelSpec
+from perception.validation import HeldOutCheck, read_check
 from sim.camera import CameraConfig, HeadCamera
 from sim.errors import InvalidInputError
 from sim.execution import ExecutionSettings
@@ -151,12 +152,16 @@ class TrialSettings:
                 "obstacles": obstacle_identity(self.obstacles)} | self._model_identity()
 
     def _model_identity(self) -> dict[str, Any]:
-        """A checkpoint by its absolute path and weights' SHA-256: other weights, another run."""
+        """A checkpoint by its weights' SHA-256, not its path: other weights, another run.
+
+        A run folder moved or copied with its checkpoint (or run from another directory)
+        resumes; the same folder holding other weights does not.
+        """
         if model_source(self.model) is not ModelSource.CHECKPOINT:
             return {}
         from perception.checkpoint import read_config
 
-        return {"model": str(Path(self.model).resolve()), "model_class": self.model_class,
+        return {"model": "checkpoint", "model_class": self.model_class,
                 "weights_sha256": read_config(self.model)["weights_sha256"]}
 
 
@@ -258,6 +263,13 @@ def torch_threads(threads: int) -> Iterator[None]:
         torch.set_num_threads(previous)
 
 
+def held_out_check(settings: TrialSettings) -> HeldOutCheck | None:
+    """The held-out check of the trials' checkpoint (:mod:`perception.validation`), if any."""
+    if model_source(settings.model) is not ModelSource.CHECKPOINT:
+        return None
+    return read_check(settings.model)
+
+
 def run_trials(
     settings: TrialSettings, out_dir: str | Path, progress: bool = True
 ) -> TrialSummary:
@@ -281,7 +293,9 @@ def run_trials(
                 bar.set_postfix_str(f"{summary.successes}/{summary.n} ok")
                 bar.update()
     summary = log.summary(settings.n)
-    data = {"settings": settings.identity() | {"n": settings.n}} | summary.to_dict()
+    check = held_out_check(settings)
+    data = {"settings": settings.identity() | {"n": settings.n}} | summary.to_dict() | {
+        "held_out_check": None if check is None else check.to_json()}
     text = json.dumps(data, indent=2, sort_keys=True) + "\n"
     atomic_write(out / "summary.json", lambda temporary: temporary.write_text(text))
     return summary

@@ -18,7 +18,7 @@ from perception.drawing import figure_shape, number_size
 from perception.interface import LabelKind
 from perception.registry import load_model
 
-FAST = ["--steps", "5", "--batch-size", "4", "--threads", "1", "--no-progress"]
+FAST = ["--steps", "5", "--batch-size", "4", "--threads", "1", "--holdout", "0", "--no-progress"]
 
 
 def gva(*args: object) -> tuple[int, str, str]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -53,12 +54,15 @@ def test_a_tiny_run_writes_the_table_and_the_gif(tiny_run):
     for variant in ("dark", "distractor"):
         assert table["robustness"][variant]["tasks"]["single"]["n"] == 2
     assert table["paper"]["single"] == {"successes": 27, "n": 30}
+    assert table["seeds"] == [0] and single["per_seed"] == [
+        {"seed": 0, "successes": single["successes"], "n": 2, "unfinished": False}]
+    assert single["mean"] == single["successes"] and single["std"] == 0.0
     assert table["settings"]["train"]["steps"] == 3 and table["wall_time_s"] > 0
     markdown = (tiny_run / "table3.md").read_text()
     assert "| Paper (real YuMi, 20 demonstrations) | 27/30 | 28/30 | 26/30 | 27/30 |" in markdown
     assert "| Ours (kqv, q=min), darker light (brightness 0.5) |" in markdown
     assert "## Failure reasons" in markdown and "--steps 3" in markdown
-    gif = tiny_run / "gifs" / "kqv-single.gif"
+    gif = tiny_run / "s0" / "gifs" / "kqv-single.gif"
     assert gif.read_bytes()[:6] == b"GIF89a"
     from PIL import Image
 
@@ -70,22 +74,24 @@ def test_a_tiny_run_writes_the_table_and_the_gif(tiny_run):
 
 def test_the_gif_replays_the_logged_trials(tiny_run):
     logged = [json.loads(line) for line in
-              (tiny_run / "trials" / "kqv" / "single" / "trials.jsonl").read_text().splitlines()]
-    shown = json.loads((tiny_run / "gifs" / "kqv-single.json").read_text())["trials"]
+              (tiny_run / "s0" / "trials" / "kqv" / "single" / "trials.jsonl").read_text()
+              .splitlines()]
+    shown = json.loads((tiny_run / "s0" / "gifs" / "kqv-single.json").read_text())["trials"]
     assert [(t["outcome"], t["reason"]) for t in shown] == [
         (r["outcome"], r["reason"]) for r in sorted(logged, key=lambda r: r["index"])]
 
 
 def test_the_variants_are_task_files_the_checkpoint_is_accepted_for(tiny_run):
-    dark = load_task(variant_file(tiny_run, TrialSet(UNIT, Variant.DARK)))
-    distractor = load_task(variant_file(tiny_run, TrialSet(UNIT, Variant.DISTRACTOR)))
+    seed0 = tiny_run / "s0"
+    dark = load_task(variant_file(seed0, TrialSet(UNIT, Variant.DARK)))
+    distractor = load_task(variant_file(seed0, TrialSet(UNIT, Variant.DISTRACTOR)))
     assert (dark.name, dark.brightness, dark.distractors) == ("single-dark", 0.5, ())
     assert (distractor.name, distractor.distractors) == ("single-distractor", ("block",))
-    model = load_model(tiny_run / "checkpoints" / "kqv" / "single")
+    model = load_model(seed0 / "checkpoints" / "kqv" / "single")
     for task in (dark, distractor):
         check_model_fits_task(model, task, "kqv")  # trained on `single`: accepted
     def scenes(name):
-        log = tiny_run / "trials" / "kqv" / name / "trials.jsonl"
+        log = seed0 / "trials" / "kqv" / name / "trials.jsonl"
         return {r["index"]: r["objects"] for r in map(json.loads, log.read_text().splitlines())}
 
     plain = scenes("single")
@@ -96,10 +102,11 @@ def test_the_variants_are_task_files_the_checkpoint_is_accepted_for(tiny_run):
 
 
 def test_a_rerun_skips_everything(tiny_run):
-    watched = [*(tiny_run / "trials").glob("*/*/trials.jsonl"), tiny_run / "gifs" /
-               "kqv-single.gif", trained_file(tiny_run, UNIT),
-               tiny_run / "checkpoints" / "kqv" / "single" / "weights.safetensors",
-               *(tiny_run / "datasets").glob("*.gva")]
+    seed0 = tiny_run / "s0"
+    watched = [*(seed0 / "trials").glob("*/*/trials.jsonl"), seed0 / "gifs" /
+               "kqv-single.gif", trained_file(seed0, UNIT),
+               seed0 / "checkpoints" / "kqv" / "single" / "weights.safetensors",
+               *(seed0 / "datasets").glob("*.gva")]
     before = {path: path.stat().st_mtime_ns for path in watched}
     report = run_reproduce_real(TINY_SETTINGS, tiny_run, progress=False)
     assert report.computed == () and len(report.skipped) == 6
@@ -135,15 +142,36 @@ def test_a_failing_training_is_recorded_and_the_run_goes_on(tiny_run, tmp_path, 
         raise RuntimeError("out of ideas")
 
     copied = Path(shutil.copytree(tiny_run, tmp_path / "run"))
-    trained_file(copied, UNIT).unlink()
+    trained_file(copied / "s0", UNIT).unlink()
     monkeypatch.setattr(perception.registry, "new_model", broken)
     status, stdout, _ = gva("reproduce", "real", "--out", copied, *TINY)
     assert status == 1
     assert "1 job(s) run (1 failed)" in stdout
-    assert "FAILED train-kqv-single: RuntimeError: out of ideas" in stdout
-    error = json.loads((copied / "errors" / "train-kqv-single.json").read_text())
+    assert "FAILED train-kqv-single-s0: RuntimeError: out of ideas" in stdout
+    error = json.loads((copied / "s0" / "errors" / "train-kqv-single-s0.json").read_text())
     assert "Traceback" in error["traceback"]
-    assert "- train-kqv-single: RuntimeError: out of ideas" in (copied / "table3.md").read_text()
+    assert "- train-kqv-single-s0: RuntimeError: out of ideas" in (
+        copied / "table3.md").read_text()
+
+
+def test_more_seeds_add_seed_folders_and_the_table_reports_each(tiny_run, tmp_path):
+    copied = Path(shutil.copytree(tiny_run, tmp_path / "run"))
+    status, stdout, stderr = gva("reproduce", "real", "--out", copied, *TINY, "--seeds", "2")
+    assert status == 0, stdout + stderr
+    assert "6 job(s) run (0 failed), 6 finished earlier" in stdout  # seed 1's; seed 0's kept
+    table = json.loads((copied / "table3.json").read_text())
+    assert table["seeds"] == [0, 1]
+    single = table["tasks"]["single"]
+    counts = [entry["successes"] for entry in single["per_seed"]]
+    assert [entry["seed"] for entry in single["per_seed"]] == [0, 1]
+    assert single["n"] == 4 and single["successes"] == sum(counts)
+    assert single["mean"] == pytest.approx(sum(counts) / 2)
+    assert single["std"] == pytest.approx(abs(counts[0] - counts[1]) / 2 ** 0.5)
+    assert f"({counts[0]}, {counts[1]})" in (copied / "table3.md").read_text()
+    assert (copied / "s1" / "gifs" / "kqv-single.gif").exists()
+    status, _, stderr = gva("reproduce", "real", "--out", copied, *TINY, "--seeds", "2",
+                            "--n", "3")
+    assert status == 2 and "'n': (2, 3)" in stderr
 
 
 @pytest.mark.parametrize(("option", "value", "allowed"), [
@@ -171,9 +199,9 @@ def test_the_markdown_has_the_papers_row_ours_and_the_failure_reasons():
     plain = [_record(i, TrialOutcome.SUCCESS, "lifted 9.9 cm and held 1.0 s") for i in range(28)]
     plain += [_record(28, TrialOutcome.MISSED, "the gripper closed on nothing", "mug", 0.031),
               _record(29, TrialOutcome.IK_UNREACHABLE, "no arm reaches it", "mug", None)]
-    sets = [TrialSetResult("kqv", "single", Variant.PLAIN, tuple(plain), 30),
-            TrialSetResult("fcn", "single", Variant.PLAIN, tuple(plain[:20]), 30),
-            TrialSetResult("kqv", "single", Variant.DISTRACTOR, tuple(plain[-5:]), 5)]
+    sets = [TrialSetResult("kqv", "single", Variant.PLAIN, ((0, tuple(plain)),), 30),
+            TrialSetResult("fcn", "single", Variant.PLAIN, ((0, tuple(plain[:20])),), 30),
+            TrialSetResult("kqv", "single", Variant.DISTRACTOR, ((0, tuple(plain[-5:])),), 5)]
     text = table3_markdown(sets, "Made by `gva reproduce real`.")
     lines = text.splitlines()
     paper = lines.index("| Paper (real YuMi, 20 demonstrations) | 27/30 | 28/30 | 26/30 | 27/30 |")
@@ -190,6 +218,23 @@ def test_the_markdown_has_the_papers_row_ours_and_the_failure_reasons():
     assert text.rstrip().endswith("Made by `gva reproduce real`.")
 
 
+def test_over_seeds_a_cell_is_the_mean_and_spread_with_each_count():
+    def seed(number: int, successes: int) -> tuple[int, tuple[TrialRecord, ...]]:
+        return number, tuple(
+            replace(_record(i, TrialOutcome.SUCCESS if i < successes else TrialOutcome.MISSED,
+                            "x"), seed=number) for i in range(30))
+
+    result = TrialSetResult("kqv", "single", Variant.PLAIN,
+                            (seed(0, 29), seed(1, 27), seed(2, 30)), 30)
+    assert result.counts == [29, 27, 30] and result.mean == pytest.approx(86 / 3)
+    entry = result.entry()
+    assert (entry["successes"], entry["n"]) == (86, 90)
+    assert entry["std"] == pytest.approx(1.5275, abs=1e-4)
+    text = table3_markdown([result], "Made by `gva reproduce real`.")
+    assert "| Ours (kqv, q=min) | 28.7 ± 1.5 (29, 27, 30) | — | — | — |" in text
+    assert "seed 1 trial 27 (sponge, 1.0 cm off): missed" in text
+
+
 @pytest.mark.slow
 def test_a_multiple_run_trains_on_the_image_before_each_pick_and_resumes(tmp_path):
     out = tmp_path / "run"
@@ -198,7 +243,7 @@ def test_a_multiple_run_trains_on_the_image_before_each_pick_and_resumes(tmp_pat
     status, stdout, stderr = gva(*args)
     assert status == 0, stderr
     assert "4 job(s) run (0 failed)" in stdout
-    trained = json.loads(trained_file(out, Unit("kqv", "multiple")).read_text())
+    trained = json.loads(trained_file(out / "s0", Unit("kqv", "multiple")).read_text())
     assert trained["samples"] == 3  # one demonstration, an image before each of its 3 picks
     status, stdout, _ = gva(*args)
     assert status == 0 and "0 job(s) run (0 failed), 4 finished earlier" in stdout

@@ -256,7 +256,8 @@ def test_the_spec_reads_the_object_types_and_compares_them_where_both_name_them(
 
 def test_gva_train_names_the_phases_and_evaluate_prints_the_type_accuracy(tmp_path, capsys):
     data = save_dataset(typed_dataset(6, seed=8), tmp_path / "typed.gva")
-    fast = ["--steps", "5", "--batch-size", "4", "--threads", "1", "--no-progress"]
+    fast = ["--steps", "5", "--batch-size", "4", "--threads", "1", "--holdout", "0",
+            "--no-progress"]
     assert main(["train", "--model", "kqv", "--data", str(data), "--out",
                  str(tmp_path / "kqv"), *fast]) == 0
     lines = capsys.readouterr().out.splitlines()

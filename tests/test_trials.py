@@ -1,5 +1,7 @@
 import json
 import re
+import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -320,9 +322,11 @@ def test_a_checkpoint_for_another_task_is_refused_naming_both(tmp_path):
 def test_a_checkpoint_run_is_identified_by_its_weights(tmp_path):
     folder = _checkpoint(tmp_path / "ckpt", spec=YUMI_SINGLE)
     identity = TrialSettings(str(folder), "single").identity()
-    assert identity["model"] == str(folder.resolve())
+    assert identity["model"] == "checkpoint"
     assert identity["weights_sha256"] == read_config(folder)["weights_sha256"]
     TrialLog(tmp_path / "run", identity)
+    moved = Path(shutil.copytree(folder, tmp_path / "elsewhere"))  # the same weights, moved
+    TrialLog(tmp_path / "run", TrialSettings(str(moved), "single").identity())
     _checkpoint(folder, spec=YUMI_SINGLE, seed=1)  # other weights in the same folder
     with pytest.raises(RunFolderError, match="holds a different run"):
         TrialLog(tmp_path / "run", TrialSettings(str(folder), "single").identity())

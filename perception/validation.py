@@ -1,0 +1,241 @@
+"""A training that checks itself: scenes held out of its own demonstrations score it.
+
+A model trained on 20 demonstrations can fit them all and still have learned nothing that
+carries to a new scene (a Query that memorised its few images); the training loss does not
+show it. :func:`fit_checked` holds out a few scenes of the training set (never test scenes),
+trains on the rest and scores the trained model on the held-out ones, overall, per condition
+value and per head. Over the limit, it tries again from another start; if every attempt fails,
+the model is returned marked failed with the reason, and :func:`write_check` keeps that beside
+the checkpoint, where ``gva train``, ``gva reproduce`` and the trials read it and say so.
+
+The model it returns is the one it checked, trained on the kept scenes only: a check of one
+model that then ships another is no check.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from perception.data import Dataset
+from perception.files import atomic_write
+from perception.interface import InvalidInputError
+
+if TYPE_CHECKING:  # torch: not for the settings of a run (`gva --help`, run identities)
+    from perception.learnable import LearnableModel
+    from perception.train import TrainConfig, TrainReport
+
+CHECK_FILE = "check.json"
+"""The held-out check's file in a checkpoint folder."""
+
+
+@dataclass(frozen=True)
+class CheckConfig:
+    """How a training checks itself.
+
+    Args:
+        holdout: Fraction of the training scenes held out (rounded, at least one scene where
+            two or more remain to train on); 0 trains on every scene and checks nothing.
+        limit_cm: The largest mean held-out position error allowed, of the whole, of each
+            condition value and of each head [cm]. 2 cm: a grasp further off misses the
+            spray bottle and the mug (``docs/decisions/every-condition.md``).
+        attempts: Trainings tried, each from another start, before the model is marked failed.
+
+    """
+
+    holdout: float = 0.2
+    limit_cm: float = 2.0
+    attempts: int = 2
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.holdout) and 0 <= self.holdout < 1):
+            raise InvalidInputError("holdout", self.holdout, "a fraction in [0, 1)")
+        if not (math.isfinite(self.limit_cm) and self.limit_cm > 0):
+            raise InvalidInputError("limit_cm", self.limit_cm, "a finite length > 0 [cm]")
+        if not isinstance(self.attempts, int) or isinstance(self.attempts, bool) or \
+                self.attempts < 1:
+            raise InvalidInputError("attempts", self.attempts, "an integer >= 1")
+
+
+@dataclass(frozen=True)
+class HeldOutCheck:
+    """How a trained model did on the scenes its training held out.
+
+    Args:
+        passed: Whether every mean below is within ``limit_cm``.
+        reason: What failed, e.g. ``"condition 'mug': 7.31 cm > 2.00 cm"``; "" when passed.
+        held_out_scenes: The scene indices held out (their records' ``"index"``).
+        samples: Held-out samples scored (a scene may give several).
+        mean_position_error_cm: Mean over every present target [cm].
+        per_condition_mean_position_error_cm: Mean per condition value [cm]; None: no condition.
+        per_target_mean_position_error_cm: Mean per head [cm].
+        limit_cm: The limit checked against [cm].
+        attempt: Which attempt this is, from 1.
+        model_seed: The seed of the attempt's weights and batches.
+
+    """
+
+    passed: bool
+    reason: str
+    held_out_scenes: tuple[int, ...]
+    samples: int
+    mean_position_error_cm: float
+    per_condition_mean_position_error_cm: dict[str, float] | None
+    per_target_mean_position_error_cm: tuple[float, ...]
+    limit_cm: float
+    attempt: int
+    model_seed: int
+
+    def headline(self) -> str:
+        """One line: passed or FAILED, and the held-out errors."""
+        parts = [f"mean {self.mean_position_error_cm:.2f} cm"]
+        if self.per_condition_mean_position_error_cm:
+            parts.append("per condition " + ", ".join(
+                f"{value} {e:.2f}" for value, e in
+                self.per_condition_mean_position_error_cm.items()))
+        if len(self.per_target_mean_position_error_cm) > 1:
+            parts.append("per head " + ", ".join(
+                f"{e:.2f}" for e in self.per_target_mean_position_error_cm))
+        where = (f"{len(self.held_out_scenes)} held-out scene(s), attempt {self.attempt}: "
+                 + "; ".join(parts))
+        if self.passed:
+            return f"held-out check passed ({where}; limit {self.limit_cm:g} cm)"
+        return f"held-out check FAILED: {self.reason} ({where})"
+
+    def to_json(self) -> dict[str, Any]:
+        """The check as JSON-able data."""
+        return asdict(self) | {"held_out_scenes": list(self.held_out_scenes),
+                               "per_target_mean_position_error_cm":
+                                   list(self.per_target_mean_position_error_cm)}
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> HeldOutCheck:
+        """The check :meth:`to_json` wrote."""
+        return cls(**data | {"held_out_scenes": tuple(data["held_out_scenes"]),
+                             "per_target_mean_position_error_cm":
+                                 tuple(data["per_target_mean_position_error_cm"])})
+
+
+@dataclass(frozen=True)
+class CheckedFit:
+    """What :func:`fit_checked` returns: the model it kept, its report, and every check."""
+
+    model: LearnableModel
+    report: TrainReport
+    checks: tuple[HeldOutCheck, ...]  # one per attempt; the last is the kept model's
+
+    @property
+    def check(self) -> HeldOutCheck | None:
+        """The kept model's check; None where nothing was held out."""
+        return self.checks[-1] if self.checks else None
+
+
+def scene_keys(dataset: Dataset) -> list[int]:
+    """Each sample's scene: its record's ``"index"`` (samples of one scene share it)."""
+    return [int(record.get("index", -1 - n)) for n, record in enumerate(dataset.scenes)]
+
+
+def split_scenes(dataset: Dataset, holdout: float, seed: int) -> tuple[Dataset, Dataset | None]:
+    """(kept, held out): whole scenes, ``round(holdout x scenes)`` of them drawn with ``seed``.
+
+    At least one scene is held out where ``holdout`` > 0 and two or more scenes remain to
+    train on; None where nothing is held out.
+    """
+    keys = scene_keys(dataset)
+    scenes = list(dict.fromkeys(keys))
+    count = min(max(round(holdout * len(scenes)), 1 if holdout > 0 else 0), len(scenes) - 2)
+    if count <= 0:
+        return dataset, None
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 0x486F6C64]))  # "Hold"
+    held = {scenes[i] for i in rng.choice(len(scenes), size=count, replace=False)}
+    return (dataset.subset([n for n, key in enumerate(keys) if key not in held]),
+            dataset.subset([n for n, key in enumerate(keys) if key in held]))
+
+
+def check_model(model: LearnableModel, held_out: Dataset, limit_cm: float, attempt: int,
+                model_seed: int) -> HeldOutCheck:
+    """Scores ``model`` on ``held_out`` against ``limit_cm``: whole, each condition, each head."""
+    from perception.evaluate import evaluate  # torch, once a model is trained
+
+    result = evaluate(model, held_out)
+    means = [("held-out mean", result.mean_position_error_cm)]
+    means += [(f"condition {value!r}", e) for value, e in
+              (result.per_condition_mean_position_error_cm or {}).items()]
+    if held_out.metadata.targets > 1:
+        means += [(f"head {k}", e) for k, e in
+                  enumerate(result.per_target_mean_position_error_cm)]
+    over = [f"{name}: {e:.2f} cm > {limit_cm:.2f} cm" for name, e in means
+            if not e <= limit_cm]
+    return HeldOutCheck(
+        passed=not over, reason="; ".join(over),
+        held_out_scenes=tuple(sorted(set(scene_keys(held_out)))), samples=len(held_out),
+        mean_position_error_cm=result.mean_position_error_cm,
+        per_condition_mean_position_error_cm=result.per_condition_mean_position_error_cm,
+        per_target_mean_position_error_cm=result.per_target_mean_position_error_cm,
+        limit_cm=limit_cm, attempt=attempt, model_seed=model_seed)
+
+
+def attempt_seed(seed: int, attempt: int) -> int:
+    """The seed of attempt ``attempt`` (from 1): ``seed`` first, then derived ones."""
+    if attempt == 1:
+        return seed
+    return int(np.random.SeedSequence([seed, attempt]).generate_state(1)[0] >> 1)
+
+
+def fit_checked(build: Callable[[int], LearnableModel], dataset: Dataset, config: TrainConfig,
+                check: CheckConfig | None = None, progress: bool = True,
+                log: Callable[[str], None] | None = None) -> CheckedFit:
+    """Trains ``build(seed)`` on the kept scenes and checks it on the held-out ones.
+
+    ``build`` makes a fresh model whose weights are seeded with its argument; each attempt
+    uses another seed for the weights and the batches (:func:`attempt_seed`). The held-out
+    scenes are the same for every attempt (drawn with ``config.seed``). Returns the first
+    model that passes, else the last one, marked failed by its check. ``log`` is told each
+    attempt's check line.
+    """
+    check = check or CheckConfig()
+    kept, held_out = split_scenes(dataset, check.holdout, config.seed)
+    checks: list[HeldOutCheck] = []
+    for attempt in range(1, check.attempts + 1):
+        seed = attempt_seed(config.seed, attempt)
+        model = build(seed)
+        report = model.fit(kept, replace(config, seed=seed), progress=progress)
+        if held_out is None:
+            return CheckedFit(model, report, ())
+        checks.append(check_model(model, held_out, check.limit_cm, attempt, seed))
+        if log is not None:
+            log(checks[-1].headline())
+        if checks[-1].passed:
+            break
+    return CheckedFit(model, report, tuple(checks))
+
+
+def write_check(folder: str | Path, fit: CheckedFit) -> Path | None:
+    """Writes the kept model's check (and the earlier attempts') beside its checkpoint.
+
+    A fit that checked nothing removes an older check from the folder.
+    """
+    path = Path(folder) / CHECK_FILE
+    if fit.check is None:
+        path.unlink(missing_ok=True)
+        return None
+    data = fit.check.to_json() | {"attempts": [c.to_json() for c in fit.checks]}
+    text = json.dumps(data, indent=2, allow_nan=False) + "\n"
+    atomic_write(path, lambda temporary: temporary.write_text(text, encoding="utf-8"))
+    return path
+
+
+def read_check(folder: str | Path) -> HeldOutCheck | None:
+    """The held-out check of a checkpoint folder; None where its training checked nothing."""
+    path = Path(folder) / CHECK_FILE
+    if not path.is_file():
+        return None
+    data = json.loads(path.read_text(encoding="utf-8"))
+    data.pop("attempts", None)
+    return HeldOutCheck.from_json(data)
