@@ -197,6 +197,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _add_reproduce(commands: Any) -> None:
     """``gva reproduce sim`` and ``gva reproduce real``."""
     from experiments.reproduce_sim import MODELS, SIZES, TASKS
+    from experiments.sim_datasets import SCENE, SCENES
 
     reproduce = commands.add_parser("reproduce", help="the paper's experiments, end to end")
     experiments = reproduce.add_subparsers(dest="experiment", required=True)
@@ -223,6 +224,9 @@ def _add_reproduce(commands: Any) -> None:
                      help="optimiser steps per training phase (1000)")
     sim.add_argument("--test-scenes", type=_integer(1), default=100,
                      help="test scenes per task (100, as in the paper; fewer for a quick check)")
+    sim.add_argument("--scene", choices=SCENES, default=SCENE,
+                     help="paper-sim (Table II) or yumi (the robot's demonstrations, offline) "
+                     f"({SCENE})")
     sim.add_argument("--no-progress", action="store_true", help="no progress bars")
     _add_reproduce_real(experiments, TASKS)
 
@@ -376,7 +380,8 @@ def _run_reproduce(args: argparse.Namespace) -> int:
 
     settings = ReproduceSimSettings(models=args.models, tasks=args.tasks, sizes=args.sizes,
                                     seeds=args.seeds, seed=args.seed, steps=args.steps,
-                                    test_scenes=args.test_scenes, workers=args.workers)
+                                    test_scenes=args.test_scenes, workers=args.workers,
+                                    scene=args.scene)
     report = run_reproduce_sim(settings, args.out, progress=not args.no_progress)
     _print_run(report, "cell(s) computed",
                lambda r: f"{r['model']}-{r['task']}-{r['size']}-s{r['seed']}")

@@ -5,7 +5,9 @@ The experiment. Every *cell* is one model x task x dataset size x training seed:
 - models: ``kqv`` (the paper's model, q = min), ``keypoint-16``, ``keypoint-min``, ``dsae-16``,
   ``conv-ae``, ``fcn``; tasks: ``single``, ``multiple``, ``selected-type``,
   ``selected-position``; sizes: 4, 20, 100 training scenes; seeds ``S0 .. S0 + seeds - 1``.
-- Data, scene ``paper-sim``: a training set per (task, size, seed), scenes ``0 .. size - 1`` of
+- Data, scene ``paper-sim`` (or ``yumi``, whose scenes are oracle-verified demonstrations with
+  grasp-pose labels: the same sweep offline on the robot's task): a training set per
+  (task, size, seed), scenes ``0 .. size - 1`` of
   that seed's TRAIN stream, so the 4 scenes of a size-4 set are the first 4 of the size-20 set
   (each task and seed is collected once, at its largest size, and the smaller sets are its
   prefixes, byte for byte what ``gva collect`` writes). One test set per task, the first
@@ -56,7 +58,7 @@ from tqdm import tqdm
 
 from experiments.jobs import JobPool
 from experiments.runs import check_choices, check_counts
-from experiments.sim_datasets import SCENE, collect_datasets, dataset_jobs, dataset_path
+from experiments.sim_datasets import SCENE, SCENES, collect_datasets, dataset_jobs, dataset_path
 from perception.files import atomic_write
 from sim.errors import InvalidInputError
 from sim.records import RunFolderError, claim_run_folder, differences, json_form
@@ -109,6 +111,7 @@ class ReproduceSimSettings:
         seed: S0, the first training seed and the seed of the test scenes.
         steps: Optimiser steps per training phase.
         test_scenes: Test scenes per task (the paper's 100; fewer for a quick check).
+        scene: ``paper-sim`` (the paper's Table II) or ``yumi`` (the robot's scenes, offline).
         workers: Processes running cells at once; None: the cores this process may use. One
             runs everything in this process.
 
@@ -122,8 +125,10 @@ class ReproduceSimSettings:
     steps: int = 1000
     test_scenes: int = 100
     workers: int | None = None
+    scene: str = SCENE
 
     def __post_init__(self) -> None:
+        check_choices("scene", (self.scene,), SCENES)
         check_choices("models", self.models, MODELS)
         check_choices("tasks", self.tasks, TASKS)
         check_choices("sizes", self.sizes, SIZES)
@@ -154,7 +159,8 @@ class ReproduceSimSettings:
 
         train = asdict(TrainConfig(steps=self.steps, threads=1))
         train.pop("seed")  # each cell's own
-        return {"format_version": FORMAT_VERSION, "experiment": "reproduce-sim", "scene": SCENE,
+        return {"format_version": FORMAT_VERSION, "experiment": "reproduce-sim",
+                "scene": self.scene,
                 "train": train, "test_seed": self.seed, "test_scenes": self.test_scenes}
 
     def cell_identity(self, cell: Cell) -> dict[str, Any]:
@@ -177,6 +183,8 @@ class ReproduceSimSettings:
                 parts.append(f"--{name} {','.join(str(v) for v in given)}")
         if self.test_scenes != 100:
             parts.append(f"--test-scenes {self.test_scenes}")
+        if self.scene != SCENE:
+            parts.append(f"--scene {self.scene}")
         return " ".join(parts)
 
 
@@ -239,6 +247,7 @@ class CellJob:
     test_scenes: int
     test_seed: int
     out: Path
+    scene: str = SCENE
 
 
 @dataclass(frozen=True)
@@ -251,7 +260,7 @@ class CellOutcome:
     failure: str | None = None
 
 
-def load_scenes(path: Path, task: str, scenes: int, seed: int) -> Dataset:
+def load_scenes(path: Path, scene: str, task: str, scenes: int, seed: int) -> Dataset:
     """The dataset at ``path``, checked to hold ``scenes`` scenes of ``task`` under ``seed``.
 
     A scene may give several samples (one per condition value, or per pick): counted are
@@ -259,7 +268,7 @@ def load_scenes(path: Path, task: str, scenes: int, seed: int) -> Dataset:
     """
     from perception.data import DatasetError, load_dataset
 
-    dataset = load_dataset(path, expect={"scene": SCENE, "task": task, "seed": seed})
+    dataset = load_dataset(path, expect={"scene": scene, "task": task, "seed": seed})
     held = dataset.metadata.extra.get("scenes", len(dataset))
     if held != scenes:
         raise DatasetError(path, f"holds {held} scenes, the cell asks for {scenes}")
@@ -279,10 +288,11 @@ def compute_cell(job: CellJob) -> CellOutcome:
     try:
         with torch_threads(1):
             train = load_scenes(dataset_path(out, cell.task, SeedStream.TRAIN, cell.size,
-                                             cell.seed), cell.task, cell.size, cell.seed)
+                                             cell.seed), job.scene, cell.task, cell.size,
+                                cell.seed)
             test = load_scenes(dataset_path(out, cell.task, SeedStream.TEST, job.test_scenes,
-                                            job.test_seed), cell.task, job.test_scenes,
-                               job.test_seed)
+                                            job.test_seed), job.scene, cell.task,
+                               job.test_scenes, job.test_seed)
             model = new_model(cell.model, train, seed=cell.seed)
             report = model.fit(train, TrainConfig(steps=job.steps, seed=cell.seed, threads=1),
                                progress=False)
@@ -371,8 +381,8 @@ def run_reproduce_sim(settings: ReproduceSimSettings, out: str | Path,
     claim_run_folder(out, settings.run_identity())
     todo, done = sort_cells(settings, out)
     workers = settings.worker_count()
-    collections = dataset_jobs(out, settings.tasks, settings.training_seeds, settings.sizes,
-                               settings.seed, settings.test_scenes) if todo else []
+    collections = dataset_jobs(out, settings.scene, settings.tasks, settings.training_seeds,
+                               settings.sizes, settings.seed, settings.test_scenes) if todo else []
     computed: list[CellOutcome] = []
     try:
         with JobPool(workers) as pool:
@@ -399,7 +409,7 @@ def _run_cells(settings: ReproduceSimSettings, out: Path, todo: Sequence[Cell], 
     honest while the long cells, which run first, are still going.
     """
     jobs = [CellJob(cell, settings.cell_identity(cell), settings.steps, settings.test_scenes,
-                    settings.seed, out) for cell in todo]
+                    settings.seed, out, settings.scene) for cell in todo]
     earlier = f", {skipped} done earlier" if skipped else ""
     bar = tqdm(total=sum(cell.cost for cell in todo), disable=not progress or not jobs,
                desc="reproduce sim", file=sys.stderr,

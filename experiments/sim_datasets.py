@@ -22,6 +22,9 @@ if TYPE_CHECKING:  # sim.scene imports pinocchio: not for `gva --help`
     from sim.scene import SeedStream
 
 SCENE = "paper-sim"
+"""The paper's simulator scene, Table II's."""
+SCENES = ("paper-sim", "yumi")
+"""The scenes a sweep can run on (yumi: demonstrations, offline)."""
 
 
 def dataset_path(out: Path, task: str, stream: SeedStream, size: int, seed: int) -> Path:
@@ -38,6 +41,7 @@ class DatasetJob:
     stream: SeedStream
     sizes: tuple[int, ...]
     out: Path
+    scene: str = SCENE
 
 
 def collect_datasets(job: DatasetJob) -> DatasetJob:
@@ -46,7 +50,7 @@ def collect_datasets(job: DatasetJob) -> DatasetJob:
     from sim.collect import CollectSettings, collect
 
     largest = max(job.sizes)
-    settings = CollectSettings(SCENE, job.task, largest, job.seed, job.stream)
+    settings = CollectSettings(job.scene, job.task, largest, job.seed, job.stream)
     full = collect(settings, dataset_path(job.out, job.task, job.stream, largest, job.seed),
                    progress=False)
     for size in job.sizes:
@@ -56,7 +60,7 @@ def collect_datasets(job: DatasetJob) -> DatasetJob:
     return job
 
 
-def dataset_jobs(out: Path, tasks: Sequence[str], training_seeds: Sequence[int],
+def dataset_jobs(out: Path, scene: str, tasks: Sequence[str], training_seeds: Sequence[int],
                  sizes: Sequence[int], test_seed: int, test_scenes: int) -> list[DatasetJob]:
     """The collections still to do: training sets per task and seed, a test set per task."""
     from sim.scene import SeedStream
@@ -67,7 +71,7 @@ def dataset_jobs(out: Path, tasks: Sequence[str], training_seeds: Sequence[int],
     jobs = []
     for task, seed, stream, sizes in wanted:
         missing = tuple(sorted(s for s in sizes if not dataset_present(
-            dataset_path(out, task, stream, s, seed), SCENE, task, s, seed, stream)))
+            dataset_path(out, task, stream, s, seed), scene, task, s, seed, stream)))
         if missing:
-            jobs.append(DatasetJob(task, seed, stream, missing, out))
+            jobs.append(DatasetJob(task, seed, stream, missing, out, scene))
     return jobs

@@ -185,11 +185,13 @@ def differences_markdown(stats: Mapping[Key, tuple[float, float | None, int]]) -
 
 
 def table2_markdown(cells: Sequence[Mapping[str, Any]], failed: Sequence[Mapping[str, Any]],
-                    made_by: str, reference: Sequence[Mapping[str, Any]] = ()) -> str:
+                    made_by: str, reference: Sequence[Mapping[str, Any]] = (),
+                    scene: str = "paper-sim") -> str:
     """``table2.md``: ours, then the paper's, in the layout of the cells present.
 
     ``reference`` holds the no-image reference's records (:func:`no_image_reference`); given,
-    it makes the last row of our table and the reference column of the differences.
+    it makes the last row of our table and the reference column of the differences. On the
+    ``yumi`` scene (grasp positions, offline) the paper has no such table: ours alone.
     """
     present = [*cells, *failed]
     models = [m for m in MODELS if any(c["model"] == m for c in present)]
@@ -210,21 +212,30 @@ def table2_markdown(cells: Sequence[Mapping[str, Any]], failed: Sequence[Mapping
     if references:
         ours[NO_IMAGE] = {(t, s): _shown(mean, std)
                           for (_, t, s), (mean, std, _) in references.items()}
-    differences = differences_markdown({**stats, **references})
+    paper_scene = scene == "paper-sim"
+    differences = differences_markdown({**stats, **references}) if paper_scene else []
     test_scenes = {c["test_scenes"] for c in cells} or {"?"}
+    title = ("Table II in simulation: mean position error [cm]" if paper_scene else
+             f"Offline on the `{scene}` scene: mean grasp position error [cm]")
     lines = [
-        "# Table II in simulation: mean position error [cm]", "",
-        f"Scene `paper-sim`, {'/'.join(str(n) for n in sorted(test_scenes, key=str))} untrained "
+        f"# {title}", "",
+        f"Scene `{scene}`, {'/'.join(str(n) for n in sorted(test_scenes, key=str))} untrained "
         "test scenes per task. Each cell: mean ± sample standard deviation over the training "
         f"seeds ({most} per cell{'' if most == 1 else ', fewer where marked n='}); **bold**: "
         f"below {BOLD_BELOW_CM:g} cm, as in the paper; `[k/n > {BOLD_BELOW_CM:g}, worst w]`: "
         f"k of the cell's n trainings ended above {BOLD_BELOW_CM:g} cm, the worst at w cm (a "
         "mean can hide a failed training). Columns: task, then training set size.",
-        "", *markdown_table(ours, tasks, sizes), "",
-        "## The paper's Table II", "",
-        "As published, in the same columns and with the same bold rule.", "",
-        *markdown_table(paper, tasks, sizes), "",
-    ]
+        "", *markdown_table(ours, tasks, sizes), ""]
+    if any(c.get("per_condition_error_cm") or len(c.get("per_target_error_cm") or ()) > 1
+           for c in cells):
+        lines += ["## Per condition and head, the worst training", "",
+                  "Each cell's worst training by its worst condition or head: a Query that "
+                  "memorised its images shows here, where the cell's mean hides it.", "",
+                  *worst_conditions_markdown(cells), ""]
+    if paper_scene:
+        lines += ["## The paper's Table II", "",
+                  "As published, in the same columns and with the same bold rule.", "",
+                  *markdown_table(paper, tasks, sizes), ""]
     if differences:
         lines += [
             f"## Where ours and the paper's differ by more than {RATIO_FLAGGED:g}×", "",
@@ -241,6 +252,28 @@ def table2_markdown(cells: Sequence[Mapping[str, Any]], failed: Sequence[Mapping
     return "\n".join(lines) + "\n"
 
 
+def worst_conditions_markdown(cells: Sequence[Mapping[str, Any]]) -> list[str]:
+    """Per (model, task, size): the training whose worst condition or head is worst."""
+    lines = ["| Model | Task | Size | Worst training | Its mean | Its worst condition / head |",
+             "|---|---|---:|---|---:|---|"]
+    groups: dict[Key, list[Mapping[str, Any]]] = defaultdict(list)
+    for cell in cells:
+        groups[(cell["model"], cell["task"], cell["size"])].append(cell)
+
+    def parts(cell: Mapping[str, Any]) -> list[tuple[str, float]]:
+        named = list((cell.get("per_condition_error_cm") or {}).items())
+        heads = cell.get("per_target_error_cm") or []
+        return named + ([(f"head {k}", e) for k, e in enumerate(heads)] if len(heads) > 1
+                        else [])
+
+    for (model, task, size), group in groups.items():
+        worst = max(group, key=lambda c: max([e for _, e in parts(c)] or [c["error_cm"]]))
+        name, error = max(parts(worst) or [("mean", worst["error_cm"])], key=lambda p: p[1])
+        lines.append(f"| {MODEL_TITLES[model]} | {TASK_TITLES[task]} | {size} | seed "
+                     f"{worst['seed']} | {worst['error_cm']:.2f} | {name} {error:.2f} |")
+    return lines
+
+
 def write_reports(settings: ReproduceSimSettings, out: Path, wall_time_s: float,
                   computed: int) -> tuple[list[Path], list[dict[str, Any]], list[str]]:
     """Writes every report from the cells present: (paths written, failed cells, notes)."""
@@ -254,8 +287,9 @@ def write_reports(settings: ReproduceSimSettings, out: Path, wall_time_s: float,
     stats, above = spread(cells), failures(cells)
     reference = no_image_reference(settings, out, cells)
     table = {
-        "cells": [{k: c[k] for k in ("model", "task", "size", "seed", "error_cm", "train_s")}
-                  for c in cells],
+        "cells": [{k: c.get(k) for k in ("model", "task", "size", "seed", "error_cm",
+                                         "per_condition_error_cm", "per_target_error_cm",
+                                         "per_stage_error_cm", "train_s")} for c in cells],
         "means": [{"model": m, "task": t, "size": s, "error_cm": mean, "std_cm": std,
                    "seeds": n, "above_5cm": above[(m, t, s)][0],
                    "worst_cm": above[(m, t, s)][1]}
@@ -271,7 +305,7 @@ def write_reports(settings: ReproduceSimSettings, out: Path, wall_time_s: float,
     }
     paths = [out / "table2.json", out / "table2.md", out / "table2.png"]
     write_json(paths[0], table)
-    text = table2_markdown(cells, failed, made_by, reference)
+    text = table2_markdown(cells, failed, made_by, reference, settings.scene)
     atomic_write(paths[1], lambda temporary: temporary.write_text(text, encoding="utf-8"))
     notes = []
     if cells:

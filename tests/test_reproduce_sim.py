@@ -54,7 +54,10 @@ def test_a_tiny_run_writes_every_output(tiny_run):
     assert [(c["model"], c["task"], c["size"], c["seed"]) for c in table["cells"]] == [
         ("kqv", "single", 4, 0), ("fcn", "single", 4, 0)]
     for cell in table["cells"]:
-        assert set(cell) == {"model", "task", "size", "seed", "error_cm", "train_s"}
+        assert set(cell) == {"model", "task", "size", "seed", "error_cm", "train_s",
+                             "per_condition_error_cm", "per_target_error_cm",
+                             "per_stage_error_cm"}
+        assert cell["per_condition_error_cm"] is None  # single: no condition
         assert 0 < cell["error_cm"] < 100 and cell["train_s"] > 0
     assert table["failed"] == [] and table["wall_time_s"] > 0
     assert table["settings"]["train"]["steps"] == 3 and table["settings"]["test_scenes"] == 5
@@ -255,3 +258,23 @@ def test_settings_refuse_duplicates_and_bad_numbers():
         ReproduceSimSettings(test_scenes=0)
     command = ReproduceSimSettings(seeds=2, seed=5).command(Path("out"))
     assert command == "gva reproduce sim --out out --seeds 2 --seed 5 --steps 1000"
+
+
+@pytest.mark.slow
+def test_the_same_sweep_runs_offline_on_the_yumi_scene(tmp_path):
+    out = tmp_path / "yumi"
+    status, stdout, stderr = gva("reproduce", "sim", "--out", out, "--scene", "yumi",
+                                 "--models", "kqv", "--tasks", "selected-type", "--sizes", "4",
+                                 "--seeds", "1", "--steps", "3", "--test-scenes", "2",
+                                 "--workers", "1", "--no-progress")
+    assert status == 0, stdout + stderr
+    cell = json.loads((out / "cells" / "kqv-selected-type-4-s0.json").read_text())
+    assert set(cell["per_condition_error_cm"]) <= {"sponge", "spray_bottle", "mug"}
+    assert cell["test_scenes"] == 2
+    train = load_dataset(out / "datasets" / "selected-type-train-4-s0.gva")
+    assert (train.metadata.scene, len(train), train.metadata.extra["scenes"]) == ("yumi", 12, 4)
+    text = (out / "table2.md").read_text()
+    assert text.startswith("# Offline on the `yumi` scene: mean grasp position error [cm]")
+    assert "## Per condition and head, the worst training" in text
+    assert "The paper's Table II" not in text
+    assert "--scene yumi" in json.loads((out / "table2.json").read_text())["settings"]["command"]
