@@ -1,0 +1,146 @@
+"""Where a kqv training's time goes, on one CPU thread, as the seed sweeps train it.
+
+    python benchmarks/bench_train.py [--steps 40] [--repeats 5]
+        [--out benchmarks/results/train.json]
+
+A seed sweep (``gva reproduce sim``, ``gva reproduce real --seeds``) is dominated by training:
+each cell trains one kqv on one thread, two cells side by side on this 2-core machine. This
+times, on a ``yumi`` ``multiple`` batch (20 demonstrations, a 64 x 64 heatmap, the heaviest
+yumi task) and a ``paper-sim`` ``single`` batch (a 32 x 32 heatmap):
+
+- a whole pose step (forward, loss, backward, Adam) and its parts: the photometric
+  augmentation, the forward pass, the backward pass;
+- the Key normalisation of the cosine similarity, as ``F.normalize`` against the reciprocal
+  square root kqv uses (:func:`perception.models.kqv.unit`), forward and backward;
+- a step of the type head's phase (forward through the frozen network, the small head's
+  backward).
+
+Medians of ``--repeats`` runs of ``--steps`` steps each, after a warm-up; the training's step
+count (:class:`~perception.train.TrainConfig`, :class:`~perception.models.kqv.KqvConfig`'s
+starts) turns them into a training's seconds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from perception.data import Dataset
+from perception.models.base import images_to_tensor
+from perception.models.kqv import KqvModel, unit
+from perception.registry import new_model
+from perception.train import Batch, TrainConfig, batch_indices, photometric_augment
+
+
+def median_ms(run: Callable[[], Any], steps: int, repeats: int) -> float:
+    """Median over ``repeats`` of the mean wall time of ``steps`` calls of ``run`` [ms]."""
+    for _ in range(3):
+        run()
+    times = []
+    for _ in range(repeats):
+        started = time.perf_counter()
+        for _ in range(steps):
+            run()
+        times.append((time.perf_counter() - started) / steps)
+    return statistics.median(times) * 1e3
+
+
+def step_parts(dataset: Dataset, steps: int, repeats: int) -> dict[str, float]:
+    """Milliseconds of a pose step and its parts, and of a type-phase step, on one thread."""
+    model = new_model("kqv", dataset, seed=0)
+    assert isinstance(model, KqvModel)
+    model.fit(dataset, TrainConfig(steps=1, threads=1), progress=False)  # scaler, mirror
+    network = model.network.train()
+    optimiser = torch.optim.Adam(network.parameters(), lr=1e-4)
+    rng, generator = np.random.default_rng(0), torch.Generator().manual_seed(0)
+    index = next(batch_indices(len(dataset), 16, rng))
+    raw = images_to_tensor(dataset.images[index])
+    images = photometric_augment(raw, generator)
+    batch = Batch(images, torch.from_numpy(dataset.conditions[index]),
+                  torch.from_numpy(dataset.labels[index]),
+                  torch.from_numpy(dataset.target_type_indices()[index]),
+                  torch.from_numpy(dataset.target_present()[index]))
+
+    def whole() -> None:
+        loss = model.batch_loss(batch._replace(images=photometric_augment(raw, generator)))
+        optimiser.zero_grad()
+        loss.backward()
+        optimiser.step()
+
+    def forward() -> torch.Tensor:
+        return model.batch_loss(batch)
+
+    def backward() -> None:
+        optimiser.zero_grad()
+        forward().backward()
+
+    with torch.no_grad():
+        heatmap = network.attend(raw[:1], network.queries(batch.conditions[:1])).heatmaps
+    keys = torch.randn(16, model.config.key_dim + 2, *heatmap.shape[-2:], requires_grad=True)
+
+    def normalise(function: Callable[[torch.Tensor], torch.Tensor]) -> Callable[[], None]:
+        def run() -> None:
+            function(keys).sum().backward()
+        return run
+
+    result = {"step_ms": median_ms(whole, steps, repeats),
+              "augment_ms": median_ms(lambda: photometric_augment(raw, generator), steps,
+                                      repeats),
+              "forward_ms": median_ms(forward, steps, repeats)}
+    result["backward_ms"] = median_ms(backward, steps, repeats) - result["forward_ms"]
+    result["normalise_f_normalize_ms"] = median_ms(normalise(
+        lambda k: torch.nn.functional.normalize(k, dim=1)), steps, repeats)
+    result["normalise_rsqrt_ms"] = median_ms(normalise(lambda k: unit(k, dim=1)), steps,
+                                             repeats)
+    if network.type_head is not None:
+        head_optimiser = torch.optim.Adam(network.type_head.parameters(), lr=1e-3)
+
+        def type_step() -> None:
+            loss = model.type_loss(batch)
+            head_optimiser.zero_grad()
+            loss.backward()
+            head_optimiser.step()
+
+        result["type_step_ms"] = median_ms(type_step, steps, repeats)
+    return result
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=40)
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/train.json"))
+    args = parser.parse_args()
+    from sim.collect import CollectSettings, collect
+
+    torch.set_num_threads(1)
+    rows = {}
+    with tempfile.TemporaryDirectory() as folder:
+        for scene, task, size in (("yumi", "multiple", 20), ("paper-sim", "single", 20)):
+            dataset = collect(CollectSettings(scene, task, size, seed=0),
+                              Path(folder) / f"{scene}-{task}.gva", progress=False)
+            rows[f"{scene}/{task}"] = step_parts(dataset, args.steps, args.repeats)
+            print(scene, task, {k: round(v, 1) for k, v in rows[f"{scene}/{task}"].items()},
+                  flush=True)
+    data = {"benchmark": "train", "threads": 1, "batch_size": 16, "steps": args.steps,
+            "repeats": args.repeats, "rows": rows,
+            "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
+                        "torch": torch.__version__, "platform": platform.platform(),
+                        "load_average_1min": os.getloadavg()[0]}}
+    args.out.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
