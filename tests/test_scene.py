@@ -109,3 +109,31 @@ def test_an_impossible_task_in_a_scene_is_named():
     with pytest.raises(InvalidInputError, match=r"distractors\.types = \['duck'\] is not allowed: "
                        r"types of the scene: sponge, spray_bottle, mug, block"):
         sample_scene(alien, YUMI_SCENE, 0, SeedStream.TEST, 0)
+
+
+@pytest.mark.parametrize("task_name", ["selected-type", "selected-position"])
+def test_a_scene_asked_another_value_targets_the_object_it_names(task_name):
+    for scene in scenes(task_name, "yumi", SeedStream.TRAIN, n=20):
+        assert set(scene.askable()) == set(scene.condition.choices)
+        for value in scene.askable():
+            asked = scene.asking(value)
+            assert (asked.objects, asked.index) == (scene.objects, scene.index)
+            assert asked.condition.value == value
+            target = asked.objects[asked.targets[0]]
+            if task_name == "selected-type":
+                assert target.object_type == value
+            else:
+                ys = sorted(o.position_xy_m[1] for o in asked.objects)
+                assert target.position_xy_m[1] == (ys[-1] if value == "left" else ys[0])
+        assert scene.asking(scene.condition.value) == scene
+
+
+def test_a_value_a_scene_cannot_be_asked_is_named():
+    scene = scenes("selected-type", "yumi", SeedStream.TRAIN, n=1)[0]
+    with pytest.raises(InvalidInputError, match=r"condition value = 'duck' is not allowed: one "
+                       r"of \['sponge', 'spray_bottle', 'mug'\]"):
+        scene.asking("duck")
+    single = scenes("single", "yumi", SeedStream.TRAIN, n=1)[0]
+    assert single.askable() == ()
+    with pytest.raises(InvalidInputError, match="nothing: the scene's task has no condition"):
+        single.asking("left")
