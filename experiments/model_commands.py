@@ -85,6 +85,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
         print("per condition, mean position error: " + ", ".join(
             f"{value} {e:.2f} cm" for value, e in
             result.per_condition_mean_position_error_cm.items()))
+    if result.median_heatmap_entropy_nats is not None:
+        print(f"median heatmap entropy: {result.median_heatmap_entropy_nats:.2f} nats")
     if result.type_accuracy is not None:
         print(f"object type stated right: {100 * result.type_accuracy:.1f} % of targets")
     out: Path = args.out or args.model / f"evaluation-{args.data.stem}.json"

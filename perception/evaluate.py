@@ -57,6 +57,10 @@ class EvaluationResult:
         per_condition_mean_position_error_cm: Mean per condition value, over the images
             given it [cm] (a Query that memorised its few demonstrations shows here, where
             the overall mean hides it); None for a task without a condition.
+        median_heatmap_entropy_nats: Median entropy of the present targets' attention
+            heatmaps [nats]: low where a Query found one place, near ``ln(h w)`` (6.9 for
+            32 x 32) where its attention is spread over the image, the mark of a training whose
+            Queries never found their objects; None for a model without heatmaps.
 
     """
 
@@ -76,6 +80,7 @@ class EvaluationResult:
     type_accuracy: float | None = None
     per_stage_mean_position_error_cm: tuple[float, ...] = ()
     per_condition_mean_position_error_cm: dict[str, float] | None = None
+    median_heatmap_entropy_nats: float | None = None
 
     def to_json(self) -> dict[str, Any]:
         """The result as JSON-able data (tuples become lists)."""
@@ -168,7 +173,17 @@ def evaluate(model: PerceptionModel, dataset: Dataset, batch_size: int = 32) -> 
             ((stage == s)[:, None] & present for s in range(int(stage.max()) + 1))
             if scored.any()),
         per_condition_mean_position_error_cm=per_condition(position_cm, present, dataset),
+        median_heatmap_entropy_nats=heatmap_entropy(predictions, present),
     )
+
+
+def heatmap_entropy(predictions: list[Prediction], present: np.ndarray) -> float | None:
+    """The median entropy [nats] of the present targets' heatmaps; None without heatmaps."""
+    entropies = [float(-(m * np.log(np.clip(m, 1e-12, None))).sum())
+                 for p, shown in zip(predictions, present, strict=True)
+                 if p.heatmaps is not None
+                 for m, seen in zip(p.heatmaps, shown, strict=True) if seen]
+    return float(np.median(entropies)) if entropies else None
 
 
 def per_condition(errors: np.ndarray, present: np.ndarray, dataset: Dataset

@@ -125,6 +125,36 @@ def test_evaluate_reports_cm_and_symmetric_angles():
     assert "5.00 cm" in result.headline()
 
 
+class Spread(Truth):
+    """The truth, with a heatmap per target: uniform over 4 x 4 cells, or one cell."""
+
+    def __init__(self, dataset, uniform):
+        super().__init__(dataset)
+        self.uniform = uniform
+
+    def predict(self, image, condition=NO_CONDITION):
+        heatmap = np.full((4, 4), 1 / 16)
+        if not self.uniform:
+            heatmap = np.zeros((4, 4))
+            heatmap[0, 0] = 1.0
+        prediction = super().predict(image, condition)
+        return dataclasses.replace(prediction, heatmaps=np.stack([heatmap] * 2))
+
+
+def test_evaluate_reports_the_heatmaps_entropy_and_each_condition():
+    dataset = synthetic_dataset(size=5, targets=2, kind=LabelKind.GRASP_POSE, seed=4)
+    assert evaluate(Spread(dataset, True), dataset).median_heatmap_entropy_nats == \
+        pytest.approx(np.log(16))
+    assert evaluate(Spread(dataset, False), dataset).median_heatmap_entropy_nats == \
+        pytest.approx(0.0, abs=1e-9)
+    assert evaluate(Truth(dataset), dataset).median_heatmap_entropy_nats is None
+    assert evaluate(Truth(dataset), dataset).per_condition_mean_position_error_cm is None
+    conditioned = synthetic_dataset(size=9, conditioned=True, kind=LabelKind.GRASP_POSE, seed=4)
+    per = evaluate(Truth(conditioned), conditioned).per_condition_mean_position_error_cm
+    drawn = {TYPES[i] for i in conditioned.conditions.argmax(1)}
+    assert set(per) == drawn and all(e == pytest.approx(5.0) for e in per.values())
+
+
 def test_evaluate_refuses_models_that_do_not_fit_the_dataset():
     grasps = synthetic_dataset(size=2, kind=LabelKind.GRASP_POSE)
     with pytest.raises(InvalidInputError, match=r"model rotation = None is not allowed"):
