@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from gva_cli import gva
 
-from experiments.real_report import TrialSetResult, table3_markdown
+from experiments.real_report import TrialSetResult, checks_markdown, table3_markdown
 from experiments.reproduce_real import (
     ReproduceRealSettings,
     TrialSet,
@@ -247,3 +247,19 @@ def test_a_multiple_run_trains_on_the_image_before_each_pick_and_resumes(tmp_pat
     assert trained["samples"] == 3  # one demonstration, an image before each of its 3 picks
     status, stdout, _ = gva(*args)
     assert status == 0 and "0 job(s) run (0 failed), 4 finished earlier" in stdout
+
+
+def test_a_failed_held_out_check_is_named_in_the_table():
+    checks = [{"seed": 0, "model": "kqv", "task": "single", "passed": True, "reason": "",
+               "attempts": 2, "mean_position_error_cm": 0.5},
+              {"seed": 1, "model": "kqv", "task": "selected-type", "passed": False,
+               "reason": "condition 'mug': 3.10 cm > 2.00 cm", "attempts": 2,
+               "mean_position_error_cm": 1.4}]
+    lines = checks_markdown(checks)
+    assert lines[0] == "## Held-out checks"
+    assert lines[2].endswith("1 of 2 passed, 1 of them at a later start.")
+    assert lines[3] == ("- **FAILED**: kqv selected-type seed 1 after 2 attempt(s): condition "
+                        "'mug': 3.10 cm > 2.00 cm")
+    assert checks_markdown([]) == []
+    text = table3_markdown([], "Made by x.", checks=checks)
+    assert text.index("## Held-out checks") < text.index("## Failure reasons")
