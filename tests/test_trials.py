@@ -22,6 +22,7 @@ from perception.learnable import ModelSpec
 from perception.models.base import LabelScaler
 from perception.models.kqv import KqvModel
 from perception.train import TrainConfig
+from perception.validation import CHECK_FILE, HeldOutCheck
 from sim.camera import HeadCamera
 from sim.errors import InvalidInputError
 from sim.grasps import grasp_pose
@@ -365,3 +366,18 @@ def test_a_users_model_class_without_weights_runs_trials(tmp_path):
     record = json.loads(line)
     assert record["model"] == "user_models:FixedGrasp"
     assert record["predicted"]["position_m"] == [0.47, 0.0, 0.03]
+
+
+def test_trials_of_a_checkpoint_that_failed_its_held_out_check_say_so(tmp_path, capsys):
+    folder = _checkpoint(tmp_path / "ckpt", spec=YUMI_SINGLE)
+    failed = HeldOutCheck(passed=False, reason="held-out mean: 3.07 cm > 2.00 cm",
+                          held_out_scenes=(3,), samples=1, mean_position_error_cm=3.07,
+                          per_condition_mean_position_error_cm=None,
+                          per_target_mean_position_error_cm=(3.07,), limit_cm=2.0, attempt=2,
+                          model_seed=7)
+    (folder / CHECK_FILE).write_text(json.dumps(failed.to_json()))
+    assert main(["trials", "--model", str(folder), "--n", "1", "--out", str(tmp_path / "run"),
+                 "--no-progress"]) == 0
+    assert "WARNING: checkpoint " in capsys.readouterr().err
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert HeldOutCheck.from_json(summary["held_out_check"]) == failed
