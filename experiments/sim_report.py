@@ -307,7 +307,10 @@ def write_reports(settings: ReproduceSimSettings, out: Path, wall_time_s: float,
     write_json(paths[0], table)
     text = table2_markdown(cells, failed, made_by, reference, settings.scene)
     atomic_write(paths[1], lambda temporary: temporary.write_text(text, encoding="utf-8"))
-    notes = []
+    above_line = [Cell(c["model"], c["task"], c["size"], c["seed"]).name for c in cells
+                  if c["model"] == "kqv" and not c["error_cm"] < BOLD_BELOW_CM]
+    notes = [f"WARNING: {len(above_line)} kqv training(s) ended above {BOLD_BELOW_CM:g} cm: "
+             f"{', '.join(above_line)}"] if above_line else []
     if cells:
         plot_table2(stats, paths[2], spread(reference))
     else:
