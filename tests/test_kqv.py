@@ -206,13 +206,16 @@ def test_side_conditions_get_their_own_queries():
     assert not np.allclose(queries[0], queries[1])  # the two sides start apart
 
 
-def test_the_first_fit_keeps_the_start_with_the_lowest_loss(monkeypatch):
+@pytest.mark.parametrize("holdout", [0.25, 0.0])
+def test_the_first_fit_keeps_the_start_best_on_held_out_scenes(monkeypatch, holdout):
     import perception.models.kqv as kqv
 
     dataset = synthetic_dataset(size=4)
-    model = KqvModel.for_dataset(dataset, KqvConfig(starts=3, start_steps=3, warmup_steps=4))
-    starts = []  # (network, temperature at its first step, final loss) of each start
-    real_train = kqv.train
+    model = KqvModel.for_dataset(dataset, KqvConfig(starts=3, start_steps=3, warmup_steps=4,
+                                                    start_holdout=holdout))
+    starts = []  # (network, temperature at its first step, final loss, steps, samples)
+    scored = {}  # network id -> its held-out error [cm]
+    real_train, real_evaluate = kqv.train, kqv.evaluate
 
     def recording_train(network, loss, data, config, *args, **kwargs):
         first = []
@@ -224,15 +227,27 @@ def test_the_first_fit_keeps_the_start_with_the_lowest_loss(monkeypatch):
             return loss_value
 
         report = real_train(network, noting, data, config, *args, **kwargs)
-        starts.append((network, first[0], report.final_loss, config.steps))
+        starts.append((network, first[0], report.final_loss, config.steps, len(data)))
         return report
 
+    def recording_evaluate(scored_model, data):
+        result = real_evaluate(scored_model, data)
+        scored[id(scored_model.network)] = (result.mean_position_error_cm, len(data))
+        return result
+
     monkeypatch.setattr(kqv, "train", recording_train)
+    monkeypatch.setattr(kqv, "evaluate", recording_evaluate)
     report = model.fit(dataset, TrainConfig(steps=7, augment=False, threads=1), progress=False)
-    assert [steps for *_, steps in starts] == [3, 3, 3]
-    assert len({id(network) for network, *_ in starts}) == 3  # three fresh initialisations
+    assert [steps for *_, steps, _ in starts] == [3, 3, 3]
+    assert [samples for *_, samples in starts] == [3 if holdout else 4] * 3
+    assert len({id(network) for network, *_ in starts}) == 3  # three initialisations
     assert all(temperature == pytest.approx(0.3 - 0.05) for _, temperature, *_ in starts)
-    best = min(starts, key=lambda start: start[2])[0]
+    if holdout:  # compared on the one scene none of them trained on
+        assert {samples for _, samples in scored.values()} == {1} and len(scored) == 3
+        best = min(starts, key=lambda start: scored[id(start[0])][0])[0]
+    else:
+        assert scored == {}
+        best = min(starts, key=lambda start: start[2])[0]
     assert model.network is best
     assert report.steps == 7  # 3 of the kept start + the 4 it went on for
     assert model.network.temperature == 0.1

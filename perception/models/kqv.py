@@ -33,6 +33,7 @@ import torch
 from torch import Tensor, nn
 
 from perception.data import Dataset
+from perception.evaluate import evaluate
 from perception.interface import ConditionKind, InvalidInputError, LabelKind, Prediction
 from perception.learnable import ModelSpec
 from perception.mirror import MIRROR_FLAG, Mirror
@@ -52,6 +53,7 @@ from perception.models.readout import CameraRays
 from perception.models.rotations import decode_rotation, rotation_size
 from perception.models.torch_model import NetOutput, Phase, TorchModel, present_mean
 from perception.train import Batch, TrainConfig, TrainReport, train
+from perception.validation import split_scenes
 
 
 class Attention(NamedTuple):
@@ -293,10 +295,13 @@ class KqvModel(TorchModel):
                     ) -> tuple[TrainReport, float]:
         """Trains :attr:`KqvConfig.starts` fresh networks briefly and keeps the best one.
 
-        Returns the kept start's report and the wall time the dropped ones took [s].
+        The starts train on the scenes :attr:`KqvConfig.start_holdout` leaves and are compared
+        by their mean position error on the held-out ones (by training loss where nothing is
+        held out). Returns the kept start's report and the wall time the dropped ones took [s].
         """
         short = replace(config, steps=self.config.start_steps)
-        tried: list[tuple[float, int, KqvNet, TrainReport]] = []
+        kept, held = split_scenes(dataset, self.config.start_holdout, config.seed)
+        tried: list[tuple[float, float, int, KqvNet, TrainReport]] = []
         for number in range(self.config.starts):
             seed = self.config.seed if number == 0 else int(
                 np.random.SeedSequence([self.config.seed, number]).generate_state(1)[0] >> 1)
@@ -304,14 +309,16 @@ class KqvModel(TorchModel):
                 torch.manual_seed(seed)
                 self.network = self.build_network()
             self._steps_taken = 0
-            report = train(self.network, self.batch_loss, dataset, short, progress,
+            report = train(self.network, self.batch_loss, kept, short, progress,
                            description=f"{self.name} {self.spec.task} [start {number + 1}/"
                            f"{self.config.starts}]", parameters=self._pose_parameters())
-            tried.append((report.final_loss, number, self.network, report))
-        _, _, self.network, kept = min(tried, key=lambda t: (t[0], t[1]))
+            self.network.temperature = self.config.temperature
+            held_cm = 0.0 if held is None else evaluate(self, held).mean_position_error_cm
+            tried.append((held_cm, report.final_loss, number, self.network, report))
+        _, _, _, self.network, kept_report = min(tried, key=lambda t: (t[0], t[1], t[2]))
         self._steps_taken = self.config.start_steps
-        spent_s = sum(t[3].wall_time_s for t in tried) - kept.wall_time_s
-        return kept, spent_s
+        spent_s = sum(t[4].wall_time_s for t in tried) - kept_report.wall_time_s
+        return kept_report, spent_s
 
     def batch_loss(self, batch: Batch) -> Tensor:
         """The target loss, at the temperature the warm-up has reached by this step.

@@ -66,7 +66,7 @@ class KqvConfig:
             1.35/1.55 -> 1.07/1.20 cm).
         warmup_steps: Length of that warm-up, in optimiser steps (0: none).
         starts: Initialisations tried on a model's first fit; each trains ``start_steps``
-            steps, the one with the lowest training loss by then goes on for the rest of the
+            steps, the best by then (see ``start_holdout``) goes on for the rest of the
             steps and the others are dropped. Even warmed up, a start now and then leaves a
             Query's heatmap spread over the whole image, where the loss sits on a plateau for
             hundreds of steps (paper-sim ``single`` 100 scenes, seed 1: 0.55 until step 700,
@@ -74,6 +74,11 @@ class KqvConfig:
             lower than such a one, so the choice is cheap: 1: one start, as before. The point
             loss does not make them needless: yumi ``multiple`` with it, one start against
             three, bottle grasp error 0.94 against 0.50 cm.
+        start_holdout: Fraction of the training scenes the starts are compared on: held out of
+            their ``start_steps`` steps, then trained on with the rest. A start that memorised
+            its scenes fits them best, so a choice by training loss keeps exactly such a start;
+            compared on scenes none of them saw, the one that found the objects wins
+            (``docs/decisions/every-condition.md``). 0: the lowest training loss, as before.
         start_steps: Steps each start trains before the choice (they count towards the total).
             300, the warm-up's length: chosen at step 150, mid warm-up, a start still on its way
             down was kept over one that would have worked (``selected-type`` 20 scenes, seed 1:
@@ -161,6 +166,7 @@ class KqvConfig:
     warmup_steps: int = 300
     starts: int = 3
     start_steps: int = 300
+    start_holdout: float = 0.2
     query_mode: str = "auto"
     head_features: bool | None = None
     readout: str = "auto"
@@ -193,6 +199,8 @@ class KqvConfig:
         for name in ("temperature", "warmup_temperature"):
             if not (math.isfinite(getattr(self, name)) and getattr(self, name) > 0):
                 raise InvalidInputError(name, getattr(self, name), "a finite value > 0")
+        if not (math.isfinite(self.start_holdout) and 0 <= self.start_holdout < 1):
+            raise InvalidInputError("start_holdout", self.start_holdout, "a fraction in [0, 1)")
         for name in ("rotation_loss_weight", "point_loss_weight"):
             if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
                 raise InvalidInputError(name, getattr(self, name), "a finite value >= 0")
