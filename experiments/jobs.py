@@ -17,6 +17,7 @@ import multiprocessing
 import os
 import signal
 import threading
+import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import TypeVar
@@ -27,9 +28,27 @@ Job = TypeVar("Job")
 Result = TypeVar("Result")
 
 
+ORPHAN_CHECK_S = 1.0
+"""How often a worker checks that the process that started it still runs [s]."""
+
+
 def _start_worker() -> None:
-    """A worker leaves Ctrl-C to the main process, which stops it; torch on one thread."""
+    """A worker leaves Ctrl-C to the main process, which stops it; torch on one thread.
+
+    A main process killed outright (``kill``, the OOM killer, a closed terminal) cannot stop
+    its workers, and a worker left behind goes on with its job: a training that writes an
+    outdated checkpoint into a run folder a later run is using. So each worker watches its
+    parent and exits when it is gone.
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    parent = os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(ORPHAN_CHECK_S)
+        os._exit(1)  # the main process is gone: nobody will read this worker's result
+
+    threading.Thread(target=watch, name="orphan-watch", daemon=True).start()
     os.environ["OMP_NUM_THREADS"] = "1"  # before torch is imported by the first cell
     # A worker shows no bar; tqdm's default lock is a multiprocessing semaphore, which a
     # stopped worker would leave to the resource tracker (and its warning at exit).
