@@ -5,8 +5,9 @@
 
 A seed sweep (``gva reproduce sim``, ``gva reproduce real --seeds``) is dominated by training:
 each cell trains one kqv on one thread, two cells side by side on this 2-core machine. This
-times, on a ``yumi`` ``multiple`` batch (20 demonstrations, a 64 x 64 heatmap, the heaviest
-yumi task) and a ``paper-sim`` ``single`` batch (a 32 x 32 heatmap):
+times, on a ``yumi`` ``multiple`` batch (6 demonstrations, 18 images: a full batch of 16; a 64
+x 64 heatmap, the heaviest yumi task) and a ``paper-sim`` ``single`` batch (20 scenes, a 32 x 32
+heatmap):
 
 - a whole pose step (forward, loss, backward, Adam) and its parts: the photometric
   augmentation, the forward pass, the backward pass;
@@ -127,7 +128,7 @@ def main() -> None:
     torch.set_num_threads(1)
     rows = {}
     with tempfile.TemporaryDirectory() as folder:
-        for scene, task, size in (("yumi", "multiple", 20), ("paper-sim", "single", 20)):
+        for scene, task, size in (("yumi", "multiple", 6), ("paper-sim", "single", 20)):
             dataset = collect(CollectSettings(scene, task, size, seed=0),
                               Path(folder) / f"{scene}-{task}.gva", progress=False)
             rows[f"{scene}/{task}"] = step_parts(dataset, args.steps, args.repeats)
