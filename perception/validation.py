@@ -141,19 +141,45 @@ def scene_keys(dataset: Dataset) -> list[int]:
     return [int(record.get("index", -1 - n)) for n, record in enumerate(dataset.scenes)]
 
 
+def scene_kind(record: dict[str, Any]) -> tuple[str, ...]:
+    """What a scene shows, for a stratified split: its objects' types, sorted; () if unnamed."""
+    return tuple(sorted(str(o.get("type")) for o in record.get("objects", ())
+                        if isinstance(o, dict) and not o.get("distractor")))
+
+
 def split_scenes(dataset: Dataset, holdout: float, seed: int) -> tuple[Dataset, Dataset | None]:
     """(kept, held out): whole scenes, ``round(holdout x scenes)`` of them drawn with ``seed``.
 
     At least one scene is held out where ``holdout`` > 0 and two or more scenes remain to
-    train on; None where nothing is held out.
+    train on; None where nothing is held out. The split is stratified by what each scene shows
+    (:func:`scene_kind`): each kind gives its share, never its last scene, so a rare object
+    type is not held out whole (a random split of 20 ``single`` demonstrations once held out
+    four of the five spray bottles, and the training never learned the bottle).
     """
     keys = scene_keys(dataset)
     scenes = list(dict.fromkeys(keys))
     count = min(max(round(holdout * len(scenes)), 1 if holdout > 0 else 0), len(scenes) - 2)
     if count <= 0:
         return dataset, None
+    first = {key: n for n, key in reversed(list(enumerate(keys)))}
+    strata: dict[tuple[str, ...], list[int]] = {}
+    for key in scenes:
+        strata.setdefault(scene_kind(dataset.scenes[first[key]]), []).append(key)
     rng = np.random.default_rng(np.random.SeedSequence([seed, 0x486F6C64]))  # "Hold"
-    held = {scenes[i] for i in rng.choice(len(scenes), size=count, replace=False)}
+    kinds = sorted(strata)
+    room = {kind: len(strata[kind]) - 1 if len(strata) > 1 else len(strata[kind])
+            for kind in kinds}  # with several kinds, each keeps one scene at least
+    exact = {kind: count * len(strata[kind]) / len(scenes) for kind in kinds}
+    quota = {kind: min(int(exact[kind]), room[kind]) for kind in kinds}
+    ties = rng.random(len(kinds))
+    by_remainder = sorted(range(len(kinds)), key=lambda k: (-(exact[kinds[k]] % 1), ties[k]))
+    while sum(quota.values()) < count and any(quota[k] < room[k] for k in kinds):
+        for k in by_remainder:
+            kind = kinds[k]
+            if sum(quota.values()) < count and quota[kind] < room[kind]:
+                quota[kind] += 1
+    held = {strata[kind][i] for kind in kinds
+            for i in rng.choice(len(strata[kind]), size=quota[kind], replace=False)}
     return (dataset.subset([n for n, key in enumerate(keys) if key not in held]),
             dataset.subset([n for n, key in enumerate(keys) if key in held]))
 

@@ -97,6 +97,23 @@ def test_whole_scenes_are_held_out_the_same_for_a_seed():
     assert len({r["index"] for r in split_scenes(data.first_scenes(3), 0.2, 0)[1].scenes}) == 1
 
 
+def test_the_split_holds_out_each_kind_of_scene_in_its_share():
+    data = every_condition(20)
+    kinds = ["mug"] * 9 + ["sponge"] * 6 + ["spray_bottle"] * 5  # a single-like spread
+    scenes = tuple(record | {"objects": [{"type": kinds[record["index"]]}]}
+                   for record in data.scenes)
+    typed = Dataset(data.metadata, data.images, data.conditions, data.labels, scenes)
+    for seed in range(20):
+        _, held = split_scenes(typed, 0.2, seed)
+        shown = {r["index"]: r["objects"][0]["type"] for r in held.scenes}
+        assert sorted(shown.values()) == ["mug", "mug", "sponge", "spray_bottle"], seed
+    rare = tuple(record | {"objects": [{"type": "bottle" if record["index"] == 0 else "mug"}]}
+                 for record in data.scenes)
+    _, held = split_scenes(Dataset(data.metadata, data.images, data.conditions, data.labels,
+                                   rare), 0.2, 0)
+    assert 0 not in {r["index"] for r in held.scenes}  # the one bottle is never held out
+
+
 def test_the_check_names_the_condition_over_the_limit():
     data = every_condition(10)
     LookupModel.bad_seeds = (7,)
