@@ -166,9 +166,12 @@ def split_scenes(dataset: Dataset, holdout: float, seed: int) -> tuple[Dataset, 
     for key in scenes:
         strata.setdefault(scene_kind(dataset.scenes[first[key]]), []).append(key)
     rng = np.random.default_rng(np.random.SeedSequence([seed, 0x486F6C64]))  # "Hold"
+    if len(strata) == 1:  # one kind of scene: a plain draw (the split before strata existed)
+        held = {scenes[i] for i in rng.choice(len(scenes), size=count, replace=False)}
+        return (dataset.subset([n for n, key in enumerate(keys) if key not in held]),
+                dataset.subset([n for n, key in enumerate(keys) if key in held]))
     kinds = sorted(strata)
-    room = {kind: len(strata[kind]) - 1 if len(strata) > 1 else len(strata[kind])
-            for kind in kinds}  # with several kinds, each keeps one scene at least
+    room = {kind: len(strata[kind]) - 1 for kind in kinds}  # each kind keeps one scene
     exact = {kind: count * len(strata[kind]) / len(scenes) for kind in kinds}
     quota = {kind: min(int(exact[kind]), room[kind]) for kind in kinds}
     ties = rng.random(len(kinds))
