@@ -21,6 +21,7 @@ import statistics
 import sys
 import time
 from collections import defaultdict
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -51,38 +52,55 @@ def record(folder: Path, measured_s: float | None) -> dict[str, Any]:
         "median_train_s": {m: round(statistics.median(train_s[m]), 1)
                            for m in MODELS if m in train_s},
         "total_train_s": {m: round(sum(train_s[m]), 1) for m in MODELS if m in train_s},
-        "machine": {"cpus": os.cpu_count(), "cpus_usable": len(os.sched_getaffinity(0)),
-                    "load_average_1_5_15min": [round(v, 2) for v in os.getloadavg()],
-                    "python": platform.python_version(), "platform": platform.platform()},
+        "machine": machine(),
     }
 
 
-def main_bench() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
+def machine() -> dict[str, Any]:
+    """The machine a timing was taken on: CPUs, load average, Python, platform."""
+    return {"cpus": os.cpu_count(), "cpus_usable": len(os.sched_getaffinity(0)),
+            "load_average_1_5_15min": [round(v, 2) for v in os.getloadavg()],
+            "python": platform.python_version(), "platform": platform.platform()}
+
+
+def run_or_read(experiment: str, default_result: Path,
+                record: Callable[[Path, float | None], dict[str, Any]]) -> tuple[int, Any]:
+    """Runs ``gva reproduce EXPERIMENT`` timed, or reads ``--from``; writes the record.
+
+    The script's other arguments go to the command; ``record(folder, measured_s)`` is written
+    to ``--result``. Returns (exit status, the record or None where the run failed outright).
+    """
+    parser = argparse.ArgumentParser(description=sys.modules["__main__"].__doc__.splitlines()[0],
+                                     allow_abbrev=False)
     parser.add_argument("--from", dest="source", type=Path,
-                        help="a finished run folder: read its table2.json, run nothing")
-    parser.add_argument("--result", type=Path,
-                        default=Path("benchmarks/results/reproduce_sim.json"))
+                        help="a finished run folder: read its tables, run nothing")
+    parser.add_argument("--result", type=Path, default=default_result)
     args, rest = parser.parse_known_args()
     measured = None
     folder = args.source
     if folder is None:
-        folder = build_parser().parse_args(["reproduce", "sim", *rest]).out
+        folder = build_parser().parse_args(["reproduce", experiment, *rest]).out
         started = time.perf_counter()
-        status = main(["reproduce", "sim", *rest])
+        status = main(["reproduce", experiment, *rest])
         measured = time.perf_counter() - started
-        if status not in (0, 1):  # 1: finished, some cells failed (the record says how many)
-            return status
+        if status not in (0, 1):  # 1: finished, some jobs failed (the record says how many)
+            return status, None
     elif rest:
         parser.error(f"--from reads a finished run; these go nowhere: {' '.join(rest)}")
     result = record(folder, measured)
     args.result.parent.mkdir(parents=True, exist_ok=True)
     args.result.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"{result['cells']} cells ({result['cells_computed_in_last_run']} in the last run), "
-          f"last run {result['wall_time_s']:.0f} s on {result['workers']} worker(s); median "
-          f"training s per model: {result['median_train_s']}")
     print(f"wrote {args.result}")
-    return 0
+    return 0, result
+
+
+def main_bench() -> int:
+    status, result = run_or_read("sim", Path("benchmarks/results/reproduce_sim.json"), record)
+    if result is not None:
+        print(f"{result['cells']} cells ({result['cells_computed_in_last_run']} in the last "
+              f"run), last run {result['wall_time_s']:.0f} s on {result['workers']} worker(s); "
+              f"median training s per model: {result['median_train_s']}")
+    return status
 
 
 if __name__ == "__main__":

@@ -13,18 +13,14 @@ seeds are timed by ``bench_reproduce_sim.py``.
 
 from __future__ import annotations
 
-import argparse
 import json
-import os
-import platform
 import statistics
 import sys
-import time
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
-from experiments.cli import main
+from bench_reproduce_sim import machine, run_or_read
 
 
 def record(folder: Path, measured_s: float | None) -> dict[str, Any]:
@@ -52,36 +48,16 @@ def record(folder: Path, measured_s: float | None) -> dict[str, Any]:
         "checks_failed": sum(not c["passed"] for c in table["checks"]),
         "checks": len(table["checks"]),
         "failed_jobs": len(table["failed"]),
-        "machine": {"cpus": os.cpu_count(), "cpus_usable": len(os.sched_getaffinity(0)),
-                    "load_average_1_5_15min": [round(v, 2) for v in os.getloadavg()],
-                    "python": platform.python_version(), "platform": platform.platform()},
+        "machine": machine(),
     }
 
 
 def main_bench() -> int:
     """Runs ``gva reproduce real`` (or reads ``--from``) and writes the record."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--from", dest="source", type=Path,
-                        help="a finished run folder to read instead of running")
-    parser.add_argument("--result", type=Path,
-                        default=Path("benchmarks/results/seed_sweeps.json"))
-    args, rest = parser.parse_known_args()
-    measured = None
-    if args.source is None:
-        if "--out" not in rest:
-            parser.error("give --out RUN_FOLDER (passed to gva reproduce real) or --from")
-        started = time.perf_counter()
-        status = main(["reproduce", "real", *rest])
-        measured = time.perf_counter() - started
-        if status not in (0, 1):
-            return status
-        folder = Path(rest[rest.index("--out") + 1])
-    else:
-        folder = args.source
-    data = record(folder, measured)
-    args.result.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
-    print(json.dumps(data, indent=2))
-    return 0
+    status, result = run_or_read("real", Path("benchmarks/results/seed_sweeps.json"), record)
+    if result is not None:
+        print(json.dumps(result, indent=2))
+    return status
 
 
 if __name__ == "__main__":
