@@ -351,7 +351,8 @@ def _print_run(report: Any, done: str, name: Callable[[dict[str, Any]], str]) ->
 
 
 def _run_reproduce_real(args: argparse.Namespace) -> int:
-    from experiments.reproduce_real import ReproduceRealSettings, run_reproduce_real
+    from experiments.real_run import run_reproduce_real
+    from experiments.reproduce_real import ReproduceRealSettings
 
     settings = ReproduceRealSettings(models=args.models, tasks=args.tasks, n=args.n,
                                      demos=args.demos, steps=args.steps, seed=args.seed,
@@ -376,7 +377,8 @@ def _check_config(args: argparse.Namespace) -> Any:
 def _run_reproduce(args: argparse.Namespace) -> int:
     if args.experiment == "real":
         return _run_reproduce_real(args)
-    from experiments.reproduce_sim import ReproduceSimSettings, run_reproduce_sim
+    from experiments.reproduce_sim import ReproduceSimSettings
+    from experiments.sim_run import run_reproduce_sim
 
     settings = ReproduceSimSettings(models=args.models, tasks=args.tasks, sizes=args.sizes,
                                     seeds=args.seeds, seed=args.seed, steps=args.steps,

@@ -28,14 +28,13 @@ from experiments.reproduce_real import (
     dataset_file,
     error_file,
     gif_file,
-    refuse_stale,
     seed_folder,
-    stale_checkpoints,
     trained_file,
     trials_folder,
 )
-from experiments.reproduce_sim import TWO_PHASE_MODELS, read_json, write_json
-from experiments.runs import cost_bar, dataset_present
+from experiments.reproduce_sim import TWO_PHASE_MODELS
+from experiments.runs import cost_bar, dataset_present, read_json, write_json
+from sim.records import RunFolderError, differences
 from sim.scene import SeedStream
 from sim.trials import TrialSettings
 
@@ -321,3 +320,25 @@ def _trial_jobs(settings: ReproduceRealSettings, out: Path) -> tuple[list[Job], 
             else:
                 todo.append(candidate)
     return todo, skipped
+
+
+def stale_checkpoints(settings: ReproduceRealSettings, out: Path,
+                      units: Sequence[Unit]) -> list[str]:
+    """The units whose ``trained.json`` holds other settings, as ``file (differences)``."""
+    stale = []
+    for unit in units:
+        path = trained_file(out, unit)
+        if path.exists():
+            stored, asked = read_json(path)["identity"], settings.train_identity(unit)
+            if stored != asked:
+                stale.append(f"{path} ({differences(stored, asked)})")
+    return stale
+
+
+def refuse_stale(stale: Sequence[str], what: str) -> None:
+    """Raises a :class:`RunFolderError` listing files made with other settings, if any."""
+    if stale:
+        raise RunFolderError(
+            f"{len(stale)} {what} made with other settings, stored vs now: "
+            f"{'; '.join(stale[:3])}{' ...' if len(stale) > 3 else ''}; remove them to "
+            "compute them again with the current code, or use another --out")

@@ -31,8 +31,8 @@ from experiments.reproduce_real import (
     Variant,
     seed_folder,
 )
-from experiments.reproduce_sim import TASKS, read_json, write_json
-from experiments.runs import duration
+from experiments.reproduce_sim import TASKS
+from experiments.runs import duration, read_json, write_json
 from experiments.sim_report import MODEL_TITLES, TASK_TITLES
 from perception.files import atomic_write
 from sim.records import TrialOutcome, TrialRecord, TrialSummary

@@ -58,10 +58,6 @@ with more seeds adds seed folders. A job that raises is recorded in
 from __future__ import annotations
 
 import enum
-import json
-import os
-import time
-from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -71,7 +67,7 @@ from experiments.runs import check_choices, check_counts
 from experiments.sim_datasets import dataset_path
 from perception.files import atomic_write
 from perception.validation import CheckConfig
-from sim.records import RunFolderError, json_form
+from sim.records import json_form
 
 if TYPE_CHECKING:
     from sim.tasks import TaskSpec
@@ -351,87 +347,3 @@ def write_variant_tasks(settings: ReproduceRealSettings, out: Path) -> None:
 
 def _write_text(path: Path, text: str) -> None:
     atomic_write(path, lambda temporary: temporary.write_text(text, encoding="utf-8"))
-
-
-def append_history(out: Path, entry: dict[str, Any]) -> None:
-    """Appends one run's line to ``history.jsonl`` (fsynced: a run's wall time is kept)."""
-    with (out / "history.jsonl").open("a", encoding="utf-8") as handle:
-        handle.write(json.dumps(entry, sort_keys=True) + "\n")
-        handle.flush()
-        os.fsync(handle.fileno())
-
-
-@dataclass(frozen=True)
-class ReproduceRealReport:
-    """What a run did: jobs computed (with their failures) and skipped, and its outputs.
-
-    ``wall_time_s`` covers collecting, training, trials and GIFs, not the reports after.
-    """
-
-    computed: tuple[Any, ...]
-    skipped: tuple[str, ...]
-    failed: tuple[dict[str, Any], ...]
-    wall_time_s: float
-    outputs: tuple[Path, ...] = field(default_factory=tuple)
-    notes: tuple[str, ...] = field(default_factory=tuple)
-    table: str = ""  # the successes table of table3.md
-
-
-def run_reproduce_real(settings: ReproduceRealSettings, out: str | Path,
-                       progress: bool = True) -> ReproduceRealReport:
-    """Runs (or resumes) the experiment into ``out``; see the module docstring.
-
-    Raises:
-        RunFolderError: ``out`` holds a run with other shared settings, or a dataset or
-            checkpoint made with other settings.
-        KeyboardInterrupt: Ctrl-C; what finished is kept and the message says how to resume.
-
-    """
-    from experiments.real_jobs import run_jobs
-    from experiments.real_report import write_reports
-    from sim.records import claim_run_folder
-
-    out = Path(out)
-    started = time.perf_counter()
-    claim_run_folder(out, settings.shared_identity())
-    for seed in settings.training_seeds:
-        claim_run_folder(seed_folder(out, seed), settings.for_seed(seed).run_identity())
-        write_variant_tasks(settings, seed_folder(out, seed))
-    try:
-        computed, skipped = run_jobs(settings, out, progress)
-    except KeyboardInterrupt:
-        raise KeyboardInterrupt(f"finished datasets, checkpoints and trials are kept in {out}; "
-                                f"resume with: {settings.command(out)}") from None
-    wall_time_s = time.perf_counter() - started
-    append_history(out, {"command": settings.command(out), "wall_time_s": round(wall_time_s, 1),
-                         "computed": [o.name for o in computed], "skipped": len(skipped),
-                         "workers": settings.worker_count(), "finished_at": time.time()})
-    reports = write_reports(settings, out, wall_time_s)
-    return ReproduceRealReport(tuple(computed), tuple(skipped), tuple(reports.failed),
-                               wall_time_s, tuple(reports.paths), tuple(reports.notes),
-                               reports.table)
-
-
-def stale_checkpoints(settings: ReproduceRealSettings, out: Path,
-                      units: Sequence[Unit]) -> list[str]:
-    """The units whose ``trained.json`` holds other settings, as ``file (differences)``."""
-    from experiments.reproduce_sim import read_json
-    from sim.records import differences
-
-    stale = []
-    for unit in units:
-        path = trained_file(out, unit)
-        if path.exists():
-            stored, asked = read_json(path)["identity"], settings.train_identity(unit)
-            if stored != asked:
-                stale.append(f"{path} ({differences(stored, asked)})")
-    return stale
-
-
-def refuse_stale(stale: Sequence[str], what: str) -> None:
-    """Raises a :class:`RunFolderError` listing files made with other settings, if any."""
-    if stale:
-        raise RunFolderError(
-            f"{len(stale)} {what} made with other settings, stored vs now: "
-            f"{'; '.join(stale[:3])}{' ...' if len(stale) > 3 else ''}; remove them to "
-            "compute them again with the current code, or use another --out")

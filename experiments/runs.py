@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 from collections.abc import Sequence
 from dataclasses import asdict
@@ -19,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 from tqdm import tqdm
 
+from perception.files import atomic_write
 from sim.errors import InvalidInputError
 from sim.records import RunFolderError, differences, json_form
 
@@ -103,3 +105,19 @@ def duration(seconds: float) -> str:
     minutes, second = divmod(round(seconds), 60)
     hours, minute = divmod(minutes, 60)
     return f"{hours} h {minute:02d} min" if hours else f"{minute} min {second:02d} s"
+
+
+def write_json(path: Path, data: Any) -> None:
+    """Writes ``data`` as indented JSON, atomically (parents created)."""
+    text = json.dumps(data, indent=2, allow_nan=False) + "\n"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write(path, lambda temporary: temporary.write_text(text, encoding="utf-8"))
+
+
+def read_json(path: Path) -> Any:
+    """The JSON in ``path``; a damaged file is a :class:`RunFolderError` naming it."""
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as error:
+        raise RunFolderError(f"{path} is damaged ({error}); remove it to compute it again"
+                             ) from None

@@ -11,12 +11,12 @@ import pytest
 from gva_cli import gva
 
 from experiments.real_report import TrialSetResult, checks_markdown, table3_markdown
+from experiments.real_run import run_reproduce_real
 from experiments.reproduce_real import (
     ReproduceRealSettings,
     TrialSet,
     Unit,
     Variant,
-    run_reproduce_real,
     trained_file,
     variant_file,
 )

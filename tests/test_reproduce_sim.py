@@ -16,7 +16,6 @@ from experiments.reproduce_sim import (
     ReproduceSimSettings,
     cell_path,
     model_config,
-    run_reproduce_sim,
 )
 from experiments.sim_report import (
     PAPER_TABLE2_CM,
@@ -24,6 +23,7 @@ from experiments.sim_report import (
     no_image_reference,
     table2_markdown,
 )
+from experiments.sim_run import run_reproduce_sim
 from perception.data import load_dataset
 from sim.errors import InvalidInputError
 from sim.records import RunFolderError
