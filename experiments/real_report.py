@@ -31,9 +31,8 @@ from experiments.reproduce_real import (
     Variant,
     seed_folder,
 )
-from experiments.reproduce_sim import TASKS
+from experiments.reproduce_sim import MODEL_TITLES, TASK_TITLES, TASKS
 from experiments.runs import duration, read_json, write_json
-from experiments.sim_report import MODEL_TITLES, TASK_TITLES
 from perception.files import atomic_write
 from sim.records import TrialOutcome, TrialRecord, TrialSummary
 

@@ -67,6 +67,19 @@ SIZES = (4, 20, 100)
 """Training set sizes of Table II."""
 TWO_PHASE_MODELS = ("dsae-16", "conv-ae")
 """Models trained in two phases (autoencoder, then targets): they take longer per cell."""
+BOLD_BELOW_CM = 5.0
+"""The paper bolds errors below 5 cm."""
+NO_IMAGE = "no-image"
+"""The row of :func:`perception.evaluate.label_mean_error_cm` in the tables."""
+MODEL_TITLES = {
+    "kqv": "Ours (kqv, q=min)", "keypoint-16": "Key Point (q=16)",
+    "keypoint-min": "Key Point (q=min)", "dsae-16": "Deep Spatial AE (q=16)",
+    "conv-ae": "Convolutional AE", "fcn": "FCN",
+    NO_IMAGE: "No image (training-label mean)",
+}
+TASK_TITLES = {"single": "Single Object", "multiple": "Multiple Objects",
+               "selected-type": "Selected Type", "selected-position": "Selected Position"}
+Key = tuple[str, str, int]  # (model, task, size)
 FORMAT_VERSION = 2
 """What a run folder holds; 2: a training scene of a task with a condition is asked each value
 (:class:`sim.collect.CollectSettings` ``every_condition``)."""
