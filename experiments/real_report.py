@@ -16,13 +16,13 @@ A trial folder of an interrupted run counts the trials it has, marked ``*``.
 
 from __future__ import annotations
 
-import json
 import statistics
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple
 
+from experiments.real_folder import history_wall_time_s, read_checks, read_failed, read_gifs
 from experiments.reproduce_real import (
     DARK_BRIGHTNESS,
     DISTRACTOR_TYPES,
@@ -32,7 +32,7 @@ from experiments.reproduce_real import (
     seed_folder,
 )
 from experiments.reproduce_sim import MODEL_TITLES, TASK_TITLES, TASKS
-from experiments.runs import duration, read_json, write_json
+from experiments.runs import duration, write_json
 from perception.files import atomic_write
 from sim.records import TrialOutcome, TrialRecord, TrialSummary
 
@@ -321,35 +321,6 @@ def _reasons(result: TrialSetResult) -> list[str]:
     return lines
 
 
-def read_gifs(out: Path, seeds: Sequence[int]) -> dict[str, dict[str, Any]]:
-    """The GIFs of each seed's ``gifs/`` and the trials each shows, by path in ``out``."""
-    return {f"{seed_folder(out, seed).name}/gifs/{meta.stem}.gif":
-            {"trials": read_json(meta)["trials"]}
-            for seed in seeds for meta in sorted((seed_folder(out, seed) / "gifs").glob("*.json"))
-            if meta.with_suffix(".gif").exists()}
-
-
-def read_failed(out: Path, seeds: Sequence[int]) -> list[dict[str, Any]]:
-    """The jobs that raised (each seed's ``errors/*.json``): job and error."""
-    return [{k: read_json(p)[k] for k in ("job", "error")} for seed in seeds
-            for p in sorted((seed_folder(out, seed) / "errors").glob("*.json"))]
-
-
-def read_checks(out: Path, seeds: Sequence[int]) -> list[dict[str, Any]]:
-    """Each finished training's held-out check (``trained.json``): seed, model, task, check."""
-    found = []
-    for seed in seeds:
-        for trained in sorted((seed_folder(out, seed) / "checkpoints").glob("*/*/trained.json")):
-            check = read_json(trained).get("check")
-            if check is not None:
-                found.append({"seed": seed, "model": trained.parent.parent.name,
-                              "task": trained.parent.name, "passed": check["passed"],
-                              "reason": check["reason"],
-                              "attempts": read_json(trained).get("attempts", 1),
-                              "mean_position_error_cm": check["mean_position_error_cm"]})
-    return found
-
-
 def checks_markdown(checks: Sequence[Mapping[str, Any]]) -> list[str]:
     """The held-out checks section: how many passed, and every failed one by name."""
     if not checks:
@@ -364,15 +335,6 @@ def checks_markdown(checks: Sequence[Mapping[str, Any]]) -> list[str]:
     lines += [f"- **FAILED**: {c['model']} {c['task']} seed {c['seed']} after {c['attempts']} "
               f"attempt(s): {c['reason']}" for c in failed]
     return [*lines, ""]
-
-
-def history_wall_time_s(out: Path) -> float:
-    """The wall time of every run into ``out`` together [s] (``history.jsonl``)."""
-    path = out / "history.jsonl"
-    if not path.exists():
-        return 0.0
-    return sum(json.loads(line)["wall_time_s"] for line in path.read_text().splitlines()
-               if line.strip())
 
 
 class Reports(NamedTuple):
