@@ -194,16 +194,19 @@ class Dataset:
                        self.conditions[index], self.labels[index],
                        tuple(self.scenes[i] for i in index))
 
+    def scene_keys(self) -> list[int]:
+        """Each sample's scene: its record's ``"index"`` (a record without one is its own)."""
+        return [int(record.get("index", -1 - n)) for n, record in enumerate(self.scenes)]
+
     def first_scenes(self, count: int) -> Dataset:
         """The samples of the dataset's first ``count`` scenes, with ``extra["scenes"]`` set.
 
         A scene may give several samples (an image before each pick of a demonstration; one
-        per condition value, :mod:`sim.collect`): they share their record's ``"index"``. A
-        record without one is a scene of its own.
+        per condition value, :mod:`sim.collect`): they share :meth:`scene_keys`.
         """
         if not isinstance(count, int) or count < 0:
             raise InvalidInputError("count", count, "an integer >= 0")
-        keys = [record.get("index", -1 - n) for n, record in enumerate(self.scenes)]
+        keys = self.scene_keys()
         kept = list(dict.fromkeys(keys))[:count]
         if len(kept) < count:
             raise InvalidInputError("count", count, f"at most the dataset's {len(kept)} scenes")

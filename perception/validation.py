@@ -136,11 +136,6 @@ class CheckedFit:
         return self.checks[-1] if self.checks else None
 
 
-def scene_keys(dataset: Dataset) -> list[int]:
-    """Each sample's scene: its record's ``"index"`` (samples of one scene share it)."""
-    return [int(record.get("index", -1 - n)) for n, record in enumerate(dataset.scenes)]
-
-
 def scene_kind(record: dict[str, Any]) -> tuple[str, ...]:
     """What a scene shows, for a stratified split: its objects' types, sorted; () if unnamed."""
     return tuple(sorted(str(o.get("type")) for o in record.get("objects", ())
@@ -156,7 +151,7 @@ def split_scenes(dataset: Dataset, holdout: float, seed: int) -> tuple[Dataset, 
     type is not held out whole (a random split of 20 ``single`` demonstrations once held out
     four of the five spray bottles, and the training never learned the bottle).
     """
-    keys = scene_keys(dataset)
+    keys = dataset.scene_keys()
     scenes = list(dict.fromkeys(keys))
     count = min(max(round(holdout * len(scenes)), 1 if holdout > 0 else 0), len(scenes) - 2)
     if count <= 0:
@@ -203,7 +198,7 @@ def check_model(model: LearnableModel, held_out: Dataset, limit_cm: float, attem
             if not e <= limit_cm]
     return HeldOutCheck(
         passed=not over, reason="; ".join(over),
-        held_out_scenes=tuple(sorted(set(scene_keys(held_out)))), samples=len(held_out),
+        held_out_scenes=tuple(sorted(set(held_out.scene_keys()))), samples=len(held_out),
         mean_position_error_cm=result.mean_position_error_cm,
         per_condition_mean_position_error_cm=result.per_condition_mean_position_error_cm,
         per_target_mean_position_error_cm=result.per_target_mean_position_error_cm,
