@@ -12,7 +12,7 @@ heatmap):
 - a whole pose step (forward, loss, backward, Adam) and its parts: the photometric
   augmentation, the forward pass, the backward pass;
 - the Key normalisation of the cosine similarity, as ``F.normalize`` against the reciprocal
-  square root kqv uses (:func:`perception.models.kqv.unit`), forward and backward;
+  square root kqv uses (:func:`perception.models.base.unit`), forward and backward;
 - a step of the type head's phase (forward through the frozen network, the small head's
   backward).
 
@@ -38,8 +38,8 @@ import numpy as np
 import torch
 
 from perception.data import Dataset
-from perception.models.base import images_to_tensor
-from perception.models.kqv import KqvModel, unit
+from perception.models.base import images_to_tensor, unit
+from perception.models.kqv import KqvModel
 from perception.registry import new_model
 from perception.train import Batch, TrainConfig, batch_indices, photometric_augment
 

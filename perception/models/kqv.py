@@ -47,6 +47,7 @@ from perception.models.base import (
     normalised_to_pixels,
     softmax2d,
     spatial_expectation,
+    unit,
 )
 from perception.models.kqv_config import KqvConfig
 from perception.models.readout import CameraRays
@@ -62,16 +63,6 @@ class Attention(NamedTuple):
     heatmaps: Tensor  # (B, q, h, w) M, each map sums to 1
     coords: Tensor  # (B, q, 2) a_coord, (x, y) in [-1, 1]
     features: Tensor  # (B, q, Cv) a_feat
-
-
-def unit(x: Tensor, dim: int) -> Tensor:
-    """``x`` scaled to unit length along ``dim`` (as ``F.normalize``, eps 1e-12).
-
-    Written as a reciprocal square root of the summed squares: along the channels of a Key map
-    it is faster on the CPU, forward and backward, than ``F.normalize``'s vector norm
-    (``benchmarks/bench_train.py`` times both), and the Keys are normalised at every step.
-    """
-    return x * torch.rsqrt(x.square().sum(dim, keepdim=True).clamp_min(1e-24))
 
 
 class KqvNet(nn.Module):
