@@ -23,7 +23,7 @@ scene, for each task and each model:
    :data:`DISTRACTOR_TYPES` added to each of them, never a target (:mod:`sim.scene` draws
    distractors from their own stream: same objects, poses, targets and conditions, plus the
    distractor). Both are task TOML options (``[lighting] brightness``, ``[distractors]
-   types``); their files are written to ``OUT/tasks/``. The checkpoint is accepted for them
+   types``); their files are written to ``OUT/s<seed>/tasks/``. The checkpoint is accepted for them
    because trials check a model against the task's scene, condition, targets and image size,
    not its name. The distractor is the catalog's wooden block, the sponge's size and shape but
    never a target type, so every trial still has one right answer (a target-type distractor

@@ -5,7 +5,7 @@ or an opening width. A type brings its catalog grasp: the opening, the pre-grasp
 the symmetric alternatives a planner may fall back on (a bottle taken from another side). An
 opening alone sets the opening. A model that states neither gets :data:`DEFAULT_GRIP`: the
 gripper fully open, backed off as far as every catalog grasp is, no alternatives; it suits
-every object of the catalog, whose grasps all open fully (``benchmarks/bench_default_grip.py``
+every object of the catalog, whose grasps all open fully (``benchmarks/bench_pick_variants.py``
 measures it). Nothing here reads the simulator: a grip is what the robot knows before it moves.
 """
 
