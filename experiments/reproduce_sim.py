@@ -80,9 +80,10 @@ MODEL_TITLES = {
 TASK_TITLES = {"single": "Single Object", "multiple": "Multiple Objects",
                "selected-type": "Selected Type", "selected-position": "Selected Position"}
 Key = tuple[str, str, int]  # (model, task, size)
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 """What a run folder holds; 2: a training scene of a task with a condition is asked each value
-(:class:`sim.collect.CollectSettings` ``every_condition``)."""
+(:class:`sim.collect.CollectSettings` ``every_condition``); 3: ``kqv``'s attention point is taught
+on paper-sim too (``KqvConfig.point_loss_weight``)."""
 
 
 @dataclass(frozen=True)

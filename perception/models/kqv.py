@@ -113,6 +113,9 @@ class KqvNet(nn.Module):
             nn.init.zeros_(last.weight)
             nn.init.zeros_(last.bias)
         self.rays = CameraRays(spec) if self.readout == "ray" else None
+        # Where the camera sees each target: the point loss's aim, on either readout.
+        self.seen = self.rays if self.rays is not None or c.point_loss_weight == 0 or \
+            spec.camera is None else CameraRays(spec)
         reads_features = c.head_features
         if reads_features is None:
             reads_features = spec.label_kind is LabelKind.GRASP_POSE or self.rays is not None
@@ -316,9 +319,9 @@ class KqvModel(TorchModel):
 
         With :attr:`KqvConfig.mirror`, a random half of the batch is mirrored first.
 
-        With the ray readout, plus :attr:`KqvConfig.point_loss_weight` times the squared
-        distance (normalised image units) from each attention point to its target's grasp
-        point as the camera sees it.
+        Where the dataset records its camera, plus :attr:`KqvConfig.point_loss_weight` times
+        the squared distance (normalised image units) from each attention point to where the
+        camera sees its target (the labelled position or grasp point, projected).
         """
         c = self.config
         done = min(1.0, (self._steps_taken + 1) / c.warmup_steps) if c.warmup_steps else 1.0
@@ -329,9 +332,9 @@ class KqvModel(TorchModel):
             batch = self._mirror(batch)
         out = self.network(batch.images, batch.conditions)
         loss = self.target_loss(out, batch.labels, batch.present)
-        rays = self.network.rays
-        if rays is not None and c.point_loss_weight > 0 and out.points is not None:
-            seen = rays.project(batch.labels[..., :3])  # (B, q, 2)
+        camera = self.network.seen
+        if camera is not None and c.point_loss_weight > 0 and out.points is not None:
+            seen = camera.project(batch.labels[..., :3])  # (B, q, 2)
             loss = loss + c.point_loss_weight * present_mean(
                 (out.points - seen).square().sum(-1), batch.present)
         return loss
