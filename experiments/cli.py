@@ -17,11 +17,11 @@
 takes ``oracle`` or ``package.module:Class`` of a model that needs no weights.
 
 ``reproduce sim`` runs the paper's Table II in the simulator (see
-:mod:`experiments.reproduce_sim`): it collects, trains and scores every model x task x size x
+:mod:`experiments.table2.settings`): it collects, trains and scores every model x task x size x
 seed cell in parallel processes and writes ``table2.md``/``.json``/``.png`` and ``fig5.png``;
 it exits with status 1 when it finished but some cells failed (each failure is recorded).
 ``reproduce real`` runs the paper's Table III on the simulated YuMi (see
-:mod:`experiments.reproduce_real`): per task, 20 oracle demonstrations, each model trained on
+:mod:`experiments.table3.settings`): per task, 20 oracle demonstrations, each model trained on
 them, 30 closed-loop pick trials with the model in the loop, kqv again under darker light and
 with a distractor; it writes ``table3.md``/``.json`` and a GIF per model and task, and exits
 with status 1 when some job failed. ``make demo`` is its short form (one task, kqv).
@@ -196,8 +196,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _add_reproduce(commands: Any) -> None:
     """``gva reproduce sim`` and ``gva reproduce real``."""
-    from experiments.reproduce_sim import MODELS, SIZES, TASKS
-    from experiments.sim_datasets import SCENE, SCENES
+    from experiments.table2.datasets import SCENE, SCENES
+    from experiments.table2.settings import MODELS, SIZES, TASKS
 
     reproduce = commands.add_parser("reproduce", help="the paper's experiments, end to end")
     experiments = reproduce.add_subparsers(dest="experiment", required=True)
@@ -351,8 +351,8 @@ def _print_run(report: Any, done: str, name: Callable[[dict[str, Any]], str]) ->
 
 
 def _run_reproduce_real(args: argparse.Namespace) -> int:
-    from experiments.real_run import run_reproduce_real
-    from experiments.reproduce_real import ReproduceRealSettings
+    from experiments.table3.run import run_reproduce_real
+    from experiments.table3.settings import ReproduceRealSettings
 
     settings = ReproduceRealSettings(models=args.models, tasks=args.tasks, n=args.n,
                                      demos=args.demos, steps=args.steps, seed=args.seed,
@@ -377,8 +377,8 @@ def _check_config(args: argparse.Namespace) -> Any:
 def _run_reproduce(args: argparse.Namespace) -> int:
     if args.experiment == "real":
         return _run_reproduce_real(args)
-    from experiments.reproduce_sim import ReproduceSimSettings
-    from experiments.sim_run import run_reproduce_sim
+    from experiments.table2.run import run_reproduce_sim
+    from experiments.table2.settings import ReproduceSimSettings
 
     settings = ReproduceSimSettings(models=args.models, tasks=args.tasks, sizes=args.sizes,
                                     seeds=args.seeds, seed=args.seed, steps=args.steps,

@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 from gva_cli import gva
 
-from experiments.real_report import TrialSetResult, checks_markdown, table3_markdown
-from experiments.real_run import run_reproduce_real
-from experiments.reproduce_real import (
+from experiments.table3.report import TrialSetResult, checks_markdown, table3_markdown
+from experiments.table3.run import run_reproduce_real
+from experiments.table3.settings import (
     ReproduceRealSettings,
     TrialSet,
     Unit,

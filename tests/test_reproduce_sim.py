@@ -10,20 +10,20 @@ from pathlib import Path
 import pytest
 from gva_cli import gva
 
-from experiments.reproduce_sim import (
+from experiments.table2.report import (
+    PAPER_TABLE2_CM,
+    failures,
+    no_image_reference,
+    table2_markdown,
+)
+from experiments.table2.run import run_reproduce_sim
+from experiments.table2.settings import (
     MODELS,
     Cell,
     ReproduceSimSettings,
     cell_path,
     model_config,
 )
-from experiments.sim_report import (
-    PAPER_TABLE2_CM,
-    failures,
-    no_image_reference,
-    table2_markdown,
-)
-from experiments.sim_run import run_reproduce_sim
 from perception.data import load_dataset
 from sim.errors import InvalidInputError
 from sim.records import RunFolderError

@@ -1,7 +1,7 @@
 """What a ``gva reproduce real`` run folder holds, read back for its reports.
 
 Each seed's GIFs, failed jobs and held-out checks, and the wall time of every run into the
-folder (``history.jsonl``); the layout is :mod:`experiments.reproduce_real`'s.
+folder (``history.jsonl``); the layout is :mod:`experiments.table3.settings`'s.
 """
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from experiments.reproduce_real import seed_folder
 from experiments.runs import read_json
+from experiments.table3.settings import seed_folder
 
 
 def read_gifs(out: Path, seeds: Sequence[int]) -> dict[str, dict[str, Any]]:

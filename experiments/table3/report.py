@@ -22,8 +22,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple
 
-from experiments.real_folder import history_wall_time_s, read_checks, read_failed, read_gifs
-from experiments.reproduce_real import (
+from experiments.runs import duration, write_json
+from experiments.table2.settings import MODEL_TITLES, TASK_TITLES, TASKS
+from experiments.table3.folder import history_wall_time_s, read_checks, read_failed, read_gifs
+from experiments.table3.settings import (
     DARK_BRIGHTNESS,
     DISTRACTOR_TYPES,
     ROBUST_MODEL,
@@ -31,8 +33,6 @@ from experiments.reproduce_real import (
     Variant,
     seed_folder,
 )
-from experiments.reproduce_sim import MODEL_TITLES, TASK_TITLES, TASKS
-from experiments.runs import duration, write_json
 from perception.files import atomic_write
 from sim.records import TrialOutcome, TrialRecord, TrialSummary
 

@@ -29,11 +29,11 @@ scene, for each task and each model:
    never a target type, so every trial still has one right answer (a target-type distractor
    would leave ``single`` ambiguous; the report counts such trials if a task file asks for it).
 5. GIFs: the first :data:`GIF_TRIALS` trials of each model and task recorded again
-   (:mod:`experiments.real_jobs`): the head image with the attention points beside the robot.
+   (:mod:`experiments.table3.jobs`): the head image with the attention points beside the robot.
 6. Seeds: ``seeds`` runs of all the above, seeds ``S0 .. S0 + seeds - 1``, each in its own
    folder ``OUT/s<seed>/``; a seed moves the demonstrations, the weights and the test scenes.
    The tables report each seed's count, their mean and spread, and the pooled rate
-   (:mod:`experiments.real_report`): a result that holds at one seed only is a lucky draw.
+   (:mod:`experiments.table3.report`): a result that holds at one seed only is a lucky draw.
 
 Jobs run in ``workers`` processes (:mod:`experiments.jobs`) in three phases: collect, train,
 then trials and GIFs; one progress bar, measured in the jobs' estimated seconds, gives the
@@ -46,7 +46,7 @@ with more seeds adds seed folders. A job that raises is recorded in
 ``OUT/s<seed>/errors/<job>.json`` and the run goes on. Layout of ``OUT``::
 
     run.json, history.jsonl               shared settings; one line per run (its wall time)
-    table3.json, table3.md                over every seed (see experiments.real_report)
+    table3.json, table3.md                over every seed (see experiments.table3.report)
     s<seed>/run.json                      the shared settings and the seed
     s<seed>/datasets/<task>-train-<demos>-s<seed>.gva
     s<seed>/checkpoints/<model>/<task>/   weights, config.json, trained.json
@@ -62,9 +62,9 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from experiments.reproduce_sim import TASKS, model_config
 from experiments.runs import check_choices, check_counts
-from experiments.sim_datasets import dataset_path
+from experiments.table2.datasets import dataset_path
+from experiments.table2.settings import TASKS, model_config
 from perception.files import atomic_write
 from perception.validation import CheckConfig
 from sim.records import json_form

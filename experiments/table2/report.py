@@ -7,7 +7,7 @@
   standard deviation; the mean alone for one seed), **bold** below 5 cm as in the paper; then
   the paper's own numbers (:data:`PAPER_TABLE2_CM`) in the same layout, and how the table was
   made.
-- ``table2.png`` and ``fig5.png``: drawn by :mod:`experiments.sim_figures`.
+- ``table2.png`` and ``fig5.png``: drawn by :mod:`experiments.table2.figures`.
 """
 
 from __future__ import annotations
@@ -18,7 +18,10 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from experiments.reproduce_sim import (
+from experiments.runs import duration, read_json, write_json
+from experiments.table2.datasets import dataset_path
+from experiments.table2.figures import draw_fig5, plot_table2
+from experiments.table2.settings import (
     BOLD_BELOW_CM,
     MODEL_TITLES,
     MODELS,
@@ -30,9 +33,6 @@ from experiments.reproduce_sim import (
     Key,
     ReproduceSimSettings,
 )
-from experiments.runs import duration, read_json, write_json
-from experiments.sim_datasets import dataset_path
-from experiments.sim_figures import draw_fig5, plot_table2
 from perception.files import atomic_write
 from sim.scene import SeedStream
 

@@ -13,7 +13,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from experiments.reproduce_sim import (
+from experiments.table2.datasets import dataset_path
+from experiments.table2.settings import (
     BOLD_BELOW_CM,
     MODEL_TITLES,
     MODELS,
@@ -24,7 +25,6 @@ from experiments.reproduce_sim import (
     Key,
     ReproduceSimSettings,
 )
-from experiments.sim_datasets import dataset_path
 from perception.files import atomic_write
 from sim.scene import SeedStream
 

@@ -34,10 +34,10 @@ the run goes on; the summary names it.
 Layout of ``OUT``::
 
     run.json                    the shared settings
-    datasets/<task>-train-<size>-s<seed>.gva, <task>-test-<n>-s<S0>.gva   (experiments.sim_datasets)
+    datasets/<task>-train-<size>-s<seed>.gva, <task>-test-<n>-s<S0>.gva  (see datasets.py)
     checkpoints/<model>/<task>/<size>/s<seed>/   one checkpoint per cell
     cells/<model>-<task>-<size>-s<seed>.json     one result per cell (-error.json: it failed)
-    table2.json, table2.md, table2.png, fig5.png (see :mod:`experiments.sim_report`)
+    table2.json, table2.md, table2.png, fig5.png (see :mod:`experiments.table2.report`)
 
 The reports are rewritten from every cell file present at the end of each run, also when every
 cell was skipped.
@@ -52,7 +52,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from experiments.runs import check_choices, check_counts, read_json, write_json
-from experiments.sim_datasets import SCENE, SCENES, dataset_path
+from experiments.table2.datasets import SCENE, SCENES, dataset_path
 from sim.errors import InvalidInputError
 from sim.records import RunFolderError, differences, json_form
 

@@ -1,8 +1,8 @@
-"""Runs ``gva reproduce sim`` (:mod:`experiments.reproduce_sim`) into a run folder.
+"""Runs ``gva reproduce sim`` (:mod:`experiments.table2.settings`) into a run folder.
 
 Claims the folder, collects the datasets, computes the missing cells in a job pool under one
-progress bar, and rebuilds the reports (:mod:`experiments.sim_report`). The settings, cells
-and layout live in :mod:`experiments.reproduce_sim`, which imports none of these.
+progress bar, and rebuilds the reports (:mod:`experiments.table2.report`). The settings, cells
+and layout live in :mod:`experiments.table2.settings`, which imports none of these.
 """
 
 from __future__ import annotations
@@ -17,7 +17,9 @@ from typing import Any
 from tqdm import tqdm
 
 from experiments.jobs import JobPool
-from experiments.reproduce_sim import (
+from experiments.table2.datasets import collect_datasets, dataset_jobs
+from experiments.table2.report import write_reports
+from experiments.table2.settings import (
     Cell,
     CellJob,
     CellOutcome,
@@ -25,8 +27,6 @@ from experiments.reproduce_sim import (
     compute_cell,
     sort_cells,
 )
-from experiments.sim_datasets import collect_datasets, dataset_jobs
-from experiments.sim_report import write_reports
 from sim.records import claim_run_folder
 
 
@@ -47,7 +47,7 @@ class ReproduceSimReport:
 
 def run_reproduce_sim(settings: ReproduceSimSettings, out: str | Path,
                       progress: bool = True) -> ReproduceSimReport:
-    """Runs (or resumes) the experiment into ``out`` (:mod:`experiments.reproduce_sim`).
+    """Runs (or resumes) the experiment into ``out`` (:mod:`experiments.table2.settings`).
 
     Raises:
         RunFolderError: ``out`` holds a run with other shared settings, or a cell or dataset

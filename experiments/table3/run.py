@@ -1,9 +1,9 @@
-"""Runs ``gva reproduce real`` (:mod:`experiments.reproduce_real`) into a run folder.
+"""Runs ``gva reproduce real`` (:mod:`experiments.table3.settings`) into a run folder.
 
 Claims the folder and each seed's, writes the variant task files, runs the jobs
-(:mod:`experiments.real_jobs`), appends the run to ``history.jsonl`` and rebuilds the reports
-(:mod:`experiments.real_report`). The settings, paths and layout live in
-:mod:`experiments.reproduce_real`, which imports none of these.
+(:mod:`experiments.table3.jobs`), appends the run to ``history.jsonl`` and rebuilds the reports
+(:mod:`experiments.table3.report`). The settings, paths and layout live in
+:mod:`experiments.table3.settings`, which imports none of these.
 """
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from experiments.real_jobs import run_jobs
-from experiments.real_report import write_reports
-from experiments.reproduce_real import ReproduceRealSettings, seed_folder, write_variant_tasks
+from experiments.table3.jobs import run_jobs
+from experiments.table3.report import write_reports
+from experiments.table3.settings import ReproduceRealSettings, seed_folder, write_variant_tasks
 from sim.records import claim_run_folder
 
 
@@ -47,7 +47,7 @@ class ReproduceRealReport:
 
 def run_reproduce_real(settings: ReproduceRealSettings, out: str | Path,
                        progress: bool = True) -> ReproduceRealReport:
-    """Runs (or resumes) the experiment into ``out`` (:mod:`experiments.reproduce_real`).
+    """Runs (or resumes) the experiment into ``out`` (:mod:`experiments.table3.settings`).
 
     Raises:
         RunFolderError: ``out`` holds a run with other shared settings, or a dataset or

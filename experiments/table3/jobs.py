@@ -17,7 +17,9 @@ from pathlib import Path
 from typing import Any
 
 from experiments.jobs import JobPool
-from experiments.reproduce_real import (
+from experiments.runs import cost_bar, dataset_present, read_json, write_json
+from experiments.table2.settings import TWO_PHASE_MODELS
+from experiments.table3.settings import (
     GIF_TRIALS,
     SCENE,
     ReproduceRealSettings,
@@ -32,8 +34,6 @@ from experiments.reproduce_real import (
     trained_file,
     trials_folder,
 )
-from experiments.reproduce_sim import TWO_PHASE_MODELS
-from experiments.runs import cost_bar, dataset_present, read_json, write_json
 from sim.records import RunFolderError, differences
 from sim.scene import SeedStream
 from sim.trials import TrialSettings
@@ -189,7 +189,7 @@ def _trials(job: TrialsJob) -> str:
 
 
 def _gif(job: GifJob) -> str:
-    from experiments.real_gifs import record_gif
+    from experiments.table3.gifs import record_gif
 
     path = gif_file(job.out, job.unit)
     shown = record_gif(job.unit.model, job.trials, job.count, path)

@@ -1,0 +1,1 @@
+"""Table II of the paper: position error of every model in the simulator (``gva reproduce sim``)."""
