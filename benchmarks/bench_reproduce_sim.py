@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from experiments.cli import build_parser, main
-from experiments.table2.settings import MODELS
+from experiments.tables import MODELS
 
 
 def record(folder: Path, measured_s: float | None) -> dict[str, Any]:

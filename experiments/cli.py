@@ -196,8 +196,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _add_reproduce(commands: Any) -> None:
     """``gva reproduce sim`` and ``gva reproduce real``."""
-    from experiments.table2.datasets import SCENE, SCENES
-    from experiments.table2.settings import MODELS, SIZES, TASKS
+    from experiments.table2.settings import SCENE, SCENES, SIZES
+    from experiments.tables import MODELS, TASKS
 
     reproduce = commands.add_parser("reproduce", help="the paper's experiments, end to end")
     experiments = reproduce.add_subparsers(dest="experiment", required=True)

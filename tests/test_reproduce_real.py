@@ -136,14 +136,14 @@ def test_training_threads_are_part_of_the_run_and_of_its_command(tiny_run):
 
 
 def test_a_failing_training_is_recorded_and_the_run_goes_on(tiny_run, tmp_path, monkeypatch):
-    import perception.registry
+    import experiments.table3.jobs
 
     def broken(*_, **__):
         raise RuntimeError("out of ideas")
 
     copied = Path(shutil.copytree(tiny_run, tmp_path / "run"))
     trained_file(copied / "s0", UNIT).unlink()
-    monkeypatch.setattr(perception.registry, "new_model", broken)
+    monkeypatch.setattr(experiments.table3.jobs, "new_model", broken)
     status, stdout, _ = gva("reproduce", "real", "--out", copied, *TINY)
     assert status == 1
     assert "1 job(s) run (1 failed)" in stdout

@@ -17,13 +17,8 @@ from experiments.table2.report import (
     table2_markdown,
 )
 from experiments.table2.run import run_reproduce_sim
-from experiments.table2.settings import (
-    MODELS,
-    Cell,
-    ReproduceSimSettings,
-    cell_path,
-    model_config,
-)
+from experiments.table2.settings import Cell, ReproduceSimSettings, cell_path
+from experiments.tables import MODELS, model_config
 from perception.data import load_dataset
 from sim.errors import InvalidInputError
 from sim.records import RunFolderError
@@ -120,10 +115,11 @@ def test_a_cell_computed_with_other_model_settings_is_refused(copied_run):
 
 
 def test_a_dataset_taken_with_another_camera_is_refused(copied_run, monkeypatch):
-    import sim.scenes
+    import experiments.tables
 
-    wider = dataclasses.replace(sim.scenes.scene_camera("paper-sim"), vertical_fov_deg=90.0)
-    monkeypatch.setattr(sim.scenes, "scene_camera", lambda name: wider)
+    wider = dataclasses.replace(experiments.tables.scene_camera("paper-sim"),
+                                vertical_fov_deg=90.0)
+    monkeypatch.setattr(experiments.tables, "scene_camera", lambda name: wider)
     cell_path(copied_run, Cell("kqv", "single", 4, 0)).unlink()  # to compute again
     with pytest.raises(RunFolderError, match=r"is not the dataset this run needs \(\{'camera."
                                              r"vertical_fov_deg': \(76.0, 90.0\)\}"):
@@ -131,16 +127,16 @@ def test_a_dataset_taken_with_another_camera_is_refused(copied_run, monkeypatch)
 
 
 def test_a_failing_cell_is_recorded_and_the_run_goes_on(copied_run, monkeypatch):
-    import perception.registry
+    import experiments.table2.jobs
 
-    real = perception.registry.new_model
+    real = experiments.table2.jobs.new_model
 
     def broken(name, dataset, **kwargs):
         if name == "fcn":
             raise RuntimeError("out of ideas")
         return real(name, dataset, **kwargs)
 
-    monkeypatch.setattr(perception.registry, "new_model", broken)
+    monkeypatch.setattr(experiments.table2.jobs, "new_model", broken)
     for cell in ("fcn-single-4-s0", "kqv-single-4-s0"):
         (copied_run / "cells" / f"{cell}.json").unlink()
     status, stdout, _ = gva("reproduce", "sim", "--out", copied_run, "--workers", "1", *TINY)
@@ -155,7 +151,7 @@ def test_a_failing_cell_is_recorded_and_the_run_goes_on(copied_run, monkeypatch)
                                 "error": "RuntimeError: out of ideas"}]
     assert "| FCN | failed |" in (copied_run / "table2.md").read_text()
 
-    monkeypatch.setattr(perception.registry, "new_model", real)
+    monkeypatch.setattr(experiments.table2.jobs, "new_model", real)
     report = run_reproduce_sim(TINY_SETTINGS, copied_run, progress=False)  # retried
     assert [o.cell.name for o in report.computed] == ["fcn-single-4-s0"] and not report.failed
     assert not (copied_run / "cells" / "fcn-single-4-s0-error.json").exists()

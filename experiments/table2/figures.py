@@ -9,27 +9,18 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
+from matplotlib.figure import Figure  # an Agg canvas of its own, no global backend state
 
-from experiments.table2.datasets import dataset_path
-from experiments.table2.settings import (
-    BOLD_BELOW_CM,
-    MODEL_TITLES,
-    MODELS,
-    NO_IMAGE,
-    SIZES,
-    TASK_TITLES,
-    TASKS,
-    Key,
-    ReproduceSimSettings,
-)
+from experiments.table2.settings import BOLD_BELOW_CM, SIZES, Key, ReproduceSimSettings
+from experiments.tables import MODEL_TITLES, MODELS, NO_IMAGE, TASK_TITLES, TASKS, dataset_path
+from perception.data import Dataset, load_dataset
+from perception.drawing import draw_points, enlarge
 from perception.files import atomic_write
+from perception.registry import load_model
 from sim.scene import SeedStream
-
-if TYPE_CHECKING:
-    from perception.data import Dataset
 
 Y_TICKS_CM = (0.1, 0.2, 0.5, 1, 2, 5, 10, 20, 50, 100, 200)
 FINE_Y_TICKS_CM = (0.1, 0.15, 0.2, 0.3, 0.5, 0.7, 1, 1.5, 2, 3, 5, 7, 10, 15, 20, 30, 50, 70, 100)
@@ -46,8 +37,6 @@ def plot_table2(stats: Mapping[Key, tuple[float, float | None, int]], path: Path
 
     ``reference`` (the no-image reference's spread) is drawn as a dotted black line.
     """
-    from matplotlib.figure import Figure  # Agg canvas, no global backend state
-
     tasks = [t for t in TASKS if any(k[1] == t for k in stats)]
     models = [m for m in MODELS if any(k[0] == m for k in stats)]
     sizes = [s for s in SIZES if any(k[2] == s for k in stats)]
@@ -100,10 +89,6 @@ def draw_fig5(settings: ReproduceSimSettings, out: Path, cells: Sequence[Mapping
     if not models:
         return [], ["fig5.png not drawn: neither kqv nor keypoint-16 has a finished cell in "
                     "this folder"]
-    from matplotlib.figure import Figure
-
-    from perception.data import load_dataset
-
     across = min(FIG5_TASKS_ACROSS, len(tasks))  # task blocks side by side
     down = -(-len(tasks) // across)
     figure = Figure(figsize=(2.3 * FIG5_IMAGES * across, 2.5 * len(models) * down + 0.5),
@@ -132,9 +117,6 @@ def draw_fig5(settings: ReproduceSimSettings, out: Path, cells: Sequence[Mapping
 def _draw_fig5_panels(axes: np.ndarray, test: Dataset, model_name: str,
                       cell: Mapping[str, Any], out: Path) -> None:
     """One model's attention points on the first test images of a task, one per axis."""
-    from perception.drawing import draw_points, enlarge
-    from perception.registry import load_model
-
     count = min(len(axes), len(test))
     predictions = load_model(out / cell["checkpoint"]).predict_batch(
         test.images[:count], test.conditions[:count])

@@ -16,28 +16,31 @@ import statistics
 from collections import defaultdict
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from experiments.runs import duration, read_json, write_json
-from experiments.table2.datasets import dataset_path
 from experiments.table2.figures import draw_fig5, plot_table2
 from experiments.table2.settings import (
     BOLD_BELOW_CM,
-    MODEL_TITLES,
-    MODELS,
-    NO_IMAGE,
     SIZES,
-    TASK_TITLES,
-    TASKS,
     Cell,
     Key,
     ReproduceSimSettings,
 )
-from perception.files import atomic_write
+from experiments.tables import (
+    MODEL_TITLES,
+    MODELS,
+    NO_IMAGE,
+    TASK_TITLES,
+    TASKS,
+    dataset_path,
+    duration,
+    read_json,
+    write_json,
+    write_text,
+)
+from perception.data import Dataset, load_dataset
+from perception.evaluate import label_mean_error_cm
 from sim.scene import SeedStream
-
-if TYPE_CHECKING:
-    from perception.data import Dataset
 
 RATIO_FLAGGED = 2.0
 """Cells where ours and the paper's differ by more than this factor are listed for a look."""
@@ -120,9 +123,6 @@ def markdown_table(rows: Mapping[str, Mapping[tuple[str, int], str]], tasks: Seq
 def no_image_reference(settings: ReproduceSimSettings, out: Path,
                        cells: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     """The no-image reference's error per (task, size, seed) of the cells present."""
-    from perception.data import load_dataset
-    from perception.evaluate import label_mean_error_cm
-
     tests: dict[str, Dataset] = {}
     records = []
     for task, size, seed in sorted({(c["task"], c["size"], c["seed"]) for c in cells},
@@ -285,7 +285,7 @@ def write_reports(settings: ReproduceSimSettings, out: Path, wall_time_s: float,
     paths = [out / "table2.json", out / "table2.md", out / "table2.png"]
     write_json(paths[0], table)
     text = table2_markdown(cells, failed, made_by, reference, settings.scene)
-    atomic_write(paths[1], lambda temporary: temporary.write_text(text, encoding="utf-8"))
+    write_text(paths[1], text)
     above_line = [Cell(c["model"], c["task"], c["size"], c["seed"]).name for c in cells
                   if c["model"] == "kqv" and not c["error_cm"] < BOLD_BELOW_CM]
     notes = [f"WARNING: {len(above_line)} kqv training(s) ended above {BOLD_BELOW_CM:g} cm: "

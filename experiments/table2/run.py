@@ -1,53 +1,37 @@
-"""Runs ``gva reproduce sim`` (:mod:`experiments.table2.settings`) into a run folder.
+"""Runs ``gva reproduce sim`` into a run folder, or resumes it.
 
 Claims the folder, collects the datasets, computes the missing cells in a job pool under one
-progress bar, and rebuilds the reports (:mod:`experiments.table2.report`). The settings, cells
-and layout live in :mod:`experiments.table2.settings`, which imports none of these.
+progress bar, and rebuilds the reports from every cell file present.
 """
 
 from __future__ import annotations
 
-import sys
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from tqdm import tqdm
 
 from experiments.jobs import JobPool
-from experiments.table2.datasets import collect_datasets, dataset_jobs
-from experiments.table2.report import write_reports
-from experiments.table2.settings import (
-    Cell,
+from experiments.table2.jobs import (
     CellJob,
     CellOutcome,
-    ReproduceSimSettings,
+    collect_datasets,
     compute_cell,
+    dataset_jobs,
     sort_cells,
 )
+from experiments.table2.report import write_reports
+from experiments.table2.settings import Cell, ReproduceSimSettings
+from experiments.tables import RunReport, cost_bar
 from sim.records import claim_run_folder
 
-
-@dataclass(frozen=True)
-class ReproduceSimReport:
-    """What a run did: cells computed and skipped, the folder's failed cells, its outputs.
-
-    ``wall_time_s`` covers collecting, training and scoring, not drawing the reports after.
-    """
-
-    computed: tuple[CellOutcome, ...]
-    skipped: tuple[Cell, ...]
-    failed: tuple[dict[str, Any], ...]
-    wall_time_s: float
-    outputs: tuple[Path, ...] = field(default_factory=tuple)
-    notes: tuple[str, ...] = field(default_factory=tuple)
+ReproduceSimReport = RunReport[CellOutcome, Cell]
 
 
 def run_reproduce_sim(settings: ReproduceSimSettings, out: str | Path,
                       progress: bool = True) -> ReproduceSimReport:
-    """Runs (or resumes) the experiment into ``out`` (:mod:`experiments.table2.settings`).
+    """Runs (or resumes) the experiment into ``out``: cells computed and skipped, outputs.
 
     Raises:
         RunFolderError: ``out`` holds a run with other shared settings, or a cell or dataset
@@ -76,23 +60,17 @@ def run_reproduce_sim(settings: ReproduceSimSettings, out: str | Path,
             f"run); resume with: {settings.command(out)}") from None
     wall_time_s = time.perf_counter() - started
     outputs, failed, notes = write_reports(settings, out, wall_time_s, len(computed))
-    return ReproduceSimReport(tuple(computed), tuple(done), tuple(failed), wall_time_s,
-                              tuple(outputs), tuple(notes))
+    return RunReport(tuple(computed), tuple(done), tuple(failed), wall_time_s, tuple(outputs),
+                     tuple(notes))
 
 
 def _run_cells(settings: ReproduceSimSettings, out: Path, todo: Sequence[Cell], skipped: int,
                pool: JobPool, progress: bool, computed: list[CellOutcome]) -> None:
-    """Computes ``todo`` into ``computed`` under one bar whose length is the cells' cost.
-
-    Measuring the bar in estimated cost rather than in cells keeps its time-left estimate
-    honest while the long cells, which run first, are still going.
-    """
+    """Computes ``todo`` into ``computed`` under one bar whose length is the cells' cost."""
     jobs = [CellJob(cell, settings.cell_identity(cell), settings.steps, settings.test_scenes,
                     settings.seed, out, settings.scene) for cell in todo]
     earlier = f", {skipped} done earlier" if skipped else ""
-    bar = tqdm(total=sum(cell.cost for cell in todo), disable=not progress or not jobs,
-               desc="reproduce sim", file=sys.stderr,
-               bar_format="{desc}: {percentage:3.0f}%|{bar}| [{elapsed}<{remaining}{postfix}]")
+    bar = cost_bar(sum(cell.cost for cell in todo), "reproduce sim", progress)
     bar.set_postfix_str(f"0/{len(jobs)} cells{earlier}")
 
     def done(outcome: CellOutcome) -> None:

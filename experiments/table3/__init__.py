@@ -1,1 +1,12 @@
-"""Table III of the paper: YuMi picks out of 30, trained models in the loop (gva reproduce real)."""
+"""``gva reproduce real``: the paper's Table III, YuMi picks out of 30 with trained models.
+
+Per task and seed: oracle-verified demonstrations, a model trained on them, closed-loop pick
+trials at untrained positions with the model in the loop (kqv also under darker light and with
+a distractor), and GIFs of the first trials; a re-run skips what is finished. The experiment,
+its options and the run folder's layout: ``docs/reproducing.md``.
+
+- :mod:`.settings`: what a run does, and where its files go;
+- :mod:`.jobs`: the jobs (collect, train, trials, GIF) and the three phases that run them;
+- :mod:`.gifs`: a model's first trials recorded again;
+- :mod:`.run`: a run, start to end; :mod:`.folder` and :mod:`.report`: its tables.
+"""

@@ -11,8 +11,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from experiments.runs import read_json
 from experiments.table3.settings import seed_folder
+from experiments.tables import read_json
 
 
 def read_gifs(out: Path, seeds: Sequence[int]) -> dict[str, dict[str, Any]]:

@@ -10,15 +10,13 @@ Finished work is found on disk before each phase, so a re-run skips it.
 from __future__ import annotations
 
 import time
-import traceback
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from experiments.jobs import JobPool
-from experiments.runs import cost_bar, dataset_present, read_json, write_json
-from experiments.table2.settings import TWO_PHASE_MODELS
+from experiments.table3.gifs import record_gif
 from experiments.table3.settings import (
     GIF_TRIALS,
     SCENE,
@@ -34,9 +32,25 @@ from experiments.table3.settings import (
     trained_file,
     trials_folder,
 )
-from sim.records import RunFolderError, differences
-from sim.scene import SeedStream
-from sim.trials import TrialSettings
+from experiments.tables import (
+    TWO_PHASE_MODELS,
+    Failed,
+    cost_bar,
+    dataset_present,
+    guarded,
+    read_json,
+    refuse_other_settings,
+    write_json,
+)
+from perception.data import DatasetError, load_dataset
+from perception.registry import new_model
+from perception.train import TrainConfig
+from perception.validation import fit_checked, write_check
+from sim.collect import CollectSettings, collect
+from sim.records import json_form
+from sim.scene import SeedStream, target_count
+from sim.tasks import load_task
+from sim.trials import TrialSettings, run_trials, torch_threads
 
 # Rough seconds per unit of work on one loaded core, only for the progress bar's time left.
 COLLECT_S_PER_PICK = 1.2
@@ -101,9 +115,6 @@ Job = CollectJob | TrainJob | TrialsJob | GifJob
 
 
 def _targets(task: str) -> int:
-    from sim.scene import target_count
-    from sim.tasks import load_task
-
     return target_count(load_task(task))
 
 
@@ -119,30 +130,27 @@ def cost(job: Job) -> float:
     return GIF_S_PER_PICK * job.count * _targets(job.unit.task)
 
 
-def guarded(job: Job) -> JobOutcome:
+def run_job(job: Job) -> JobOutcome:
     """Runs one job in a worker; an exception becomes its error file and a failed outcome."""
     started = time.perf_counter()
-    try:
-        if isinstance(job, CollectJob):
-            result = _collect(job)
-        elif isinstance(job, TrainJob):
-            result = _train(job)
-        elif isinstance(job, TrialsJob):
-            result = _trials(job)
-        else:
-            result = _gif(job)
-    except Exception as error:  # one job's failure is recorded; the others go on
-        failure = f"{type(error).__name__}: {error}"
-        write_json(error_file(job.out, job.name), {
-            "job": job.name, "error": failure, "traceback": traceback.format_exc()})
-        return JobOutcome(job.name, time.perf_counter() - started, failure=failure)
-    error_file(job.out, job.name).unlink(missing_ok=True)
+    result = guarded(lambda: _work(job), error_file(job.out, job.name), {"job": job.name})
+    if isinstance(result, Failed):
+        return JobOutcome(job.name, time.perf_counter() - started, failure=result.message)
     return JobOutcome(job.name, time.perf_counter() - started, result)
 
 
-def _collect(job: CollectJob) -> str:
-    from sim.collect import CollectSettings, collect
+def _work(job: Job) -> str:
+    """Does one job; a line that says what it gave."""
+    if isinstance(job, CollectJob):
+        return _collect(job)
+    if isinstance(job, TrainJob):
+        return _train(job)
+    if isinstance(job, TrialsJob):
+        return _trials(job)
+    return _gif(job)
 
+
+def _collect(job: CollectJob) -> str:
     settings = CollectSettings(SCENE, job.task, job.settings.demos, job.settings.seed,
                                SeedStream.TRAIN)
     dataset = collect(settings, dataset_file(job.out, job.task, job.settings), progress=False)
@@ -152,12 +160,6 @@ def _collect(job: CollectJob) -> str:
 
 
 def _train(job: TrainJob) -> str:
-    from perception.data import DatasetError, load_dataset
-    from perception.registry import new_model
-    from perception.train import TrainConfig
-    from perception.validation import fit_checked, write_check
-    from sim.trials import torch_threads
-
     settings, unit = job.settings, job.unit
     with torch_threads(settings.train_threads):
         path = dataset_file(job.out, unit.task, settings)
@@ -182,15 +184,11 @@ def _train(job: TrainJob) -> str:
 
 
 def _trials(job: TrialsJob) -> str:
-    from sim.trials import run_trials
-
     summary = run_trials(job.trials, trials_folder(job.out, job.trial_set), progress=False)
     return f"{summary.successes}/{summary.n}"
 
 
 def _gif(job: GifJob) -> str:
-    from experiments.table3.gifs import record_gif
-
     path = gif_file(job.out, job.unit)
     shown = record_gif(job.unit.model, job.trials, job.count, path)
     write_json(path.with_suffix(".json"), {"identity": gif_identity(job), "trials": shown})
@@ -210,8 +208,6 @@ def trials_done(job: TrialsJob) -> bool:
 
 
 def _summary_settings(trials: TrialSettings) -> dict[str, Any]:
-    from sim.records import json_form
-
     return json_form(trials.identity() | {"n": trials.n})
 
 
@@ -243,7 +239,10 @@ def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
     trains: list[TrainJob] = []
     for run_settings, folder in runs:
         units = run_settings.units()
-        refuse_stale(stale_checkpoints(run_settings, folder, units), "checkpoint(s)")
+        refuse_other_settings(
+            [(str(path), read_json(path)["identity"], run_settings.train_identity(unit))
+             for unit in units if (path := trained_file(folder, unit)).exists()],
+            "checkpoint(s)")
         tasks = sorted({u.task for u in units}, key=[u.task for u in units].index)
         collects += [CollectJob(f"collect-{t}-s{run_settings.seed}", t, run_settings, folder)
                      for t in tasks]
@@ -275,7 +274,7 @@ def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
                 bar.update(cost(by_name[outcome.name]))
 
             ordered = sorted(jobs, key=lambda job: -cost(job))  # longest first
-            pool.run(guarded, ordered, done)
+            pool.run(run_job, ordered, done)
 
         run(collects_todo)
         run([j for j in trains_todo if dataset_file(j.out, j.unit.task, j.settings).exists()])
@@ -320,25 +319,3 @@ def _trial_jobs(settings: ReproduceRealSettings, out: Path) -> tuple[list[Job], 
             else:
                 todo.append(candidate)
     return todo, skipped
-
-
-def stale_checkpoints(settings: ReproduceRealSettings, out: Path,
-                      units: Sequence[Unit]) -> list[str]:
-    """The units whose ``trained.json`` holds other settings, as ``file (differences)``."""
-    stale = []
-    for unit in units:
-        path = trained_file(out, unit)
-        if path.exists():
-            stored, asked = read_json(path)["identity"], settings.train_identity(unit)
-            if stored != asked:
-                stale.append(f"{path} ({differences(stored, asked)})")
-    return stale
-
-
-def refuse_stale(stale: Sequence[str], what: str) -> None:
-    """Raises a :class:`RunFolderError` listing files made with other settings, if any."""
-    if stale:
-        raise RunFolderError(
-            f"{len(stale)} {what} made with other settings, stored vs now: "
-            f"{'; '.join(stale[:3])}{' ...' if len(stale) > 3 else ''}; remove them to "
-            "compute them again with the current code, or use another --out")

@@ -22,8 +22,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple
 
-from experiments.runs import duration, write_json
-from experiments.table2.settings import MODEL_TITLES, TASK_TITLES, TASKS
 from experiments.table3.folder import history_wall_time_s, read_checks, read_failed, read_gifs
 from experiments.table3.settings import (
     DARK_BRIGHTNESS,
@@ -33,8 +31,9 @@ from experiments.table3.settings import (
     Variant,
     seed_folder,
 )
-from perception.files import atomic_write
+from experiments.tables import MODEL_TITLES, TASK_TITLES, TASKS, duration, write_json, write_text
 from sim.records import TrialOutcome, TrialRecord, TrialSummary
+from sim.tasks import TargetSelection, load_task
 
 PAPER_TABLE3 = {"single": 27, "multiple": 28, "selected-type": 26, "selected-position": 27}
 """The paper's Table III: successful picks of 30 on the real YuMi, 20 demonstrations each."""
@@ -172,8 +171,6 @@ def shared_target_type(task: str, record: TrialRecord) -> bool:
 
     Nothing in the image tells such a distractor from the target (a side condition at most).
     """
-    from sim.tasks import TargetSelection, load_task
-
     distractors = {o["type"] for o in record.objects if o.get("distractor")}
     if load_task(task).targets is TargetSelection.ALL:
         targets = {o["type"] for o in record.objects if not o.get("distractor")}
@@ -372,7 +369,7 @@ def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float
     paths = [out / "table3.json", out / "table3.md"]
     write_json(paths[0], table)
     text = table3_markdown(sets, made_by, gifs, failed, checks)
-    atomic_write(paths[1], lambda temporary: temporary.write_text(text, encoding="utf-8"))
+    write_text(paths[1], text)
     notes = [] if sets else ["no trials in this folder yet: the tables are empty"]
     notes += [f"WARNING: {c['model']} {c['task']} seed {c['seed']} failed its held-out check: "
               f"{c['reason']}" for c in checks if not c["passed"]]

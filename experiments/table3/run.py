@@ -1,9 +1,7 @@
-"""Runs ``gva reproduce real`` (:mod:`experiments.table3.settings`) into a run folder.
+"""Runs ``gva reproduce real`` into a run folder, or resumes it.
 
-Claims the folder and each seed's, writes the variant task files, runs the jobs
-(:mod:`experiments.table3.jobs`), appends the run to ``history.jsonl`` and rebuilds the reports
-(:mod:`experiments.table3.report`). The settings, paths and layout live in
-:mod:`experiments.table3.settings`, which imports none of these.
+Claims the folder and each seed's, writes the variant task files, runs the jobs, appends the
+run to ``history.jsonl`` and rebuilds the reports from what every seed's folder holds.
 """
 
 from __future__ import annotations
@@ -11,14 +9,16 @@ from __future__ import annotations
 import json
 import os
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from experiments.table3.jobs import run_jobs
+from experiments.table3.jobs import JobOutcome, run_jobs
 from experiments.table3.report import write_reports
 from experiments.table3.settings import ReproduceRealSettings, seed_folder, write_variant_tasks
+from experiments.tables import RunReport
 from sim.records import claim_run_folder
+
+ReproduceRealReport = RunReport[JobOutcome, str]
 
 
 def append_history(out: Path, entry: dict[str, Any]) -> None:
@@ -29,25 +29,9 @@ def append_history(out: Path, entry: dict[str, Any]) -> None:
         os.fsync(handle.fileno())
 
 
-@dataclass(frozen=True)
-class ReproduceRealReport:
-    """What a run did: jobs computed (with their failures) and skipped, and its outputs.
-
-    ``wall_time_s`` covers collecting, training, trials and GIFs, not the reports after.
-    """
-
-    computed: tuple[Any, ...]
-    skipped: tuple[str, ...]
-    failed: tuple[dict[str, Any], ...]
-    wall_time_s: float
-    outputs: tuple[Path, ...] = field(default_factory=tuple)
-    notes: tuple[str, ...] = field(default_factory=tuple)
-    table: str = ""  # the successes table of table3.md
-
-
 def run_reproduce_real(settings: ReproduceRealSettings, out: str | Path,
                        progress: bool = True) -> ReproduceRealReport:
-    """Runs (or resumes) the experiment into ``out`` (:mod:`experiments.table3.settings`).
+    """Runs (or resumes) the experiment into ``out``: jobs computed and skipped, outputs.
 
     Raises:
         RunFolderError: ``out`` holds a run with other shared settings, or a dataset or
@@ -71,6 +55,5 @@ def run_reproduce_real(settings: ReproduceRealSettings, out: str | Path,
                          "computed": [o.name for o in computed], "skipped": len(skipped),
                          "workers": settings.worker_count(), "finished_at": time.time()})
     reports = write_reports(settings, out, wall_time_s)
-    return ReproduceRealReport(tuple(computed), tuple(skipped), tuple(reports.failed),
-                               wall_time_s, tuple(reports.paths), tuple(reports.notes),
-                               reports.table)
+    return RunReport(tuple(computed), tuple(skipped), tuple(reports.failed), wall_time_s,
+                     tuple(reports.paths), tuple(reports.notes), reports.table)

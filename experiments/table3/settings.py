@@ -1,58 +1,7 @@
-"""``gva reproduce real``: the paper's Table III (YuMi picks out of 30) in simulation, resumable.
+"""What ``gva reproduce real`` runs: settings, units, trial sets, and where a folder keeps them.
 
-The paper trains its model on 20 demonstrations per task on a real ABB YuMi, then counts
-successful picks in 30 trials with the objects at untrained positions (Table III: 27, 28, 26
-and 27 of 30 for single, multiple, selected type, selected position). Here, on the ``yumi``
-scene, for each task and each model:
-
-1. Demonstrations: ``demos`` (20) scenes of the task from the TRAIN stream of ``seed``, each
-   picked by the oracle in the simulator and kept only if every pick succeeded
-   (:func:`sim.collect.collect`); the image before each pick, the condition and the grasp pose
-   (TCP position and rotation) of each target are a training sample, and a scene of a task
-   with a condition is shown under each of its values. One dataset per task serves every
-   model.
-2. Training: a fresh model (any name :func:`~perception.registry.new_model` takes), seeded with
-   ``seed``, trained for ``steps`` optimiser steps on one torch thread, to predict the grasp pose
-   of each target.
-3. Trials: ``n`` (30) closed-loop trials with the trained checkpoint in the loop
-   (:func:`sim.trials.run_trials`): scene ``i`` of the TEST stream of ``seed`` (never a
-   training scene), image -> predict -> arm choice -> IK -> ruckig -> PyBullet, success judged
-   by physics (lifted 5 cm and held 1 s). ``--seed`` moves every training and test scene.
-4. Robustness (``kqv``; the paper reports it for its robot): the same checkpoint and the same
-   30 scenes under darker light (brightness :data:`DARK_BRIGHTNESS`), and with a distractor of
-   :data:`DISTRACTOR_TYPES` added to each of them, never a target (:mod:`sim.scene` draws
-   distractors from their own stream: same objects, poses, targets and conditions, plus the
-   distractor). Both are task TOML options (``[lighting] brightness``, ``[distractors]
-   types``); their files are written to ``OUT/s<seed>/tasks/``. The checkpoint is accepted for them
-   because trials check a model against the task's scene, condition, targets and image size,
-   not its name. The distractor is the catalog's wooden block, the sponge's size and shape but
-   never a target type, so every trial still has one right answer (a target-type distractor
-   would leave ``single`` ambiguous; the report counts such trials if a task file asks for it).
-5. GIFs: the first :data:`GIF_TRIALS` trials of each model and task recorded again
-   (:mod:`experiments.table3.jobs`): the head image with the attention points beside the robot.
-6. Seeds: ``seeds`` runs of all the above, seeds ``S0 .. S0 + seeds - 1``, each in its own
-   folder ``OUT/s<seed>/``; a seed moves the demonstrations, the weights and the test scenes.
-   The tables report each seed's count, their mean and spread, and the pooled rate
-   (:mod:`experiments.table3.report`): a result that holds at one seed only is a lucky draw.
-
-Jobs run in ``workers`` processes (:mod:`experiments.jobs`) in three phases: collect, train,
-then trials and GIFs; one progress bar, measured in the jobs' estimated seconds, gives the
-time left. Resumability: a dataset, a checkpoint (with ``trained.json``), a trial folder (one
-line per finished trial, :class:`~sim.records.TrialLog`) and a GIF (with its ``.json``) each
-say what made them; a re-run skips what is finished and resumes an interrupted trial folder
-trial by trial. ``OUT/run.json`` holds the settings the folder shares (demos, n, steps, the
-variants), and each seed folder's ``run.json`` its seed too: a run with others is refused; a run
-with more seeds adds seed folders. A job that raises is recorded in
-``OUT/s<seed>/errors/<job>.json`` and the run goes on. Layout of ``OUT``::
-
-    run.json, history.jsonl               shared settings; one line per run (its wall time)
-    table3.json, table3.md                over every seed (see experiments.table3.report)
-    s<seed>/run.json                      the shared settings and the seed
-    s<seed>/datasets/<task>-train-<demos>-s<seed>.gva
-    s<seed>/checkpoints/<model>/<task>/   weights, config.json, trained.json
-    s<seed>/tasks/<task>-dark.toml, <task>-distractor.toml
-    s<seed>/trials/<model>/<task>[-dark|-distractor]/   run.json, trials.jsonl, summary.json
-    s<seed>/gifs/<model>-<task>.gif, .json
+A unit is one model trained on one task; a trial set is a unit's trials under a variant (as
+trained, darker light, a distractor). Each seed's run has its own folder ``OUT/s<seed>/``.
 """
 
 from __future__ import annotations
@@ -60,21 +9,27 @@ from __future__ import annotations
 import enum
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from experiments.runs import check_choices, check_counts
-from experiments.table2.datasets import dataset_path
-from experiments.table2.settings import TASKS, model_config
-from perception.files import atomic_write
+from experiments.tables import (
+    TASKS,
+    check_choices,
+    check_counts,
+    dataset_path,
+    model_config,
+    write_text,
+)
+from perception.registry import MODELS, PRESETS
+from perception.train import TrainConfig, available_threads
 from perception.validation import CheckConfig
+from sim.camera import CameraConfig
+from sim.execution import ExecutionSettings
 from sim.records import json_form
-
-if TYPE_CHECKING:
-    from sim.tasks import TaskSpec
-    from sim.trials import TrialSettings
+from sim.scene import SeedStream
+from sim.tasks import TaskSpec, load_task, task_to_toml
+from sim.trials import TrialSettings, obstacle_identity, task_identity
 
 SCENE = "yumi"
-DEFAULT_MODELS = ("kqv",)
 ROBUST_MODEL = "kqv"
 """The model whose robustness rows are run (the paper reports them for its own model)."""
 DARK_BRIGHTNESS = 0.5
@@ -97,15 +52,17 @@ class Variant(enum.Enum):
 
 def allowed_models() -> tuple[str, ...]:
     """The model names ``new_model`` takes: registered models and presets."""
-    from perception.registry import MODELS, PRESETS
-
     return (*MODELS, *PRESETS)
 
 
 def variant_task(task: str, variant: Variant) -> TaskSpec:
-    """The task ``task`` under ``variant``: the same scenes, darker or with a distractor."""
-    from sim.tasks import load_task
+    """The task ``task`` under ``variant``: the same scenes, darker or with a distractor.
 
+    Distractors come from a seed stream of their own, so the objects, poses, targets and
+    conditions stay those of the plain task. The plain task's checkpoint serves every variant:
+    trials check a model against the task's scene, condition, targets and image size, not its
+    name.
+    """
     base = load_task(task)
     if variant is Variant.DARK:
         return replace(base, name=f"{task}-dark", brightness=DARK_BRIGHTNESS,
@@ -152,11 +109,11 @@ class TrialSet:
 
 @dataclass(frozen=True)
 class ReproduceRealSettings:
-    """What ``gva reproduce real`` runs.
+    """What ``gva reproduce real`` runs; its fields' defaults are the command's.
 
     Args:
         models: Models to train, names :func:`~perception.registry.new_model` takes.
-        tasks: Tasks, from :data:`TASKS`.
+        tasks: Tasks, from :data:`~experiments.tables.TASKS`.
         n: Trials per model and task (the paper's 30).
         demos: Demonstrations per task (the paper's 20).
         steps: Optimiser steps of training.
@@ -175,11 +132,11 @@ class ReproduceRealSettings:
 
     """
 
-    models: tuple[str, ...] = DEFAULT_MODELS
+    models: tuple[str, ...] = ("kqv",)
     tasks: tuple[str, ...] = TASKS
-    n: int = 30
+    n: int = TrialSettings.n
     demos: int = 20
-    steps: int = 1000
+    steps: int = TrainConfig.steps
     seed: int = 0
     seeds: int = 1
     robustness: bool = True
@@ -215,14 +172,10 @@ class ReproduceRealSettings:
 
     def worker_count(self) -> int:
         """The processes to run: ``workers``, or the cores this process may use."""
-        from perception.train import available_threads
-
         return self.workers if self.workers is not None else available_threads()
 
     def train_config(self) -> dict[str, Any]:
         """The training settings of every unit, on ``train_threads`` torch threads."""
-        from perception.train import TrainConfig
-
         return asdict(TrainConfig(steps=self.steps, seed=self.seed, threads=self.train_threads))
 
     def run_identity(self) -> dict[str, Any]:
@@ -231,9 +184,6 @@ class ReproduceRealSettings:
 
     def shared_identity(self) -> dict[str, Any]:
         """What every seed of a run folder shares; ``OUT/run.json`` holds it."""
-        from sim.execution import ExecutionSettings
-        from sim.trials import TrialSettings, obstacle_identity
-
         train = self.train_config()
         train.pop("seed")  # each seed's own
         return {"format_version": FORMAT_VERSION, "experiment": "reproduce-real",
@@ -246,10 +196,6 @@ class ReproduceRealSettings:
 
     def train_identity(self, unit: Unit) -> dict[str, Any]:
         """What defines a unit's checkpoint; ``trained.json`` holds it."""
-        from sim.camera import CameraConfig
-        from sim.tasks import load_task
-        from sim.trials import task_identity
-
         return json_form({"model": unit.model, "model_config": model_config(unit.model,
                                                                              self.seed),
                           "task": task_identity(load_task(unit.task)), "demos": self.demos,
@@ -258,8 +204,6 @@ class ReproduceRealSettings:
 
     def trial_settings(self, out: Path, trial_set: TrialSet) -> TrialSettings:
         """The :class:`~sim.trials.TrialSettings` of a set (its checkpoint must exist)."""
-        from sim.trials import TrialSettings
-
         task = (trial_set.unit.task if trial_set.variant is Variant.PLAIN
                 else str(variant_file(out, trial_set)))
         return TrialSettings(model=str(checkpoint_folder(out, trial_set.unit)), task=task,
@@ -269,15 +213,15 @@ class ReproduceRealSettings:
         """The ``gva reproduce real`` command line of these settings (workers left out)."""
         parts = ["gva reproduce real", f"--out {out}", f"--seed {self.seed}", f"--n {self.n}",
                  f"--demos {self.demos}", f"--steps {self.steps}"]
-        if self.seeds != 1:
+        if self.seeds != ReproduceRealSettings.seeds:
             parts.append(f"--seeds {self.seeds}")
         if set(self.tasks) != set(TASKS):
             parts.append(f"--tasks {','.join(self.tasks)}")
-        if self.models != DEFAULT_MODELS:
+        if self.models != ReproduceRealSettings.models:
             parts.append(f"--models {','.join(self.models)}")
         if not self.robustness:
             parts.append("--no-robustness")
-        if self.train_threads != 1:
+        if self.train_threads != ReproduceRealSettings.train_threads:
             parts.append(f"--train-threads {self.train_threads}")
         if self.check.holdout != CheckConfig.holdout:
             parts.append(f"--holdout {self.check.holdout:g}")
@@ -294,8 +238,6 @@ def seed_folder(out: Path, seed: int) -> Path:
 
 def dataset_file(out: Path, task: str, settings: ReproduceRealSettings) -> Path:
     """The demonstrations of a task."""
-    from sim.scene import SeedStream
-
     return dataset_path(out, task, SeedStream.TRAIN, settings.demos, settings.seed)
 
 
@@ -331,8 +273,6 @@ def error_file(out: Path, job: str) -> Path:
 
 def write_variant_tasks(settings: ReproduceRealSettings, out: Path) -> None:
     """Writes the task TOML of every robustness variant the run needs (when it changed)."""
-    from sim.tasks import task_to_toml
-
     for trial_set in settings.trial_sets():
         if trial_set.variant is Variant.PLAIN:
             continue
@@ -341,9 +281,4 @@ def write_variant_tasks(settings: ReproduceRealSettings, out: Path) -> None:
                 "written by gva reproduce real\n"
                 + task_to_toml(variant_task(trial_set.unit.task, trial_set.variant)))
         if not path.exists() or path.read_text(encoding="utf-8") != text:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            _write_text(path, text)
-
-
-def _write_text(path: Path, text: str) -> None:
-    atomic_write(path, lambda temporary: temporary.write_text(text, encoding="utf-8"))
+            write_text(path, text)
