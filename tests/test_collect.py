@@ -96,7 +96,7 @@ def test_cli_collect_reports_a_bad_task(tmp_path, capsys):
                                               (["--stream", "test"], SeedStream.TEST)])
 def test_cli_collect_passes_the_stream_to_the_settings(tmp_path, capsys, monkeypatch, given,
                                                       stream):
-    import sim.collect
+    import experiments.commands.collect
 
     asked = []
 
@@ -104,7 +104,7 @@ def test_cli_collect_passes_the_stream_to_the_settings(tmp_path, capsys, monkeyp
         asked.append(settings)
         return synthetic_dataset(size=2)
 
-    monkeypatch.setattr(sim.collect, "collect", collected)
+    monkeypatch.setattr(experiments.commands.collect, "collect", collected)
     assert main(["collect", "--scene", "yumi", "--task", "single", "--size", "100", "--seed",
                  "0", *given, "--out", str(tmp_path / "x.gva"), "--no-progress"]) == 0
     assert asked == [CollectSettings("yumi", "single", 100, 0, stream)]

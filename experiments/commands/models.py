@@ -1,8 +1,9 @@
-"""The ``gva train``, ``gva evaluate`` and ``gva show attention`` commands (see :mod:`.cli`).
+"""``gva train``, ``gva evaluate`` and ``gva show attention``: the commands that load torch.
 
-Each takes the parsed arguments, prints what a reader needs (one summary line, the file it
-wrote) and returns the exit status; errors are raised for :func:`experiments.cli.main` to
-report in one line. Torch is imported here, never by ``gva trials --model oracle``.
+Each prints what a reader needs (one summary line, the file it wrote) and returns the exit
+status; errors are raised for :func:`experiments.cli.main` to report in one line. Training
+defaults are :class:`~perception.train.TrainConfig`'s and
+:class:`~perception.validation.CheckConfig`'s.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from experiments.commands.arguments import integer
 from perception.checkpoint import CONFIG_FILE, WEIGHTS_FILE, read_config
 from perception.data import Dataset, load_dataset
 from perception.drawing import AttentionRow, attention_figure, write_png
@@ -25,6 +27,60 @@ from perception.learnable import LearnableModel
 from perception.registry import load_model, new_model
 from perception.train import TrainConfig
 from perception.validation import CHECK_FILE, CheckConfig, fit_checked, write_check
+
+
+def add_options(parser: argparse.ArgumentParser, command: str) -> None:
+    """The options of ``command``: ``train``, ``evaluate`` or ``attention`` (gva show)."""
+    if command == "train":
+        _train_options(parser)
+        parser.set_defaults(run=run_train)
+        return
+    parser.add_argument("--model", type=Path, required=True, help="checkpoint folder")
+    if command == "evaluate":
+        parser.add_argument("--data", type=Path, required=True,
+                            help="dataset file (test scenes)")
+        parser.add_argument("--out", type=Path,
+                            help="JSON file to write (MODEL/evaluation-<dataset name>.json)")
+        parser.set_defaults(run=run_evaluate)
+    else:
+        parser.add_argument("--data", type=Path, required=True, help="dataset file")
+        parser.add_argument("--out", type=Path, required=True, help="folder for the PNGs")
+        parser.add_argument("--count", type=integer(1), default=8,
+                            help="samples drawn (%(default)s)")
+        parser.add_argument("--scale", type=integer(1), default=3,
+                            help="enlarge the image this many times (%(default)s)")
+        parser.set_defaults(run=run_show_attention)
+    parser.add_argument("--model-class", metavar="MODULE:CLASS",
+                        help="the class that loads a checkpoint of an unregistered model")
+
+
+def _train_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--model", required=True,
+                        help="registered model, preset (keypoint-16) or package.module:Class")
+    parser.add_argument("--data", type=Path, required=True, help="training dataset file")
+    parser.add_argument("--out", type=Path, required=True, help="checkpoint folder to write")
+    parser.add_argument("--seed", type=integer(0), default=TrainConfig.seed,
+                        help="seeds the weights and the batches (%(default)s)")
+    parser.add_argument("--steps", type=integer(1), default=TrainConfig.steps,
+                        help="optimiser steps (%(default)s)")
+    parser.add_argument("--batch-size", type=integer(1), default=TrainConfig.batch_size,
+                        help="samples per step (%(default)s)")
+    parser.add_argument("--points", type=integer(1),
+                        help="attention points of models that have the setting (keypoint)")
+    parser.add_argument("--threads", type=integer(1), default=TrainConfig.threads,
+                        help="torch CPU threads (default: the cores it may use)")
+    parser.add_argument("--holdout", type=float, default=CheckConfig.holdout,
+                        help="fraction of the training scenes held out to check the trained "
+                        "model (%(default)s; 0: no check)")
+    parser.add_argument("--check-limit-cm", type=float, default=CheckConfig.limit_cm,
+                        help="largest held-out mean error, of the whole, each condition and "
+                        "each head [cm] (%(default)s)")
+    parser.add_argument("--attempts", type=integer(1), default=CheckConfig.attempts,
+                        help="trainings tried from other starts before the checkpoint is "
+                        "marked failed (%(default)s)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace a checkpoint already in --out")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def run_train(args: argparse.Namespace) -> int:
@@ -38,11 +94,10 @@ def run_train(args: argparse.Namespace) -> int:
                                 f"{' and '.join(held)} (pass --overwrite to replace them)")
     dataset = load_dataset(args.data)
     hyperparameters = {} if args.points is None else {"points": args.points}
-    given = {"steps": args.steps, "batch_size": args.batch_size, "threads": args.threads}
-    config = TrainConfig(seed=args.seed, **{k: v for k, v in given.items() if v is not None})
-    check = CheckConfig(**{name: value for name, value in (
-        ("holdout", args.holdout), ("limit_cm", args.check_limit_cm),
-        ("attempts", args.attempts)) if value is not None})
+    config = TrainConfig(steps=args.steps, batch_size=args.batch_size, seed=args.seed,
+                         threads=args.threads)
+    check = CheckConfig(holdout=args.holdout, limit_cm=args.check_limit_cm,
+                        attempts=args.attempts)
     fit = fit_checked(lambda seed: new_model(args.model, dataset, seed=seed, **hyperparameters),
                       dataset, config, check, progress=not args.no_progress, log=print)
     model, report = fit.model, fit.report

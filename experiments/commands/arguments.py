@@ -1,0 +1,34 @@
+"""Argparse types of the ``gva`` options: each rejects bad text with a message that says why."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+
+
+def integer(minimum: int) -> Callable[[str], int]:
+    """An argparse type: an integer >= ``minimum``, with a message that says so."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"{value} is not allowed: an integer >= {minimum}")
+        return value
+
+    return parse
+
+
+def names(text: str) -> tuple[str, ...]:
+    """An argparse type: comma-separated names (checked against the allowed ones later)."""
+    return tuple(name.strip() for name in text.split(",") if name.strip())
+
+
+def integers(text: str) -> tuple[int, ...]:
+    """An argparse type: comma-separated integers."""
+    try:
+        return tuple(int(value) for value in names(text))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not comma-separated integers") from None

@@ -1,0 +1,52 @@
+"""``gva collect``: a training or test dataset of a task, in one file.
+
+Defaults are :class:`~sim.collect.CollectSettings`'.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from experiments.commands.arguments import integer
+from sim.collect import CollectSettings, collect
+from sim.scene import SeedStream
+
+
+def add_options(parser: argparse.ArgumentParser) -> None:
+    """The options of ``gva collect``."""
+    parser.add_argument("--scene", required=True, help="paper-sim or yumi")
+    parser.add_argument("--task", required=True, help="built-in task name or task TOML path")
+    parser.add_argument("--size", type=integer(1), required=True, help="number of scenes")
+    parser.add_argument("--seed", type=integer(0), default=CollectSettings.seed,
+                        help="seed of the scenes (%(default)s)")
+    parser.add_argument("--stream", choices=[stream.name.lower() for stream in SeedStream],
+                        default=CollectSettings.stream.name.lower(),
+                        help="seed stream: train, or test for untrained scenes (%(default)s)")
+    parser.add_argument("--every-condition", action=argparse.BooleanOptionalAction,
+                        default=CollectSettings.every_condition,
+                        help="a sample per condition value of each scene, each labelled with "
+                        "the object that value names (default: for the train stream)")
+    parser.add_argument("--out", type=Path, required=True, help="dataset file to write")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Collects the dataset and prints what it holds; the exit status."""
+    settings = CollectSettings(scene=args.scene, task=args.task, size=args.size, seed=args.seed,
+                               stream=SeedStream[args.stream.upper()],
+                               every_condition=args.every_condition)
+    dataset = collect(settings, args.out, progress=not args.no_progress)
+    meta = dataset.metadata
+    redrawn = meta.extra.get("demonstrations_redrawn")
+    scenes = meta.extra.get("scenes", meta.size)
+    why = ("one per condition value" if meta.extra.get("every_condition") and meta.targets == 1
+           else "one before each pick")
+    images = f" ({meta.size} samples: {why})" if scenes != meta.size else ""
+    print(f"{scenes} scenes{images} of {meta.scene} / {meta.task} (seed {meta.seed}, "
+          f"{meta.extra.get('stream', args.stream)} stream), "
+          f"{meta.targets} target(s) each, {meta.label_kind.value} labels"
+          + (f"; {redrawn} failed demonstrations redrawn" if redrawn is not None else ""))
+    print(f"dataset: {args.out}")
+    return 0

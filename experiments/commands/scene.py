@@ -1,0 +1,42 @@
+"""``gva show scene``: a scene of a task's training or test stream, as its camera sees it."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from experiments.commands.arguments import integer
+from sim.scene import SeedStream, sample_scene
+from sim.scenes import get_scene_spec
+from sim.show import render_scene, write_scene_png
+from sim.tasks import load_task
+
+
+def add_options(parser: argparse.ArgumentParser) -> None:
+    """The options of ``gva show scene``."""
+    parser.add_argument("--scene", required=True, help="paper-sim or yumi")
+    parser.add_argument("--task", default="multiple",
+                        help="task name or TOML path (%(default)s)")
+    parser.add_argument("--seed", type=integer(0), default=0, help="seed (%(default)s)")
+    parser.add_argument("--index", type=integer(0), default=0, help="scene index (%(default)s)")
+    parser.add_argument("--stream", choices=[stream.name.lower() for stream in SeedStream],
+                        default="test", help="seed stream (%(default)s)")
+    parser.add_argument("--scale", type=integer(1), default=1,
+                        help="enlarge the PNG this many times (%(default)s: the model's size)")
+    parser.add_argument("--out", type=Path, required=True, help="PNG file to write")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Renders the scene, writes the PNG and says what it shows; the exit status."""
+    task = load_task(args.task)
+    stream = SeedStream[args.stream.upper()]
+    scene = sample_scene(task, get_scene_spec(args.scene), args.seed, stream, args.index)
+    image = render_scene(scene, task.brightness)
+    path = write_scene_png(image, args.out, args.scale)
+    targets = ", ".join(scene.objects[i].object_type for i in scene.targets)
+    condition = f"; condition {scene.condition.value}" if scene.condition.value else ""
+    print(f"{args.scene} / {task.name}, {args.stream} scene {args.index}: targets {targets}"
+          f"{condition}; {image.shape[1]}x{image.shape[0]} px image")
+    print(f"wrote {path}")
+    return 0

@@ -1,0 +1,68 @@
+"""``gva reproduce real``: the paper's Table III on the simulated YuMi, its options and summary.
+
+Defaults are :class:`~experiments.table3.settings.ReproduceRealSettings`' (and the held-out
+check's, :class:`~perception.validation.CheckConfig`'s).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from experiments.commands.arguments import integer, names
+from experiments.table3.run import run_reproduce_real
+from experiments.table3.settings import ReproduceRealSettings
+from perception.validation import CheckConfig
+
+
+def add_options(parser: argparse.ArgumentParser) -> None:
+    """The options of ``gva reproduce real``."""
+    defaults = ReproduceRealSettings  # its fields' defaults, as class attributes
+    parser.add_argument("--out", type=Path, required=True, help="run folder")
+    parser.add_argument("--seeds", type=integer(1), default=defaults.seeds,
+                        help="runs of the whole experiment, seeds S0 .. S0 + SEEDS - 1 "
+                        "(%(default)s)")
+    parser.add_argument("--seed", type=integer(0), default=defaults.seed,
+                        help="S0: seeds the demonstrations, the weights and the test scenes "
+                        "(%(default)s)")
+    parser.add_argument("--workers", type=integer(1), default=defaults.workers,
+                        help="processes at once (default: the cores this process may use)")
+    parser.add_argument("--train-threads", type=integer(1), default=defaults.train_threads,
+                        help="torch threads per training job (%(default)s: jobs train side by "
+                        "side; a one-task run trains faster on all cores; results depend on it)")
+    parser.add_argument("--tasks", type=names, default=defaults.tasks,
+                        help=f"comma-separated (default all: {','.join(defaults.tasks)})")
+    parser.add_argument("--models", type=names, default=defaults.models,
+                        help="comma-separated names gva train takes, e.g. kqv,keypoint-16,fcn "
+                        f"(default {','.join(defaults.models)})")
+    parser.add_argument("--n", type=integer(1), default=defaults.n,
+                        help="trials per model and task (%(default)s)")
+    parser.add_argument("--demos", type=integer(1), default=defaults.demos,
+                        help="demonstrations per task (%(default)s)")
+    parser.add_argument("--steps", type=integer(1), default=defaults.steps,
+                        help="optimiser steps of training (%(default)s)")
+    parser.add_argument("--holdout", type=float, default=CheckConfig.holdout,
+                        help="fraction of each task's demonstrations held out to check its "
+                        "trained model (%(default)s; 0: train on all, check nothing)")
+    parser.add_argument("--robustness", action=argparse.BooleanOptionalAction,
+                        default=defaults.robustness,
+                        help="also run kqv under darker light and with a distractor "
+                        f"({'on' if defaults.robustness else 'off'})")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Runs (or resumes) the table and prints its summary; 1 when some job failed."""
+    settings = ReproduceRealSettings(models=args.models, tasks=args.tasks, n=args.n,
+                                     demos=args.demos, steps=args.steps, seed=args.seed,
+                                     seeds=args.seeds, check=CheckConfig(holdout=args.holdout),
+                                     robustness=args.robustness, workers=args.workers,
+                                     train_threads=args.train_threads)
+    report = run_reproduce_real(settings, args.out, progress=not args.no_progress)
+    for line in report.summary_lines("job(s) run", lambda record: record["job"]):
+        print(line)
+    print(report.table)
+    print(f"files: {args.out}/ (table3.md, table3.json; per seed s<seed>/: gifs/, trials/, "
+          "checkpoints/)")
+    return 1 if report.failed else 0

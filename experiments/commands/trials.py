@@ -1,0 +1,59 @@
+"""``gva trials``: closed-loop pick trials at untrained positions, appended to a run folder.
+
+Defaults are :class:`~sim.trials.TrialSettings`'. No torch here: ``gva trials --model oracle``
+never loads it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from experiments.commands.arguments import integer
+from sim.planning import ObstacleSource
+from sim.trials import TrialSettings, held_out_check, run_trials
+
+
+def add_options(parser: argparse.ArgumentParser) -> None:
+    """The options of ``gva trials``."""
+    parser.add_argument("--model", default="oracle",
+                        help="oracle (default), a checkpoint folder, or package.module:Class")
+    parser.add_argument("--model-class", metavar="MODULE:CLASS",
+                        help="the class that loads a checkpoint of an unregistered model")
+    parser.add_argument("--task", default="single",
+                        help="built-in task name or task TOML path (default: %(default)s)")
+    parser.add_argument("--n", type=integer(1), default=TrialSettings.n,
+                        help="number of trials (%(default)s)")
+    parser.add_argument("--seed", type=integer(0), default=TrialSettings.seed,
+                        help="seed of the test scenes (%(default)s)")
+    parser.add_argument("--out", type=Path, required=True, help="run folder")
+    parser.add_argument("--obstacles", choices=[source.value for source in ObstacleSource],
+                        default=TrialSettings.obstacles.value,
+                        help="what picks are planned around: the head camera's depth image "
+                        "(default), or the simulator's true shapes, to debug the planner only")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Runs (or resumes) the trials and prints their summary; the exit status."""
+    settings = TrialSettings(model=args.model, task=args.task, n=args.n, seed=args.seed,
+                             model_class=args.model_class,
+                             obstacles=ObstacleSource(args.obstacles))
+    check = held_out_check(settings)
+    if check is not None and not check.passed:
+        print(f"WARNING: checkpoint {args.model} failed its training's held-out check "
+              f"({check.reason}): these trials measure a model known to be poor",
+              file=sys.stderr)
+    summary = run_trials(settings, args.out, progress=not args.no_progress)
+    print(summary.headline())
+    for outcome, count in summary.outcomes.items():
+        if count:
+            print(f"  {outcome:<18} {count}")
+    picked = ", ".join(f"{name} {c['picked']}/{c['attempted']}"
+                       for name, c in summary.per_object.items())
+    print(f"picks by object: {picked}")
+    print(f"median wall time per trial: {summary.median_wall_time_s:.2f} s")
+    print(f"trials: {args.out / 'trials.jsonl'}   summary: {args.out / 'summary.json'}")
+    return 0
