@@ -16,15 +16,9 @@
 ``--model-class package.module:Class`` for a model that is not registered. ``trials`` also
 takes ``oracle`` or ``package.module:Class`` of a model that needs no weights.
 
-``reproduce sim`` runs the paper's Table II in the simulator (:mod:`experiments.table2`): it
-collects, trains and scores every model x task x size x seed cell in parallel processes and
-writes ``table2.md``/``.json``/``.png`` and ``fig5.png``; it exits with status 1 when it
-finished but some cells failed (each failure is recorded). ``reproduce real`` runs the paper's
-Table III on the simulated YuMi (:mod:`experiments.table3`): per task, 20 oracle
-demonstrations, each model trained on them, 30 closed-loop pick trials with the model in the
-loop, kqv again under darker light and with a distractor; it writes ``table3.md``/``.json`` and
-a GIF per model and task, and exits with status 1 when some job failed. ``make demo`` is its
-short form (one task, kqv).
+``reproduce sim`` and ``reproduce real`` run the paper's Tables II and III
+(:mod:`experiments.table2`, :mod:`experiments.table3`, ``docs/reproducing.md``); each exits
+with status 1 when it finished but some of its jobs failed (each failure is recorded).
 
 Bad input exits with status 2 and one line naming the value and what is allowed; a run that
 stops half-way (``trials``, ``reproduce sim``, ``reproduce real``) is resumed by running the

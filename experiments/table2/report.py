@@ -1,13 +1,9 @@
 """The reports of ``gva reproduce sim``, rebuilt from every cell file of a run folder.
 
-- ``table2.json``: every cell (model, task, size, seed, error_cm, train_s), the mean and spread
-  per model, task and size, the settings, the run's wall time and the failed cells.
-- ``table2.md``: the table laid out like the paper's Table II (a row per model, a column group
-  per task, a column per training set size), ``mean ± std`` over seeds in cm (the sample
-  standard deviation; the mean alone for one seed), **bold** below 5 cm as in the paper; then
-  the paper's own numbers (:data:`PAPER_TABLE2_CM`) in the same layout, and how the table was
-  made.
-- ``table2.png`` and ``fig5.png``: drawn by :mod:`experiments.table2.figures`.
+``table2.json`` (the cells, their means and spreads, the settings, the failures) and
+``table2.md`` (ours laid out like the paper's Table II, then the paper's numbers,
+:data:`PAPER_TABLE2_CM`, and where the two differ); the plots are :mod:`.figures`'. What each
+file holds: ``docs/reproducing.md``.
 """
 
 from __future__ import annotations

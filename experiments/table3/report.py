@@ -1,17 +1,9 @@
 """The reports of ``gva reproduce real``, rebuilt from every trial folder of every seed's folder.
 
-- ``table3.json``: ``seeds``; ``tasks`` (the kqv row: per task ``per_seed`` (seed, successes,
-  n), the ``mean`` and ``std`` of the successes over the seeds, and over every seed's trials
-  pooled ``successes``, ``n``, ``wilson95``, ``outcomes`` and more), ``models`` (every model
-  the same way), ``robustness`` (kqv under darker light and with a distractor), the paper's
-  numbers, the GIFs, the settings, the last run's wall time and the failed jobs.
-- ``table3.md``: laid out like the paper's Table III (a column per task): ``k/30`` for one
-  seed, ``mean ± std`` with each seed's count for several; the paper's row, then ours, one row
-  per model, the robustness rows; the pooled 95 % Wilson intervals and the median grasp
-  position error of each row; the failure reasons per task (outcome counts and example
-  trials); the GIFs; how it was made.
-
-A trial folder of an interrupted run counts the trials it has, marked ``*``.
+``table3.json`` (per model, task and variant: each seed's successes, their mean and spread,
+and every seed's trials pooled) and ``table3.md`` (laid out like the paper's Table III, then
+intervals, held-out checks, failure reasons and GIFs). A trial folder of an interrupted run
+counts the trials it has, marked ``*``. What each file holds: ``docs/reproducing.md``.
 """
 
 from __future__ import annotations
