@@ -152,7 +152,7 @@ def build_parser() -> argparse.ArgumentParser:
         "sim", options=_table2,
         help="Table II: position error of every model in the simulator",
         description="Collects paper-sim datasets, trains every model x task x size x seed "
-        "cell in parallel processes, scores each on the task's 100 test scenes, and writes "
+        "cell in parallel processes, scores each on its task's untrained test scenes and writes "
         "OUT/table2.md, table2.json, table2.png and fig5.png. Re-running skips finished cells.",
     )
     experiments.add_parser(
