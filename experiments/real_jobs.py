@@ -152,7 +152,7 @@ def _collect(job: CollectJob) -> str:
 
 
 def _train(job: TrainJob) -> str:
-    from perception.data import DatasetError, load_dataset
+    from perception.dataset_file import DatasetError, load_dataset
     from perception.registry import new_model
     from perception.train import TrainConfig
     from perception.validation import fit_checked, write_check

@@ -257,7 +257,7 @@ def load_scenes(path: Path, scene: str, task: str, scenes: int, seed: int) -> Da
     A scene may give several samples (one per condition value, or per pick): counted are
     scenes (``extra["scenes"]``), not samples.
     """
-    from perception.data import DatasetError, load_dataset
+    from perception.dataset_file import DatasetError, load_dataset
 
     dataset = load_dataset(path, expect={"scene": scene, "task": task, "seed": seed})
     held = dataset.metadata.extra.get("scenes", len(dataset))

@@ -66,7 +66,7 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
     """
     if not path.exists():
         return False
-    from perception.data import read_metadata
+    from perception.dataset_file import read_metadata
     from sim.camera import CameraConfig
     from sim.collect import CollectSettings
     from sim.scenes import scene_camera

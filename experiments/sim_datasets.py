@@ -46,7 +46,7 @@ class DatasetJob:
 
 def collect_datasets(job: DatasetJob) -> DatasetJob:
     """Collects the largest of ``job.sizes`` once and writes the smaller sets as its prefixes."""
-    from perception.data import save_dataset
+    from perception.dataset_file import save_dataset
     from sim.collect import CollectSettings, collect
 
     largest = max(job.sizes)

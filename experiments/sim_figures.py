@@ -102,7 +102,7 @@ def draw_fig5(settings: ReproduceSimSettings, out: Path, cells: Sequence[Mapping
                     "this folder"]
     from matplotlib.figure import Figure
 
-    from perception.data import load_dataset
+    from perception.dataset_file import load_dataset
 
     across = min(FIG5_TASKS_ACROSS, len(tasks))  # task blocks side by side
     down = -(-len(tasks) // across)

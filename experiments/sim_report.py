@@ -120,7 +120,7 @@ def markdown_table(rows: Mapping[str, Mapping[tuple[str, int], str]], tasks: Seq
 def no_image_reference(settings: ReproduceSimSettings, out: Path,
                        cells: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     """The no-image reference's error per (task, size, seed) of the cells present."""
-    from perception.data import load_dataset
+    from perception.dataset_file import load_dataset
     from perception.evaluate import label_mean_error_cm
 
     tests: dict[str, Dataset] = {}

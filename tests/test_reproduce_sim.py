@@ -24,7 +24,7 @@ from experiments.sim_report import (
     table2_markdown,
 )
 from experiments.sim_run import run_reproduce_sim
-from perception.data import load_dataset
+from perception.dataset_file import load_dataset
 from sim.errors import InvalidInputError
 from sim.records import RunFolderError
 
