@@ -18,7 +18,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from perception.data import read_metadata
+from perception.dataset_file import read_metadata
 from sim.collect import CollectSettings, collect
 from sim.tasks import builtin_tasks
 

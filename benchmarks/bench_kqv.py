@@ -31,7 +31,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from perception.data import Dataset, load_dataset
+from perception.data import Dataset
+from perception.dataset_file import load_dataset
 from perception.evaluate import evaluate
 from perception.interface import ConditionKind, LabelKind
 from perception.learnable import ModelSpec

@@ -1,23 +1,12 @@
 """Obstacles from a depth camera: what stands on the table, as height fields for the checker.
 
 A robot that plans from its own camera has, instead of object shapes, the points its depth
-image shows. :func:`depth_obstacles` keeps the points above the table inside the workspace,
-raises a grid of ``cell_m`` spacing to their heights (solid from the table up: what stands on a
-table fills the space below what the camera sees of it) and hands the result to
-:class:`~control.collision.CollisionChecker` as a :class:`~control.collision.HeightField`.
-
-The target is what the open fingers close on. The points are split into clusters (Euclidean
-clustering, as tabletop segmentation has done since PCL: points closer than ``cluster_m`` are
-one object; the table between two objects parts them), and every cluster with a point inside
-the fingers' box at the predicted grasp (grown by ``target_margin_m``) is the target's. Its
-points form a separate field, avoided on the approach and ignored from the descend on (the
-fingers close around it and lift it: :class:`~control.pick.PickRequest`'s
-``target_obstacles``); everything else is an obstacle for the whole pick.
-
-What the camera cannot see: space outside its view is taken as free (the workcell beyond the
-workspace is kept clear); space hidden behind what it sees is free or occupied as
-:class:`OccludedSpace` says (occupied: every ray is extended past the surface it hit, down to
-the table, and the points along it count as seen).
+image shows. :func:`depth_obstacles` keeps those above the table in the workspace, splits them
+into objects (Euclidean clustering), sets apart the target (the clusters in the open fingers'
+box at the predicted grasp: :class:`~control.pick.PickRequest`'s ``target_obstacles``) and
+raises each part to a :class:`~control.collision.HeightField`, solid from the table up; hidden
+space is free or occupied as :class:`OccludedSpace` says. Why a height field, clusters and free
+hidden space: ``docs/decisions/depth-obstacles.md``.
 """
 
 from __future__ import annotations

@@ -1,12 +1,8 @@
 """Inverse kinematics of one arm's tool frame to a full 6-D pose, within joint limits.
 
-Works for any fixed-base robot that :class:`RobotModel` loads (the YuMi arms, a Panda, ...).
-A Levenberg-Marquardt iteration (damping after Sugihara 2011) on a reduced Pinocchio model that
-holds only the joints that move, so each iteration costs one 7-joint kinematics pass instead of
-the whole robot's. The error is the frame's body twist to the target (SE(3) log, as in pink).
-Joint limits are kept by bounding every step to a fraction of the distance to each limit and
-re-solving for the free joints when some hit their bound. An attempt that stalls restarts from
-a random in-limit arm configuration drawn from the caller's ``numpy.random.Generator``.
+Works for any fixed-base robot that :class:`RobotModel` loads (the YuMi arms, a Panda, ...):
+damped least squares on the moving joints alone, joint limits kept by bounded steps, random
+restarts drawn from the caller's generator. How and why: ``docs/decisions/control.md``.
 
 Example::
 
@@ -57,9 +53,8 @@ class IkOptions:
         rotation_weight_m: Length that turns a rotation error in [rad] into [m] where the two
             are weighed together; about a third of the arm's reach balances them.
         limit_gain: Fraction of the distance to a joint limit that one step may cover, in
-            (0, 1]; below 1 a joint slows down as it nears a limit instead of sticking to it.
-            From YuMi HOME, 0.3 reaches 84 % of random targets without a restart, 0.5 79 %,
-            1.0 60 %.
+            (0, 1]; below 1 a joint slows down as it nears a limit instead of sticking to it
+            (measured in ``docs/decisions/control.md``).
         stall_iterations: An attempt gives up once its error has not fallen by 2 % in this many
             iterations.
 

@@ -2,8 +2,8 @@
 
 Every segment starts and ends at rest and follows the straight line in joint space from its start
 to its goal, so a collision check over the samples checks the path that will be executed.
-Segments chain through waypoints with :meth:`JointTrajectory.then` (ruckig's free edition
-computes intermediate waypoints only through its cloud service, which is not used here).
+Segments chain through waypoints with :meth:`JointTrajectory.then` (ruckig's free edition plans
+no intermediate waypoints offline: ``docs/decisions/control.md``).
 
 Example:
     >>> limits = JointLimits.from_robot(robot, yumi.ARM_JOINTS["r"],
@@ -323,11 +323,8 @@ def plan_segment(
 ) -> JointTrajectory:
     """Plan the time-optimal rest-to-rest motion along the straight joint-space line.
 
-    ruckig plans it offline with Phase synchronization: every joint follows the same normalized
-    profile, so each sample lies on the line. Where that profile would break a joint's limits,
-    ruckig would silently fall back to a curved Time-synchronized path; this function detects
-    that and plans the line's path parameter instead, so the path is always the straight line
-    (and time-optimal for it). Samples lie every ``dt_s`` and at the exact end, which is
+    The path is the straight line even where ruckig would bend it to keep a joint's limits
+    (``docs/decisions/control.md``). Samples lie every ``dt_s`` and at the exact end, which is
     ``q_goal`` with zero velocity and acceleration. A zero-length move gives one sample.
 
     Args:

@@ -21,7 +21,7 @@ from typing import Any, Generic, Protocol, TypeVar
 
 from tqdm import tqdm
 
-from perception.data import read_metadata
+from perception.dataset_file import read_metadata
 from perception.files import atomic_write
 from perception.models.torch_model import TorchModel
 from perception.registry import PRESETS, model_class

@@ -1,53 +1,25 @@
-"""One file per dataset: images, conditions, labels and scene records, written and read strictly.
+"""A dataset in memory: samples of one task in one scene, and the metadata a reader checks.
 
-A dataset file is a single safetensors file::
-
-    images      uint8   (N, H, W, 3)  RGB, row 0 at the top
-    conditions  float32 (N, C)        one-hot rows in ``condition_choices`` order (C = 0 allowed)
-    labels      float32 (N, q, D)     D = 3 (x, y, z [m]) or 12 (then the 3x3 TCP rotation,
-                                      row-major); see :func:`label_vector`
-    __metadata__ = {"gva.dataset": JSON {"metadata": {...}, "scenes": [...],
-                                         "contents_sha256": "..."}}
-
-One metadata entry, not three, because safetensors writes ``__metadata__`` from a hash map whose
-order changes from call to call; inside it the JSON has sorted keys, so the same dataset always
-gives the same bytes. The SHA-256 covers the metadata, the scene records and every tensor byte,
-so a file changed after writing (a flipped pixel, an edited seed) is refused, which safetensors'
-own header check would not catch. :func:`load_dataset` checks everything else it can before use:
-truncation, format version, shapes and dtypes against the metadata, and what the caller expects.
+:class:`Dataset` holds images, conditions, labels and the scene record of each sample, checked
+against its :class:`DatasetMetadata` when built. Its file, written and read strictly, is
+:mod:`perception.dataset_file`.
 """
 
 from __future__ import annotations
 
-import enum
-import hashlib
 import json
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from numbers import Integral
-from pathlib import Path
 from typing import Any
 
 import numpy as np
-from safetensors import SafetensorError, safe_open
-from safetensors.numpy import save_file
 
-from perception.files import FileError, atomic_write, read_safetensors_header
 from perception.interface import ConditionKind, InvalidInputError, LabelKind
 from perception.labels import LABEL_DIMS, check_rotations, split_label
 
 FORMAT_VERSION = 1
-HEADER_KEY = "gva.dataset"  # the one safetensors metadata entry this module reads and writes
-_TENSORS = ("images", "conditions", "labels")
-_NAMES = ", ".join(_TENSORS)
-_CODES = {np.dtype(np.uint8): "U8", np.dtype(np.float32): "F32"}  # safetensors' dtype names
-_RECORD_KEYS = {"metadata", "scenes", "contents_sha256"}
-
-
-class DatasetError(FileError):
-    """A dataset file that cannot be used: missing, damaged, truncated, changed or not as asked."""
-
-    kind = "dataset"
+TENSORS = ("images", "conditions", "labels")  # a dataset's arrays, in its file's order
 
 
 @dataclass(frozen=True)
@@ -147,7 +119,7 @@ class Dataset:
     def __post_init__(self) -> None:
         if not isinstance(self.metadata, DatasetMetadata):
             raise InvalidInputError("metadata", type(self.metadata).__name__, "a DatasetMetadata")
-        for name, (dtype, shape, layout) in _expected_arrays(self.metadata).items():
+        for name, (dtype, shape, layout) in expected_arrays(self.metadata).items():
             array = getattr(self, name)
             found = f"{getattr(array, 'dtype', type(array).__name__)} {np.shape(array)}"
             if not isinstance(array, np.ndarray) or array.dtype != dtype or array.shape != shape:
@@ -177,7 +149,7 @@ class Dataset:
         if not isinstance(other, Dataset):
             return NotImplemented
         return (self.metadata == other.metadata and self.scenes == other.scenes
-                and all(np.array_equal(getattr(self, n), getattr(other, n)) for n in _TENSORS))
+                and all(np.array_equal(getattr(self, n), getattr(other, n)) for n in TENSORS))
 
     def subset(self, indices: Sequence[int] | np.ndarray) -> Dataset:
         """The samples at ``indices``, in that order (e.g. the first 4 of 100); size follows."""
@@ -263,134 +235,7 @@ def _target_type(record: Mapping[str, Any], k: int) -> str | None:
     return name if isinstance(name, str) else None
 
 
-def save_dataset(dataset: Dataset, path: str | Path) -> Path:
-    """Writes ``dataset`` to ``path`` (parents created) atomically; the same data, the same bytes.
-
-    The file appears under its name only once complete: it is written to a temporary file in the
-    same folder, flushed to disk, then renamed over ``path``.
-    """
-    if not isinstance(dataset, Dataset):
-        raise InvalidInputError("dataset", type(dataset).__name__, "a Dataset")
-    path = Path(path)
-    tensors = {name: np.ascontiguousarray(getattr(dataset, name)) for name in _TENSORS}
-    metadata = {f.name: _plain(getattr(dataset.metadata, f.name)) for f in fields(DatasetMetadata)}
-    record: dict[str, Any] = {"metadata": metadata, "scenes": list(dataset.scenes)}
-    record["contents_sha256"] = _contents_sha256(record, tensors)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(path, lambda temporary: save_file(
-        tensors, str(temporary), metadata={HEADER_KEY: _canonical(record)}))
-    return path
-
-
-def read_metadata(path: str | Path) -> DatasetMetadata:
-    """The metadata of the dataset at ``path``, from its header alone (no image is read)."""
-    path = Path(path)
-    return _metadata_from_json(path, _read_record(path, _read_header(path))["metadata"])
-
-
-def load_dataset(path: str | Path, expect: Mapping[str, Any] | None = None) -> Dataset:
-    """The dataset at ``path``, checked in full; ``expect`` maps metadata fields to required values.
-
-    Raises:
-        InvalidInputError: ``expect`` names a field :class:`DatasetMetadata` does not have.
-        DatasetError: The file cannot be used; the message says what is wrong and what was expected.
-
-    """
-    path, expect = Path(path), dict(expect or {})
-    names = [f.name for f in fields(DatasetMetadata)]
-    if unknown := sorted(set(expect) - set(names)):
-        raise InvalidInputError("expect", unknown, f"metadata fields: {', '.join(names)}")
-    header = _read_header(path)
-    record = _read_record(path, header)
-    metadata = _metadata_from_json(path, record["metadata"])
-    mismatches = [f"{name} is {record['metadata'][name]!r} in the file, expected {_plain(value)!r}"
-                  for name, value in expect.items() if record["metadata"][name] != _plain(value)]
-    if mismatches:
-        raise DatasetError(path, "not the dataset asked for: " + "; ".join(mismatches))
-    entries = {name: entry for name, entry in header.items() if name != "__metadata__"}
-    if missing := sorted(set(_TENSORS) - set(entries)):
-        raise DatasetError(path, f"lacks tensors {', '.join(missing)}; it needs {_NAMES}")
-    if extra := sorted(set(entries) - set(_TENSORS)):
-        raise DatasetError(path, f"has unexpected tensors {', '.join(extra)}; it holds {_NAMES}")
-    for name, (dtype, shape, layout) in _expected_arrays(metadata).items():
-        found = (entries[name].get("dtype"), tuple(entries[name].get("shape", ())))
-        if found != (_CODES[dtype], shape):
-            raise DatasetError(path, f"tensor {name} is {found[0]} of shape {found[1]}; the "
-                               f"metadata says {_CODES[dtype]} {layout} = {shape}")
-    try:
-        with safe_open(str(path), framework="numpy") as file:
-            tensors = {name: file.get_tensor(name) for name in _TENSORS}
-    except (SafetensorError, OSError) as error:
-        raise DatasetError(path, f"safetensors cannot read it: {error}") from error
-    if _contents_sha256(record, tensors) != record["contents_sha256"]:
-        raise DatasetError(path, "contents do not match their checksum: the file was changed or "
-                           "damaged after it was written")
-    try:
-        return Dataset(metadata, scenes=tuple(record["scenes"]), **tensors)
-    except InvalidInputError as error:
-        raise DatasetError(path, f"holds data a dataset cannot have: {error}") from error
-
-
-def _read_header(path: Path) -> dict[str, Any]:
-    """The safetensors header JSON of ``path``, after checking the file is whole."""
-    return read_safetensors_header(path, DatasetError)
-
-
-def _read_record(path: Path, header: Mapping[str, Any]) -> dict[str, Any]:
-    """The gva record in ``header``, its format version checked first."""
-    entries = header.get("__metadata__")
-    text = entries.get(HEADER_KEY) if isinstance(entries, dict) else None
-    if not isinstance(text, str):
-        raise DatasetError(path, f"not a gva dataset: no {HEADER_KEY!r} entry in its metadata")
-    try:
-        record = json.loads(text)
-    except ValueError as error:
-        raise DatasetError(path, f"the {HEADER_KEY!r} JSON is damaged ({error})") from error
-    metadata = record.get("metadata") if isinstance(record, dict) else None
-    if not isinstance(metadata, dict):
-        raise DatasetError(path, f"the {HEADER_KEY!r} entry lacks its metadata object")
-    version = metadata.get("format_version")
-    if version != FORMAT_VERSION:
-        raise DatasetError(path, f"written by format version {version}; this gva reads version "
-                           f"{FORMAT_VERSION}")
-    if missing := sorted(_RECORD_KEYS - set(record)):
-        raise DatasetError(path, f"the {HEADER_KEY!r} entry lacks {', '.join(missing)}")
-    names = {f.name for f in fields(DatasetMetadata)}
-    if missing := sorted(names - set(metadata)):
-        raise DatasetError(path, f"metadata lacks keys {', '.join(missing)}; "
-                           f"version {FORMAT_VERSION} has {', '.join(sorted(names))}")
-    if unknown := sorted(set(metadata) - names):
-        raise DatasetError(path, f"metadata has unknown keys {', '.join(unknown)}; "
-                           f"version {FORMAT_VERSION} has {', '.join(sorted(names))}")
-    return dict(record)
-
-
-def _metadata_from_json(path: Path, data: Mapping[str, Any]) -> DatasetMetadata:
-    """The metadata in its JSON form ``data`` (keys already checked), validated."""
-    values, choices = dict(data), data["condition_choices"]
-    values["condition_choices"] = tuple(choices) if isinstance(choices, list) else choices
-    try:
-        for name, kind in (("label_kind", LabelKind), ("condition_kind", ConditionKind)):
-            try:
-                values[name] = kind(data[name])
-            except (ValueError, TypeError):
-                allowed = ", ".join(member.value for member in kind)
-                raise InvalidInputError(name, data[name], f"one of {allowed}") from None
-        return DatasetMetadata(**values)
-    except InvalidInputError as error:
-        raise DatasetError(path, f"metadata is not valid: {error}") from error
-
-
-def _plain(value: Any) -> Any:
-    """``value`` as it reads back from JSON (enums by value, tuples as lists)."""
-    if isinstance(value, enum.Enum):
-        return value.value
-    if isinstance(value, tuple | list):
-        return [_plain(item) for item in value]
-    return value
-
-
-def _expected_arrays(metadata: DatasetMetadata) -> dict[str, tuple[np.dtype, tuple, str]]:
+def expected_arrays(metadata: DatasetMetadata) -> dict[str, tuple[np.dtype, tuple, str]]:
     """Per tensor: the dtype, the shape and its symbolic layout the metadata implies."""
     n, h, w, q = metadata.size, metadata.image_height_px, metadata.image_width_px, metadata.targets
     return {
@@ -405,22 +250,12 @@ def _json_form(name: str, value: Any) -> dict[str, Any]:
     if not isinstance(value, Mapping):
         raise InvalidInputError(name, type(value).__name__, "a JSON-able dict")
     try:
-        return dict(json.loads(_canonical(value)))
+        return dict(json.loads(canonical_json(value)))
     except (TypeError, ValueError) as error:
         raise InvalidInputError(name, str(error), "JSON-able values: dicts with str keys, lists, "
                                 "str, int, finite float, bool, None") from error
 
 
-def _canonical(value: Any) -> str:
+def canonical_json(value: Any) -> str:
     """The one JSON text of ``value``: sorted keys, no spaces, no NaN."""
     return json.dumps(value, sort_keys=True, separators=(",", ":"), allow_nan=False)
-
-
-def _contents_sha256(record: Mapping[str, Any], tensors: Mapping[str, np.ndarray]) -> str:
-    """SHA-256 over the metadata, the scene records and each tensor's dtype, shape and bytes."""
-    digest = hashlib.sha256(_canonical([record["metadata"], record["scenes"]]).encode())
-    for name in _TENSORS:
-        array = np.ascontiguousarray(tensors[name])
-        digest.update(f"\n{name} {array.dtype.str} {array.shape}\n".encode())
-        digest.update(array.reshape(-1).view(np.uint8).data)
-    return digest.hexdigest()

@@ -49,18 +49,15 @@ class EvaluationResult:
         per_target_mean_angle_error_deg: (q,) [deg] (grasp labels), else None.
         angle_errors_deg: (N, q) [deg] (grasp labels), else None.
         per_stage_mean_position_error_cm: Mean per pick stage [cm]: stage s holds the images
-            taken after s targets were picked, in order, those with a target left to score
-            (one stage where every image shows every target).
+            taken after s picks that still have a target to score (one stage where every
+            image shows every target).
         type_accuracy: Fraction of the targets of known type whose stated ``object_type`` is
-            their true type (a target stating none counts as wrong); None where the model
-            states no type or the dataset's scene records name none.
-        per_condition_mean_position_error_cm: Mean per condition value, over the images
-            given it [cm] (a Query that memorised its few demonstrations shows here, where
-            the overall mean hides it); None for a task without a condition.
-        median_heatmap_entropy_nats: Median entropy of the present targets' attention
-            heatmaps [nats]: low where a Query found one place, near ``ln(h w)`` (6.9 for
-            32 x 32) where its attention is spread over the image, the mark of a training whose
-            Queries never found their objects; None for a model without heatmaps.
+            right (stating none is wrong); None where the model or the scene records name none.
+        per_condition_mean_position_error_cm: Mean per condition value [cm], where a Query
+            that memorised its demonstrations shows; None for a task without a condition.
+        median_heatmap_entropy_nats: Median entropy of the present targets' heatmaps [nats]:
+            near ``ln(h w)`` (6.9 for 32 x 32) where the Queries never found their objects;
+            None for a model without heatmaps.
 
     """
 

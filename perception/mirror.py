@@ -1,20 +1,10 @@
 """Mirror augmentation: a training sample and its mirror image across the world's xz-plane.
 
-Where the camera sits on the world's xz-plane, looking along it with z up (the yumi head
-camera: at y = 0, looking forward and down), the mirror image of a scene across that plane
-(y -> -y) is what the camera would see of the mirrored scene: the image flipped left to right.
-If the scene's objects are mirror-symmetric themselves (the sponge, the spray bottle and the
-mug are: about their own xz-planes), the mirrored scene is one more scene of the same task, and
-its labels follow from the sample's: a position's y negated, a grasp rotation ``R`` turned into
-``M R M`` with ``M = diag(1, -1, 1)`` (a proper rotation: the gripper's own y axis mirrored
-too, which a parallel gripper's symmetry allows), and a side condition's left and right swapped.
-Twenty demonstrations then show forty scenes.
-
-Not for every dataset: a task whose targets are ordered by their y (two of one type, no
-condition) would have them swapped. The simulator's collector records whether its task allows it
-(``metadata.extra[MIRROR_FLAG]``, see :mod:`sim.mirror`);
-:attr:`~perception.models.kqv_config.KqvConfig.mirror` follows that record by default. The
-light's shadows fall the other way in a mirrored image: one more lighting to learn from.
+Where the camera sits on that plane (the yumi head camera), the image flipped left to right is
+its view of the scene mirrored (y -> -y), and the labels follow: a position's y negated, a grasp
+rotation ``R`` turned into ``M R M`` with ``M = diag(1, -1, 1)``, a side condition's left and
+right swapped. Only for tasks whose collector allows it (``metadata.extra[MIRROR_FLAG]``,
+:mod:`sim.mirror`); why and what it gains: ``docs/decisions/kqv.md#mirror-flip``.
 """
 
 from __future__ import annotations

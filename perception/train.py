@@ -6,14 +6,9 @@ draws batches, augments them, steps the optimiser and reports. Read top to botto
     config = TrainConfig(steps=1000, batch_size=16)
     report = train(network, model.batch_loss, dataset, config)
 
-Augmentation is photometric only (brightness, contrast, colour gain, pixel noise). Geometric
-augmentation (shifts, crops, flips, rotations) is not used: the labels are positions and poses
-in the world frame, and a shifted image is not the camera's view of a shifted scene (perspective
-and parallax change with the place), so no label would be right for it. Keeping the geometry
-fixed also keeps the image-to-table mapping the attention coordinates are read through. The
-one exception is a model's own: a mirror across the plane the camera sits on is the camera's
-view of the mirrored scene, and the labels can be mirrored with it (:mod:`perception.mirror`,
-which ``kqv`` applies in its ``batch_loss`` where the dataset allows it).
+Augmentation is photometric only (brightness, contrast, colour gain, pixel noise): no label in
+the world frame fits a shifted or cropped image. Why, and the one flip a model may add
+(:mod:`perception.mirror`, in ``kqv``'s ``batch_loss``): ``docs/decisions/kqv.md#mirror-flip``.
 """
 
 from __future__ import annotations

@@ -26,7 +26,8 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from perception.data import Dataset, DatasetMetadata, save_dataset
+from perception.data import Dataset, DatasetMetadata
+from perception.dataset_file import save_dataset
 from perception.interface import Prediction
 from perception.labels import label_vector
 from perception.mirror import MIRROR_FLAG

@@ -13,7 +13,7 @@ from user_models import synthetic_dataset
 
 from experiments.cli import main
 from perception.checkpoint import read_config
-from perception.data import save_dataset
+from perception.dataset_file import save_dataset
 from perception.drawing import figure_shape, number_size
 from perception.interface import LabelKind
 from perception.registry import load_model

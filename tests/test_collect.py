@@ -3,7 +3,7 @@ import pytest
 from user_models import synthetic_dataset
 
 from experiments.cli import main
-from perception.data import DatasetError, load_dataset
+from perception.dataset_file import DatasetError, load_dataset
 from perception.interface import LabelKind
 from perception.labels import split_label
 from sim.collect import CollectSettings, collect

@@ -7,13 +7,11 @@ import pytest
 from safetensors import safe_open
 from safetensors.numpy import save_file
 
-import perception.data as data
-from perception.data import (
-    FORMAT_VERSION,
+import perception.dataset_file as dataset_file
+from perception.data import FORMAT_VERSION, Dataset, DatasetMetadata
+from perception.dataset_file import (
     HEADER_KEY,
-    Dataset,
     DatasetError,
-    DatasetMetadata,
     load_dataset,
     read_metadata,
     save_dataset,
@@ -98,7 +96,7 @@ def test_crashed_write_leaves_the_old_file_and_no_temporary(tmp_path, monkeypatc
         open(filename, "wb").write(b"half a dataset")
         raise OSError("disk full")
 
-    monkeypatch.setattr(data, "save_file", crash)
+    monkeypatch.setattr(dataset_file, "save_file", crash)
     with pytest.raises(OSError, match="disk full"):
         save_dataset(make(seed=1), path)
     assert path.read_bytes() == before and len(list(tmp_path.iterdir())) == 1

@@ -8,7 +8,7 @@ import torch
 from user_models import TYPES, CentreModel, synthetic_dataset, typed_dataset
 
 from experiments.cli import main
-from perception.data import save_dataset
+from perception.dataset_file import save_dataset
 from perception.evaluate import evaluate, label_mean_error_cm
 from perception.interface import (
     NO_CONDITION,

@@ -11,7 +11,8 @@ import pytest
 from gva_cli import gva
 from user_models import TYPES, synthetic_dataset
 
-from perception.data import Dataset, save_dataset
+from perception.data import Dataset
+from perception.dataset_file import save_dataset
 from perception.interface import InvalidInputError, Prediction, Target
 from perception.learnable import LearnableModel, ModelSpec
 from perception.train import TrainConfig, TrainReport

@@ -18,7 +18,8 @@ import numpy as np
 
 from experiments.commands.arguments import integer
 from perception.checkpoint import CONFIG_FILE, WEIGHTS_FILE, read_config
-from perception.data import Dataset, load_dataset
+from perception.data import Dataset
+from perception.dataset_file import load_dataset
 from perception.drawing import AttentionRow, attention_figure, write_png
 from perception.evaluate import evaluate
 from perception.files import atomic_write

@@ -33,7 +33,8 @@ from experiments.tables import (
     refuse_other_settings,
     write_json,
 )
-from perception.data import Dataset, DatasetError, load_dataset, save_dataset
+from perception.data import Dataset
+from perception.dataset_file import DatasetError, load_dataset, save_dataset
 from perception.evaluate import EvaluationResult, evaluate
 from perception.registry import new_model
 from perception.train import TrainConfig, TrainReport

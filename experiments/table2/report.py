@@ -34,7 +34,8 @@ from experiments.tables import (
     write_json,
     write_text,
 )
-from perception.data import Dataset, load_dataset
+from perception.data import Dataset
+from perception.dataset_file import load_dataset
 from perception.evaluate import label_mean_error_cm
 from sim.scene import SeedStream
 

@@ -42,7 +42,7 @@ from experiments.tables import (
     refuse_other_settings,
     write_json,
 )
-from perception.data import DatasetError, load_dataset
+from perception.dataset_file import DatasetError, load_dataset
 from perception.registry import new_model
 from perception.train import TrainConfig
 from perception.validation import fit_checked, write_check

@@ -6,12 +6,9 @@ TCP's z) are one grasp: ``R`` and ``R @ FLIP_Z``. Two codes turn a head's number
 * ``"6d"``: the continuous 6-D representation of Zhou et al. (2019), the first two columns by
   Gram-Schmidt, trained with the chordal loss against the nearer of the label and its twin.
 * ``"axis-line"``: the approach axis ``z`` and the closing axis's line tensor ``x xᵀ``, which a
-  half turn leaves unchanged, trained on those numbers directly. Where an object's look repeats
-  after a half turn (the sponge), the labels' twin choice must switch somewhere as the object
-  turns; a 6-D head must jump there and, being continuous, averages the twins into a
-  short ``x`` whose Gram-Schmidt frame can point anywhere (measured: sponge grasps approached
-  from below). The line tensor has no such seam. Its closing axis is the principal axis of
-  ``x xᵀ`` in the plane normal to ``z``, signed toward :data:`CLOSING_REFERENCE`.
+  half turn leaves unchanged, trained on those numbers directly. Its closing axis is the
+  principal axis of ``x xᵀ`` in the plane normal to ``z``, signed toward
+  :data:`CLOSING_REFERENCE`. Why it is the default: ``docs/decisions/kqv.md#axis-line-rotation``.
 """
 
 from __future__ import annotations
