@@ -29,13 +29,13 @@ import pinocchio  # noqa: F401  (coal's Python module is found through pinocchio
 
 from control.depth_obstacles import GraspRegion, OccludedSpace, depth_obstacles
 from perception.labels import nearest_rotation
-from sim.grip import grip_of
-from sim.objects import Pose, clear_of_table
 from sim.planning import ObstacleSource
 from sim.runner import TrialRunner
 from sim.scene import SeedStream, sample_scene
 from sim.scenes import YUMI_SCENE
 from sim.tasks import load_task
+from sim.world.catalog import Pose, clear_of_table
+from sim.world.grip import grip_of
 
 TASKS = ("single", "multiple", "selected-type", "selected-position")
 

@@ -21,13 +21,13 @@ from typing import Any
 import numpy as np
 
 from perception.interface import NO_CONDITION, Condition, Prediction, Target
-from sim.camera import HeadCamera
 from sim.oracle import OraclePerception
 from sim.runner import TrialRunner
 from sim.scene import SeedStream, sample_scene
 from sim.scenes import YUMI_SCENE
 from sim.tasks import load_task
-from sim.world import World
+from sim.world.head_camera import HeadCamera
+from sim.world.yumi_world import World
 
 
 def rot_z(angle_rad: float) -> np.ndarray:

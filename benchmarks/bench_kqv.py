@@ -62,7 +62,7 @@ def inference_ms(kind: LabelKind, repeats: int, threads: int) -> float:
 
 def object_pixels(dataset: Dataset, height_m: float = 0.04) -> list[np.ndarray]:
     """Per scene, the pixels of its objects' centres (taken ``height_m`` above the table)."""
-    from sim.camera import CameraConfig, HeadCamera
+    from sim.world.head_camera import CameraConfig, HeadCamera
 
     projector = HeadCamera(CameraConfig.from_json(dataset.metadata.camera))
     return [projector.project(np.array([[*o["position_xy_m"], height_m]

@@ -8,7 +8,7 @@ Each variant runs the oracle's trials on all four yumi tasks, from the same test
 
 * ``stated``: as ``gva trials`` runs (the oracle names each target's type; hidden space free);
 * ``untyped``: the oracle names no type, so every pick takes the default grip
-  (:data:`sim.grip.DEFAULT_GRIP`): does it suit every catalog object?
+  (:data:`sim.world.grip.DEFAULT_GRIP`): does it suit every catalog object?
 * ``occupied``: hidden space behind what the camera sees counts as occupied
   (:class:`control.depth_obstacles.OccludedSpace`): what would the cautious choice cost?
 """

@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 
 from perception.drawing import write_png
-from sim.camera import HeadCamera, Lighting
-from sim.grasps import grasp_pose
-from sim.objects import get_object_spec
-from sim.world import World
+from sim.world.catalog import get_object_spec
+from sim.world.grasps import grasp_pose
+from sim.world.head_camera import HeadCamera, Lighting
+from sim.world.yumi_world import World
 
 out = Path(sys.argv[1] if len(sys.argv) > 1 else "runs/renders")
 placements = {  # object type: (x, y) on the table [m], yaw [rad]

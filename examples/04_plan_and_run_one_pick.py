@@ -18,12 +18,12 @@ import numpy as np
 from control.depth_obstacles import GraspRegion, depth_obstacles
 from control.pick import PickRequest
 from robots import yumi
-from sim.camera import HeadCamera
 from sim.execution import ExecutionSettings, execute_pick
-from sim.grasps import grasp_pose
-from sim.objects import get_object_spec
 from sim.planning import make_yumi_planner, table_obstacle, yumi_depth_config
-from sim.world import World
+from sim.world.catalog import get_object_spec
+from sim.world.grasps import grasp_pose
+from sim.world.head_camera import HeadCamera
+from sim.world.yumi_world import World
 
 
 def main() -> None:

@@ -10,11 +10,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sim.paper_world import PaperWorld
 from sim.scene import SeedStream, sample_scene
 from sim.scenes import get_scene_spec
 from sim.show import write_scene_png
 from sim.tasks import load_task
+from sim.world.paper_world import PaperWorld
 
 
 def main() -> None:

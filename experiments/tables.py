@@ -25,7 +25,6 @@ from perception.dataset_file import read_metadata
 from perception.files import atomic_write
 from perception.models.torch_model import TorchModel
 from perception.registry import PRESETS, model_class
-from sim.camera import CameraConfig
 from sim.collect import CollectSettings
 from sim.errors import InvalidInputError
 from sim.records import RunFolderError, differences, json_form
@@ -33,6 +32,7 @@ from sim.scene import SeedStream
 from sim.scenes import scene_camera
 from sim.tasks import load_task
 from sim.trials import task_identity
+from sim.world.head_camera import CameraConfig
 
 MODELS = ("kqv", "keypoint-16", "keypoint-min", "dsae-16", "conv-ae", "fcn")
 """The paper's models, in its row order (names :func:`perception.registry.new_model` takes)."""

@@ -5,10 +5,11 @@ view and image size, plus lighting that geometry ignores). :class:`PinholeCamera
 geometry, with the conventions of OpenGL's ``gluLookAt`` and ``gluPerspective`` (which PyBullet's
 ``computeViewMatrix`` and ``computeProjectionMatrixFOV`` follow) and of the images: pixel
 ``(u, v)``, u right and v down, integer coordinates at pixel centres (``image[v, u]``). The
-simulator projects with it (:meth:`sim.camera.HeadCamera.project`), and a perception model may
-read positions off it: a calibrated camera is what a real robot has too. :class:`RgbdFrame` is
-one image of such a camera with its depth, as an RGB-D camera (the YuMi's RealSense D435) gives
-it; :meth:`PinholeCamera.points_from_depth` turns the depth into points in the world.
+simulator projects with it (:meth:`sim.world.head_camera.HeadCamera.project`), and a perception
+model may read positions off it: a calibrated camera is what a real robot has too.
+:class:`RgbdFrame` is one image of such a camera with its depth, as an RGB-D camera (the YuMi's
+RealSense D435) gives it; :meth:`PinholeCamera.points_from_depth` turns the depth into points in
+the world.
 """
 
 from __future__ import annotations

@@ -4,4 +4,4 @@
 ``experiments``. Every world owns its own PyBullet client, so several can live in one process.
 """
 
-from sim import quiet as _quiet  # noqa: F401  (first: swallows PyBullet's banner)
+from sim.world import quiet as _quiet  # noqa: F401  (first: swallows PyBullet's banner)

@@ -38,7 +38,7 @@ from sim.runner import TrialRunner
 from sim.scene import Scene, SeedStream, check_task_fits, condition_choices, sample_scene
 from sim.scenes import SCENE_NAMES, SceneSpec, get_scene_spec
 from sim.tasks import TaskSpec, load_task
-from sim.world import World
+from sim.world.yumi_world import World
 
 MAX_REDRAW_FACTOR = 3
 """A yumi collection gives up after this many times ``size`` failed demonstrations."""
@@ -145,7 +145,7 @@ def _camera_json(camera: Any) -> dict[str, Any]:
 def _collect_paper(
     task: TaskSpec, spec: SceneSpec, settings: CollectSettings, bar: tqdm
 ) -> tuple[list[Sample], dict[str, Any], dict[str, Any]]:
-    from sim.paper_world import PaperWorld
+    from sim.world.paper_world import PaperWorld
 
     samples: list[Sample] = []
     with PaperWorld() as world:

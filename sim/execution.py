@@ -15,7 +15,7 @@ from control.pick import GripperCommand, PickPlan
 from robots import yumi
 from sim.errors import InvalidInputError
 from sim.records import TrialOutcome
-from sim.world import World
+from sim.world.yumi_world import World
 
 TOUCH_DISTANCE_M = 1e-4
 """Contact points closer than this count as touching [m]."""

@@ -21,11 +21,11 @@ from perception.interface import (
     Target,
     check_image,
 )
-from sim.camera import HeadCamera
 from sim.errors import SimError
-from sim.grasps import grasp_pose
-from sim.objects import OBJECT_TYPES
-from sim.world import World
+from sim.world.catalog import OBJECT_TYPES
+from sim.world.grasps import grasp_pose
+from sim.world.head_camera import HeadCamera
+from sim.world.yumi_world import World
 
 
 class TargetNotFoundError(SimError):

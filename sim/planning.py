@@ -22,7 +22,7 @@ from control.pick import PickPlannerConfig, build_arm_specs
 from control.planner import PickPlanner
 from control.robot_model import RobotModel
 from robots import yumi
-from sim.objects import (
+from sim.world.catalog import (
     FINGER_HALF_WIDTH_M,
     FINGER_LENGTH_M,
     FINGER_THICKNESS_M,
@@ -30,7 +30,7 @@ from sim.objects import (
     PrimitiveKind,
     obstacle_shapes,
 )
-from sim.world import ROBOT_FOOTPRINT_M, TABLE_HALF_SIZE_M, World, WorldConfig
+from sim.world.yumi_world import ROBOT_FOOTPRINT_M, TABLE_HALF_SIZE_M, World, WorldConfig
 
 TABLE_THICKNESS_M = 0.05  # table/table.urdf's top slab
 

@@ -29,9 +29,9 @@ import numpy as np
 from perception.drawing import draw_dot, draw_number, enlarge, head_colour
 from perception.files import atomic_write
 from perception.interface import Prediction
-from sim.camera import CameraConfig, HeadCamera, Lighting
 from sim.errors import InvalidInputError
-from sim.world import World
+from sim.world.head_camera import CameraConfig, HeadCamera, Lighting
+from sim.world.yumi_world import World
 
 ROBOT_VIEW = CameraConfig(position_m=(1.1, -0.5, 0.6), target_m=(0.28, 0.0, 0.2),
                           vertical_fov_deg=52.0, horizontal_fov_deg=None)

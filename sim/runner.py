@@ -10,7 +10,7 @@ objects still on the table; a learned model with one head per target returns all
 The robot acts on perception alone. A pick's plan phase (:meth:`TrialRunner.plan_pick`) gets
 the head camera's RGB-D frame with its calibration, the robot's joint state, the table (a
 fixed, known fixture) and the model's prediction: the grip comes from the type or opening the
-model stated (:mod:`sim.grip`), the obstacles from the depth image
+model stated (:mod:`sim.world.grip`), the obstacles from the depth image
 (:mod:`control.depth_obstacles`). The simulator's truth judges: the referee notes the target's
 true grasp when the image is taken, as a dataset labels its images, and the physics decides
 the outcome; neither is handed to the plan phase.
@@ -36,12 +36,8 @@ from perception.camera import RgbdFrame
 from perception.interface import PerceptionError, PerceptionModel, Prediction, Target
 from perception.labels import nearest_rotation
 from robots import yumi
-from sim.camera import HeadCamera
 from sim.errors import InvalidInputError, SimError
 from sim.execution import ExecutionSettings, execute_pick
-from sim.grasps import grasp_pose
-from sim.grip import Grip, grip_of
-from sim.objects import Pose, clear_of_table, get_object_spec
 from sim.oracle import OraclePerception
 from sim.planning import (
     ObstacleSource,
@@ -54,7 +50,11 @@ from sim.planning import (
 from sim.records import TrialOutcome, TrialRecord
 from sim.scene import Scene
 from sim.tasks import TaskSpec
-from sim.world import World
+from sim.world.catalog import Pose, clear_of_table, get_object_spec
+from sim.world.grasps import grasp_pose
+from sim.world.grip import Grip, grip_of
+from sim.world.head_camera import HeadCamera
+from sim.world.yumi_world import World
 
 _PLAN_OUTCOMES = {
     PlanStatus.UNREACHABLE: TrialOutcome.IK_UNREACHABLE,

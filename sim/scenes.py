@@ -6,7 +6,8 @@
 | camera | at the table centre from 50 cm | the YuMi's head camera |
 | label per target | the object's position (x, y, z) [m] | the TCP pose that picks it |
 
-The simulators themselves are :class:`sim.paper_world.PaperWorld` and :class:`sim.world.World`.
+The simulators themselves are :class:`sim.world.paper_world.PaperWorld` and
+:class:`sim.world.yumi_world.World`.
 """
 
 from __future__ import annotations
@@ -14,9 +15,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from perception.interface import LabelKind
-from sim.camera import CameraConfig
 from sim.errors import InvalidInputError
-from sim.objects import DISTRACTOR_TYPES, OBJECT_TYPES
+from sim.world.catalog import DISTRACTOR_TYPES, OBJECT_TYPES
+from sim.world.head_camera import CameraConfig
 
 
 @dataclass(frozen=True)
@@ -59,7 +60,7 @@ YUMI_SCENE = SceneSpec(
 
 
 def _paper_scene() -> SceneSpec:
-    from sim.paper_world import PAPER_OBJECT_TYPES, PAPER_WORKSPACE_X_M, PAPER_WORKSPACE_Y_M
+    from sim.world.paper_world import PAPER_OBJECT_TYPES, PAPER_WORKSPACE_X_M, PAPER_WORKSPACE_Y_M
 
     return SceneSpec("paper-sim", PAPER_OBJECT_TYPES, PAPER_WORKSPACE_X_M, PAPER_WORKSPACE_Y_M,
                      LabelKind.POSITION)
@@ -82,6 +83,6 @@ def scene_camera(name: str) -> CameraConfig:
     get_scene_spec(name)  # an unknown name lists the allowed ones
     if name == "yumi":
         return CameraConfig()
-    from sim.paper_world import PaperWorldConfig
+    from sim.world.paper_world import PaperWorldConfig
 
     return PaperWorldConfig().camera

@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 
 from perception.drawing import write_png
-from sim.camera import HeadCamera
 from sim.errors import InvalidInputError
-from sim.objects import get_object_spec
 from sim.scene import Scene
-from sim.world import World
+from sim.world.catalog import get_object_spec
+from sim.world.head_camera import HeadCamera
+from sim.world.yumi_world import World
 
 SETTLE_S = 0.25
 
@@ -20,7 +20,7 @@ SETTLE_S = 0.25
 def render_scene(scene: Scene, brightness: float = 1.0) -> np.ndarray:
     """The camera image of ``scene`` (uint8 (H, W, 3)), as a model would get it."""
     if scene.scene == "paper-sim":
-        from sim.paper_world import PaperWorld
+        from sim.world.paper_world import PaperWorld
 
         with PaperWorld() as paper:
             paper.reset_scene()

@@ -28,7 +28,6 @@ from perception.files import atomic_write
 from perception.interface import LabelKind, PerceptionModel
 from perception.learnable import LearnableModel, ModelSpec
 from perception.validation import HeldOutCheck, read_check
-from sim.camera import CameraConfig, HeadCamera
 from sim.errors import InvalidInputError
 from sim.execution import ExecutionSettings
 from sim.oracle import OraclePerception
@@ -44,7 +43,8 @@ from sim.scene import (
 )
 from sim.scenes import YUMI_SCENE
 from sim.tasks import TaskSpec, load_task
-from sim.world import World
+from sim.world.head_camera import CameraConfig, HeadCamera
+from sim.world.yumi_world import World
 
 ModelFactory = Callable[[World, HeadCamera], PerceptionModel]
 

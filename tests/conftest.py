@@ -48,8 +48,8 @@ class DepthView:
     """
 
     def __init__(self) -> None:
-        from sim.camera import HeadCamera
-        from sim.world import World
+        from sim.world.head_camera import HeadCamera
+        from sim.world.yumi_world import World
 
         self.world, self.camera = World(), HeadCamera()
         self.world.reset_scene()

@@ -11,12 +11,12 @@ import pytest
 
 from perception.camera import PinholeCamera
 from perception.interface import InvalidInputError as PerceptionInputError
-from sim.camera import CameraConfig, HeadCamera, Lighting
 from sim.errors import InvalidInputError
-from sim.objects import get_object_spec
-from sim.paper_world import PaperWorldConfig
 from sim.scenes import YUMI_SCENE
-from sim.world import World
+from sim.world.catalog import get_object_spec
+from sim.world.head_camera import CameraConfig, HeadCamera, Lighting
+from sim.world.paper_world import PaperWorldConfig
+from sim.world.yumi_world import World
 
 # (how far an object reaches from its centre [m], at what height [m]): the mug's handle reaches
 # 6.7 cm low down, its rim 4.5 cm at 9 cm; only the bottle (radius 1.9 cm) stands 17 cm tall.

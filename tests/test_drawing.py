@@ -122,9 +122,3 @@ def test_write_png_round_trip(tmp_path: Path) -> None:
     np.testing.assert_array_equal(rows[:, 1:].reshape(5, 7, 3), image)
     with pytest.raises(InvalidInputError, match=r"image = 'float64 .* uint8 \(H, W, 3\)"):
         write_png(tmp_path / "bad.png", np.zeros((2, 2, 3)))
-
-
-def test_sim_camera_still_offers_write_png() -> None:
-    from sim import camera
-
-    assert camera.write_png is write_png

@@ -7,16 +7,16 @@ import pytest
 
 from control.depth_obstacles import GraspRegion, depth_obstacles
 from control.pick import PickRequest, PlanStatus
-from sim.camera import HeadCamera
 from sim.execution import ExecutionSettings, execute_pick
-from sim.grasps import grasp_pose
-from sim.objects import get_object_spec
 from sim.planning import object_obstacles, table_obstacle, yumi_depth_config
 from sim.records import TrialOutcome
 from sim.scene import SeedStream, sample_scene
 from sim.scenes import YUMI_SCENE
 from sim.tasks import ObjectChoice, TaskSpec
-from sim.world import World
+from sim.world.catalog import get_object_spec
+from sim.world.grasps import grasp_pose
+from sim.world.head_camera import HeadCamera
+from sim.world.yumi_world import World
 
 CLUTTER = TaskSpec(name="clutter", objects=ObjectChoice.RANDOM, count=3, min_spacing_m=0.11)
 

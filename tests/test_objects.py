@@ -14,8 +14,7 @@ from control.ik import ArmIk
 from control.robot_model import RobotModel
 from robots import yumi
 from sim.errors import InvalidInputError
-from sim.grasps import grasp_pose
-from sim.objects import (
+from sim.world.catalog import (
     DISTRACTOR_TYPES,
     FINGERTIP_BEYOND_TCP_M,
     MIN_FINGERTIP_HEIGHT_M,
@@ -30,7 +29,8 @@ from sim.objects import (
     get_object_spec,
     obstacle_shapes,
 )
-from sim.world import World
+from sim.world.grasps import grasp_pose
+from sim.world.yumi_world import World
 
 FLIP = pin.SE3(pin.utils.rotate("z", math.pi), np.zeros(3))  # the gripper's own symmetry
 

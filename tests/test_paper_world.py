@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sim.errors import InvalidInputError
-from sim.paper_world import (
+from sim.world.paper_world import (
     PAPER_OBJECT_TYPES,
     PAPER_WORKSPACE_X_M,
     PAPER_WORKSPACE_Y_M,

@@ -5,10 +5,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from sim.camera import CameraConfig
-from sim.grasps import grasp_pose
 from sim.mirror import MIRROR_Y, mirror_symmetric, object_is_mirror_symmetric
-from sim.objects import (
+from sim.scenes import YUMI_SCENE
+from sim.tasks import builtin_tasks, load_task, task_from_toml
+from sim.world.catalog import (
     DISTRACTOR_TYPES,
     OBJECT_TYPES,
     SPRAY_BOTTLE,
@@ -16,8 +16,8 @@ from sim.objects import (
     Primitive,
     get_object_spec,
 )
-from sim.scenes import YUMI_SCENE
-from sim.tasks import builtin_tasks, load_task, task_from_toml
+from sim.world.grasps import grasp_pose
+from sim.world.head_camera import CameraConfig
 
 CATALOG = OBJECT_TYPES + DISTRACTOR_TYPES
 

@@ -12,9 +12,9 @@ from control.ik import ArmIk
 from control.robot_model import RobotModel
 from robots import yumi
 from sim.errors import InvalidInputError, SimError
-from sim.grasps import grasp_pose
-from sim.objects import get_object_spec
-from sim.world import World, WorldConfig
+from sim.world.catalog import get_object_spec
+from sim.world.grasps import grasp_pose
+from sim.world.yumi_world import World, WorldConfig
 
 ARMS = [*yumi.ARM_JOINTS["r"], *yumi.ARM_JOINTS["l"]]
 

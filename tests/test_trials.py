@@ -23,10 +23,7 @@ from perception.models.base import LabelScaler
 from perception.models.kqv import KqvModel
 from perception.train import TrainConfig
 from perception.validation import CHECK_FILE, HeldOutCheck
-from sim.camera import HeadCamera
 from sim.errors import InvalidInputError
-from sim.grasps import grasp_pose
-from sim.objects import OBJECT_TYPES, get_object_spec
 from sim.oracle import OraclePerception, TargetNotFoundError
 from sim.planning import ObstacleSource
 from sim.records import RunFolderError, TrialLog
@@ -35,7 +32,10 @@ from sim.scene import SeedStream, sample_scene
 from sim.scenes import YUMI_SCENE
 from sim.tasks import load_task
 from sim.trials import TrialSettings, load_trial_model, run_trials
-from sim.world import World
+from sim.world.catalog import OBJECT_TYPES, get_object_spec
+from sim.world.grasps import grasp_pose
+from sim.world.head_camera import HeadCamera
+from sim.world.yumi_world import World
 
 
 @pytest.fixture(scope="module")

@@ -13,12 +13,12 @@ import dataclasses
 from pathlib import Path
 from typing import Any
 
-from sim.camera import CameraConfig
 from sim.recording import TrialRecorder, join_trials, write_gif
 from sim.runner import TrialRunner
 from sim.scene import SeedStream, sample_scene
 from sim.scenes import YUMI_SCENE
 from sim.trials import TrialSettings, load_trial_model, torch_threads
+from sim.world.head_camera import CameraConfig
 
 
 def record_gif(model_name: str, trials: TrialSettings, count: int, path: Path

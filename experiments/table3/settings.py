@@ -22,12 +22,12 @@ from experiments.tables import (
 from perception.registry import MODELS, PRESETS
 from perception.train import TrainConfig, available_threads
 from perception.validation import CheckConfig
-from sim.camera import CameraConfig
 from sim.execution import ExecutionSettings
 from sim.records import json_form
 from sim.scene import SeedStream
 from sim.tasks import TaskSpec, load_task, task_to_toml
 from sim.trials import TrialSettings, obstacle_identity, task_identity
+from sim.world.head_camera import CameraConfig
 
 SCENE = "yumi"
 ROBUST_MODEL = "kqv"

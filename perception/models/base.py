@@ -3,7 +3,8 @@
 Coordinates inside a model are normalised: ``x`` runs from -1 at the image's left edge to +1 at
 its right edge, ``y`` from -1 at the top edge to +1 at the bottom edge, so a feature map of any
 size covers the same [-1, 1]² square and a cell's coordinate is its centre. Pixel coordinates
-follow :meth:`sim.camera.HeadCamera.project`: integers are pixel centres, ``image[v, u]``.
+follow :meth:`sim.world.head_camera.HeadCamera.project`: integers are pixel centres,
+``image[v, u]``.
 """
 
 from __future__ import annotations

@@ -14,9 +14,9 @@ from pybullet_utils import bullet_client
 
 from robots import yumi
 from sim.errors import InvalidInputError, SimulationError
-from sim.objects import ObjectSpec, Pose, PrimitiveKind
-from sim.quiet import silenced_output
-from sim.robot import RobotConfig, SimRobot
+from sim.world.catalog import ObjectSpec, Pose, PrimitiveKind
+from sim.world.quiet import silenced_output
+from sim.world.sim_robot import RobotConfig, SimRobot
 
 TABLE_TOP_Z_IN_URDF_M = 0.625
 """Height of ``table/table.urdf``'s top surface in its own frame [m]."""

@@ -20,9 +20,9 @@ import pybullet
 import pybullet_data
 from pybullet_utils import bullet_client
 
-from sim.camera import CameraConfig, HeadCamera
 from sim.errors import InvalidInputError
-from sim.quiet import silenced_output
+from sim.world.head_camera import CameraConfig, HeadCamera
+from sim.world.quiet import silenced_output
 
 PAPER_OBJECT_TYPES: tuple[str, ...] = ("duck", "soccer_ball", "mug")
 """The scene's object types, in one-hot (and target) order."""

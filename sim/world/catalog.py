@@ -3,7 +3,7 @@
 Plus a wooden block, presented only as a distractor (:data:`DISTRACTOR_TYPES`).
 
 Pure data and geometry (numpy only): the world turns a spec into a PyBullet body, a collision
-checker takes :func:`obstacle_shapes`; :mod:`sim.grasps` chooses among symmetric grasps.
+checker takes :func:`obstacle_shapes`; :mod:`sim.world.grasps` chooses among symmetric grasps.
 
 Every object frame sits at the centre of the object's footprint on the table, z up, so an object
 resting on the table at (x, y) with yaw ψ has ``T_world_object = (x, y, 0) · Rz(ψ)``. The object's

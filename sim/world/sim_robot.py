@@ -11,7 +11,7 @@ import pybullet
 
 from robots import yumi
 from sim.errors import InvalidInputError
-from sim.objects import Pose
+from sim.world.catalog import Pose
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,6 @@ import numpy as np
 import pybullet
 
 from perception.camera import PinholeCamera, RgbdFrame
-from perception.drawing import write_png as write_png  # its old home; new code imports it
 from perception.interface import InvalidInputError as PerceptionInputError
 from sim.errors import InvalidInputError
 
