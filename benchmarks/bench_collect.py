@@ -20,7 +20,7 @@ from pathlib import Path
 
 from perception.dataset_file import read_metadata
 from sim.collect import CollectSettings, collect
-from sim.tasks import builtin_tasks
+from sim.tasks.task_spec import builtin_tasks
 
 SIZES = {"paper-sim": 100, "yumi": 20}
 BARS_S = {"paper-sim": 60.0, "yumi": 120.0}

@@ -23,9 +23,9 @@ import numpy as np
 from perception.interface import NO_CONDITION, Condition, Prediction, Target
 from sim.oracle import OraclePerception
 from sim.runner import TrialRunner
-from sim.scene import SeedStream, sample_scene
-from sim.scenes import YUMI_SCENE
-from sim.tasks import load_task
+from sim.tasks.scene_sampling import SeedStream, sample_scene
+from sim.tasks.scene_specs import YUMI_SCENE
+from sim.tasks.task_spec import load_task
 from sim.world.head_camera import HeadCamera
 from sim.world.yumi_world import World
 

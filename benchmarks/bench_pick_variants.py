@@ -32,9 +32,9 @@ from perception.interface import NO_CONDITION, Condition, Prediction, Target
 from sim.oracle import OraclePerception
 from sim.planning import yumi_depth_config
 from sim.runner import TrialRunner
-from sim.scene import SeedStream, sample_scene
-from sim.scenes import YUMI_SCENE
-from sim.tasks import load_task
+from sim.tasks.scene_sampling import SeedStream, sample_scene
+from sim.tasks.scene_specs import YUMI_SCENE
+from sim.tasks.task_spec import load_task
 
 TASKS = ("single", "multiple", "selected-type", "selected-position")
 VARIANTS = ("stated", "untyped", "occupied")

@@ -28,9 +28,9 @@ from perception.registry import PRESETS, model_class
 from sim.collect import CollectSettings
 from sim.errors import InvalidInputError
 from sim.records import RunFolderError, differences, json_form
-from sim.scene import SeedStream
-from sim.scenes import scene_camera
-from sim.tasks import load_task
+from sim.tasks.scene_sampling import SeedStream
+from sim.tasks.scene_specs import scene_camera
+from sim.tasks.task_spec import load_task
 from sim.trials import task_identity
 from sim.world.head_camera import CameraConfig
 

@@ -4,7 +4,7 @@ Where the camera sits on that plane (the yumi head camera), the image flipped le
 its view of the scene mirrored (y -> -y), and the labels follow: a position's y negated, a grasp
 rotation ``R`` turned into ``M R M`` with ``M = diag(1, -1, 1)``, a side condition's left and
 right swapped. Only for tasks whose collector allows it (``metadata.extra[MIRROR_FLAG]``,
-:mod:`sim.mirror`); why and what it gains: ``docs/decisions/kqv.md#mirror-flip``.
+:mod:`sim.tasks.mirror_symmetry`); why and what it gains: ``docs/decisions/kqv.md#mirror-flip``.
 """
 
 from __future__ import annotations

@@ -32,12 +32,18 @@ from perception.interface import Prediction
 from perception.labels import label_vector
 from perception.mirror import MIRROR_FLAG
 from sim.errors import InvalidInputError, SimError
-from sim.mirror import mirror_symmetric
 from sim.records import TrialOutcome
 from sim.runner import TrialRunner
-from sim.scene import Scene, SeedStream, check_task_fits, condition_choices, sample_scene
-from sim.scenes import SCENE_NAMES, SceneSpec, get_scene_spec
-from sim.tasks import TaskSpec, load_task
+from sim.tasks.mirror_symmetry import mirror_symmetric
+from sim.tasks.scene_sampling import (
+    Scene,
+    SeedStream,
+    check_task_fits,
+    condition_choices,
+    sample_scene,
+)
+from sim.tasks.scene_specs import SCENE_NAMES, SceneSpec, get_scene_spec
+from sim.tasks.task_spec import TaskSpec, load_task
 from sim.world.yumi_world import World
 
 MAX_REDRAW_FACTOR = 3

@@ -48,8 +48,8 @@ from sim.planning import (
     yumi_depth_config,
 )
 from sim.records import TrialOutcome, TrialRecord
-from sim.scene import Scene
-from sim.tasks import TaskSpec
+from sim.tasks.scene_sampling import Scene
+from sim.tasks.task_spec import TaskSpec
 from sim.world.catalog import Pose, clear_of_table, get_object_spec
 from sim.world.grasps import grasp_pose
 from sim.world.grip import Grip, grip_of

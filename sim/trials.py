@@ -1,9 +1,9 @@
 """Runs of closed-loop pick trials: settings, the resumable loop, the summary.
 
 Trial ``i`` of a run with seed ``s`` runs test scene ``i`` of seed ``s`` (see
-:mod:`sim.scene`), so the same seed gives the same trials, and no trial runs on a scene a model
-was trained on. Every finished trial is appended to ``trials.jsonl`` before the next one starts;
-running the same command again resumes where an interrupted run stopped.
+:mod:`sim.tasks.scene_sampling`), so the same seed gives the same trials, and no trial runs on a
+scene a model was trained on. Every finished trial is appended to ``trials.jsonl`` before the
+next one starts; running the same command again resumes where an interrupted run stopped.
 
 The model is named by ``TrialSettings.model``: ``"oracle"``; a checkpoint folder (``gva
 train`` writes one), checked against the task before the first trial; or
@@ -34,15 +34,15 @@ from sim.oracle import OraclePerception
 from sim.planning import ObstacleSource, yumi_depth_config
 from sim.records import TrialLog, TrialSummary
 from sim.runner import TrialRunner
-from sim.scene import (
+from sim.tasks.scene_sampling import (
     SeedStream,
     check_task_fits,
     condition_choices,
     sample_scene,
     target_count,
 )
-from sim.scenes import YUMI_SCENE
-from sim.tasks import TaskSpec, load_task
+from sim.tasks.scene_specs import YUMI_SCENE
+from sim.tasks.task_spec import TaskSpec, load_task
 from sim.world.head_camera import CameraConfig, HeadCamera
 from sim.world.yumi_world import World
 

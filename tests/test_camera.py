@@ -12,7 +12,7 @@ import pytest
 from perception.camera import PinholeCamera
 from perception.interface import InvalidInputError as PerceptionInputError
 from sim.errors import InvalidInputError
-from sim.scenes import YUMI_SCENE
+from sim.tasks.scene_specs import YUMI_SCENE
 from sim.world.catalog import get_object_spec
 from sim.world.head_camera import CameraConfig, HeadCamera, Lighting
 from sim.world.paper_world import PaperWorldConfig

@@ -8,8 +8,8 @@ from perception.interface import LabelKind
 from perception.labels import split_label
 from sim.collect import CollectSettings, collect
 from sim.errors import InvalidInputError
-from sim.scene import SeedStream
-from sim.scenes import get_scene_spec
+from sim.tasks.scene_sampling import SeedStream
+from sim.tasks.scene_specs import get_scene_spec
 
 
 @pytest.fixture(scope="module")

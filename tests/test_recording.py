@@ -10,9 +10,9 @@ from perception.interface import Prediction, Target
 from sim.errors import InvalidInputError
 from sim.recording import CAPTION_PX, RecordingSettings, TrialRecorder, join_trials, write_gif
 from sim.runner import TrialRunner
-from sim.scene import SeedStream, sample_scene
-from sim.scenes import YUMI_SCENE
-from sim.tasks import load_task
+from sim.tasks.scene_sampling import SeedStream, sample_scene
+from sim.tasks.scene_specs import YUMI_SCENE
+from sim.tasks.task_spec import load_task
 
 
 class CountingRecorder(TrialRecorder):

@@ -22,7 +22,7 @@ from experiments.table3.settings import (
 )
 from perception.registry import load_model
 from sim.records import TrialOutcome, TrialRecord
-from sim.tasks import load_task
+from sim.tasks.task_spec import load_task
 from sim.trials import check_model_fits_task
 
 TINY = ["--tasks", "single", "--demos", "2", "--n", "2", "--steps", "3", "--workers", "1",

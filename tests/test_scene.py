@@ -5,9 +5,9 @@ import pytest
 
 from perception.interface import ConditionKind
 from sim.errors import InvalidInputError
-from sim.scene import SeedStream, sample_scene
-from sim.scenes import YUMI_SCENE, get_scene_spec
-from sim.tasks import builtin_tasks, load_task, task_from_toml
+from sim.tasks.scene_sampling import SeedStream, sample_scene
+from sim.tasks.scene_specs import YUMI_SCENE, get_scene_spec
+from sim.tasks.task_spec import builtin_tasks, load_task, task_from_toml
 
 SCENES = ("paper-sim", "yumi")
 

@@ -5,9 +5,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from sim.mirror import MIRROR_Y, mirror_symmetric, object_is_mirror_symmetric
-from sim.scenes import YUMI_SCENE
-from sim.tasks import builtin_tasks, load_task, task_from_toml
+from sim.tasks.mirror_symmetry import MIRROR_Y, mirror_symmetric, object_is_mirror_symmetric
+from sim.tasks.scene_specs import YUMI_SCENE
+from sim.tasks.task_spec import builtin_tasks, load_task, task_from_toml
 from sim.world.catalog import (
     DISTRACTOR_TYPES,
     OBJECT_TYPES,

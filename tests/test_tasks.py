@@ -5,7 +5,7 @@ import pytest
 
 from perception.interface import ConditionKind
 from sim.errors import InvalidInputError
-from sim.tasks import (
+from sim.tasks.task_spec import (
     ObjectChoice,
     TargetSelection,
     builtin_tasks,

@@ -28,9 +28,9 @@ from sim.oracle import OraclePerception, TargetNotFoundError
 from sim.planning import ObstacleSource
 from sim.records import RunFolderError, TrialLog
 from sim.runner import TrialRunner
-from sim.scene import SeedStream, sample_scene
-from sim.scenes import YUMI_SCENE
-from sim.tasks import load_task
+from sim.tasks.scene_sampling import SeedStream, sample_scene
+from sim.tasks.scene_specs import YUMI_SCENE
+from sim.tasks.task_spec import load_task
 from sim.trials import TrialSettings, load_trial_model, run_trials
 from sim.world.catalog import OBJECT_TYPES, get_object_spec
 from sim.world.grasps import grasp_pose

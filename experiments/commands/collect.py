@@ -10,7 +10,7 @@ from pathlib import Path
 
 from experiments.commands.arguments import integer
 from sim.collect import CollectSettings, collect
-from sim.scene import SeedStream
+from sim.tasks.scene_sampling import SeedStream
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:

@@ -21,7 +21,7 @@ from perception.dataset_file import load_dataset
 from perception.drawing import draw_points, enlarge
 from perception.files import atomic_write
 from perception.registry import load_model
-from sim.scene import SeedStream
+from sim.tasks.scene_sampling import SeedStream
 
 Y_TICKS_CM = (0.1, 0.2, 0.5, 1, 2, 5, 10, 20, 50, 100, 200)
 FINE_Y_TICKS_CM = (0.1, 0.15, 0.2, 0.3, 0.5, 0.7, 1, 1.5, 2, 3, 5, 7, 10, 15, 20, 30, 50, 70, 100)

@@ -39,7 +39,7 @@ from perception.evaluate import EvaluationResult, evaluate
 from perception.registry import new_model
 from perception.train import TrainConfig, TrainReport
 from sim.collect import CollectSettings, collect
-from sim.scene import SeedStream
+from sim.tasks.scene_sampling import SeedStream
 from sim.trials import torch_threads
 
 # datasets

@@ -37,7 +37,7 @@ from experiments.tables import (
 from perception.data import Dataset
 from perception.dataset_file import load_dataset
 from perception.evaluate import label_mean_error_cm
-from sim.scene import SeedStream
+from sim.tasks.scene_sampling import SeedStream
 
 RATIO_FLAGGED = 2.0
 """Cells where ours and the paper's differ by more than this factor are listed for a look."""

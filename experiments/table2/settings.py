@@ -21,7 +21,7 @@ from experiments.tables import (
 )
 from perception.train import TrainConfig, available_threads
 from sim.records import json_form
-from sim.tasks import load_task
+from sim.tasks.task_spec import load_task
 from sim.trials import task_identity
 
 SIZES = (4, 20, 100)

@@ -15,8 +15,8 @@ from typing import Any
 
 from sim.recording import TrialRecorder, join_trials, write_gif
 from sim.runner import TrialRunner
-from sim.scene import SeedStream, sample_scene
-from sim.scenes import YUMI_SCENE
+from sim.tasks.scene_sampling import SeedStream, sample_scene
+from sim.tasks.scene_specs import YUMI_SCENE
 from sim.trials import TrialSettings, load_trial_model, torch_threads
 from sim.world.head_camera import CameraConfig
 

@@ -48,8 +48,8 @@ from perception.train import TrainConfig
 from perception.validation import fit_checked, write_check
 from sim.collect import CollectSettings, collect
 from sim.records import json_form
-from sim.scene import SeedStream, target_count
-from sim.tasks import load_task
+from sim.tasks.scene_sampling import SeedStream, target_count
+from sim.tasks.task_spec import load_task
 from sim.trials import TrialSettings, run_trials, torch_threads
 
 # Rough seconds per unit of work on one loaded core, only for the progress bar's time left.

@@ -24,8 +24,8 @@ from perception.train import TrainConfig, available_threads
 from perception.validation import CheckConfig
 from sim.execution import ExecutionSettings
 from sim.records import json_form
-from sim.scene import SeedStream
-from sim.tasks import TaskSpec, load_task, task_to_toml
+from sim.tasks.scene_sampling import SeedStream
+from sim.tasks.task_spec import TaskSpec, load_task, task_to_toml
 from sim.trials import TrialSettings, obstacle_identity, task_identity
 from sim.world.head_camera import CameraConfig
 

@@ -18,8 +18,8 @@ import numpy as np
 
 from perception.interface import NO_CONDITION, Condition, ConditionKind
 from sim.errors import InvalidInputError
-from sim.scenes import SceneSpec
-from sim.tasks import SIDES, ObjectChoice, TargetSelection, TaskSpec
+from sim.tasks.scene_specs import SceneSpec
+from sim.tasks.task_spec import SIDES, ObjectChoice, TargetSelection, TaskSpec
 
 MAX_PLACEMENT_TRIES = 200
 DISTRACTOR_STREAM = 1

@@ -2,7 +2,7 @@
 
 A task says which objects are presented, which of them are the targets and in what order,
 what the top-down condition names, and how the scene is drawn (placement, yaw, spacing,
-lighting, distractors). The paper's four tasks (Table I) ship as ``sim/task_files/*.toml``;
+lighting, distractors). The paper's four tasks (Table I) ship as ``sim/tasks/task_files/*.toml``;
 a user writes a new one as a TOML file and passes its path wherever a task name is taken::
 
     name = "two-sponges-left"
@@ -276,7 +276,7 @@ def task_to_toml(task: TaskSpec) -> str:
 
 
 def builtin_tasks() -> tuple[str, ...]:
-    """Names of the tasks that ship with gva (``sim/task_files/*.toml``)."""
+    """Names of the tasks that ship with gva (``sim/tasks/task_files/*.toml``)."""
     return tuple(sorted(p.stem for p in TASK_FILES.glob("*.toml")))
 
 

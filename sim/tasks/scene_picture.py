@@ -9,7 +9,7 @@ import numpy as np
 
 from perception.drawing import write_png
 from sim.errors import InvalidInputError
-from sim.scene import Scene
+from sim.tasks.scene_sampling import Scene
 from sim.world.catalog import get_object_spec
 from sim.world.head_camera import HeadCamera
 from sim.world.yumi_world import World

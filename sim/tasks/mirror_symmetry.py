@@ -20,9 +20,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.scene import target_count
-from sim.scenes import SceneSpec
-from sim.tasks import ObjectChoice, TaskSpec
+from sim.tasks.scene_sampling import target_count
+from sim.tasks.scene_specs import SceneSpec
+from sim.tasks.task_spec import ObjectChoice, TaskSpec
 from sim.world.catalog import ObjectSpec, PrimitiveKind, get_object_spec
 from sim.world.head_camera import CameraConfig
 
