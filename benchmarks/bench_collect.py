@@ -19,8 +19,8 @@ import time
 from pathlib import Path
 
 from perception.dataset_file import read_metadata
-from sim.collect import CollectSettings, collect
 from sim.tasks.task_spec import builtin_tasks
+from sim.trials.collector import CollectSettings, collect
 
 SIZES = {"paper-sim": 100, "yumi": 20}
 BARS_S = {"paper-sim": 60.0, "yumi": 120.0}

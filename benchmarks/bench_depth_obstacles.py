@@ -29,11 +29,11 @@ import pinocchio  # noqa: F401  (coal's Python module is found through pinocchio
 
 from control.depth_obstacles import GraspRegion, OccludedSpace, depth_obstacles
 from perception.labels import nearest_rotation
-from sim.planning import ObstacleSource
-from sim.runner import TrialRunner
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_spec import load_task
+from sim.trials.planner_setup import ObstacleSource
+from sim.trials.trial_runner import TrialRunner
 from sim.world.catalog import Pose, clear_of_table
 from sim.world.grip import grip_of
 

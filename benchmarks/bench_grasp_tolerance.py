@@ -21,11 +21,11 @@ from typing import Any
 import numpy as np
 
 from perception.interface import NO_CONDITION, Condition, Prediction, Target
-from sim.oracle import OraclePerception
-from sim.runner import TrialRunner
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_spec import load_task
+from sim.trials.oracle import OraclePerception
+from sim.trials.trial_runner import TrialRunner
 from sim.world.head_camera import HeadCamera
 from sim.world.yumi_world import World
 

@@ -140,7 +140,7 @@ def main() -> None:
 
 def default_pairs(folder: Path) -> list[tuple[Path, Path]]:
     """Collects paper-sim single and selected-type: 20 scenes of seed 0, 100 of seed 1000."""
-    from sim.collect import CollectSettings, collect
+    from sim.trials.collector import CollectSettings, collect
 
     pairs = []
     for task in ERROR_BARS_CM:

@@ -123,7 +123,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/train.json"))
     args = parser.parse_args()
-    from sim.collect import CollectSettings, collect
+    from sim.trials.collector import CollectSettings, collect
 
     torch.set_num_threads(1)
     rows = {}

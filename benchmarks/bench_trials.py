@@ -18,7 +18,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
-from sim.trials import TrialSettings, run_trials
+from sim.trials.run_loop import TrialSettings, run_trials
 
 
 def main() -> None:

@@ -18,8 +18,8 @@ import numpy as np
 from control.depth_obstacles import GraspRegion, depth_obstacles
 from control.pick import PickRequest
 from robots import yumi
-from sim.execution import ExecutionSettings, execute_pick
-from sim.planning import make_yumi_planner, table_obstacle, yumi_depth_config
+from sim.trials.execution import ExecutionSettings, execute_pick
+from sim.trials.planner_setup import make_yumi_planner, table_obstacle, yumi_depth_config
 from sim.world.catalog import get_object_spec
 from sim.world.grasps import grasp_pose
 from sim.world.head_camera import HeadCamera

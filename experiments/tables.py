@@ -25,13 +25,13 @@ from perception.dataset_file import read_metadata
 from perception.files import atomic_write
 from perception.models.torch_model import TorchModel
 from perception.registry import PRESETS, model_class
-from sim.collect import CollectSettings
 from sim.errors import InvalidInputError
-from sim.records import RunFolderError, differences, json_form
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import scene_camera
 from sim.tasks.task_spec import load_task
-from sim.trials import task_identity
+from sim.trials.collector import CollectSettings
+from sim.trials.records import RunFolderError, differences, json_form
+from sim.trials.run_loop import task_identity
 from sim.world.head_camera import CameraConfig
 
 MODELS = ("kqv", "keypoint-16", "keypoint-min", "dsae-16", "conv-ae", "fcn")
@@ -169,9 +169,10 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
 
     Compared: scene, task name, size (in scenes: a yumi demonstration has an image per pick,
     a training scene of a task with a condition a sample per condition value), seed, seed
-    stream, whether each scene is asked every condition (:class:`sim.collect.CollectSettings`
-    ``every_condition``, at its default for the stream), the task's definition (a task whose
-    TOML changed since is another dataset) and the scene's camera (other images).
+    stream, whether each scene is asked every condition
+    (:class:`sim.trials.collector.CollectSettings` ``every_condition``, at its default for the
+    stream), the task's definition (a task whose TOML changed since is another dataset) and the
+    scene's camera (other images).
 
     Raises:
         RunFolderError: ``path`` holds another dataset; the message names what differs.

@@ -29,7 +29,7 @@ def yumi_checker(yumi_model: RobotModel) -> CollisionChecker:
 
 @pytest.fixture(scope="session")
 def yumi_planner() -> PickPlanner:
-    from sim.planning import make_yumi_planner
+    from sim.trials.planner_setup import make_yumi_planner
 
     return make_yumi_planner()
 
@@ -59,7 +59,7 @@ class DepthView:
         import pybullet
 
         from control.depth_obstacles import GraspRegion, depth_obstacles
-        from sim.planning import yumi_depth_config
+        from sim.trials.planner_setup import yumi_depth_config
 
         client, bodies = self.world.client, []
         for box in boxes:

@@ -15,8 +15,8 @@ from experiments.table2.settings import ReproduceSimSettings
 from experiments.table3.settings import ReproduceRealSettings
 from perception.train import TrainConfig
 from perception.validation import CheckConfig
-from sim.collect import CollectSettings
-from sim.trials import TrialSettings
+from sim.trials.collector import CollectSettings
+from sim.trials.run_loop import TrialSettings
 
 ROOT = Path(__file__).resolve().parents[1]
 

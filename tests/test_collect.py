@@ -6,10 +6,10 @@ from experiments.cli import main
 from perception.dataset_file import DatasetError, load_dataset
 from perception.interface import LabelKind
 from perception.labels import split_label
-from sim.collect import CollectSettings, collect
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import get_scene_spec
+from sim.trials.collector import CollectSettings, collect
 
 
 @pytest.fixture(scope="module")

@@ -7,12 +7,12 @@ import pytest
 
 from control.depth_obstacles import GraspRegion, depth_obstacles
 from control.pick import PickRequest, PlanStatus
-from sim.execution import ExecutionSettings, execute_pick
-from sim.planning import object_obstacles, table_obstacle, yumi_depth_config
-from sim.records import TrialOutcome
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_spec import ObjectChoice, TaskSpec
+from sim.trials.execution import ExecutionSettings, execute_pick
+from sim.trials.planner_setup import object_obstacles, table_obstacle, yumi_depth_config
+from sim.trials.records import TrialOutcome
 from sim.world.catalog import get_object_spec
 from sim.world.grasps import grasp_pose
 from sim.world.head_camera import HeadCamera

@@ -8,11 +8,17 @@ from PIL import Image
 
 from perception.interface import Prediction, Target
 from sim.errors import InvalidInputError
-from sim.recording import CAPTION_PX, RecordingSettings, TrialRecorder, join_trials, write_gif
-from sim.runner import TrialRunner
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_spec import load_task
+from sim.trials.gif_recorder import (
+    CAPTION_PX,
+    RecordingSettings,
+    TrialRecorder,
+    join_trials,
+    write_gif,
+)
+from sim.trials.trial_runner import TrialRunner
 
 
 class CountingRecorder(TrialRecorder):

@@ -2,7 +2,7 @@ import json
 
 import pytest
 
-from sim.records import (
+from sim.trials.records import (
     RunFolderError,
     TrialLog,
     TrialOutcome,

@@ -21,9 +21,9 @@ from experiments.table3.settings import (
     variant_file,
 )
 from perception.registry import load_model
-from sim.records import TrialOutcome, TrialRecord
 from sim.tasks.task_spec import load_task
-from sim.trials import check_model_fits_task
+from sim.trials.records import TrialOutcome, TrialRecord
+from sim.trials.run_loop import check_model_fits_task
 
 TINY = ["--tasks", "single", "--demos", "2", "--n", "2", "--steps", "3", "--workers", "1",
         "--no-progress"]

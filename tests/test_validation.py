@@ -171,7 +171,7 @@ def test_gva_train_says_loudly_that_a_starved_training_failed(tmp_path):
     question is kept in one training scene only (still asked in every scene held out). The
     trained kqv finds the others and not the duck; `gva train` marks it and exits 1.
     """
-    from sim.collect import CollectSettings, collect
+    from sim.trials.collector import CollectSettings, collect
 
     full = collect(CollectSettings("paper-sim", "selected-type", size=12, seed=6),
                    tmp_path / "full.gva", progress=False)

@@ -1,6 +1,6 @@
 """``gva collect``: a training or test dataset of a task, in one file.
 
-Defaults are :class:`~sim.collect.CollectSettings`'.
+Defaults are :class:`~sim.trials.collector.CollectSettings`'.
 """
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ import argparse
 from pathlib import Path
 
 from experiments.commands.arguments import integer
-from sim.collect import CollectSettings, collect
 from sim.tasks.scene_sampling import SeedStream
+from sim.trials.collector import CollectSettings, collect
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:

@@ -1,7 +1,7 @@
 """``gva trials``: closed-loop pick trials at untrained positions, appended to a run folder.
 
-Defaults are :class:`~sim.trials.TrialSettings`'. No torch here: ``gva trials --model oracle``
-never loads it.
+Defaults are :class:`~sim.trials.run_loop.TrialSettings`'. No torch here: ``gva trials --model
+oracle`` never loads it.
 """
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import sys
 from pathlib import Path
 
 from experiments.commands.arguments import integer
-from sim.planning import ObstacleSource
-from sim.trials import TrialSettings, held_out_check, run_trials
+from sim.trials.planner_setup import ObstacleSource
+from sim.trials.run_loop import TrialSettings, held_out_check, run_trials
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:

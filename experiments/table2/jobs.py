@@ -38,9 +38,9 @@ from perception.dataset_file import DatasetError, load_dataset, save_dataset
 from perception.evaluate import EvaluationResult, evaluate
 from perception.registry import new_model
 from perception.train import TrainConfig, TrainReport
-from sim.collect import CollectSettings, collect
 from sim.tasks.scene_sampling import SeedStream
-from sim.trials import torch_threads
+from sim.trials.collector import CollectSettings, collect
+from sim.trials.run_loop import torch_threads
 
 # datasets
 

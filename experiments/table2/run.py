@@ -24,7 +24,7 @@ from experiments.table2.jobs import (
 from experiments.table2.report import write_reports
 from experiments.table2.settings import Cell, ReproduceSimSettings
 from experiments.tables import RunReport, cost_bar
-from sim.records import claim_run_folder
+from sim.trials.records import claim_run_folder
 
 ReproduceSimReport = RunReport[CellOutcome, Cell]
 

@@ -20,9 +20,9 @@ from experiments.tables import (
     model_config,
 )
 from perception.train import TrainConfig, available_threads
-from sim.records import json_form
 from sim.tasks.task_spec import load_task
-from sim.trials import task_identity
+from sim.trials.records import json_form
+from sim.trials.run_loop import task_identity
 
 SIZES = (4, 20, 100)
 """Training set sizes of Table II."""
@@ -35,8 +35,8 @@ BOLD_BELOW_CM = 5.0
 Key = tuple[str, str, int]  # (model, task, size)
 FORMAT_VERSION = 3
 """What a run folder holds; 2: a training scene of a task with a condition is asked each value
-(:class:`sim.collect.CollectSettings` ``every_condition``); 3: ``kqv``'s attention point is taught
-on paper-sim too (``KqvConfig.point_loss_weight``)."""
+(:class:`sim.trials.collector.CollectSettings` ``every_condition``); 3: ``kqv``'s attention
+point is taught on paper-sim too (``KqvConfig.point_loss_weight``)."""
 
 
 @dataclass(frozen=True)

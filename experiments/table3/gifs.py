@@ -1,10 +1,11 @@
 """The GIFs of ``gva reproduce real``: a model's first trials recorded again, frame by frame.
 
-Trial ``i`` is scene ``i`` of the TEST stream, run in a fresh :class:`~sim.runner.TrialRunner`
-in the same order as the trial run did, so a recorded trial replays the logged one (the
-simulation is deterministic, and recording only renders). Each frame shows the head camera's
+Trial ``i`` is scene ``i`` of the TEST stream, run in a fresh
+:class:`~sim.trials.trial_runner.TrialRunner` in the same order as the trial run did, so a
+recorded trial replays the logged one (the simulation is deterministic, and recording only
+renders). Each frame shows the head camera's
 image with the model's attention points (numbered by head) beside a camera watching the robot
-(:mod:`sim.recording`); the last frame of each trial names its outcome.
+(:mod:`sim.trials.gif_recorder`); the last frame of each trial names its outcome.
 """
 
 from __future__ import annotations
@@ -13,11 +14,11 @@ import dataclasses
 from pathlib import Path
 from typing import Any
 
-from sim.recording import TrialRecorder, join_trials, write_gif
-from sim.runner import TrialRunner
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
-from sim.trials import TrialSettings, load_trial_model, torch_threads
+from sim.trials.gif_recorder import TrialRecorder, join_trials, write_gif
+from sim.trials.run_loop import TrialSettings, load_trial_model, torch_threads
+from sim.trials.trial_runner import TrialRunner
 from sim.world.head_camera import CameraConfig
 
 

@@ -46,11 +46,11 @@ from perception.dataset_file import DatasetError, load_dataset
 from perception.registry import new_model
 from perception.train import TrainConfig
 from perception.validation import fit_checked, write_check
-from sim.collect import CollectSettings, collect
-from sim.records import json_form
 from sim.tasks.scene_sampling import SeedStream, target_count
 from sim.tasks.task_spec import load_task
-from sim.trials import TrialSettings, run_trials, torch_threads
+from sim.trials.collector import CollectSettings, collect
+from sim.trials.records import json_form
+from sim.trials.run_loop import TrialSettings, run_trials, torch_threads
 
 # Rough seconds per unit of work on one loaded core, only for the progress bar's time left.
 COLLECT_S_PER_PICK = 1.2

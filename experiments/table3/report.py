@@ -24,8 +24,8 @@ from experiments.table3.settings import (
     seed_folder,
 )
 from experiments.tables import MODEL_TITLES, TASK_TITLES, TASKS, duration, write_json, write_text
-from sim.records import TrialOutcome, TrialRecord, TrialSummary
 from sim.tasks.task_spec import TargetSelection, load_task
+from sim.trials.records import TrialOutcome, TrialRecord, TrialSummary
 
 PAPER_TABLE3 = {"single": 27, "multiple": 28, "selected-type": 26, "selected-position": 27}
 """The paper's Table III: successful picks of 30 on the real YuMi, 20 demonstrations each."""

@@ -16,7 +16,7 @@ from experiments.table3.jobs import JobOutcome, run_jobs
 from experiments.table3.report import write_reports
 from experiments.table3.settings import ReproduceRealSettings, seed_folder, write_variant_tasks
 from experiments.tables import RunReport
-from sim.records import claim_run_folder
+from sim.trials.records import claim_run_folder
 
 ReproduceRealReport = RunReport[JobOutcome, str]
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from control.pick import GripperCommand, PickPlan
 from robots import yumi
 from sim.errors import InvalidInputError
-from sim.records import TrialOutcome
+from sim.trials.records import TrialOutcome
 from sim.world.yumi_world import World
 
 TOUCH_DISTANCE_M = 1e-4

@@ -32,8 +32,6 @@ from perception.interface import Prediction
 from perception.labels import label_vector
 from perception.mirror import MIRROR_FLAG
 from sim.errors import InvalidInputError, SimError
-from sim.records import TrialOutcome
-from sim.runner import TrialRunner
 from sim.tasks.mirror_symmetry import mirror_symmetric
 from sim.tasks.scene_sampling import (
     Scene,
@@ -44,6 +42,8 @@ from sim.tasks.scene_sampling import (
 )
 from sim.tasks.scene_specs import SCENE_NAMES, SceneSpec, get_scene_spec
 from sim.tasks.task_spec import TaskSpec, load_task
+from sim.trials.records import TrialOutcome
+from sim.trials.trial_runner import TrialRunner
 from sim.world.yumi_world import World
 
 MAX_REDRAW_FACTOR = 3
@@ -176,9 +176,9 @@ def _collect_paper(
 class _PickImages:
     """Watches a demonstration: the image before each pick, every target's label just then.
 
-    A :class:`~sim.runner.TrialObserver`; ``saw`` comes after the image is taken and before the
-    plan, so the world is as the image shows it. A target already set aside keeps the label it
-    had when it was last on the table.
+    A :class:`~sim.trials.trial_runner.TrialObserver`; ``saw`` comes after the image is taken
+    and before the plan, so the world is as the image shows it. A target already set aside keeps
+    the label it had when it was last on the table.
     """
 
     def __init__(self, runner: TrialRunner) -> None:

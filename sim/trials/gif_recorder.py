@@ -1,7 +1,8 @@
 """Recordings of pick trials: what the model saw beside what the robot did, as a GIF.
 
-A :class:`TrialRecorder` is a :class:`~sim.runner.TrialObserver`: the runner hands it each
-image a prediction was made from, with the prediction, and calls it after every physics step.
+A :class:`TrialRecorder` is a :class:`~sim.trials.trial_runner.TrialObserver`: the runner hands it
+each image a prediction was made from, with the prediction, and calls it after every physics
+step.
 Every ``frame_every_s`` of simulated time it renders a second, wider camera that looks at the
 robot and the table (:data:`ROBOT_VIEW`), and keeps a frame: the head camera's last image with
 the attention points drawn (numbered by head, :mod:`perception.drawing`) on the left, the robot's

@@ -29,11 +29,6 @@ from perception.interface import LabelKind, PerceptionModel
 from perception.learnable import LearnableModel, ModelSpec
 from perception.validation import HeldOutCheck, read_check
 from sim.errors import InvalidInputError
-from sim.execution import ExecutionSettings
-from sim.oracle import OraclePerception
-from sim.planning import ObstacleSource, yumi_depth_config
-from sim.records import TrialLog, TrialSummary
-from sim.runner import TrialRunner
 from sim.tasks.scene_sampling import (
     SeedStream,
     check_task_fits,
@@ -43,6 +38,11 @@ from sim.tasks.scene_sampling import (
 )
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_spec import TaskSpec, load_task
+from sim.trials.execution import ExecutionSettings
+from sim.trials.oracle import OraclePerception
+from sim.trials.planner_setup import ObstacleSource, yumi_depth_config
+from sim.trials.records import TrialLog, TrialSummary
+from sim.trials.trial_runner import TrialRunner
 from sim.world.head_camera import CameraConfig, HeadCamera
 from sim.world.yumi_world import World
 

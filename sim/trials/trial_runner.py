@@ -37,9 +37,11 @@ from perception.interface import PerceptionError, PerceptionModel, Prediction, T
 from perception.labels import nearest_rotation
 from robots import yumi
 from sim.errors import InvalidInputError, SimError
-from sim.execution import ExecutionSettings, execute_pick
-from sim.oracle import OraclePerception
-from sim.planning import (
+from sim.tasks.scene_sampling import Scene
+from sim.tasks.task_spec import TaskSpec
+from sim.trials.execution import ExecutionSettings, execute_pick
+from sim.trials.oracle import OraclePerception
+from sim.trials.planner_setup import (
     ObstacleSource,
     make_yumi_planner,
     nearest_object,
@@ -47,9 +49,7 @@ from sim.planning import (
     table_obstacle,
     yumi_depth_config,
 )
-from sim.records import TrialOutcome, TrialRecord
-from sim.tasks.scene_sampling import Scene
-from sim.tasks.task_spec import TaskSpec
+from sim.trials.records import TrialOutcome, TrialRecord
 from sim.world.catalog import Pose, clear_of_table, get_object_spec
 from sim.world.grasps import grasp_pose
 from sim.world.grip import Grip, grip_of
@@ -64,7 +64,7 @@ _PLAN_OUTCOMES = {
 
 
 class TrialObserver(Protocol):
-    """Watches trials as they run, e.g. to record them (:class:`sim.recording.TrialRecorder`).
+    """Watches trials as they run, e.g. to record them (:mod:`sim.trials.gif_recorder`).
 
     Watching must not change what happens: an observer reads the world, never moves it.
     """
