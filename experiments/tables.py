@@ -25,12 +25,12 @@ from perception.dataset_file import read_metadata
 from perception.files import atomic_write
 from perception.models.torch_model import TorchModel
 from perception.registry import PRESETS, model_class
-from sim.errors import InvalidInputError
+from sim.errors import InvalidInputError, RunFolderError
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import scene_camera
 from sim.tasks.task_spec import load_task
 from sim.trials.collector import CollectSettings
-from sim.trials.records import RunFolderError, differences, json_form
+from sim.trials.records import differences, json_form
 from sim.trials.run_loop import task_identity
 from sim.world.head_camera import CameraConfig
 

@@ -22,4 +22,13 @@ class SimulationError(SimError):
     """PyBullet refused an operation (a shape, a body or a file could not be created)."""
 
 
-__all__ = ["InvalidInputError", "SimError", "SimulationError"]
+class TargetNotFoundError(SimError):
+    """The condition names an object that is not in the scene (the oracle cannot answer)."""
+
+
+class RunFolderError(SimError):
+    """A run folder that cannot be resumed: it holds another run, or a damaged file."""
+
+
+__all__ = ["InvalidInputError", "RunFolderError", "SimError", "SimulationError",
+           "TargetNotFoundError"]

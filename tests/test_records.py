@@ -2,8 +2,8 @@ import json
 
 import pytest
 
+from sim.errors import RunFolderError
 from sim.trials.records import (
-    RunFolderError,
     TrialLog,
     TrialOutcome,
     TrialRecord,

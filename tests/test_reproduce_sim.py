@@ -20,8 +20,7 @@ from experiments.table2.run import run_reproduce_sim
 from experiments.table2.settings import Cell, ReproduceSimSettings, cell_path
 from experiments.tables import MODELS, model_config
 from perception.dataset_file import load_dataset
-from sim.errors import InvalidInputError
-from sim.trials.records import RunFolderError
+from sim.errors import InvalidInputError, RunFolderError
 
 TINY = ["--models", "kqv,fcn", "--tasks", "single", "--sizes", "4", "--seeds", "1",
         "--steps", "3", "--test-scenes", "5", "--no-progress"]

@@ -23,13 +23,13 @@ from perception.models.base import LabelScaler
 from perception.models.kqv import KqvModel
 from perception.train import TrainConfig
 from perception.validation import CHECK_FILE, HeldOutCheck
-from sim.errors import InvalidInputError
+from sim.errors import InvalidInputError, RunFolderError, TargetNotFoundError
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_spec import load_task
-from sim.trials.oracle import OraclePerception, TargetNotFoundError
+from sim.trials.oracle import OraclePerception
 from sim.trials.planner_setup import ObstacleSource
-from sim.trials.records import RunFolderError, TrialLog
+from sim.trials.records import TrialLog
 from sim.trials.run_loop import TrialSettings, load_trial_model, run_trials
 from sim.trials.trial_runner import TrialRunner
 from sim.world.catalog import OBJECT_TYPES, get_object_spec

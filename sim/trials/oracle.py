@@ -21,15 +21,11 @@ from perception.interface import (
     Target,
     check_image,
 )
-from sim.errors import SimError
+from sim.errors import TargetNotFoundError
 from sim.world.catalog import OBJECT_TYPES
 from sim.world.grasps import grasp_pose
 from sim.world.head_camera import HeadCamera
 from sim.world.yumi_world import World
-
-
-class TargetNotFoundError(SimError):
-    """The condition names an object that is not in the scene."""
 
 
 class OraclePerception(PerceptionModel):

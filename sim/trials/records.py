@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from perception.files import atomic_write
-from sim.errors import SimError
+from sim.errors import RunFolderError
 
 RECORD_FORMAT_VERSION = 1
 
@@ -143,10 +143,6 @@ class TrialSummary:
         low, high = self.wilson95
         return (f"{self.successes}/{self.n} successes "
                 f"(95 % Wilson interval {100 * low:.1f}-{100 * high:.1f} %)")
-
-
-class RunFolderError(SimError):
-    """A run folder that cannot be resumed: it holds another run, or a damaged file."""
 
 
 def json_form(data: Mapping[str, Any]) -> dict[str, Any]:
