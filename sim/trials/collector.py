@@ -227,9 +227,9 @@ def _collect_yumi(
             index += 1
             bodies = runner.setup(scene)
             images.start([bodies[t] for t in scene.targets])
-            outcome = runner.pick_targets(scene, bodies)
-            if outcome["outcome"] is not TrialOutcome.SUCCESS:
-                redrawn.append({"scene_index": scene.index, "reason": outcome["reason"]})
+            demonstration = runner.pick_targets(scene, bodies)
+            if demonstration.outcome is not TrialOutcome.SUCCESS:
+                redrawn.append({"scene_index": scene.index, "reason": demonstration.reason})
                 bar.set_postfix_str(f"{len(redrawn)} redrawn")
                 continue
             record = scene.to_record()

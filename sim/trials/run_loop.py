@@ -17,7 +17,7 @@ from __future__ import annotations
 import contextlib
 import enum
 import json
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -42,11 +42,8 @@ from sim.trials.execution import ExecutionSettings
 from sim.trials.oracle import OraclePerception
 from sim.trials.planner_setup import ObstacleSource, yumi_depth_config
 from sim.trials.records import TrialLog, TrialSummary
-from sim.trials.trial_runner import TrialRunner
-from sim.world.head_camera import CameraConfig, HeadCamera
-from sim.world.yumi_world import World
-
-ModelFactory = Callable[[World, HeadCamera], PerceptionModel]
+from sim.trials.trial_runner import ModelFactory, TrialRunner
+from sim.world.head_camera import CameraConfig
 
 MODELS: dict[str, ModelFactory] = {"oracle": OraclePerception}
 """Perception models the trial runner builds by name; a checkpoint folder or

@@ -21,12 +21,12 @@ from __future__ import annotations
 import dataclasses
 import time
 import traceback
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
-import pinocchio as pin
 
 from control.collision import AnyObstacle
 from control.depth_obstacles import DepthObstacleConfig, GraspRegion, depth_obstacles
@@ -41,6 +41,7 @@ from sim.tasks.scene_sampling import Scene
 from sim.tasks.task_spec import TaskSpec
 from sim.trials.execution import ExecutionSettings, execute_pick
 from sim.trials.oracle import OraclePerception
+from sim.trials.pick_results import PickAttempt, PlannedPick, TrialResult
 from sim.trials.planner_setup import (
     ObstacleSource,
     make_yumi_planner,
@@ -76,51 +77,25 @@ class TrialObserver(Protocol):
         """Called after every physics step of the runner's world."""
 
 
-def pose_json(position: np.ndarray, rotation: np.ndarray | None) -> dict[str, Any]:
-    """A pose as rounded JSON-able lists."""
-    data: dict[str, Any] = {"position_m": [round(float(v), 6) for v in position]}
-    if rotation is not None:
-        data["rotation"] = [[round(float(v), 6) for v in row] for row in rotation]
-    return data
-
-
-def rotation_error_rad(truth: np.ndarray, predicted: np.ndarray) -> float:
-    """Angle between two TCP orientations, counting the gripper's half-turn symmetry."""
-    flip = np.diag([-1.0, -1.0, 1.0])
-    return min(float(np.linalg.norm(pin.log3(truth.T @ predicted @ f))) for f in (np.eye(3), flip))
+ModelFactory = Callable[[World, HeadCamera], PerceptionModel]
+"""Builds a trial's perception model from the runner's world and head camera: the oracle reads
+the world; any other model ignores both (e.g. ``lambda world, camera: model``)."""
 
 
 @dataclass(frozen=True)
-class PlannedPick:
-    """The plan phase of one pick: what the robot decided from its sensors and the model.
+class PickObstacles:
+    """What a pick is planned around besides the table, and what its record keeps of them.
 
     Args:
-        fields: What the pick's record keeps of it (prediction, grip, obstacles, plan status).
-        grip: How the gripper closes; None if the prediction gave no usable target.
-        plan: The plan to run; None when the pick ends here.
-        outcome: Why the pick ends here (a perception or planning failure); None with a plan.
-        reason: The failure's reason.
+        obstacles: Everything the robot must not touch (other objects, unknown shapes).
+        target: The target's own shapes: avoided on the approach, ignored from the descent on.
+        record: Their source and size, as the pick's record keeps them.
 
     """
 
-    fields: dict[str, Any]
-    grip: Grip | None = None
-    plan: PickPlan | None = None
-    outcome: TrialOutcome | None = None
-    reason: str = ""
-
-
-@dataclass(frozen=True)
-class PickReport:
-    """One finished pick: its record fields (outcome included) and the plan that ran, if any."""
-
-    fields: dict[str, Any]
-    plan: PickPlan | None
-
-    @property
-    def outcome(self) -> TrialOutcome:
-        """How the pick ended."""
-        return self.fields["outcome"]
+    obstacles: tuple[AnyObstacle, ...]
+    target: tuple[AnyObstacle, ...]
+    record: dict[str, Any]
 
 
 class TrialRunner:
@@ -143,7 +118,7 @@ class TrialRunner:
     def __init__(
         self,
         task: TaskSpec,
-        model: Any = OraclePerception,
+        model: ModelFactory = OraclePerception,
         settle_s: float = 0.25,
         execution: ExecutionSettings | None = None,
         planner: PickPlanner | None = None,
@@ -206,44 +181,40 @@ class TrialRunner:
     def run(self, scene: Scene, index: int, seed: int, model_name: str) -> TrialRecord:
         """Runs one trial on ``scene``; every failure becomes a recorded outcome, never a crash."""
         started = time.perf_counter()
-        base: dict[str, Any] = {"index": index, "seed": seed, "task": scene.task,
-                                "model": model_name, "objects": scene.to_record()["objects"]}
         try:
-            fields = self.pick_targets(scene, self.setup(scene))
+            result = self.pick_targets(scene, self.setup(scene))
         except (SimError, PerceptionError) as error:
-            fields = {"outcome": TrialOutcome.PERCEPTION_FAILED, "reason": str(error)}
+            result = TrialResult(TrialOutcome.PERCEPTION_FAILED, str(error))
         except Exception as error:  # recorded, so a run is never lost to one bad trial
             last = traceback.extract_tb(error.__traceback__)[-1]
-            fields = {"outcome": TrialOutcome.ERROR, "reason": f"{type(error).__name__}: "
-                      f"{error} ({Path(last.filename).name}:{last.lineno})"}
-        return TrialRecord(**base, **fields, sim_time_s=self.world.time_s,
+            result = TrialResult(TrialOutcome.ERROR, f"{type(error).__name__}: {error} "
+                                 f"({Path(last.filename).name}:{last.lineno})")
+        return TrialRecord(index=index, seed=seed, task=scene.task, model=model_name,
+                           objects=scene.to_record()["objects"], **result.record_fields(),
+                           sim_time_s=self.world.time_s,
                            wall_time_s=time.perf_counter() - started)
 
-    def pick_targets(self, scene: Scene, bodies: list[int]) -> dict[str, Any]:
-        """Picks every target of ``scene`` in order; the fields of the trial's record."""
+    def pick_targets(self, scene: Scene, bodies: list[int]) -> TrialResult:
+        """Picks every target of ``scene`` in order, until one fails; how the trial went."""
         targets = [bodies[i] for i in scene.targets]
-        picks: list[dict[str, Any]] = []
+        picks: list[PickAttempt] = []
         for number, body in enumerate(targets):
-            report = self.pick(scene, number, len(targets), body)
-            picks.append(report.fields)
-            if report.outcome is not TrialOutcome.SUCCESS:
+            attempt = self.pick(scene, number, len(targets), body)
+            picks.append(attempt)
+            if attempt.outcome is not TrialOutcome.SUCCESS:
                 break
-            if number + 1 < len(targets) and report.plan is not None:
-                self._set_aside(body, report.plan)
+            if number + 1 < len(targets) and attempt.planned.plan is not None:
+                self._set_aside(body, attempt.planned.plan)
         last = picks[-1]
-        fields = {k: v for k, v in last.items() if k != "outcome"}
-        fields["picks"] = [p | {"outcome": p["outcome"].value} for p in picks]
-        done = sum(p["outcome"] is TrialOutcome.SUCCESS for p in picks)
-        if done == len(targets):
-            if len(targets) > 1:
-                fields["reason"] = f"picked all {len(targets)} targets"
-            return fields | {"outcome": TrialOutcome.SUCCESS}
-        if len(targets) > 1:
-            fields["reason"] = f"pick {len(picks)} of {len(targets)} ({last['target']}): " \
-                               f"{last['reason']}"
-        return fields | {"outcome": last["outcome"]}
+        if len(targets) == 1:
+            return TrialResult(last.outcome, last.reason, tuple(picks))
+        if last.outcome is TrialOutcome.SUCCESS:  # the last of all the targets
+            return TrialResult(TrialOutcome.SUCCESS, f"picked all {len(targets)} targets",
+                               tuple(picks))
+        return TrialResult(last.outcome, f"pick {len(picks)} of {len(targets)} ({last.target}): "
+                           f"{last.reason}", tuple(picks))
 
-    def pick(self, scene: Scene, number: int, total: int, body: int) -> PickReport:
+    def pick(self, scene: Scene, number: int, total: int, body: int) -> PickAttempt:
         """Pick ``number`` of ``total``: sense, predict, plan from that alone, run, judge.
 
         ``body`` is the task's target for this pick: the referee's to judge by, never the
@@ -255,20 +226,14 @@ class TrialRunner:
         if self.observer is not None:
             self.observer.saw(frame.rgb, prediction)
         planned = self.plan_pick(frame, prediction, number, total)
-        fields = {"target": self.world.object_spec(body).name,
-                  "truth": pose_json(truth.position, truth.rotation)} | planned.fields
-        predicted = planned.fields.get("predicted")
-        if predicted is not None:
-            position, rotation = (np.array(predicted[k]) for k in ("position_m", "rotation"))
-            fields |= {"position_error_m": float(np.linalg.norm(position - truth.position)),
-                       "rotation_error_rad": rotation_error_rad(truth.rotation, rotation)}
+        target = self.world.object_spec(body).name
         if planned.plan is None or planned.grip is None:
-            return PickReport(fields | {"outcome": planned.outcome, "reason": planned.reason},
-                              None)
+            assert planned.outcome is not None  # a plan phase that ends a pick says how
+            return PickAttempt(target, truth, planned, planned.outcome, planned.reason)
         executed = execute_pick(self.world, planned.plan, body, planned.grip.opening_m,
                                 self.execution)
-        return PickReport(fields | {"outcome": executed.outcome, "reason": executed.reason,
-                                    "lift_m": executed.lift_m}, planned.plan)
+        return PickAttempt(target, truth, planned, executed.outcome, executed.reason,
+                           executed.lift_m)
 
     def plan_pick(self, frame: RgbdFrame, prediction: Prediction, number: int, total: int
                   ) -> PlannedPick:
@@ -279,8 +244,8 @@ class TrialRunner:
         """
         index = number - (total - len(prediction.targets))
         if not 0 <= index < len(prediction.targets):
-            return PlannedPick({}, outcome=TrialOutcome.PERCEPTION_FAILED,
-                               reason=f"{self.model.name} predicted {len(prediction.targets)} "
+            return PlannedPick(TrialOutcome.PERCEPTION_FAILED,
+                               f"{self.model.name} predicted {len(prediction.targets)} "
                                f"targets; pick {number + 1} of {total} needs one")
         predicted: Target = prediction.targets[index]
         if predicted.rotation is None:
@@ -289,43 +254,43 @@ class TrialRunner:
         try:  # a float32 output is a rotation to ~1e-6; inverse kinematics wants it exact
             rotation = nearest_rotation("predicted rotation", predicted.rotation)
         except PerceptionError as error:
-            return PlannedPick({}, outcome=TrialOutcome.PERCEPTION_FAILED, reason=str(error))
-        fields: dict[str, Any] = {"predicted": pose_json(predicted.position_m, rotation)}
+            return PlannedPick(TrialOutcome.PERCEPTION_FAILED, str(error))
+        grasp = Pose(np.asarray(predicted.position_m, dtype=float), rotation)
         try:
             grip = grip_of(predicted)
         except InvalidInputError as error:
-            return PlannedPick(fields, outcome=TrialOutcome.PERCEPTION_FAILED, reason=str(error))
-        fields["grip"] = grip.to_record()
-        grasp, fields["raised_m"] = clear_of_table(
-            Pose(np.asarray(predicted.position_m, dtype=float), rotation), grip.opening_m)
-        obstacles, target_obstacles, fields["obstacles"] = self._obstacles(frame, grasp, grip)
+            return PlannedPick(TrialOutcome.PERCEPTION_FAILED, str(error), grasp)
+        raised, raised_m = clear_of_table(grasp, grip.opening_m)
+        obstacles = self._obstacles(frame, raised, grip)
         result = self.planner.plan(PickRequest(
-            T_world_grasp=grasp.as_se3(),
+            T_world_grasp=raised.as_se3(),
             q_start=self.planner.robot.q_from_dict(self.world.robot.joint_positions()),
-            obstacles=(table_obstacle(self.world), *obstacles),
-            target_obstacles=target_obstacles,
-            alternatives=tuple(p.as_se3() for p in grip.alternatives(grasp)),
+            obstacles=(table_obstacle(self.world), *obstacles.obstacles),
+            target_obstacles=obstacles.target,
+            alternatives=tuple(p.as_se3() for p in grip.alternatives(raised)),
             finger_opening_m=grip.opening_m / 2,
             pregrasp_distance_m=grip.pregrasp_distance_m,
         ))
-        fields["plan_status"] = result.status.value
+        planned = PlannedPick(None, "", grasp, grip, raised_m, obstacles.record, result.status,
+                              result.plan)
         if result.plan is None:
-            return PlannedPick(fields, grip, outcome=_PLAN_OUTCOMES[result.status],
-                               reason=result.reason)
-        return PlannedPick(fields | {"arm": result.plan.arm}, grip, result.plan)
+            return dataclasses.replace(planned, outcome=_PLAN_OUTCOMES[result.status],
+                                       reason=result.reason)
+        return planned
 
-    def _obstacles(self, frame: RgbdFrame, grasp: Pose, grip: Grip
-                   ) -> tuple[tuple[AnyObstacle, ...], tuple[AnyObstacle, ...], dict[str, Any]]:
+    def _obstacles(self, frame: RgbdFrame, grasp: Pose, grip: Grip) -> PickObstacles:
         """Obstacles and the target's own, and what the record keeps of them."""
         if self.obstacle_source is ObstacleSource.DEPTH:
             seen = depth_obstacles(frame.points_world(), np.asarray(frame.camera.position_m),
                                    self.depth, GraspRegion(grasp.as_se3(), grip.opening_m))
-            return seen.obstacles, seen.target_obstacles, {"source": "depth"} | seen.to_record()
+            return PickObstacles(seen.obstacles, seen.target_obstacles,
+                                 {"source": "depth"} | seen.to_record())
         world = self.world  # ObstacleSource.TRUTH: the debugging aid reads the true shapes
         aimed = nearest_object(world, grasp.position)
         others = object_obstacles(world, [b for b in world.objects if b != aimed])
         own = object_obstacles(world, [aimed]) if aimed is not None else []
-        return tuple(others), tuple(own), {"source": "truth", "shapes": len(others) + len(own)}
+        return PickObstacles(tuple(others), tuple(own),
+                             {"source": "truth", "shapes": len(others) + len(own)})
 
     def _set_aside(self, body: int, plan: PickPlan) -> None:
         """Takes a picked object off the table, opens the hand and returns the arm to its start."""
