@@ -242,6 +242,24 @@ def test_no_import_cycle(project_imports):
     assert not messages, "\n".join(messages)
 
 
+# sim's rooms (DESIGN.md), in order: each may import the rooms before it, never one after it.
+SIM_ROOMS = ("sim.world", "sim.tasks", "sim.trials")
+
+
+def _room(module: str) -> int | None:
+    return next((number for number, room in enumerate(SIM_ROOMS)
+                 if module == room or module.startswith(room + ".")), None)
+
+
+def test_sim_rooms_import_only_the_rooms_before_them(project_imports):
+    messages = [f"{imp.where()}: {imp.importer} imports {imp.target}"
+                for imp in project_imports
+                if imp.module is not None and None not in (_room(imp.importer), _room(imp.module))
+                and _room(imp.module) > _room(imp.importer)]
+    assert not messages, "imports up sim's rooms (world <- tasks <- trials):\n" + \
+        "\n".join(messages)
+
+
 # --- the checker itself, on a tiny package ---
 
 def write(root: Path, files: Mapping[str, str]) -> None:
