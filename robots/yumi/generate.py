@@ -1,6 +1,6 @@
 """Writes ``yumi.urdf`` and ``yumi.srdf`` from the numbers in :mod:`robots.yumi.specs`.
 
-Run ``python -m robots.yumi.generate`` after changing a number; ``tests/test_yumi.py`` fails
+Run ``python -m robots.yumi.generate`` after changing a number; ``tests/robots/test_yumi.py`` fails
 while the committed files differ from what this writes. The SRDF's disabled collision pairs are
 found the way MoveIt's setup assistant does: adjacent links, and pairs whose primitive shapes
 overlap in nearly every sampled configuration (their overlap is an artefact of the boxes, not a

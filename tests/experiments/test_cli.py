@@ -18,7 +18,7 @@ from perception.validation import CheckConfig
 from sim.trials.collector import CollectSettings
 from sim.trials.run_loop import TrialSettings
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _loaded_after(argv: list[str]) -> set[str]:
