@@ -90,8 +90,9 @@ class KqvNet(nn.Module):
             nn.init.zeros_(last.bias)
         self.rays = CameraRays(spec) if self.readout == "ray" else None
         # Where the camera sees each target: the point loss's aim, on either readout.
-        self.seen = self.rays if self.rays is not None or c.point_loss_weight == 0 or \
-            spec.camera is None else CameraRays(spec)
+        self.seen = self.rays
+        if self.seen is None and spec.camera is not None and c.point_loss_weight > 0:
+            self.seen = CameraRays(spec)
         reads_features = c.head_features
         if reads_features is None:
             reads_features = spec.label_kind is LabelKind.GRASP_POSE or self.rays is not None
