@@ -25,16 +25,16 @@ from pathlib import Path
 
 import coal
 import numpy as np
-import pinocchio  # noqa: F401  (coal's Python module is found through pinocchio's path)
+import pinocchio as pin  # coal's Python module is found through pinocchio's path
 
 from control.depth_obstacles import GraspRegion, OccludedSpace, depth_obstacles
+from perception.catalog import Pose, clear_of_table
 from perception.labels import nearest_rotation
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_spec import load_task
 from sim.trials.planner_setup import ObstacleSource
 from sim.trials.trial_runner import TrialRunner
-from sim.world.catalog import Pose, clear_of_table
 from sim.world.grip import grip_of
 
 TASKS = ("single", "multiple", "selected-type", "selected-position")
@@ -80,7 +80,7 @@ def main() -> None:
                 grip = grip_of(target)
                 rotation = nearest_rotation("predicted rotation", target.rotation)
                 grasp, _ = clear_of_table(Pose(target.position_m, rotation), grip.opening_m)
-                region = GraspRegion(grasp.as_se3(), grip.opening_m)
+                region = GraspRegion(pin.SE3(grasp.matrix), grip.opening_m)
                 points, camera = frame.points_world(), np.asarray(frame.camera.position_m)
                 for policy, config in ((OccludedSpace.FREE, runner.depth),
                                        (OccludedSpace.OCCUPIED, occupied)):

@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
+from perception.catalog import get_object_spec
 from perception.drawing import write_png
-from sim.world.catalog import get_object_spec
-from sim.world.grasps import grasp_pose
+from perception.grasps import grasp_pose
 from sim.world.head_camera import HeadCamera, Lighting
 from sim.world.yumi_world import World
 

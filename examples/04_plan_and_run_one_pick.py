@@ -14,14 +14,15 @@ from __future__ import annotations
 import time
 
 import numpy as np
+import pinocchio as pin
 
 from control.depth_obstacles import GraspRegion, depth_obstacles
 from control.pick import PickRequest
+from perception.catalog import get_object_spec
+from perception.grasps import grasp_pose
 from robots import yumi
 from sim.trials.execution import ExecutionSettings, execute_pick
 from sim.trials.planner_setup import make_yumi_planner, table_obstacle, yumi_depth_config
-from sim.world.catalog import get_object_spec
-from sim.world.grasps import grasp_pose
 from sim.world.head_camera import HeadCamera
 from sim.world.yumi_world import World
 
@@ -35,7 +36,7 @@ def main() -> None:
         world.add_object(get_object_spec("mug"), position_xy_m=(0.46, 0.06), yaw_rad=2.0)
         world.step(60)  # let them settle
 
-        T_world_grasp = grasp_pose(sponge, world.object_pose(body)).as_se3()
+        T_world_grasp = pin.SE3(grasp_pose(sponge, world.object_pose(body)).matrix)
         print("grasp TCP position [m]:", T_world_grasp.translation.round(4))
 
         frame = HeadCamera().render_rgbd(world.client)  # colour, depth, calibration

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from perception.interface import InvalidInputError
+from perception.errors import InvalidInputError
 
 _FIELDS = ("position_m", "target_m", "up", "vertical_fov_deg", "horizontal_fov_deg",
            "width_px", "height_px")
@@ -119,6 +119,37 @@ class PinholeCamera:
         right = np.cross(forward, self.up)
         right = right / np.linalg.norm(right)
         return np.stack([right, np.cross(right, forward), -forward], axis=1)
+
+    @property
+    def image_size_px(self) -> tuple[int, int]:
+        """(width, height) of the camera's images [px]."""
+        return self.width_px, self.height_px
+
+    @property
+    def K(self) -> np.ndarray:
+        """The intrinsic matrix (3, 3), OpenCV's convention, for this module's pixels.
+
+        ``K @ p_camera / p_camera[2]`` is the pixel (u, v, 1) of a point in the optical frame
+        of :attr:`T_world_camera`; it equals :meth:`project`.
+        """
+        tan_x, tan_y = self.tan_half_fov
+        u0, v0 = self.ndc_to_pixels(0.0, 0.0)
+        return np.array([[0.5 * self.width_px / tan_x, 0.0, u0],
+                         [0.0, 0.5 * self.height_px / tan_y, v0],
+                         [0.0, 0.0, 1.0]])
+
+    @property
+    def T_world_camera(self) -> np.ndarray:
+        """The camera's pose in the world (4, 4): its optical frame, OpenCV's (and ROS's).
+
+        x right and y down in the image, z forward along the optical axis; the origin at the
+        optical centre.
+        """
+        right, up, backward = self.world_from_camera.T
+        transform = np.eye(4)
+        transform[:3, :3] = np.stack([right, -up, -backward], axis=1)
+        transform[:3, 3] = self.position_m
+        return transform
 
     def project(self, points_world: np.ndarray) -> np.ndarray:
         """Pixel coordinates (u right, v down) of world points, (N, 3) -> (N, 2).

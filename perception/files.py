@@ -9,7 +9,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, ClassVar
 
-from perception.interface import PerceptionError
+from perception.errors import PerceptionError
 
 MAX_SAFETENSORS_HEADER_BYTES = 100_000_000  # safetensors' own limit
 

@@ -1,11 +1,18 @@
-"""The one interface every perception model implements: ``predict(image, condition)``.
+"""The one interface every perception model implements, and the types it speaks.
 
-A plug-in model needs nothing but this module. The simulator hands a model an RGB image and a
-:class:`Condition` (what the top-down Query asks for) and gets back a :class:`Prediction`: one
-:class:`Target` per predicted object (a position, or a grasp pose for the gripper's tool centre
-point) plus the attention points the model looked at, in pixels.
+A plug-in model needs nothing but ``perception``. Before each pick the trial hands the model
+an :class:`~perception.camera.RgbdFrame` (the head camera's RGB image, its depth image in metres
+and its calibration: :class:`~perception.camera.PinholeCamera`, with ``K``, ``T_world_camera``
+and rays through pixels) and a :class:`Condition` (what the top-down Query asks for), and gets
+back a :class:`Prediction`: one :class:`Target` per predicted object (a position, or a grasp
+pose for the gripper's tool centre point) plus the attention points the model looked at, in
+pixels. :mod:`perception.catalog` and :mod:`perception.grasps` say which grasp each object
+takes.
 
-Example (a model that always points at the table centre)::
+A model implements :meth:`PerceptionModel.predict` (colour image only) or
+:meth:`PerceptionModel.predict_frame` (the whole frame) and declares what it reads in
+``inputs``; a trial checks that before its first pick. Example (a model that always points at
+the table centre)::
 
     class Centre(PerceptionModel):
         name = "centre"
@@ -25,17 +32,13 @@ from typing import ClassVar
 
 import numpy as np
 
+from perception.camera import PinholeCamera, RgbdFrame
+from perception.errors import InvalidInputError, InvalidPredictionError, PerceptionError
 
-class PerceptionError(Exception):
-    """Base of every error raised by ``perception``."""
-
-
-class InvalidInputError(PerceptionError, ValueError):
-    """A value a model cannot use; the message names the field, the value and what is allowed."""
-
-    def __init__(self, field: str, value: object, allowed: str) -> None:
-        self.field, self.value, self.allowed = field, value, allowed
-        super().__init__(f"{field} = {value!r} is not allowed: {allowed}")
+__all__ = ["NO_CONDITION", "Condition", "ConditionKind", "InvalidInputError",
+           "InvalidPredictionError", "LabelKind", "ModelInput", "PerceptionError",
+           "PerceptionModel", "PinholeCamera", "Prediction", "RgbdFrame", "Target",
+           "check_image"]
 
 
 class LabelKind(enum.Enum):
@@ -112,8 +115,15 @@ class Target:
     def __post_init__(self) -> None:
         if np.shape(self.position_m) != (3,):
             raise InvalidInputError("position_m", np.shape(self.position_m), "shape (3,)")
+        if not np.all(np.isfinite(np.asarray(self.position_m, dtype=float))):
+            raise InvalidInputError("position_m", np.asarray(self.position_m).tolist(),
+                                    "finite numbers")
         if self.rotation is not None and np.shape(self.rotation) != (3, 3):
             raise InvalidInputError("rotation", np.shape(self.rotation), "shape (3, 3) or None")
+        if self.rotation is not None and not np.all(np.isfinite(np.asarray(self.rotation,
+                                                                           dtype=float))):
+            raise InvalidInputError("rotation", np.asarray(self.rotation).tolist(),
+                                    "finite numbers")
         if self.opening_m is not None and not self.opening_m > 0.0:
             raise InvalidInputError("opening_m", self.opening_m, "a gap > 0 m, or None")
 
@@ -135,18 +145,39 @@ class Prediction:
     heatmaps: np.ndarray | None = None
 
 
-class PerceptionModel(abc.ABC):
-    """A model that turns a camera image and a condition into target predictions.
+class ModelInput(enum.Enum):
+    """What a model may read of a camera frame (declared in ``PerceptionModel.inputs``)."""
 
-    Subclasses set ``name`` and ``label_kind`` and implement :meth:`predict`.
+    RGB = "rgb"  # the colour image
+    DEPTH = "depth"  # the depth image [m]
+    CAMERA = "camera"  # the calibration: intrinsics and pose in the world
+
+
+class PerceptionModel(abc.ABC):
+    """A model that turns a camera frame and a condition into target predictions.
+
+    Subclasses set ``name`` and ``label_kind``, and implement :meth:`predict` (the colour image
+    is all they read) or :meth:`predict_frame` (they read depth or calibration too, and say so
+    in ``inputs``).
     """
 
     name: ClassVar[str]
     label_kind: LabelKind  # per instance where one class serves both kinds (kqv)
+    inputs: ClassVar[frozenset[ModelInput]] = frozenset({ModelInput.RGB})
+    """What the model reads; a run checks it can give them before the first prediction."""
 
-    @abc.abstractmethod
     def predict(self, image: np.ndarray, condition: Condition = NO_CONDITION) -> Prediction:
         """Predicts the targets in ``image`` (uint8 (H, W, 3) RGB, row 0 at the top)."""
+        raise NotImplementedError(f"{type(self).__name__} implements neither predict(image, "
+                                  "condition) nor predict_frame(frame, condition)")
+
+    def predict_frame(self, frame: RgbdFrame, condition: Condition = NO_CONDITION
+                      ) -> Prediction:
+        """Predicts the targets seen in ``frame`` (RGB, depth and calibration).
+
+        What a trial calls. The default reads the colour image alone: :meth:`predict`.
+        """
+        return self.predict(frame.rgb, condition)
 
 
 def check_image(image: np.ndarray, shape: Sequence[int] | None = None) -> None:

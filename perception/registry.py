@@ -1,9 +1,10 @@
-"""Perception models by name: the built-in ones, or ``"package.module:Class"`` for your own.
+"""Perception models by name: the built-in ones, or your own (:mod:`perception.plugins`).
 
 ::
 
     model_class("kqv")                      # -> KqvModel
     model_class("my_lab.models:TinyNet")    # imported with importlib; must be a PerceptionModel
+    model_class("tiny-net")                 # a name an installed package registers (gva.models)
     new_model("keypoint-16", dataset, seed=0)   # a fresh model for a dataset, preset applied
     load_model("runs/kqv-single")           # reads config.json's model name, then Class.load
 
@@ -15,7 +16,6 @@ a model that is not registered needs the class named by the caller (``load_model
 from __future__ import annotations
 
 import dataclasses
-import importlib
 from collections.abc import Mapping
 from pathlib import Path
 from types import MappingProxyType
@@ -31,6 +31,12 @@ from perception.models.fcn import FcnModel
 from perception.models.keypoint import KeypointModel
 from perception.models.kqv import KqvModel
 from perception.models.torch_model import TorchModel
+from perception.plugins import (
+    ENTRY_POINT_GROUP,
+    installed_models,
+    is_class_path,
+    plugin_class,
+)
 
 MODELS: Mapping[str, type[PerceptionModel]] = MappingProxyType({
     KqvModel.name: KqvModel,
@@ -82,7 +88,10 @@ def new_model(name_or_path: str, dataset: Dataset, *, seed: int = 0,
 
 
 def model_class(name_or_path: str) -> type[PerceptionModel]:
-    """The model class a registered name or a ``"package.module:Class"`` path names.
+    """The model class a built-in name, an installed plug-in's name or a path names.
+
+    A name that is not built in is looked up as :func:`perception.plugins.plugin_class` does:
+    ``"package.module:Class"``, or a name an installed package registers.
 
     Raises:
         InvalidInputError: An unknown name, a module that does not import, a missing class or a
@@ -94,28 +103,15 @@ def model_class(name_or_path: str) -> type[PerceptionModel]:
                                 "'package.module:Class'")
     if name_or_path in PRESETS:
         name_or_path = PRESETS[name_or_path][0]
-    if ":" not in name_or_path:
-        if name_or_path not in MODELS:
-            raise InvalidInputError("model", name_or_path, f"a registered name ({_names()}) "
-                                    "or 'package.module:Class' for a model of your own")
+    if name_or_path in MODELS:
         return MODELS[name_or_path]
-    module_name, _, class_name = name_or_path.partition(":")
-    if not module_name or not class_name.isidentifier():
-        raise InvalidInputError("model", name_or_path, "'package.module:Class' with both parts")
-    try:
-        module = importlib.import_module(module_name)
-    except ImportError as error:
-        raise InvalidInputError("model", name_or_path, f"an importable module; importing "
-                                f"{module_name!r} failed: {error}") from error
-    cls = getattr(module, class_name, None)
-    if cls is None:
-        raise InvalidInputError("model", name_or_path, f"a class that module {module_name!r} "
-                                f"defines; it has no {class_name!r}")
-    if not isinstance(cls, type) or not issubclass(cls, PerceptionModel):
-        raise InvalidInputError("model", name_or_path, "a subclass of "
-                                "perception.interface.PerceptionModel; "
-                                f"{class_name} is {cls!r}")
-    return cls
+    if not is_class_path(name_or_path) and name_or_path not in installed_models():
+        installed = ", ".join(installed_models()) or "none installed"
+        raise InvalidInputError("model", name_or_path, f"a registered name ({_names()}), a "
+                                f"name an installed package registers in {ENTRY_POINT_GROUP!r} "
+                                f"({installed}), or 'package.module:Class' for a model of "
+                                "your own")
+    return plugin_class(name_or_path)
 
 
 def load_model(folder: str | Path, model: str | None = None) -> LearnableModel:

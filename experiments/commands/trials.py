@@ -12,13 +12,15 @@ from pathlib import Path
 
 from experiments.commands.arguments import integer
 from sim.trials.planner_setup import ObstacleSource
-from sim.trials.run_loop import TrialSettings, held_out_check, run_trials
+from sim.trials.records import TrialSummary
+from sim.trials.run_loop import RunStopped, TrialSettings, held_out_check, run_trials
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:
     """The options of ``gva trials``."""
     parser.add_argument("--model", default="oracle",
-                        help="oracle (default), a checkpoint folder, or package.module:Class")
+                        help="oracle (default), a checkpoint folder, package.module:Class, or "
+                        "a name an installed package registers in gva.models")
     parser.add_argument("--model-class", metavar="MODULE:CLASS",
                         help="the class that loads a checkpoint of an unregistered model")
     parser.add_argument("--task", default="single",
@@ -46,7 +48,19 @@ def run(args: argparse.Namespace) -> int:
         print(f"WARNING: checkpoint {args.model} failed its training's held-out check "
               f"({check.reason}): these trials measure a model known to be poor",
               file=sys.stderr)
-    summary = run_trials(settings, args.out, progress=not args.no_progress)
+    try:
+        summary = run_trials(settings, args.out, progress=not args.no_progress)
+    except RunStopped as stopped:  # Ctrl-C, or the model's SystemExit: what finished, kept
+        print_summary(stopped.summary, args.out)
+        print(f"gva trials: stopped: {stopped}; run the same command again to resume",
+              file=sys.stderr)
+        return 130 if isinstance(stopped.cause, KeyboardInterrupt) else 1
+    print_summary(summary, args.out)
+    return 0
+
+
+def print_summary(summary: TrialSummary, out: Path) -> None:
+    """Prints what a run of trials gave: successes, outcomes, picks by object, where it is."""
     print(summary.headline())
     for outcome, count in summary.outcomes.items():
         if count:
@@ -55,5 +69,4 @@ def run(args: argparse.Namespace) -> int:
                        for name, c in summary.per_object.items())
     print(f"picks by object: {picked}")
     print(f"median wall time per trial: {summary.median_wall_time_s:.2f} s")
-    print(f"trials: {args.out / 'trials.jsonl'}   summary: {args.out / 'summary.json'}")
-    return 0
+    print(f"trials: {out / 'trials.jsonl'}   summary: {out / 'summary.json'}")

@@ -12,7 +12,7 @@ collector records the answer in a dataset (``metadata.extra["mirror_symmetric"]`
   they are one of each type (ordered by type), else there is one target; a side condition
   swaps (the learner swaps it too).
 
-The grasp labels follow: the canonical grasp (:func:`sim.world.grasps.grasp_pose`) of a mirrored
+The grasp labels follow: the canonical grasp (:func:`perception.grasps.grasp_pose`) of a mirrored
 object is the mirror of the canonical grasp, up to the gripper's half turn.
 """
 
@@ -20,10 +20,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from perception.catalog import ObjectSpec, PrimitiveKind, get_object_spec
 from sim.tasks.scene_sampling import target_count
 from sim.tasks.scene_specs import SceneSpec
 from sim.tasks.task_spec import ObjectChoice, TaskSpec
-from sim.world.catalog import ObjectSpec, PrimitiveKind, get_object_spec
 from sim.world.head_camera import CameraConfig
 
 TOLERANCE = 1e-9

@@ -7,10 +7,10 @@ from pathlib import Path
 
 import numpy as np
 
+from perception.catalog import get_object_spec
 from perception.drawing import write_png
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import Scene
-from sim.world.catalog import get_object_spec
 from sim.world.head_camera import HeadCamera
 from sim.world.yumi_world import World
 

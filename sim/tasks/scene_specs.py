@@ -14,9 +14,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from perception.catalog import DISTRACTOR_TYPES, OBJECT_TYPES
 from perception.interface import LabelKind
 from sim.errors import InvalidInputError
-from sim.world.catalog import DISTRACTOR_TYPES, OBJECT_TYPES
 from sim.world.head_camera import CameraConfig
 
 

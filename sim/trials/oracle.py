@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from perception.catalog import OBJECT_TYPES
+from perception.grasps import grasp_pose
 from perception.interface import (
     NO_CONDITION,
     Condition,
@@ -22,8 +24,6 @@ from perception.interface import (
     check_image,
 )
 from sim.errors import TargetNotFoundError
-from sim.world.catalog import OBJECT_TYPES
-from sim.world.grasps import grasp_pose
 from sim.world.head_camera import HeadCamera
 from sim.world.yumi_world import World
 

@@ -14,8 +14,8 @@ import numpy as np
 import pinocchio as pin
 
 from control.pick import PickPlan, PlanStatus
+from perception.catalog import Pose
 from sim.trials.records import TrialOutcome
-from sim.world.catalog import Pose
 from sim.world.grip import Grip
 
 POSE_DECIMALS = 6
@@ -58,6 +58,7 @@ class PlannedPick:
             record keeps it.
         plan_status: The planner's answer.
         plan: The plan to run; None when the pick ends here.
+        traceback: Where the model's predict raised, as Python prints it; None if it did not.
 
     """
 
@@ -69,6 +70,7 @@ class PlannedPick:
     obstacles: dict[str, Any] | None = None
     plan_status: PlanStatus | None = None
     plan: PickPlan | None = None
+    traceback: str | None = None
 
 
 @dataclass(frozen=True)
@@ -132,6 +134,8 @@ class PickAttempt:
         if planned.plan is not None:
             data["arm"] = planned.plan.arm
         data |= {"outcome": self.outcome.value, "reason": self.reason}
+        if planned.traceback is not None:
+            data["traceback"] = planned.traceback
         if self.lift_m is not None:
             data["lift_m"] = self.lift_m
         return data

@@ -21,8 +21,7 @@ from control.ik import IkOptions
 from control.pick import PickPlannerConfig, build_arm_specs
 from control.planner import PickPlanner
 from control.robot_model import RobotModel
-from robots import yumi
-from sim.world.catalog import (
+from perception.catalog import (
     FINGER_HALF_WIDTH_M,
     FINGER_LENGTH_M,
     FINGER_THICKNESS_M,
@@ -30,6 +29,7 @@ from sim.world.catalog import (
     PrimitiveKind,
     obstacle_shapes,
 )
+from robots import yumi
 from sim.world.yumi_world import ROBOT_FOOTPRINT_M, TABLE_HALF_SIZE_M, World, WorldConfig
 
 TABLE_THICKNESS_M = 0.05  # table/table.urdf's top slab
@@ -96,7 +96,7 @@ def object_obstacles(world: World, bodies: Iterable[int]) -> list[Obstacle]:
             else:
                 kind, size = ShapeKind.CYLINDER, (shape.size_m[0] / 2, float(shape.size_m[2]))
             obstacles.append(Obstacle(f"{spec.name}#{body}/{number}", kind, size,
-                                      shape.pose.as_se3()))
+                                      pin.SE3(shape.pose.matrix)))
     return obstacles
 
 

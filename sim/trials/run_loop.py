@@ -6,10 +6,16 @@ scene a model was trained on. Every finished trial is appended to ``trials.jsonl
 next one starts; running the same command again resumes where an interrupted run stopped.
 
 The model is named by ``TrialSettings.model``: ``"oracle"``; a checkpoint folder (``gva
-train`` writes one), checked against the task before the first trial; or
-``"package.module:Class"``, a model of your own built with no arguments. Any model but the
-oracle runs its inference on one torch thread: a trial predicts one image at a time, where more
-threads cost more than they save, and runs of trials side by side would fight for the cores.
+train`` writes one), checked against the task before the first trial; or a model of your own
+built with no arguments: ``"package.module:Class"`` or the name an installed package registers
+(:mod:`perception.plugins`). A model that uses torch runs its inference on one torch thread: a
+trial predicts one image at a time, where more threads cost more than they save, and runs of
+trials side by side would fight for the cores.
+
+A model that misbehaves costs its trial, never the run: each pick records it as
+``perception_failed`` (:mod:`sim.trials.trial_runner`). Only ``KeyboardInterrupt`` (Ctrl-C) and
+``SystemExit`` stop a run; :class:`RunStopped` then carries the summary of what finished, and
+the same command resumes it.
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import enum
 import json
+import sys
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -24,9 +31,11 @@ from typing import Any
 
 from tqdm import tqdm
 
+from perception.checks import check_inputs
 from perception.files import atomic_write
 from perception.interface import LabelKind, PerceptionModel
 from perception.learnable import LearnableModel, ModelSpec
+from perception.plugins import build_plugin, installed_models, is_class_path, plugin_class
 from perception.validation import HeldOutCheck, read_check
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import (
@@ -42,15 +51,16 @@ from sim.trials.execution import ExecutionSettings
 from sim.trials.oracle import OraclePerception
 from sim.trials.planner_setup import ObstacleSource, yumi_depth_config
 from sim.trials.records import TrialLog, TrialSummary
-from sim.trials.trial_runner import ModelFactory, TrialRunner
+from sim.trials.trial_runner import TRIAL_INPUTS, ModelFactory, TrialRunner
 from sim.world.head_camera import CameraConfig
 
 MODELS: dict[str, ModelFactory] = {"oracle": OraclePerception}
 """Perception models the trial runner builds by name; a checkpoint folder or
 ``"package.module:Class"`` names any other (see :func:`load_trial_model`)."""
 
-_ALLOWED_MODELS = (f"one of {', '.join(MODELS)}, a checkpoint folder (gva train writes one) or "
-                   "'package.module:Class'")
+_ALLOWED_MODELS = (f"one of {', '.join(MODELS)}, a checkpoint folder (gva train writes one), "
+                   "'package.module:Class' or the name an installed package registers in "
+                   "'gva.models'")
 
 
 class ModelSource(enum.Enum):
@@ -58,7 +68,8 @@ class ModelSource(enum.Enum):
 
     BUILT_IN = "built_in"  # a name in MODELS
     CHECKPOINT = "checkpoint"  # a checkpoint folder of a learnable model
-    CLASS = "class"  # "package.module:Class", a model built with no arguments
+    CLASS = "class"  # "package.module:Class" or an installed plug-in's name: built with no
+    # arguments
 
 
 def model_source(model: str) -> ModelSource:
@@ -69,7 +80,7 @@ def model_source(model: str) -> ModelSource:
         return ModelSource.BUILT_IN
     if Path(model).is_dir():
         return ModelSource.CHECKPOINT
-    if ":" in model:
+    if is_class_path(model) or model in installed_models():
         return ModelSource.CLASS
     raise InvalidInputError("model", model, _ALLOWED_MODELS)
 
@@ -98,8 +109,8 @@ class TrialSettings:
     """What a run of trials does; the fields of ``run.json``.
 
     Args:
-        model: ``"oracle"`` (see :data:`MODELS`), a checkpoint folder, or
-            ``"package.module:Class"`` of a model that builds with no arguments.
+        model: ``"oracle"`` (see :data:`MODELS`), a checkpoint folder, or a model that builds
+            with no arguments: ``"package.module:Class"`` or an installed plug-in's name.
         task: A built-in task name, or the path of a task TOML file.
         n: Number of trials.
         seed: Seed of the test scenes.
@@ -169,8 +180,8 @@ class TrialModel:
     Args:
         factory: Builds the model from the runner's world and camera.
         label: A short name for progress bars.
-        one_torch_thread: Limit torch to one thread during the trials (models that may use
-            torch: every model but the built-in ones).
+        one_torch_thread: Limit torch to one thread during the trials (a model that uses
+            torch: it was imported when the model was built).
 
     """
 
@@ -180,37 +191,34 @@ class TrialModel:
 
 
 def load_trial_model(settings: TrialSettings) -> TrialModel:
-    """The model ``settings.model`` names, loaded and checked against the task.
+    """The model ``settings.model`` names, built, loaded and checked against the task.
 
     Raises:
-        InvalidInputError: The model does not predict grasp poses, was trained for another
-            task (the message names both), or a class that does not build with no arguments.
+        InvalidInputError: The model cannot be found or built, reads what a trial does not
+            give, does not predict grasp poses, or was trained for another task; one line
+            that says which.
         perception.checkpoint.CheckpointError: The checkpoint cannot be used.
 
     """
     source = model_source(settings.model)
     if source is ModelSource.BUILT_IN:
         return TrialModel(MODELS[settings.model], settings.model, one_torch_thread=False)
-    from perception.registry import load_model, model_class  # imports torch: not for the oracle
-
     model: PerceptionModel
     if source is ModelSource.CHECKPOINT:
+        from perception.registry import load_model  # imports torch: not for the oracle
+
         model = load_model(settings.model, settings.model_class)
         label = f"{model.name} {Path(settings.model).resolve().name}"
     else:
-        cls = model_class(settings.model)
-        if issubclass(cls, LearnableModel):
+        if issubclass(plugin_class(settings.model), LearnableModel):
             raise InvalidInputError("model", settings.model, "a model without weights; a "
                                     "learnable one loads from its checkpoint folder: --model "
                                     f"FOLDER --model-class {settings.model}")
-        try:
-            model = cls()
-        except TypeError as error:
-            raise InvalidInputError("model", settings.model, "a class that builds with no "
-                                    f"arguments ({error})") from error
+        model = build_plugin(settings.model)
         label = model.name
+    check_inputs(model, TRIAL_INPUTS, settings.model)
     check_model_fits_task(model, settings.task_spec, settings.model)
-    return TrialModel(lambda world, camera: model, label, one_torch_thread=True)
+    return TrialModel(lambda world, camera: model, label, one_torch_thread="torch" in sys.modules)
 
 
 def check_model_fits_task(model: PerceptionModel, task: TaskSpec, where: str) -> None:
@@ -267,28 +275,67 @@ def held_out_check(settings: TrialSettings) -> HeldOutCheck | None:
     return read_check(settings.model)
 
 
+class RunStopped(BaseException):
+    """A run stopped before its last trial by Ctrl-C or ``SystemExit``; what finished is kept.
+
+    A ``BaseException``, as the two it stands for: no ``except Exception`` swallows it.
+
+    Args:
+        summary: The trials that finished, as ``summary.json`` holds them.
+        cause: The ``KeyboardInterrupt`` or ``SystemExit`` that stopped the run.
+
+    """
+
+    def __init__(self, summary: TrialSummary, cause: BaseException) -> None:
+        self.summary, self.cause = summary, cause
+        why = "interrupted" if isinstance(cause, KeyboardInterrupt) else \
+            f"the model raised SystemExit({getattr(cause, 'code', None)!r})"
+        super().__init__(f"{why} after {summary.n} finished trials")
+
+
 def run_trials(
     settings: TrialSettings, out_dir: str | Path, progress: bool = True
 ) -> TrialSummary:
-    """Runs (or resumes) ``settings.n`` trials into ``out_dir``; writes ``summary.json``."""
+    """Runs (or resumes) ``settings.n`` trials into ``out_dir``; writes ``summary.json``.
+
+    Raises:
+        RunStopped: Ctrl-C or ``SystemExit`` stopped the run; ``summary.json`` holds what
+            finished, and the same call resumes.
+
+    """
     out = Path(out_dir)
     model = load_trial_model(settings)  # a refused model leaves no run folder behind
     log = TrialLog(out, settings.identity())
     todo = [i for i in range(settings.n) if not log.done(i)]
+    try:
+        _run_todo(settings, model, log, todo, progress)
+    except (KeyboardInterrupt, SystemExit) as stop:
+        raise RunStopped(_write_summary(settings, log, out), stop) from stop
+    return _write_summary(settings, log, out)
+
+
+def _run_todo(settings: TrialSettings, model: TrialModel, log: TrialLog, todo: list[int],
+              progress: bool) -> None:
+    """Runs the trials ``todo``, appending each to ``log`` as it finishes."""
+    if not todo:
+        return
     task = settings.task_spec
-    if todo:
-        threads = torch_threads(1) if model.one_torch_thread else contextlib.nullcontext()
-        with threads, TrialRunner(task, model.factory, settings.settle_s, settings.execution,
-                                  obstacles=settings.obstacles) as runner, tqdm(
-            total=settings.n, initial=settings.n - len(todo), disable=not progress,
-            desc=f"{model.label} / {task.name}", unit="trial",
-        ) as bar:
-            for index in todo:
-                scene = sample_scene(task, YUMI_SCENE, settings.seed, SeedStream.TEST, index)
-                log.append(runner.run(scene, index, settings.seed, settings.model))
-                summary = log.summary(settings.n)
-                bar.set_postfix_str(f"{summary.successes}/{summary.n} ok")
-                bar.update()
+    threads = torch_threads(1) if model.one_torch_thread else contextlib.nullcontext()
+    with threads, TrialRunner(task, model.factory, settings.settle_s, settings.execution,
+                              obstacles=settings.obstacles) as runner, tqdm(
+        total=settings.n, initial=settings.n - len(todo), disable=not progress,
+        desc=f"{model.label} / {task.name}", unit="trial",
+    ) as bar:
+        for index in todo:
+            scene = sample_scene(task, YUMI_SCENE, settings.seed, SeedStream.TEST, index)
+            log.append(runner.run(scene, index, settings.seed, settings.model))
+            summary = log.summary(settings.n)
+            bar.set_postfix_str(f"{summary.successes}/{summary.n} ok")
+            bar.update()
+
+
+def _write_summary(settings: TrialSettings, log: TrialLog, out: Path) -> TrialSummary:
+    """Writes ``summary.json`` of the trials ``log`` holds; their summary."""
     summary = log.summary(settings.n)
     check = held_out_check(settings)
     data = {"settings": settings.identity() | {"n": settings.n}} | summary.to_dict() | {

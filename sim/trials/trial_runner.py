@@ -27,13 +27,25 @@ from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
+import pinocchio as pin
 
 from control.collision import AnyObstacle
 from control.depth_obstacles import DepthObstacleConfig, GraspRegion, depth_obstacles
 from control.pick import PickPlan, PickRequest, PlanStatus
 from control.planner import PickPlanner
 from perception.camera import RgbdFrame
-from perception.interface import PerceptionError, PerceptionModel, Prediction, Target
+from perception.catalog import Pose, clear_of_table, get_object_spec
+from perception.checks import check_inputs, check_prediction
+from perception.errors import InvalidPredictionError
+from perception.grasps import grasp_pose
+from perception.interface import (
+    LabelKind,
+    ModelInput,
+    PerceptionError,
+    PerceptionModel,
+    Prediction,
+    Target,
+)
 from perception.labels import nearest_rotation
 from robots import yumi
 from sim.errors import InvalidInputError, SimError
@@ -51,8 +63,6 @@ from sim.trials.planner_setup import (
     yumi_depth_config,
 )
 from sim.trials.records import TrialOutcome, TrialRecord
-from sim.world.catalog import Pose, clear_of_table, get_object_spec
-from sim.world.grasps import grasp_pose
 from sim.world.grip import Grip, grip_of
 from sim.world.head_camera import HeadCamera
 from sim.world.yumi_world import World
@@ -76,6 +86,9 @@ class TrialObserver(Protocol):
     def stepped(self, world: World) -> None:
         """Called after every physics step of the runner's world."""
 
+
+TRIAL_INPUTS = frozenset(ModelInput)
+"""What a trial gives each prediction: the head camera's RGB, depth and calibration."""
 
 ModelFactory = Callable[[World, HeadCamera], PerceptionModel]
 """Builds a trial's perception model from the runner's world and head camera: the oracle reads
@@ -139,6 +152,7 @@ class TrialRunner:
         self.lighting = dataclasses.replace(self.camera.config.lighting,
                                             brightness=task.brightness)
         self.model: PerceptionModel = model(self.world, self.camera)
+        check_inputs(self.model, TRIAL_INPUTS, getattr(self.model, "name", repr(self.model)))
         self.planner = planner or make_yumi_planner()
         self.observer = observer
         if observer is not None:
@@ -222,11 +236,19 @@ class TrialRunner:
         """
         frame = self.sense()
         truth = self.truth(body)  # the referee's label of this image, kept from the plan phase
-        prediction = self.model.predict(frame.rgb, scene.condition)
-        if self.observer is not None:
-            self.observer.saw(frame.rgb, prediction)
-        planned = self.plan_pick(frame, prediction, number, total)
         target = self.world.object_spec(body).name
+        try:
+            prediction = self.model.predict_frame(frame, scene.condition)
+        except Exception as error:  # the model's failure, recorded with its traceback
+            failed = PlannedPick(TrialOutcome.PERCEPTION_FAILED, f"{self.model.name}'s predict "
+                                 f"raised {type(error).__name__}: {error}",
+                                 traceback=traceback.format_exc())
+            return PickAttempt(target, truth, failed, TrialOutcome.PERCEPTION_FAILED,
+                               failed.reason)
+        planned = self.plan_pick(frame, prediction, number, total)
+        if self.observer is not None and isinstance(prediction, Prediction) and \
+                planned.predicted is not None:
+            self.observer.saw(frame.rgb, prediction)
         if planned.plan is None or planned.grip is None:
             assert planned.outcome is not None  # a plan phase that ends a pick says how
             return PickAttempt(target, truth, planned, planned.outcome, planned.reason)
@@ -240,21 +262,20 @@ class TrialRunner:
         """The plan phase: the grip, the obstacles and the plan, from what the robot senses.
 
         Reads the frame, the prediction, the robot's joint state and the table, nothing of the
-        objects (unless the runner was made with ``ObstacleSource.TRUTH``, for debugging).
+        objects (unless the runner was made with ``ObstacleSource.TRUTH``, for debugging). A
+        prediction the robot cannot act on (:func:`perception.checks.check_prediction`) ends
+        the pick as ``perception_failed``. A model may omit the targets already picked: the
+        prediction's targets are matched to the task's from the end.
         """
-        index = number - (total - len(prediction.targets))
-        if not 0 <= index < len(prediction.targets):
-            return PlannedPick(TrialOutcome.PERCEPTION_FAILED,
-                               f"{self.model.name} predicted {len(prediction.targets)} "
-                               f"targets; pick {number + 1} of {total} needs one")
-        predicted: Target = prediction.targets[index]
-        if predicted.rotation is None:
-            raise InvalidInputError("prediction rotation", None,
-                                    "a grasp pose: pick trials need models with grasp labels")
-        try:  # a float32 output is a rotation to ~1e-6; inverse kinematics wants it exact
-            rotation = nearest_rotation("predicted rotation", predicted.rotation)
-        except PerceptionError as error:
+        try:
+            targets = check_prediction(prediction, self.model.name, least=total - number,
+                                       most=total, label_kind=LabelKind.GRASP_POSE)
+        except InvalidPredictionError as error:
             return PlannedPick(TrialOutcome.PERCEPTION_FAILED, str(error))
+        predicted: Target = targets[number - (total - len(targets))]
+        assert predicted.rotation is not None  # check_prediction: a grasp pose has one
+        # a float32 output is a rotation to ~1e-6; inverse kinematics wants it exact
+        rotation = nearest_rotation("predicted rotation", predicted.rotation)
         grasp = Pose(np.asarray(predicted.position_m, dtype=float), rotation)
         try:
             grip = grip_of(predicted)
@@ -263,11 +284,11 @@ class TrialRunner:
         raised, raised_m = clear_of_table(grasp, grip.opening_m)
         obstacles = self._obstacles(frame, raised, grip)
         result = self.planner.plan(PickRequest(
-            T_world_grasp=raised.as_se3(),
+            T_world_grasp=pin.SE3(raised.matrix),
             q_start=self.planner.robot.q_from_dict(self.world.robot.joint_positions()),
             obstacles=(table_obstacle(self.world), *obstacles.obstacles),
             target_obstacles=obstacles.target,
-            alternatives=tuple(p.as_se3() for p in grip.alternatives(raised)),
+            alternatives=tuple(pin.SE3(p.matrix) for p in grip.alternatives(raised)),
             finger_opening_m=grip.opening_m / 2,
             pregrasp_distance_m=grip.pregrasp_distance_m,
         ))
@@ -282,7 +303,7 @@ class TrialRunner:
         """Obstacles and the target's own, and what the record keeps of them."""
         if self.obstacle_source is ObstacleSource.DEPTH:
             seen = depth_obstacles(frame.points_world(), np.asarray(frame.camera.position_m),
-                                   self.depth, GraspRegion(grasp.as_se3(), grip.opening_m))
+                                   self.depth, GraspRegion(pin.SE3(grasp.matrix), grip.opening_m))
             return PickObstacles(seen.obstacles, seen.target_obstacles,
                                  {"source": "depth"} | seen.to_record())
         world = self.world  # ObstacleSource.TRUTH: the debugging aid reads the true shapes

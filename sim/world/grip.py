@@ -16,10 +16,10 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from perception.catalog import MAX_OPENING_M, ObjectSpec, Pose, catalog_names, get_object_spec
+from perception.grasps import symmetric_alternatives
 from perception.interface import Target
 from sim.errors import InvalidInputError
-from sim.world.catalog import MAX_OPENING_M, ObjectSpec, Pose, catalog_names, get_object_spec
-from sim.world.grasps import symmetric_alternatives
 
 DEFAULT_PREGRASP_DISTANCE_M = 0.08
 """Back-off of the default grip's pre-grasp [m]: every catalog grasp's."""

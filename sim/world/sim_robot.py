@@ -9,9 +9,9 @@ from typing import Any
 import numpy as np
 import pybullet
 
+from perception.catalog import Pose
 from robots import yumi
 from sim.errors import InvalidInputError
-from sim.world.catalog import Pose
 
 
 @dataclass(frozen=True)

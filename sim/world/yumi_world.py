@@ -12,9 +12,9 @@ import pybullet
 import pybullet_data
 from pybullet_utils import bullet_client
 
+from perception.catalog import ObjectSpec, Pose, PrimitiveKind
 from robots import yumi
 from sim.errors import InvalidInputError, SimulationError
-from sim.world.catalog import ObjectSpec, Pose, PrimitiveKind
 from sim.world.quiet import silenced_output
 from sim.world.sim_robot import RobotConfig, SimRobot
 

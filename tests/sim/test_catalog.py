@@ -12,9 +12,7 @@ import pytest
 
 from control.ik import ArmIk
 from control.robot_model import RobotModel
-from robots import yumi
-from sim.errors import InvalidInputError
-from sim.world.catalog import (
+from perception.catalog import (
     DISTRACTOR_TYPES,
     FINGERTIP_BEYOND_TCP_M,
     MIN_FINGERTIP_HEIGHT_M,
@@ -29,7 +27,9 @@ from sim.world.catalog import (
     get_object_spec,
     obstacle_shapes,
 )
-from sim.world.grasps import grasp_pose
+from perception.grasps import grasp_pose
+from perception.interface import InvalidInputError
+from robots import yumi
 from sim.world.yumi_world import World
 
 FLIP = pin.SE3(pin.utils.rotate("z", math.pi), np.zeros(3))  # the gripper's own symmetry
@@ -265,7 +265,7 @@ def test_grasp_lifts_and_holds(
     bottom_z_m = world.object_bottom_z_m(body)
     ik = ArmIk(yumi_model, yumi.ARM_JOINTS[side], yumi.TCP_FRAME[side])
     q_home = yumi_model.q_from_dict(world.robot.joint_positions())
-    grasp = grasp_pose(spec, world.object_pose(body)).as_se3()
+    grasp = pin.SE3(grasp_pose(spec, world.object_pose(body)).matrix)
     to_above, down, up = _plan_pick(ik, yumi_model, grasp, spec.grasp.pregrasp_distance_m, q_home)
     motion = _Motion(world, side)
     world.robot.open_gripper(side, spec.grasp.opening_m)

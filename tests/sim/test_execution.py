@@ -7,14 +7,14 @@ import pytest
 
 from control.depth_obstacles import GraspRegion, depth_obstacles
 from control.pick import PickRequest, PlanStatus
+from perception.catalog import get_object_spec
+from perception.grasps import grasp_pose
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_spec import ObjectChoice, TaskSpec
 from sim.trials.execution import ExecutionSettings, execute_pick
 from sim.trials.planner_setup import object_obstacles, table_obstacle, yumi_depth_config
 from sim.trials.records import TrialOutcome
-from sim.world.catalog import get_object_spec
-from sim.world.grasps import grasp_pose
 from sim.world.head_camera import HeadCamera
 from sim.world.yumi_world import World
 
@@ -31,7 +31,7 @@ def plan_for(planner, world, target, others, grasp=None, with_obstacles=True, so
     """Plans the pick of ``target`` around the table and the ``others``' true shapes, or, with
     ``source="depth"``, around what the head camera's depth image shows (as a trial does)."""
     spec = world.object_spec(target)
-    grasp = grasp or grasp_pose(spec, world.object_pose(target)).as_se3()
+    grasp = grasp or pin.SE3(grasp_pose(spec, world.object_pose(target)).matrix)
     obstacles, own = [], []
     if with_obstacles and source == "shapes":
         obstacles = [table_obstacle(world), *object_obstacles(world, others)]
@@ -74,7 +74,7 @@ def test_contact_watch_catches_a_plan_that_ignores_the_table(world, yumi_planner
     world.reset_scene()
     sponge = world.add_object(get_object_spec("sponge"), (0.42, -0.1), 0.0)
     world.step(30)
-    truth = grasp_pose(world.object_spec(sponge), world.object_pose(sponge)).as_se3()
+    truth = pin.SE3(grasp_pose(world.object_spec(sponge), world.object_pose(sponge)).matrix)
     too_low = pin.SE3(truth.rotation, truth.translation - np.array([0.0, 0.0, 0.03]))
     # With the table as an obstacle the planner refuses the grasp ...
     assert plan_for(yumi_planner, world, sponge, [], grasp=too_low).status is PlanStatus.COLLISION

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
+from perception.catalog import MAX_OPENING_M, Pose, catalog_names, get_object_spec
+from perception.grasps import grasp_pose
 from perception.interface import InvalidInputError as PerceptionInputError
 from perception.interface import Target
 from sim.errors import InvalidInputError
-from sim.world.catalog import MAX_OPENING_M, Pose, catalog_names, get_object_spec
-from sim.world.grasps import grasp_pose
 from sim.world.grip import DEFAULT_GRIP, GripSource, grip_of
 
 HERE = np.array([0.45, 0.0, 0.05])

@@ -10,10 +10,10 @@ import pybullet
 import pytest
 
 from perception.camera import PinholeCamera
+from perception.catalog import get_object_spec
 from perception.interface import InvalidInputError as PerceptionInputError
 from sim.errors import InvalidInputError
 from sim.tasks.scene_specs import YUMI_SCENE
-from sim.world.catalog import get_object_spec
 from sim.world.head_camera import CameraConfig, HeadCamera, Lighting
 from sim.world.paper_world import PaperWorldConfig
 from sim.world.yumi_world import World

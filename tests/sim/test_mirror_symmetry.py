@@ -5,10 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from sim.tasks.mirror_symmetry import MIRROR_Y, mirror_symmetric, object_is_mirror_symmetric
-from sim.tasks.scene_specs import YUMI_SCENE
-from sim.tasks.task_spec import builtin_tasks, load_task, task_from_toml
-from sim.world.catalog import (
+from perception.catalog import (
     DISTRACTOR_TYPES,
     OBJECT_TYPES,
     SPRAY_BOTTLE,
@@ -16,7 +13,10 @@ from sim.world.catalog import (
     Primitive,
     get_object_spec,
 )
-from sim.world.grasps import grasp_pose
+from perception.grasps import grasp_pose
+from sim.tasks.mirror_symmetry import MIRROR_Y, mirror_symmetric, object_is_mirror_symmetric
+from sim.tasks.scene_specs import YUMI_SCENE
+from sim.tasks.task_spec import builtin_tasks, load_task, task_from_toml
 from sim.world.head_camera import CameraConfig
 
 CATALOG = OBJECT_TYPES + DISTRACTOR_TYPES

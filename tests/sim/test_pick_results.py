@@ -3,9 +3,9 @@ import math
 import numpy as np
 
 from control.pick import PlanStatus
+from perception.catalog import Pose, rot_z
 from sim.trials.pick_results import PickAttempt, PlannedPick, TrialResult, as_recorded
 from sim.trials.records import TrialOutcome, TrialRecord
-from sim.world.catalog import Pose, rot_z
 from sim.world.grip import DEFAULT_GRIP
 
 DOWN = np.diag([1.0, -1.0, -1.0])

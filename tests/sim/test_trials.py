@@ -9,7 +9,9 @@ import torch
 from user_models import synthetic_dataset
 
 from experiments.cli import main
+from perception.catalog import OBJECT_TYPES, get_object_spec
 from perception.checkpoint import read_config
+from perception.grasps import grasp_pose
 from perception.interface import (
     NO_CONDITION,
     Condition,
@@ -32,8 +34,6 @@ from sim.trials.planner_setup import ObstacleSource
 from sim.trials.records import TrialLog
 from sim.trials.run_loop import TrialSettings, load_trial_model, run_trials
 from sim.trials.trial_runner import TrialRunner
-from sim.world.catalog import OBJECT_TYPES, get_object_spec
-from sim.world.grasps import grasp_pose
 from sim.world.head_camera import HeadCamera
 from sim.world.yumi_world import World
 

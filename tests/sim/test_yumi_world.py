@@ -6,14 +6,15 @@ import math
 from collections.abc import Iterator
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from control.ik import ArmIk
 from control.robot_model import RobotModel
+from perception.catalog import get_object_spec
+from perception.grasps import grasp_pose
 from robots import yumi
 from sim.errors import InvalidInputError, SimError
-from sim.world.catalog import get_object_spec
-from sim.world.grasps import grasp_pose
 from sim.world.yumi_world import World, WorldConfig
 
 ARMS = [*yumi.ARM_JOINTS["r"], *yumi.ARM_JOINTS["l"]]
@@ -129,7 +130,7 @@ def test_gripper_moves_at_rated_speed_and_squeezes_with_rated_force(
     body = fresh.add_object(spec, (0.4, 0.1), 0.2)
     model = yumi_model
     ik = ArmIk(model, yumi.ARM_JOINTS["l"], yumi.TCP_FRAME["l"])
-    solution = ik.solve(grasp_pose(spec, fresh.object_pose(body)).as_se3(),
+    solution = ik.solve(pin.SE3(grasp_pose(spec, fresh.object_pose(body)).matrix),
                         model.q_from_dict(dict(yumi.HOME)))
     assert solution.solved
     fresh.robot.reset(model.dict_from_q(solution.q, yumi.ARM_JOINTS["l"]))  # fingers stay open

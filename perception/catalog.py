@@ -2,8 +2,10 @@
 
 Plus a wooden block, presented only as a distractor (:data:`DISTRACTOR_TYPES`).
 
-Pure data and geometry (numpy only): the world turns a spec into a PyBullet body, a collision
-checker takes :func:`obstacle_shapes`; :mod:`sim.world.grasps` chooses among symmetric grasps.
+Pure data and geometry (numpy only), so a perception model reads what it must output without
+the simulator: each type's shape, colours and grasp (the TCP pose in the object frame, the
+opening, the symmetry). :mod:`perception.grasps` chooses among symmetric grasps; the simulator
+builds its bodies and judges its picks from these same specs.
 
 Every object frame sits at the centre of the object's footprint on the table, z up, so an object
 resting on the table at (x, y) with yaw ψ has ``T_world_object = (x, y, 0) · Rz(ψ)``. The object's
@@ -19,10 +21,9 @@ from types import MappingProxyType
 from typing import NamedTuple
 
 import numpy as np
-import pinocchio as pin
 
+from perception.errors import InvalidInputError
 from robots.yumi import specs as yumi_specs
-from sim.errors import InvalidInputError
 
 FINGERTIP_BEYOND_TCP_M = (
     yumi_specs.FINGER_JOINT_Z_M + yumi_specs.FINGER_BOX.size[2] - yumi_specs.TCP_Z_M
@@ -50,14 +51,12 @@ class Pose(NamedTuple):
         """Make a pose at (x, y, z) turned by ``yaw_rad`` about the world z axis."""
         return cls(np.array([x_m, y_m, z_m], dtype=float), rot_z(yaw_rad))
 
-    @classmethod
-    def from_se3(cls, transform: pin.SE3) -> Pose:
-        """Convert a Pinocchio ``SE3``."""
-        return cls(np.array(transform.translation, dtype=float), np.array(transform.rotation))
-
-    def as_se3(self) -> pin.SE3:
-        """Convert to a Pinocchio ``SE3``."""
-        return pin.SE3(np.array(self.rotation, dtype=float), np.array(self.position, dtype=float))
+    @property
+    def matrix(self) -> np.ndarray:
+        """The homogeneous transform (4, 4), e.g. for ``pinocchio.SE3(pose.matrix)``."""
+        matrix = np.eye(4)
+        matrix[:3, :3], matrix[:3, 3] = self.rotation, self.position
+        return matrix
 
     def compose(self, other: Pose) -> Pose:
         """Return ``self · other``, e.g. ``T_world_object.compose(T_object_grasp)``."""
@@ -72,7 +71,11 @@ def rot_z(angle_rad: float) -> np.ndarray:
 
 def rot_rpy(rpy_rad: tuple[float, float, float]) -> np.ndarray:
     """URDF roll-pitch-yaw rotation, ``Rz(yaw) · Ry(pitch) · Rx(roll)``, (3, 3)."""
-    return np.array(pin.rpy.rpyToMatrix(*rpy_rad))
+    roll, pitch, yaw = rpy_rad
+    cr, sr, cp, sp = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch)
+    rot_x = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    rot_y = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    return rot_z(yaw) @ rot_y @ rot_x
 
 
 class PrimitiveKind(enum.Enum):

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from sim.world.catalog import GraspSpec, ObjectSpec, Pose, Symmetry, rot_z
+from perception.catalog import GraspSpec, ObjectSpec, Pose, Symmetry, rot_z
 
 
 def grasp_pose(spec: ObjectSpec, T_world_object: Pose) -> Pose:
