@@ -64,8 +64,10 @@ def plugin_class(name: str) -> type[PerceptionModel]:
     try:
         module = importlib.import_module(module_name)
     except Exception as error:  # a plug-in's import may raise anything: one clear line
+        hint = " (is its folder on PYTHONPATH, or its package installed?)" if isinstance(
+            error, ModuleNotFoundError) and error.name == module_name.partition(".")[0] else ""
         raise InvalidInputError("model", name, f"an importable module; importing {target} "
-                                f"raised {type(error).__name__}: {error}") from error
+                                f"raised {type(error).__name__}: {error}{hint}") from error
     cls = getattr(module, class_name, None) if class_name else None
     if cls is None:
         raise InvalidInputError("model", name, f"a class that {target} defines; it has no "

@@ -8,17 +8,20 @@ finds the square can predict the label.
 
 from __future__ import annotations
 
+import sys
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
-from perception.camera import PinholeCamera
+from perception.camera import PinholeCamera, RgbdFrame
 from perception.data import Dataset, DatasetMetadata
 from perception.interface import (
     NO_CONDITION,
     Condition,
     ConditionKind,
     LabelKind,
+    ModelInput,
     PerceptionModel,
     Prediction,
     Target,
@@ -168,3 +171,108 @@ def typed_dataset(size, seed, targets=1):
                    for row in types)
     return Dataset(replace(base.metadata, extra={"object_types": list(TYPES)}), images,
                    base.conditions, base.labels, scenes)
+
+
+class Misbehaving(FixedGrasp):
+    """A model for pick trials that misbehaves in the way its subclass's ``wrong`` says."""
+
+    name = "misbehaving"
+
+    def predict(self, image: np.ndarray, condition: Condition = NO_CONDITION) -> Prediction:
+        return self.wrong(super().predict(image, condition))
+
+    def wrong(self, right: Prediction) -> Any:
+        return right
+
+
+class Raises(Misbehaving):
+    def wrong(self, right: Prediction) -> Any:
+        raise RuntimeError("the detector lost its calibration")
+
+
+class ReturnsNone(Misbehaving):
+    def wrong(self, right: Prediction) -> Any:
+        return None
+
+
+class NanPosition(Misbehaving):
+    """Builds its Target with a NaN: the Target refuses it, inside predict."""
+
+    def wrong(self, right: Prediction) -> Any:
+        return Prediction((Target(np.array([0.47, np.nan, 0.03]), DOWN.copy()),))
+
+
+class InfAfterwards(Misbehaving):
+    """Writes an infinity into a Target's array after building it: the trial's check sees it."""
+
+    def wrong(self, right: Prediction) -> Any:
+        right.targets[0].position_m[2] = np.inf
+        return right
+
+
+class TwoTargets(Misbehaving):
+    def wrong(self, right: Prediction) -> Any:
+        return Prediction(right.targets * 2)
+
+
+class NotARotation(Misbehaving):
+    def wrong(self, right: Prediction) -> Any:
+        return Prediction((Target(right.targets[0].position_m, 2.0 * DOWN),))
+
+
+class ExitsOnSecondCall(Misbehaving):
+    """Calls ``sys.exit`` on its second prediction: the run stops, the first trial is kept."""
+
+    calls = 0
+
+    def wrong(self, right: Prediction) -> Any:
+        ExitsOnSecondCall.calls += 1
+        if ExitsOnSecondCall.calls == 2:
+            sys.exit(3)
+        return right
+
+
+class InterruptedOnSecondCall(Misbehaving):
+    """Ctrl-C during its second prediction."""
+
+    calls = 0
+
+    def wrong(self, right: Prediction) -> Any:
+        InterruptedOnSecondCall.calls += 1
+        if InterruptedOnSecondCall.calls == 2:
+            raise KeyboardInterrupt
+        return right
+
+
+class Nameless(PerceptionModel):
+    """A model class without a name."""
+
+    label_kind = LabelKind.GRASP_POSE
+
+
+class BrokenConstructor(FixedGrasp):
+    def __init__(self) -> None:
+        raise FileNotFoundError("weights.bin")
+
+
+class DepthWithoutFrame(FixedGrasp):
+    """Declares depth, but implements only predict(image, ...): it would never get any."""
+
+    inputs = frozenset({ModelInput.RGB, ModelInput.DEPTH})
+
+
+class StringInputs(FixedGrasp):
+    inputs = frozenset({"rgb"})  # type: ignore[assignment]
+
+
+class DepthReader(FixedGrasp):
+    """Reads the frame: grasps the highest point the depth image sees, top-down."""
+
+    name = "depth-reader"
+    inputs = frozenset(ModelInput)
+
+    def predict_frame(self, frame: RgbdFrame, condition: Condition = NO_CONDITION
+                      ) -> Prediction:
+        points = frame.points_world().reshape(-1, 3)
+        highest = points[np.nanargmax(points[:, 2])]
+        return Prediction((Target(highest, DOWN.copy()),))

@@ -166,5 +166,5 @@ class TrialResult:
         if not self.picks:
             return {"outcome": self.outcome, "reason": self.reason}
         picks = [pick.to_record() for pick in self.picks]
-        last = {k: v for k, v in picks[-1].items() if k not in ("outcome", "reason")}
+        last = {k: v for k, v in picks[-1].items() if k not in ("outcome", "reason", "traceback")}
         return last | {"outcome": self.outcome, "reason": self.reason, "picks": picks}

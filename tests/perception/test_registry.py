@@ -17,7 +17,9 @@ def test_registered_name():
 def test_unknown_name_lists_the_registered_ones():
     with pytest.raises(InvalidInputError, match=r"model = 'kvq' is not allowed: a registered "
                                                 r"name \(kqv, keypoint, dsae, conv-ae, fcn, "
-                                                r"keypoint-16, keypoint-min, dsae-16\) or "
+                                                r"keypoint-16, keypoint-min, dsae-16\), a name "
+                                                r"an installed package registers in "
+                                                r"'gva.models' \(none installed\), or "
                                                 r"'package.module:Class'"):
         model_class("kvq")
 
@@ -29,8 +31,9 @@ def test_a_users_model_by_module_and_class():
 
 
 def test_bad_module():
-    with pytest.raises(InvalidInputError, match=r"an importable module; importing "
-                                                r"'no_such_module' failed"):
+    with pytest.raises(InvalidInputError, match=r"an importable module; importing module "
+                                                r"'no_such_module' raised ModuleNotFoundError: "
+                                                r".* \(is its folder on PYTHONPATH"):
         model_class("no_such_module:Model")
 
 

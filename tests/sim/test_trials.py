@@ -78,7 +78,8 @@ def test_scenes_are_seeded_and_test_scenes_differ_from_training(tmp_path):
 
 def test_unknown_model_and_task_are_refused_with_the_allowed_names():
     with pytest.raises(InvalidInputError, match="model = 'kqv9' is not allowed: one of oracle, "
-                       r"a checkpoint folder \(gva train writes one\) or 'package.module:Class'"):
+                       r"a checkpoint folder \(gva train writes one\), 'package.module:Class' "
+                       r"or the name an installed package registers in 'gva.models'"):
         TrialSettings(model="kqv9", task="single")
     with pytest.raises(InvalidInputError, match=r"task = 'juggle' is not allowed: one of multiple, "
                        r"selected-position, selected-type, single, or the path of a \.toml file"):
@@ -123,7 +124,7 @@ def test_a_rounded_rotation_is_picked_and_a_wrong_one_is_a_recorded_outcome():
                                      ("sheared", lambda r: r + 0.05))}
     assert outcomes["rounded"].outcome.value == "success", outcomes["rounded"].reason
     assert outcomes["sheared"].outcome.value == "perception_failed"
-    assert "predicted rotation" in outcomes["sheared"].reason
+    assert "target 1 of 1: rotation" in outcomes["sheared"].reason
     assert "R Rᵀ = I within 0.0001" in outcomes["sheared"].reason
 
 
