@@ -17,11 +17,13 @@ from typing import Any
 
 import numpy as np
 
+from perception.checks import check_inputs
 from perception.data import Dataset
 from perception.interface import (
     Condition,
     ConditionKind,
     InvalidInputError,
+    ModelInput,
     PerceptionModel,
     Prediction,
 )
@@ -94,11 +96,20 @@ class EvaluationResult:
         return line
 
 
+OFFLINE_INPUTS = frozenset({ModelInput.RGB})
+"""What offline evaluation gives a model: a dataset's colour images."""
+
+
 def predict_dataset(model: PerceptionModel, dataset: Dataset, batch_size: int = 32
                     ) -> list[Prediction]:
-    """Every sample's prediction, batched for a :class:`LearnableModel`, one by one otherwise."""
+    """Every sample's prediction, batched for a :class:`LearnableModel`, one by one otherwise.
+
+    A dataset holds colour images: a model that reads depth or the camera is refused (one
+    line, before any prediction); it is measured in trials.
+    """
     if not isinstance(batch_size, int) or batch_size < 1:
         raise InvalidInputError("batch_size", batch_size, "an integer >= 1")
+    check_inputs(model, OFFLINE_INPUTS, getattr(model, "name", type(model).__name__))
     if isinstance(model, LearnableModel):
         return [prediction for start in range(0, len(dataset), batch_size)
                 for prediction in model.predict_batch(

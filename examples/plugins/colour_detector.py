@@ -54,10 +54,9 @@ SIZE_TOLERANCE_M = 0.01
 """Pieces of one object (split by an occluder) span at most its footprint plus this [m]."""
 MIN_OBJECT_PX = 12
 """Fewer pixels than this are noise (an edge, a highlight), not an object (a bottle has ~200)."""
-TOP_BAND_M = 0.004
-"""The sponge's top face: points this close to its top; its green sides would bias the centre."""
-RIM_BAND_M = 0.008
-"""The mug's rim: points this close to its top, above the handle (14 mm lower) [m]."""
+TOP_BAND_M = 0.0015
+"""An object's top face (the sponge's, the mug's rim): points this close to its catalog height;
+wider, the sides the camera sees would pull the centre toward it [m]."""
 MUG_RIM_RADIUS_M = 0.0375
 """The middle of the mug's 5 mm wall (catalog: 40 mm outer radius) [m]."""
 MUG_HANDLE_FROM_M = 0.047
@@ -189,22 +188,41 @@ def xy_span_m(points: np.ndarray) -> float:
 
 def measure(object_type: str, points: np.ndarray, camera_m: tuple[float, ...]) -> Detection:
     """The pose on the table of one object of ``object_type`` from its points (N, 3)."""
-    xy = points[:, :2]
-    away = xy.mean(axis=0) - np.asarray(camera_m[:2])  # from the camera, along the table
+    camera = np.asarray(camera_m)
+    away = points[:, :2].mean(axis=0) - camera[:2]  # from the camera, along the table
     away /= np.linalg.norm(away)
-    if object_type == "spray_bottle":  # a continuous symmetry: its yaw changes no grasp
-        body = xy[points[:, 2] < BOTTLE_BODY_TOP_M]
-        start = body.mean(axis=0) + BOTTLE_RADIUS_M * math.pi / 4 * away  # the near half's bias
-        centre = circle_centre(body, BOTTLE_RADIUS_M, start)
-        return Detection(object_type, *centre, 0.0)
-    top = xy[points[:, 2] > get_object_spec(object_type).height_m - RIM_BAND_M]
+    if object_type == "spray_bottle":
+        return Detection(object_type, *bottle_centre(points, away), 0.0)  # any yaw: one grasp
+    top = points[points[:, 2] > get_object_spec(object_type).height_m - TOP_BAND_M]
     if object_type == "mug":
-        centre = circle_centre(top, MUG_RIM_RADIUS_M, top.mean(axis=0))
-        return Detection(object_type, *centre, handle_yaw_rad(xy, centre, away))
-    top = xy[points[:, 2] > get_object_spec(object_type).height_m - TOP_BAND_M]  # a box's face
-    centre = top.mean(axis=0)
-    _, axes = np.linalg.eigh(np.cov((top - centre).T))
-    return Detection(object_type, *centre, math.atan2(axes[1, -1], axes[0, -1]))
+        centre = circle_centre(top[:, :2], MUG_RIM_RADIUS_M, top[:, :2].mean(axis=0))
+        return Detection(object_type, *centre, handle_yaw_rad(points, centre, away))
+    return Detection(object_type, *box_top_pose(top, camera))
+
+
+def bottle_centre(points: np.ndarray, away: np.ndarray) -> np.ndarray:
+    """The axis of the bottle's body, from the near half of it the camera sees.
+
+    The visible points' centroid lies ``pi / 4`` of the radius toward the camera (the mean
+    depth of a half circle seen side-on); a known-radius circle fit then refines it.
+    """
+    body = points[points[:, 2] < BOTTLE_BODY_TOP_M, :2]
+    start = body.mean(axis=0) + math.pi / 4 * BOTTLE_RADIUS_M * away
+    return circle_centre(body, BOTTLE_RADIUS_M, start)
+
+
+def box_top_pose(top: np.ndarray, camera: np.ndarray) -> tuple[float, float, float]:
+    """(x, y, yaw) of a box from the points (N, 3) of its top face: centre and long axis.
+
+    Each point is weighted by the patch of face its pixel covers, which grows with the cube of
+    its range from the camera; unweighted, the nearer half's denser pixels pull the centre 2 mm
+    toward the camera.
+    """
+    weights = np.linalg.norm(top - camera, axis=1) ** 3
+    centre = np.average(top[:, :2], axis=0, weights=weights)
+    _, axes = np.linalg.eigh(np.cov(top[:, :2].T, aweights=weights))
+    long_axis = axes[:, -1]  # the eigenvector of the largest eigenvalue
+    return float(centre[0]), float(centre[1]), math.atan2(long_axis[1], long_axis[0])
 
 
 def circle_centre(xy: np.ndarray, radius_m: float, start_xy: np.ndarray) -> np.ndarray:
@@ -220,9 +238,9 @@ def circle_centre(xy: np.ndarray, radius_m: float, start_xy: np.ndarray) -> np.n
     return centre
 
 
-def handle_yaw_rad(xy: np.ndarray, centre: np.ndarray, away: np.ndarray) -> float:
+def handle_yaw_rad(points: np.ndarray, centre: np.ndarray, away: np.ndarray) -> float:
     """Which way the mug's handle (its +x) points; away from the camera when it is hidden."""
-    offsets = xy - centre
+    offsets = points[:, :2] - centre
     handle = offsets[np.linalg.norm(offsets, axis=1) > MUG_HANDLE_FROM_M]
     direction = handle.mean(axis=0) if len(handle) else away
     return math.atan2(direction[1], direction[0])

@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
-from user_models import CentreModel, MyKqv, synthetic_dataset
+from user_models import CentreModel, DepthReader, MyKqv, synthetic_dataset
 
 from perception.checkpoint import CheckpointError
+from perception.evaluate import predict_dataset
 from perception.interface import InvalidInputError
 from perception.models.kqv import KqvModel
 from perception.registry import MODELS, load_model, model_class
@@ -81,3 +82,10 @@ def test_load_model_of_an_unregistered_model_needs_its_class(tiny_checkpoints):
         load_model(folder, "kqv")
     with pytest.raises(InvalidInputError, match=r"a LearnableModel"):
         load_model(folder, "user_models:CentreModel")
+
+
+def test_offline_evaluation_refuses_a_model_that_reads_depth():
+    with pytest.raises(InvalidInputError, match=r"model depth-reader: inputs = \['camera', "
+                       r"'depth', 'rgb'\] is not allowed: what this run gives \(rgb\); it has "
+                       r"no camera, depth"):
+        predict_dataset(DepthReader(), synthetic_dataset())

@@ -215,3 +215,19 @@ def test_points_from_depth_inverts_the_projection() -> None:
     assert np.isnan(np.delete(points.reshape(-1, 3), flat, axis=0)).all()  # no depth: NaN
     with pytest.raises(PerceptionInputError, match=r"depth_m = 'shape \(4, 4\)' is not allowed"):
         camera.points_from_depth(np.zeros((4, 4)))
+
+
+@pytest.mark.parametrize("config", [CameraConfig(), CameraConfig(horizontal_fov_deg=None)])
+def test_k_and_the_optical_frame_project_as_the_camera_does(config: CameraConfig) -> None:
+    camera = config.pinhole
+    rng = np.random.default_rng(1)
+    points = np.column_stack([rng.uniform(0.3, 0.6, 20), rng.uniform(-0.25, 0.25, 20),
+                              rng.uniform(0.0, 0.2, 20)])  # (20, 3)
+    T = camera.T_world_camera
+    local = (points - T[:3, 3]) @ T[:3, :3]  # (20, 3) in the optical frame: z forward
+    assert (local[:, 2] > 0).all()
+    pixels = local @ camera.K.T  # (20, 3)
+    np.testing.assert_allclose(pixels[:, :2] / pixels[:, 2:], camera.project(points), atol=1e-9)
+    np.testing.assert_allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-12)
+    assert np.linalg.det(T[:3, :3]) == pytest.approx(1.0)
+    assert camera.image_size_px == (config.width_px, config.height_px)
