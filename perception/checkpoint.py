@@ -4,13 +4,18 @@
 
     checkpoint/
         weights.safetensors   every tensor of the network (safetensors: no code runs on load)
-        config.json           {"format_version", "model", "weights_sha256", "spec", ...}
+        config.json           {"format_version", "model", "weights_sha256", "config_sha256",
+                               "spec", ...}
 
 ``config.json`` names the model, holds what it needs to rebuild its network (hyper-parameters,
-the dataset spec, the label scaler, ...) and the SHA-256 of the weights file. Loading checks,
-in this order, and refuses with a message naming the file and the problem: both files exist,
-the format version, the model name, the weights file is whole (not truncated), its checksum,
-then (in :func:`check_shapes`) every tensor against the network the config describes.
+the dataset spec with its camera record, the label scaler, ...), the SHA-256 of the weights
+file and the SHA-256 of its own values (``config_sha256``, over the canonical JSON of every
+other key): a changed value changes predictions as surely as a changed weight, and is refused
+the same way. Loading checks, in this order, and refuses with a message naming the file and the
+problem: both files exist, the format version, the config's checksum, the model name, the
+weights file is whole (not truncated), its checksum, then (in :func:`check_shapes`) every
+tensor against the network the config describes. A version-1 checkpoint (written before the
+config had a checksum) still loads; :func:`config_verified` says its values are unverified.
 """
 
 from __future__ import annotations
@@ -29,7 +34,9 @@ from safetensors.torch import load_file, save_file
 from perception.files import FileError, atomic_write, read_safetensors_header
 from perception.interface import InvalidInputError
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+READABLE_VERSIONS = (1, 2)
+"""Version 1: no ``config_sha256`` (its values cannot be verified); version 2: with it."""
 WEIGHTS_FILE = "weights.safetensors"
 CONFIG_FILE = "config.json"
 
@@ -58,7 +65,7 @@ def save_checkpoint(folder: str | Path, model: str, config: Mapping[str, Any],
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    reserved = {"format_version", "model", "weights_sha256"} & set(config)
+    reserved = {"format_version", "model", "weights_sha256", "config_sha256"} & set(config)
     if reserved:
         raise InvalidInputError("config keys", sorted(reserved), "keys other than those "
                                 "save_checkpoint writes itself")
@@ -66,6 +73,7 @@ def save_checkpoint(folder: str | Path, model: str, config: Mapping[str, Any],
     atomic_write(folder / WEIGHTS_FILE, lambda path: save_file(weights, str(path)))
     record = {"format_version": FORMAT_VERSION, "model": model,
               "weights_sha256": _sha256(folder / WEIGHTS_FILE), **config}
+    record["config_sha256"] = config_sha256(record)
     text = json.dumps(record, indent=2, sort_keys=True, allow_nan=False) + "\n"
     atomic_write(folder / CONFIG_FILE, lambda path: path.write_text(text, encoding="utf-8"))
     return folder
@@ -87,13 +95,30 @@ def read_config(folder: str | Path) -> dict[str, Any]:
     if not isinstance(config, dict):
         raise CheckpointError(path, "not a JSON object")
     version = config.get("format_version")
-    if version != FORMAT_VERSION:
-        raise CheckpointError(path, f"format version {version!r}; this gva reads version "
-                              f"{FORMAT_VERSION}")
-    for key, kind in (("model", str), ("weights_sha256", str)):
-        if not isinstance(config.get(key), kind):
+    if version not in READABLE_VERSIONS:
+        raise CheckpointError(path, f"format version {version!r}; this gva reads versions "
+                              f"{', '.join(map(str, READABLE_VERSIONS))}")
+    needed = ("model", "weights_sha256", "config_sha256")[:2 if version == 1 else 3]
+    for key in needed:
+        if not isinstance(config.get(key), str):
             raise CheckpointError(path, f"lacks {key!r}")
+    if version != 1 and config_sha256(config) != config["config_sha256"]:
+        raise CheckpointError(path, "its values do not match its config_sha256: they were "
+                              "changed after saving (a hyper-parameter, the label scaler, the "
+                              "camera record, ...), which changes what the model predicts")
     return config
+
+
+def config_sha256(config: Mapping[str, Any]) -> str:
+    """The SHA-256 of a config's canonical JSON (sorted keys, no spaces), but its own."""
+    values = {key: value for key, value in config.items() if key != "config_sha256"}
+    text = json.dumps(values, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def config_verified(config: Mapping[str, Any]) -> bool:
+    """Whether ``config`` (as :func:`read_config` gave it) carries a checksum it matched."""
+    return config.get("format_version") != 1
 
 
 def load_checkpoint(folder: str | Path, model: str | None = None) -> Checkpoint:

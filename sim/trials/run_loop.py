@@ -160,7 +160,7 @@ class TrialSettings:
                 "obstacles": obstacle_identity(self.obstacles)} | self._model_identity()
 
     def _model_identity(self) -> dict[str, Any]:
-        """A checkpoint by its weights' SHA-256, not its path: other weights, another run.
+        """A checkpoint by its SHA-256s, not its path: other weights or values, another run.
 
         A run folder moved or copied with its checkpoint (or run from another directory)
         resumes; the same folder holding other weights does not.
@@ -169,8 +169,10 @@ class TrialSettings:
             return {}
         from perception.checkpoint import read_config
 
-        return {"model": "checkpoint", "model_class": self.model_class,
-                "weights_sha256": read_config(self.model)["weights_sha256"]}
+        config = read_config(self.model)
+        checksums = {key: config[key] for key in ("weights_sha256", "config_sha256")
+                     if key in config}  # a version-1 checkpoint has no config_sha256
+        return {"model": "checkpoint", "model_class": self.model_class} | checksums
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,10 @@ from perception.checkpoint import (
     WEIGHTS_FILE,
     CheckpointError,
     _sha256,
+    config_sha256,
+    config_verified,
     load_checkpoint,
+    read_config,
 )
 from perception.interface import LabelKind
 from perception.models.kqv import KqvConfig, KqvModel
@@ -37,9 +40,12 @@ def copy_of(folder, tmp_path):
     return target
 
 
-def edit_config(folder, change):
+def edit_config(folder, change, reseal=True):
+    """Changes config.json; ``reseal``: its checksum too, as only a deliberate editor would."""
     config = json.loads((folder / CONFIG_FILE).read_text())
     change(config)
+    if reseal and "config_sha256" in config:
+        config["config_sha256"] = config_sha256(config)
     (folder / CONFIG_FILE).write_text(json.dumps(config))
 
 
@@ -86,8 +92,8 @@ def test_missing_folder(tmp_path):
 def test_other_format_version(saved, tmp_path):
     folder = copy_of(saved[2], tmp_path)
     edit_config(folder, lambda c: c.update(format_version=99))
-    with pytest.raises(CheckpointError, match=rf"config.json: format version 99; this gva "
-                                              rf"reads version {FORMAT_VERSION}"):
+    with pytest.raises(CheckpointError, match=r"config.json: format version 99; this gva "
+                                              r"reads versions 1, 2"):
         KqvModel.load(folder)
 
 
@@ -188,3 +194,51 @@ def test_a_type_head_is_saved_and_states_the_same_types_after_loading(tmp_path):
     stated = [[t.object_type for t in p.targets] for p in before]
     assert all(name in ("red", "green", "blue") for row in stated for name in row)
     assert stated == [[t.object_type for t in p.targets] for p in after]
+
+
+def _shift_centre(config):
+    config["label_scaler"]["centre_m"][0] += 1.0
+
+
+def _move_camera(config):
+    config["spec"]["camera"] = {"position_m": [0.1, 0.0, 0.6], "target_m": [0.5, 0.0, 0.0],
+                                "up": [0.0, 0.0, 1.0], "vertical_fov_deg": 40.0,
+                                "horizontal_fov_deg": None, "width_px": 64, "height_px": 64}
+
+
+def _warmer(config):
+    config["hyperparameters"]["temperature"] = 2.0 * config["hyperparameters"]["temperature"]
+
+
+@pytest.mark.parametrize("change", [_shift_centre, _move_camera, _warmer],
+                         ids=["label scaler", "camera record", "hyper-parameter"])
+def test_a_changed_value_is_refused_like_a_changed_weight(saved, tmp_path, change):
+    folder = copy_of(saved[2], tmp_path)
+    edit_config(folder, change, reseal=False)
+    with pytest.raises(CheckpointError, match=r"config.json: its values do not match its "
+                                              r"config_sha256: they were changed after saving"):
+        KqvModel.load(folder)
+
+
+def test_the_config_checksum_survives_a_reformatted_file(saved, tmp_path):
+    folder = copy_of(saved[2], tmp_path)
+    config = json.loads((folder / CONFIG_FILE).read_text())
+    (folder / CONFIG_FILE).write_text(json.dumps(config, indent=8))  # same values, other text
+    assert config_verified(read_config(folder))
+    KqvModel.load(folder)
+
+
+def test_a_version_1_checkpoint_loads_unverified_and_predicts_as_before(saved, tmp_path):
+    model, dataset, folder = saved
+    old = copy_of(folder, tmp_path)
+
+    def version_1(config):  # what gva wrote before the config had a checksum
+        config["format_version"] = 1
+        del config["config_sha256"]
+
+    edit_config(old, version_1)
+    assert not config_verified(read_config(old))
+    loaded = KqvModel.load(old)
+    for a, b in zip(model.predict_batch(dataset.images, dataset.conditions),
+                    loaded.predict_batch(dataset.images, dataset.conditions), strict=True):
+        np.testing.assert_array_equal(a.targets[0].position_m, b.targets[0].position_m)
