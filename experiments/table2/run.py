@@ -24,7 +24,7 @@ from experiments.table2.jobs import (
 from experiments.table2.report import write_reports
 from experiments.table2.settings import Cell, ReproduceSimSettings
 from experiments.tables import RunReport, cost_bar
-from sim.trials.records import claim_run_folder
+from sim.trials.records import claim_run_folder, run_folder_lock
 
 ReproduceSimReport = RunReport[CellOutcome, Cell]
 
@@ -37,31 +37,34 @@ def run_reproduce_sim(settings: ReproduceSimSettings, out: str | Path,
         RunFolderError: ``out`` holds a run with other shared settings, or a cell or dataset
             file made with other settings.
         KeyboardInterrupt: Ctrl-C; finished cells are kept and the message says so.
+        RunFolderError: Another run holds ``out`` (one run per folder).
 
     """
     out = Path(out)
-    started = time.perf_counter()
-    claim_run_folder(out, settings.run_identity())
-    todo, done = sort_cells(settings, out)
-    workers = settings.worker_count()
-    collections = dataset_jobs(out, settings.scene, settings.tasks, settings.training_seeds,
-                               settings.sizes, settings.seed, settings.test_scenes) if todo else []
-    computed: list[CellOutcome] = []
-    try:
-        with JobPool(workers) as pool:
-            with tqdm(total=len(collections), disable=not progress or not collections,
-                      desc="collect datasets", unit="set") as bar:
-                pool.run(collect_datasets, collections, lambda job: bar.update())
-            _run_cells(settings, out, todo, len(done), pool, progress, computed)
-    except KeyboardInterrupt:
-        finished = len(list((out / "cells").glob("*[0-9].json")))
-        raise KeyboardInterrupt(
-            f"{finished} finished cell(s) kept in {out / 'cells'} ({len(computed)} from this "
-            f"run); resume with: {settings.command(out)}") from None
-    wall_time_s = time.perf_counter() - started
-    outputs, failed, notes = write_reports(settings, out, wall_time_s, len(computed))
-    return RunReport(tuple(computed), tuple(done), tuple(failed), wall_time_s, tuple(outputs),
-                     tuple(notes))
+    with run_folder_lock(out):  # one run per folder
+        started = time.perf_counter()
+        claim_run_folder(out, settings.run_identity())
+        todo, done = sort_cells(settings, out)
+        workers = settings.worker_count()
+        collections = dataset_jobs(out, settings.scene, settings.tasks,
+                                   settings.training_seeds, settings.sizes, settings.seed,
+                                   settings.test_scenes) if todo else []
+        computed: list[CellOutcome] = []
+        try:
+            with JobPool(workers) as pool:
+                with tqdm(total=len(collections), disable=not progress or not collections,
+                          desc="collect datasets", unit="set") as bar:
+                    pool.run(collect_datasets, collections, lambda job: bar.update())
+                _run_cells(settings, out, todo, len(done), pool, progress, computed)
+        except KeyboardInterrupt:
+            finished = len(list((out / "cells").glob("*[0-9].json")))
+            raise KeyboardInterrupt(
+                f"{finished} finished cell(s) kept in {out / 'cells'} ({len(computed)} from this "
+                f"run); resume with: {settings.command(out)}") from None
+        wall_time_s = time.perf_counter() - started
+        outputs, failed, notes = write_reports(settings, out, wall_time_s, len(computed))
+        return RunReport(tuple(computed), tuple(done), tuple(failed), wall_time_s, tuple(outputs),
+                         tuple(notes))
 
 
 def _run_cells(settings: ReproduceSimSettings, out: Path, todo: Sequence[Cell], skipped: int,

@@ -16,7 +16,7 @@ from experiments.table3.jobs import JobOutcome, run_jobs
 from experiments.table3.report import write_reports
 from experiments.table3.settings import ReproduceRealSettings, seed_folder, write_variant_tasks
 from experiments.tables import RunReport
-from sim.trials.records import claim_run_folder
+from sim.trials.records import claim_run_folder, run_folder_lock
 
 ReproduceRealReport = RunReport[JobOutcome, str]
 
@@ -37,23 +37,25 @@ def run_reproduce_real(settings: ReproduceRealSettings, out: str | Path,
         RunFolderError: ``out`` holds a run with other shared settings, or a dataset or
             checkpoint made with other settings.
         KeyboardInterrupt: Ctrl-C; what finished is kept and the message says how to resume.
+        RunFolderError: Another run holds ``out`` (one run per folder).
 
     """
     out = Path(out)
-    started = time.perf_counter()
-    claim_run_folder(out, settings.shared_identity())
-    for seed in settings.training_seeds:
-        claim_run_folder(seed_folder(out, seed), settings.for_seed(seed).run_identity())
-        write_variant_tasks(settings, seed_folder(out, seed))
-    try:
-        computed, skipped = run_jobs(settings, out, progress)
-    except KeyboardInterrupt:
-        raise KeyboardInterrupt(f"finished datasets, checkpoints and trials are kept in {out}; "
-                                f"resume with: {settings.command(out)}") from None
-    wall_time_s = time.perf_counter() - started
-    append_history(out, {"command": settings.command(out), "wall_time_s": round(wall_time_s, 1),
-                         "computed": [o.name for o in computed], "skipped": len(skipped),
-                         "workers": settings.worker_count(), "finished_at": time.time()})
-    reports = write_reports(settings, out, wall_time_s)
-    return RunReport(tuple(computed), tuple(skipped), tuple(reports.failed), wall_time_s,
-                     tuple(reports.paths), tuple(reports.notes), reports.table)
+    with run_folder_lock(out):  # one run per folder
+        started = time.perf_counter()
+        claim_run_folder(out, settings.shared_identity())
+        for seed in settings.training_seeds:
+            claim_run_folder(seed_folder(out, seed), settings.for_seed(seed).run_identity())
+            write_variant_tasks(settings, seed_folder(out, seed))
+        try:
+            computed, skipped = run_jobs(settings, out, progress)
+        except KeyboardInterrupt:
+            raise KeyboardInterrupt(f"finished datasets, checkpoints and trials are kept in {out}; "
+                                    f"resume with: {settings.command(out)}") from None
+        wall_time_s = time.perf_counter() - started
+        append_history(out, {"command": settings.command(out), "wall_time_s": round(wall_time_s, 1),
+                             "computed": [o.name for o in computed], "skipped": len(skipped),
+                             "workers": settings.worker_count(), "finished_at": time.time()})
+        reports = write_reports(settings, out, wall_time_s)
+        return RunReport(tuple(computed), tuple(skipped), tuple(reports.failed), wall_time_s,
+                         tuple(reports.paths), tuple(reports.notes), reports.table)

@@ -8,16 +8,22 @@ and a folder that holds a different run is refused rather than mixed.
 
 from __future__ import annotations
 
+import contextlib
 import enum
 import json
 import math
 import os
+import socket
 import statistics
+import sys
+import time
 from collections import Counter
 from collections.abc import Iterator, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
+
+import filelock
 
 from perception.files import atomic_write
 from sim.errors import RunFolderError
@@ -193,6 +199,51 @@ def claim_run_folder(folder: Path, settings: Mapping[str, Any],
         raise RunFolderError(f"{folder} holds a different run ({differences(stored, asked)}, "
                              "stored vs asked); use another --out or remove the folder")
     return asked
+
+
+LOCK_FILE = ".gva.lock"
+"""The lock a run holds on its folder for its whole life (``filelock``: an OS lock, released
+by the OS when the process ends, however it ends)."""
+HOLDER_FILE = ".gva.lock.holder"
+"""Who holds the lock: process, host, start time and command, for the refusal's message."""
+
+
+@contextlib.contextmanager
+def run_folder_lock(folder: Path) -> Iterator[None]:
+    """Holds ``folder``'s lock inside the block: one run per folder, at any time.
+
+    A second run on the same folder, from this process or another, is refused at once rather
+    than left to wait: two runs would write the same trials twice.
+
+    Raises:
+        RunFolderError: Another run holds the folder; the message says which, and what to do.
+
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    lock = filelock.FileLock(folder / LOCK_FILE, timeout=0, thread_local=False)
+    try:
+        lock.acquire()
+    except filelock.Timeout:
+        holder = folder / HOLDER_FILE
+        try:
+            who = json.loads(holder.read_text())
+            shown = (f"process {who['pid']} on {who['host']}, started "
+                     f"{time.strftime('%Y-%m-%d %H:%M:%S', time.localtime(who['started']))}: "
+                     f"{who['command']}")
+        except (OSError, ValueError, KeyError, TypeError):
+            shown = "another process"
+        raise RunFolderError(f"{folder} is in use by another run ({shown}); wait until it "
+                             "ends (then the same command resumes it) or use another --out"
+                             ) from None
+    try:
+        who = {"pid": os.getpid(), "host": socket.gethostname(), "started": time.time(),
+               "command": " ".join(sys.argv)}
+        atomic_write(folder / HOLDER_FILE,
+                     lambda temporary: temporary.write_text(json.dumps(who) + "\n"))
+        yield
+    finally:
+        (folder / HOLDER_FILE).unlink(missing_ok=True)
+        lock.release()
 
 
 class TrialLog:

@@ -50,7 +50,7 @@ from sim.tasks.task_spec import TaskSpec, load_task
 from sim.trials.execution import ExecutionSettings
 from sim.trials.oracle import OraclePerception
 from sim.trials.planner_setup import ObstacleSource, yumi_depth_config
-from sim.trials.records import TrialLog, TrialSummary
+from sim.trials.records import TrialLog, TrialSummary, run_folder_lock
 from sim.trials.trial_runner import TRIAL_INPUTS, ModelFactory, TrialRunner
 from sim.world.head_camera import CameraConfig
 
@@ -300,20 +300,24 @@ def run_trials(
 ) -> TrialSummary:
     """Runs (or resumes) ``settings.n`` trials into ``out_dir``; writes ``summary.json``.
 
+    The folder is locked for the run (:func:`~sim.trials.records.run_folder_lock`).
+
     Raises:
         RunStopped: Ctrl-C or ``SystemExit`` stopped the run; ``summary.json`` holds what
             finished, and the same call resumes.
+        RunFolderError: Another run holds the folder, or it holds a different run.
 
     """
     out = Path(out_dir)
     model = load_trial_model(settings)  # a refused model leaves no run folder behind
-    log = TrialLog(out, settings.identity())
-    todo = [i for i in range(settings.n) if not log.done(i)]
-    try:
-        _run_todo(settings, model, log, todo, progress)
-    except (KeyboardInterrupt, SystemExit) as stop:
-        raise RunStopped(_write_summary(settings, log, out), stop) from stop
-    return _write_summary(settings, log, out)
+    with run_folder_lock(out):
+        log = TrialLog(out, settings.identity())
+        todo = [i for i in range(settings.n) if not log.done(i)]
+        try:
+            _run_todo(settings, model, log, todo, progress)
+        except (KeyboardInterrupt, SystemExit) as stop:
+            raise RunStopped(_write_summary(settings, log, out), stop) from stop
+        return _write_summary(settings, log, out)
 
 
 def _run_todo(settings: TrialSettings, model: TrialModel, log: TrialLog, todo: list[int],
