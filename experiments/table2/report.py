@@ -251,8 +251,12 @@ def worst_conditions_markdown(cells: Sequence[Mapping[str, Any]]) -> list[str]:
 
 
 def write_reports(settings: ReproduceSimSettings, out: Path, wall_time_s: float,
-                  computed: int) -> tuple[list[Path], list[dict[str, Any]], list[str]]:
-    """Writes every report from the cells present: (paths written, failed cells, notes)."""
+                  computed: int, session: dict[str, Any] | None = None
+                  ) -> tuple[list[Path], list[dict[str, Any]], list[str]]:
+    """Writes every report from the cells present: (paths written, failed cells, notes).
+
+    ``session``: the provenance of the run that writes them (:mod:`sim.trials.provenance`).
+    """
     cells, failed = read_cells(out)
     seeds = sorted({c["seed"] for c in cells})
     made_by = (f"Made by `{settings.command(out)}`: training seeds "
@@ -278,6 +282,7 @@ def write_reports(settings: ReproduceSimSettings, out: Path, wall_time_s: float,
         "wall_time_s": wall_time_s, "cells_computed": computed,
         "failed": [{k: r[k] for k in ("model", "task", "size", "seed", "error")}
                    for r in failed],
+        "provenance": session,
     }
     paths = [out / "table2.json", out / "table2.md", out / "table2.png"]
     write_json(paths[0], table)

@@ -24,6 +24,7 @@ from experiments.table2.jobs import (
 from experiments.table2.report import write_reports
 from experiments.table2.settings import Cell, ReproduceSimSettings
 from experiments.tables import RunReport, cost_bar
+from sim.trials.provenance import provenance
 from sim.trials.records import claim_run_folder, run_folder_lock
 
 ReproduceSimReport = RunReport[CellOutcome, Cell]
@@ -43,7 +44,8 @@ def run_reproduce_sim(settings: ReproduceSimSettings, out: str | Path,
     out = Path(out)
     with run_folder_lock(out):  # one run per folder
         started = time.perf_counter()
-        claim_run_folder(out, settings.run_identity())
+        session = provenance()
+        claim_run_folder(out, settings.run_identity(), provenance=session)
         todo, done = sort_cells(settings, out)
         workers = settings.worker_count()
         collections = dataset_jobs(out, settings.scene, settings.tasks,
@@ -62,7 +64,8 @@ def run_reproduce_sim(settings: ReproduceSimSettings, out: str | Path,
                 f"{finished} finished cell(s) kept in {out / 'cells'} ({len(computed)} from this "
                 f"run); resume with: {settings.command(out)}") from None
         wall_time_s = time.perf_counter() - started
-        outputs, failed, notes = write_reports(settings, out, wall_time_s, len(computed))
+        outputs, failed, notes = write_reports(settings, out, wall_time_s, len(computed),
+                                                 session)
         return RunReport(tuple(computed), tuple(done), tuple(failed), wall_time_s, tuple(outputs),
                          tuple(notes))
 

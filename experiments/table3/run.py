@@ -16,6 +16,7 @@ from experiments.table3.jobs import JobOutcome, run_jobs
 from experiments.table3.report import write_reports
 from experiments.table3.settings import ReproduceRealSettings, seed_folder, write_variant_tasks
 from experiments.tables import RunReport
+from sim.trials.provenance import provenance
 from sim.trials.records import claim_run_folder, run_folder_lock
 
 ReproduceRealReport = RunReport[JobOutcome, str]
@@ -43,7 +44,7 @@ def run_reproduce_real(settings: ReproduceRealSettings, out: str | Path,
     out = Path(out)
     with run_folder_lock(out):  # one run per folder
         started = time.perf_counter()
-        claim_run_folder(out, settings.shared_identity())
+        claim_run_folder(out, settings.shared_identity(), provenance=provenance())
         for seed in settings.training_seeds:
             claim_run_folder(seed_folder(out, seed), settings.for_seed(seed).run_identity())
             write_variant_tasks(settings, seed_folder(out, seed))

@@ -172,12 +172,14 @@ def differences(stored: Mapping[str, Any], asked: Mapping[str, Any]) -> dict[str
     return found
 
 
-def claim_run_folder(folder: Path, settings: Mapping[str, Any],
-                     name: str = "run.json") -> dict[str, Any]:
+def claim_run_folder(folder: Path, settings: Mapping[str, Any], name: str = "run.json",
+                     provenance: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Makes ``folder`` the home of the run ``settings`` identify; returns them in JSON form.
 
     A new folder gets ``folder/name`` holding the settings (written atomically); a folder that
-    has one is accepted only if it holds the same settings.
+    has one is accepted only if it holds the same settings. ``provenance``
+    (:mod:`sim.trials.provenance`) is appended to the file's ``provenance`` list, one entry per
+    session that worked on the run; it is not part of what identifies the run.
 
     Raises:
         RunFolderError: The folder holds a different run (the message names what differs,
@@ -187,18 +189,26 @@ def claim_run_folder(folder: Path, settings: Mapping[str, Any],
     folder.mkdir(parents=True, exist_ok=True)
     asked = json_form(settings)
     path = folder / name
-    if not path.exists():
-        text = json.dumps(asked, indent=2, sort_keys=True) + "\n"
+    history: list[Any] = []
+    if path.exists():
+        try:
+            stored = json.loads(path.read_text())
+        except json.JSONDecodeError as error:
+            raise RunFolderError(f"{path} is damaged ({error}); use another --out") from None
+        history = stored.pop(PROVENANCE_KEY, []) if isinstance(stored, dict) else []
+        if stored != asked:
+            raise RunFolderError(f"{folder} holds a different run ({differences(stored, asked)}"
+                                 ", stored vs asked); use another --out or remove the folder")
+    if provenance is not None or not path.exists():
+        record = asked | {PROVENANCE_KEY: [*history, *([json_form(provenance)]
+                                                         if provenance is not None else [])]}
+        text = json.dumps(record, indent=2, sort_keys=True) + "\n"
         atomic_write(path, lambda temporary: temporary.write_text(text))
-        return asked
-    try:
-        stored = json.loads(path.read_text())
-    except json.JSONDecodeError as error:
-        raise RunFolderError(f"{path} is damaged ({error}); use another --out") from None
-    if stored != asked:
-        raise RunFolderError(f"{folder} holds a different run ({differences(stored, asked)}, "
-                             "stored vs asked); use another --out or remove the folder")
     return asked
+
+
+PROVENANCE_KEY = "provenance"
+"""The key of a settings file's list of sessions (not part of the run's identity)."""
 
 
 LOCK_FILE = ".gva.lock"
@@ -253,14 +263,16 @@ class TrialLog:
         folder: The run folder (created if missing).
         settings: What identifies the run (task, model, seed, ...). Resuming a folder whose
             ``run.json`` holds other settings raises :class:`RunFolderError`.
+        provenance: This session's provenance, appended to ``run.json``'s list.
 
     """
 
-    def __init__(self, folder: str | Path, settings: Mapping[str, Any]) -> None:
+    def __init__(self, folder: str | Path, settings: Mapping[str, Any],
+                 provenance: Mapping[str, Any] | None = None) -> None:
         self.folder = Path(folder)
         self.path = self.folder / "trials.jsonl"
         self.settings = claim_run_folder(self.folder, {"format_version": RECORD_FORMAT_VERSION,
-                                                       **settings})
+                                                       **settings}, provenance=provenance)
         self.records: dict[int, TrialRecord] = dict(self._read())
 
     def _read(self) -> Iterator[tuple[int, TrialRecord]]:

@@ -46,10 +46,11 @@ from sim.tasks.scene_sampling import (
     target_count,
 )
 from sim.tasks.scene_specs import YUMI_SCENE
-from sim.tasks.task_spec import TaskSpec, load_task
+from sim.tasks.task_spec import TASK_FILES, TaskSpec, load_task
 from sim.trials.execution import ExecutionSettings
 from sim.trials.oracle import OraclePerception
 from sim.trials.planner_setup import ObstacleSource, yumi_depth_config
+from sim.trials.provenance import provenance
 from sim.trials.records import TrialLog, TrialSummary, run_folder_lock
 from sim.trials.trial_runner import TRIAL_INPUTS, ModelFactory, TrialRunner
 from sim.world.head_camera import CameraConfig
@@ -158,6 +159,18 @@ class TrialSettings:
                 "scene": YUMI_SCENE.name, "camera": asdict(CameraConfig()),
                 "settle_s": self.settle_s, "execution": asdict(self.execution),
                 "obstacles": obstacle_identity(self.obstacles)} | self._model_identity()
+
+    def inputs(self) -> dict[str, Path | None]:
+        """The files the run reads, for its provenance: the task file and the checkpoint's."""
+        given = Path(self.task)
+        files: dict[str, Path | None] = {
+            "task_file": given if given.is_file() else TASK_FILES / f"{self.task}.toml"}
+        if model_source(self.model) is ModelSource.CHECKPOINT:
+            from perception.checkpoint import CONFIG_FILE, WEIGHTS_FILE
+
+            files |= {"checkpoint_weights": Path(self.model) / WEIGHTS_FILE,
+                      "checkpoint_config": Path(self.model) / CONFIG_FILE}
+        return files
 
     def _model_identity(self) -> dict[str, Any]:
         """A checkpoint by its SHA-256s, not its path: other weights or values, another run.
@@ -311,13 +324,14 @@ def run_trials(
     out = Path(out_dir)
     model = load_trial_model(settings)  # a refused model leaves no run folder behind
     with run_folder_lock(out):
-        log = TrialLog(out, settings.identity())
+        session = provenance(settings.inputs())
+        log = TrialLog(out, settings.identity(), session)
         todo = [i for i in range(settings.n) if not log.done(i)]
         try:
             _run_todo(settings, model, log, todo, progress)
         except (KeyboardInterrupt, SystemExit) as stop:
-            raise RunStopped(_write_summary(settings, log, out), stop) from stop
-        return _write_summary(settings, log, out)
+            raise RunStopped(_write_summary(settings, log, out, session), stop) from stop
+        return _write_summary(settings, log, out, session)
 
 
 def _run_todo(settings: TrialSettings, model: TrialModel, log: TrialLog, todo: list[int],
@@ -340,12 +354,13 @@ def _run_todo(settings: TrialSettings, model: TrialModel, log: TrialLog, todo: l
             bar.update()
 
 
-def _write_summary(settings: TrialSettings, log: TrialLog, out: Path) -> TrialSummary:
+def _write_summary(settings: TrialSettings, log: TrialLog, out: Path,
+                   session: dict[str, Any]) -> TrialSummary:
     """Writes ``summary.json`` of the trials ``log`` holds; their summary."""
     summary = log.summary(settings.n)
     check = held_out_check(settings)
     data = {"settings": settings.identity() | {"n": settings.n}} | summary.to_dict() | {
-        "held_out_check": None if check is None else check.to_json()}
+        "held_out_check": None if check is None else check.to_json(), "provenance": session}
     text = json.dumps(data, indent=2, sort_keys=True) + "\n"
     atomic_write(out / "summary.json", lambda temporary: temporary.write_text(text))
     return summary

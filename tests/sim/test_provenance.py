@@ -1,0 +1,38 @@
+"""What made a result: every session that worked on a run folder, in run.json and the summary."""
+
+from __future__ import annotations
+
+import json
+from importlib import metadata
+
+from sim.tasks.task_spec import TASK_FILES
+from sim.trials.provenance import file_sha256, git_revision, provenance
+from sim.trials.run_loop import TrialSettings, run_trials
+
+
+def test_run_json_and_the_summary_say_what_made_the_trials(tmp_path):
+    run_trials(TrialSettings("oracle", "single", n=1), tmp_path, progress=False)
+    run_trials(TrialSettings("oracle", "single", n=2), tmp_path, progress=False)  # resumed
+    sessions = json.loads((tmp_path / "run.json").read_text())["provenance"]
+    assert len(sessions) == 2  # the first run and the one that resumed it
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    made = summary["provenance"]
+    assert made == sessions[-1]
+    assert made["versions"]["torch"] == metadata.version("torch")
+    assert made["versions"]["pybullet"] == metadata.version("pybullet")
+    assert set(made["versions"]) == {"gva", "torch", "pybullet", "pin", "ruckig", "numpy"}
+    assert made["sha256"]["task_file"] == file_sha256(TASK_FILES / "single.toml")
+    assert made["git"] == git_revision() and made["command"]
+
+
+def test_a_checkpoints_files_are_hashed(tmp_path):
+    folder = tmp_path / "ckpt"
+    folder.mkdir()
+    (folder / "weights.safetensors").write_bytes(b"w")
+    (folder / "config.json").write_text("{}")
+    session = provenance({"checkpoint_weights": folder / "weights.safetensors",
+                          "checkpoint_config": folder / "config.json", "task_file": None})
+    assert session["sha256"] == {
+        "checkpoint_weights": "50e721e49c013f00c62cf59f2163542a9d8df02464efeb615d31051b0fddc326",
+        "checkpoint_config": "44136fa355b3678a1146ad16f7e8649e94fb4fc21fe77e8310c060f61caaff8a",
+        "task_file": None}
