@@ -36,6 +36,7 @@ from functools import partial
 from typing import Any
 
 from control.errors import ControlError
+from experiments.commands.arguments import resume_command
 from perception.interface import PerceptionError
 from sim.errors import SimError
 
@@ -169,7 +170,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``gva`` command; returns the exit status."""
+    argv = list(sys.argv[1:] if argv is None else argv)
     args = build_parser().parse_args(argv)
+    args.argv = argv  # the command line, for the resume hint
     name = f"reproduce {args.experiment}" if args.command == "reproduce" else args.command
     try:
         status: int = args.run(args)  # the command's own (its options set it)
@@ -179,9 +182,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (SimError, ControlError, PerceptionError, ValueError, OSError) as error:
         print(f"gva {name}: error: {error}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt as interrupt:
-        print(f"gva {name}: interrupted; {interrupt or 'run the same command again to resume'}",
-              file=sys.stderr)
+    except KeyboardInterrupt as interrupt:  # a bare Ctrl-C has no message: say how to resume
+        hint = str(interrupt) or f"resume with: {resume_command(args)}"
+        print(f"gva {name}: interrupted; {hint}", file=sys.stderr)
         return 130
     return status
 

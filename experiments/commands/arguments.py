@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import shlex
 from collections.abc import Callable
 
 
@@ -32,3 +33,8 @@ def integers(text: str) -> tuple[int, ...]:
         return tuple(int(value) for value in names(text))
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not comma-separated integers") from None
+
+
+def resume_command(args: argparse.Namespace) -> str:
+    """The command line that was run, quoted for a shell: running it again resumes the run."""
+    return shlex.join(["gva", *args.argv])

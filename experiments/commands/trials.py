@@ -10,7 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from experiments.commands.arguments import integer
+from experiments.commands.arguments import integer, resume_command
 from sim.trials.planner_setup import ObstacleSource
 from sim.trials.records import TrialSummary
 from sim.trials.run_loop import RunStopped, TrialSettings, held_out_check, run_trials
@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
         summary = run_trials(settings, args.out, progress=not args.no_progress)
     except RunStopped as stopped:  # Ctrl-C, or the model's SystemExit: what finished, kept
         print_summary(stopped.summary, args.out)
-        print(f"gva trials: stopped: {stopped}; run the same command again to resume",
+        print(f"gva trials: stopped: {stopped}; resume with: {resume_command(args)}",
               file=sys.stderr)
         return 130 if isinstance(stopped.cause, KeyboardInterrupt) else 1
     print_summary(summary, args.out)

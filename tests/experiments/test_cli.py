@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from experiments.cli import build_parser
+from experiments.cli import build_parser, main
 from experiments.table2.settings import ReproduceSimSettings
 from experiments.table3.settings import ReproduceRealSettings
 from perception.train import TrainConfig
@@ -81,3 +81,14 @@ def test_help_states_the_defaults_of_the_dataclasses(capsys):
     shown = capsys.readouterr().out
     assert f"trials per model and task ({TrialSettings.n})" in shown
     assert f"optimiser steps of training ({TrainConfig.steps})" in shown
+
+
+def test_ctrl_c_prints_the_command_that_resumes(tmp_path, capsys, monkeypatch):
+    def interrupted(settings, out, progress=True):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("experiments.commands.trials.run_trials", interrupted)
+    status = main(["trials", "--n", "2", "--out", str(tmp_path / "my run"), "--no-progress"])
+    assert status == 130
+    assert capsys.readouterr().err == (f"gva trials: interrupted; resume with: gva trials --n 2 "
+                                       f"--out '{tmp_path / 'my run'}' --no-progress\n")

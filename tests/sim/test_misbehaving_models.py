@@ -78,7 +78,7 @@ def test_system_exit_and_ctrl_c_stop_the_run_with_the_summary_of_what_finished(
     assert code == status
     assert [r["index"] for r in records] == [0]
     assert "1/1 successes" in out or "0/1 successes" in out
-    assert why in err and "run the same command again to resume" in err
+    assert why in err and f"resume with: gva trials --model user_models:{model} --n 3" in err
     assert json.loads((tmp_path / "summary.json").read_text())["n"] == 1
 
 
