@@ -169,8 +169,13 @@ class TrialRunner:
         self.close()
 
     def setup(self, scene: Scene) -> list[int]:
-        """Puts the robot at HOME and the scene's objects on the table; their body ids."""
+        """Puts the robot at HOME and the scene's objects on the table; their body ids.
+
+        The physics starts afresh (:meth:`World.rebuild`): a trial's record depends only on
+        its task, model, seed and index, never on the trials run before it in this process.
+        """
         world = self.world
+        world.rebuild()
         world.reset_scene(yumi.HOME)
         bodies = [world.add_object(get_object_spec(o.object_type), o.position_xy_m, o.yaw_rad)
                   for o in scene.objects]

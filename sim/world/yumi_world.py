@@ -71,14 +71,23 @@ class WorldConfig:
 class World:
     """One headless PyBullet world with the YuMi at the origin on a table top at z = 0.
 
-    Use it as a context manager, or call :meth:`close`. Between trials call
-    :meth:`reset_scene`: it keeps the client and the robot and only removes the objects.
+    Use it as a context manager, or call :meth:`close`. :meth:`reset_scene` keeps the client
+    and the robot and only removes the objects; :meth:`rebuild` starts the physics afresh (a
+    trial does, so that it depends on no earlier one).
     """
 
     def __init__(self, config: WorldConfig | None = None) -> None:
         self.config = WorldConfig() if config is None else config
+        self.step_hook: StepHook | None = None
+        """Called after every physics step (e.g. to record frames); None, the default, costs
+        nothing."""
+        self.client: Any = None
+        self._build()
+
+    def _build(self) -> None:
+        """Connects a PyBullet client and loads the floor, the table and the robot."""
         with silenced_output():  # PyBullet prints "argv[0]=" from C on every connect
-            self.client: Any = bullet_client.BulletClient(connection_mode=pybullet.DIRECT)
+            self.client = bullet_client.BulletClient(connection_mode=pybullet.DIRECT)
         client = self.client
         client.setAdditionalSearchPath(pybullet_data.getDataPath())
         client.setTimeStep(self.config.time_step_s)
@@ -94,12 +103,19 @@ class World:
             flags=pybullet.URDF_USE_INERTIA_FROM_FILE,
         ))
         self.steps = 0
-        self.step_hook: StepHook | None = None
-        """Called after every physics step (e.g. to record frames); None, the default, costs
-        nothing."""
         self._objects: dict[int, ObjectSpec] = {}
         self._shapes: dict[ObjectSpec, tuple[int, int]] = {}
         self.robot = SimRobot(client, robot_id, self.config.robot, step=self.step)
+
+    def rebuild(self) -> None:
+        """Starts the physics afresh, as :meth:`__init__` made it (the step hook is kept).
+
+        What happens next then depends on nothing an earlier use left behind: PyBullet's
+        contact caches and solver warm starts, the ids and order of bodies added and removed.
+        A trial starts here (about 0.1 s), so its record is the same however the run went.
+        """
+        self.close()
+        self._build()
 
     @property
     def time_s(self) -> float:
