@@ -13,7 +13,13 @@ from pathlib import Path
 from experiments.commands.arguments import integer, resume_command
 from sim.trials.planner_setup import ObstacleSource
 from sim.trials.records import TrialSummary
-from sim.trials.run_loop import RunStopped, TrialSettings, held_out_check, run_trials
+from sim.trials.run_loop import (
+    TRIAL_WORKERS,
+    RunStopped,
+    TrialSettings,
+    held_out_check,
+    run_trials,
+)
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:
@@ -30,6 +36,9 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=integer(0), default=TrialSettings.seed,
                         help="seed of the test scenes (%(default)s)")
     parser.add_argument("--out", type=Path, required=True, help="run folder")
+    parser.add_argument("--workers", type=integer(1), default=TRIAL_WORKERS,
+                        help="trials side by side in this many processes (%(default)s); the "
+                        "records are the same however many")
     parser.add_argument("--obstacles", choices=[source.value for source in ObstacleSource],
                         default=TrialSettings.obstacles.value,
                         help="what picks are planned around: the head camera's depth image "
@@ -49,7 +58,8 @@ def run(args: argparse.Namespace) -> int:
               f"({check.reason}): these trials measure a model known to be poor",
               file=sys.stderr)
     try:
-        summary = run_trials(settings, args.out, progress=not args.no_progress)
+        summary = run_trials(settings, args.out, progress=not args.no_progress,
+                             workers=args.workers)
     except RunStopped as stopped:  # Ctrl-C, or the model's SystemExit: what finished, kept
         print_summary(stopped.summary, args.out)
         print(f"gva trials: stopped: {stopped}; resume with: {resume_command(args)}",

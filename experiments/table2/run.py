@@ -12,7 +12,6 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from experiments.jobs import JobPool
 from experiments.table2.jobs import (
     CellJob,
     CellOutcome,
@@ -24,6 +23,7 @@ from experiments.table2.jobs import (
 from experiments.table2.report import write_reports
 from experiments.table2.settings import Cell, ReproduceSimSettings
 from experiments.tables import RunReport, cost_bar
+from sim.jobs import JobPool
 from sim.trials.provenance import provenance
 from sim.trials.records import claim_run_folder, run_folder_lock
 

@@ -1,7 +1,7 @@
 """The jobs of ``gva reproduce real`` and the three phases that run them (collect, train, try).
 
 Each job is a small frozen dataclass handed to a function that runs in a worker process
-(:class:`experiments.jobs.JobPool`); it writes its files itself and returns a
+(:class:`sim.jobs.JobPool`); it writes its files itself and returns a
 :class:`JobOutcome`. A job that raises is recorded in ``OUT/errors/<job>.json`` (message and
 traceback) and the run goes on; the jobs that needed its output are left out and named.
 Finished work is found on disk before each phase, so a re-run skips it.
@@ -15,7 +15,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from experiments.jobs import JobPool
 from experiments.table3.gifs import record_gif
 from experiments.table3.settings import (
     GIF_TRIALS,
@@ -46,6 +45,7 @@ from perception.dataset_file import DatasetError, load_dataset
 from perception.registry import new_model
 from perception.train import TrainConfig
 from perception.validation import fit_checked, write_check
+from sim.jobs import JobPool
 from sim.tasks.scene_sampling import SeedStream, target_count
 from sim.tasks.task_spec import load_task
 from sim.trials.collector import CollectSettings, collect

@@ -38,7 +38,9 @@ from perception.learnable import LearnableModel, ModelSpec
 from perception.plugins import build_plugin, installed_models, is_class_path, plugin_class
 from perception.validation import HeldOutCheck, read_check
 from sim.errors import InvalidInputError
+from sim.jobs import JobPool
 from sim.tasks.scene_sampling import (
+    Scene,
     SeedStream,
     check_task_fits,
     condition_choices,
@@ -51,7 +53,7 @@ from sim.trials.execution import ExecutionSettings
 from sim.trials.oracle import OraclePerception
 from sim.trials.planner_setup import ObstacleSource, yumi_depth_config
 from sim.trials.provenance import provenance
-from sim.trials.records import TrialLog, TrialSummary, run_folder_lock
+from sim.trials.records import TrialLog, TrialRecord, TrialSummary, run_folder_lock
 from sim.trials.trial_runner import TRIAL_INPUTS, ModelFactory, TrialRunner
 from sim.world.head_camera import CameraConfig
 
@@ -290,6 +292,11 @@ def held_out_check(settings: TrialSettings) -> HeldOutCheck | None:
     return read_check(settings.model)
 
 
+TRIAL_WORKERS = 1
+"""Processes a run of trials uses by default: one (a trial is one image and one plan at a
+time; ``--workers`` runs several side by side)."""
+
+
 class RunStopped(BaseException):
     """A run stopped before its last trial by Ctrl-C or ``SystemExit``; what finished is kept.
 
@@ -309,11 +316,15 @@ class RunStopped(BaseException):
 
 
 def run_trials(
-    settings: TrialSettings, out_dir: str | Path, progress: bool = True
+    settings: TrialSettings, out_dir: str | Path, progress: bool = True,
+    workers: int = TRIAL_WORKERS,
 ) -> TrialSummary:
     """Runs (or resumes) ``settings.n`` trials into ``out_dir``; writes ``summary.json``.
 
-    The folder is locked for the run (:func:`~sim.trials.records.run_folder_lock`).
+    The folder is locked for the run (:func:`~sim.trials.records.run_folder_lock`). With
+    ``workers`` > 1 the trials run side by side in that many processes (:mod:`sim.jobs`), and
+    this process appends each record as it comes: every trial starts from a rebuilt world, so
+    the records are those of one process, in the order they finish.
 
     Raises:
         RunStopped: Ctrl-C or ``SystemExit`` stopped the run; ``summary.json`` holds what
@@ -321,6 +332,8 @@ def run_trials(
         RunFolderError: Another run holds the folder, or it holds a different run.
 
     """
+    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
+        raise InvalidInputError("workers", workers, "an integer >= 1")
     out = Path(out_dir)
     model = load_trial_model(settings)  # a refused model leaves no run folder behind
     with run_folder_lock(out):
@@ -328,30 +341,66 @@ def run_trials(
         log = TrialLog(out, settings.identity(), session)
         todo = [i for i in range(settings.n) if not log.done(i)]
         try:
-            _run_todo(settings, model, log, todo, progress)
+            _run_todo(settings, model, log, todo, progress, workers)
         except (KeyboardInterrupt, SystemExit) as stop:
             raise RunStopped(_write_summary(settings, log, out, session), stop) from stop
         return _write_summary(settings, log, out, session)
 
 
 def _run_todo(settings: TrialSettings, model: TrialModel, log: TrialLog, todo: list[int],
-              progress: bool) -> None:
+              progress: bool, workers: int) -> None:
     """Runs the trials ``todo``, appending each to ``log`` as it finishes."""
     if not todo:
         return
     task = settings.task_spec
-    threads = torch_threads(1) if model.one_torch_thread else contextlib.nullcontext()
-    with threads, TrialRunner(task, model.factory, settings.settle_s, settings.execution,
-                              obstacles=settings.obstacles) as runner, tqdm(
-        total=settings.n, initial=settings.n - len(todo), disable=not progress,
-        desc=f"{model.label} / {task.name}", unit="trial",
-    ) as bar:
-        for index in todo:
-            scene = sample_scene(task, YUMI_SCENE, settings.seed, SeedStream.TEST, index)
-            log.append(runner.run(scene, index, settings.seed, settings.model))
+    with tqdm(total=settings.n, initial=settings.n - len(todo), disable=not progress,
+              desc=f"{model.label} / {task.name}", unit="trial") as bar:
+        def done(record: TrialRecord) -> None:
+            log.append(record)
             summary = log.summary(settings.n)
             bar.set_postfix_str(f"{summary.successes}/{summary.n} ok")
             bar.update()
+
+        if workers > 1 and len(todo) > 1:
+            with JobPool(min(workers, len(todo))) as pool:
+                pool.run(run_trial_job, [TrialJob(settings, i) for i in todo], done)
+            return
+        threads = torch_threads(1) if model.one_torch_thread else contextlib.nullcontext()
+        with threads, TrialRunner(task, model.factory, settings.settle_s, settings.execution,
+                                  obstacles=settings.obstacles) as runner:
+            for index in todo:
+                done(runner.run(_scene(settings, index), index, settings.seed, settings.model))
+
+
+@dataclass(frozen=True)
+class TrialJob:
+    """One trial of a run, as a worker process runs it."""
+
+    settings: TrialSettings
+    index: int
+
+
+_WORKER_RUNNER: list[tuple[TrialSettings, TrialRunner]] = []
+"""The runner a worker process keeps for its run (built at its first trial)."""
+
+
+def run_trial_job(job: TrialJob) -> TrialRecord:
+    """Runs one trial in a worker process (:mod:`sim.jobs` limits it to one torch thread)."""
+    settings = job.settings
+    if not _WORKER_RUNNER or _WORKER_RUNNER[0][0] != settings:
+        for _, old in _WORKER_RUNNER:
+            old.close()
+        model = load_trial_model(settings)
+        _WORKER_RUNNER[:] = [(settings, TrialRunner(
+            settings.task_spec, model.factory, settings.settle_s, settings.execution,
+            obstacles=settings.obstacles))]
+    runner = _WORKER_RUNNER[0][1]
+    return runner.run(_scene(settings, job.index), job.index, settings.seed, settings.model)
+
+
+def _scene(settings: TrialSettings, index: int) -> Scene:
+    """Trial ``index``'s scene: test scene ``index`` of the run's seed."""
+    return sample_scene(settings.task_spec, YUMI_SCENE, settings.seed, SeedStream.TEST, index)
 
 
 def _write_summary(settings: TrialSettings, log: TrialLog, out: Path,

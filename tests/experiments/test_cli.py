@@ -84,7 +84,7 @@ def test_help_states_the_defaults_of_the_dataclasses(capsys):
 
 
 def test_ctrl_c_prints_the_command_that_resumes(tmp_path, capsys, monkeypatch):
-    def interrupted(settings, out, progress=True):
+    def interrupted(settings, out, **options):
         raise KeyboardInterrupt
 
     monkeypatch.setattr("experiments.commands.trials.run_trials", interrupted)

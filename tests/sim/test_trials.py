@@ -400,3 +400,14 @@ def test_a_trials_record_does_not_depend_on_the_trials_before_it():
     with TrialRunner(task) as runner:
         alone = record(runner, 1)  # as a resumed run, or another worker, runs it
     assert alone == after_another
+
+
+def test_trials_side_by_side_write_the_records_of_one_process(tmp_path):
+    def records(folder):
+        lines = (folder / "trials.jsonl").read_text().splitlines()
+        return {r["index"]: r for r in map(json.loads, lines) if r.pop("wall_time_s")}
+
+    settings = TrialSettings("oracle", "single", n=3)
+    run_trials(settings, tmp_path / "one", progress=False)
+    summary = run_trials(settings, tmp_path / "two", progress=False, workers=2)
+    assert records(tmp_path / "two") == records(tmp_path / "one") and summary.n == 3

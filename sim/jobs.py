@@ -1,4 +1,4 @@
-"""Jobs run side by side in "spawn" processes, for experiments that train many models.
+"""Jobs run side by side in "spawn" processes: trainings, dataset collections, pick trials.
 
 ::
 

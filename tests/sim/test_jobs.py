@@ -10,7 +10,7 @@ import textwrap
 import time
 from pathlib import Path
 
-from experiments.jobs import JobPool
+from sim.jobs import JobPool
 
 
 def _square(value: int) -> int:
@@ -38,7 +38,7 @@ def test_workers_exit_when_the_main_process_is_killed(tmp_path: Path):
     pids = tmp_path / "pids"
     script = textwrap.dedent(f"""
         import os, time
-        from experiments.jobs import JobPool
+        from sim.jobs import JobPool
 
         def job(_):
             with open({str(pids)!r}, "a") as handle:
