@@ -1,4 +1,4 @@
-"""``gva compare``: two run folders paired trial by trial, and its refusals.
+"""``gva compare``: two run folders paired trial by trial; refusals; Table III's comparisons.
 
 The run folders are written here as ``gva trials`` writes them (``run.json`` from
 :meth:`TrialSettings.identity`, ``trials.jsonl``, ``summary.json``), with outcomes chosen by
@@ -14,6 +14,13 @@ from pathlib import Path
 import pytest
 from gva_cli import gva
 
+from experiments.table3.report import (
+    TrialSetResult,
+    baseline_comparisons,
+    table3_json,
+    table3_markdown,
+)
+from experiments.table3.settings import Variant
 from sim.trials.records import TrialOutcome, TrialRecord, TrialSummary
 from sim.trials.run_loop import TrialSettings
 
@@ -147,3 +154,41 @@ def test_folders_that_are_not_finished_runs_are_refused_in_one_line(tmp_path):
     status, _, stderr = gva("compare", a, a, "--out", tmp_path)
     assert status == 2 and f"--out = '{tmp_path}' is not allowed: a file" in stderr
 
+
+def _set(model: str, task: str, per_seed: dict[int, list[TrialRecord]],
+         expected: int = 30) -> TrialSetResult:
+    return TrialSetResult(model, task, Variant.PLAIN,
+                          tuple((seed, tuple(records)) for seed, records in per_seed.items()),
+                          expected)
+
+
+def test_table3_pairs_each_baseline_with_kqv_per_task_and_seed():
+    kqv = _set("kqv", "single", {0: trials([OK] * 29 + [FAILED], "kqv"),
+                                 1: trials([OK] * 30, "kqv", seed=1)})
+    keypoint = _set("keypoint-16", "single", {0: trials([OK] * 15 + [FAILED] * 15, "kp"),
+                                              1: trials([OK] * 12, "kp", seed=1)})  # 12 of 30
+    fcn = _set("fcn", "multiple", {0: trials([FAILED] * 30, "fcn", task="multiple")})
+    dark = TrialSetResult("kqv", "single", Variant.DARK, kqv.per_seed, 30)
+    sets = [kqv, dark, keypoint, fcn]  # fcn has no kqv trials of its task: nothing to pair
+    found = baseline_comparisons(sets)
+    assert [(c.model, c.task, c.seed, c.unfinished) for c in found] == [
+        ("keypoint-16", "single", 0, False), ("keypoint-16", "single", 1, True)]
+    seed0, seed1 = (c.comparison for c in found)
+    assert (seed0.model_a, seed0.model_b) == ("kqv", "kp")  # A: kqv, B: the baseline
+    assert seed0.overall.counts.only_a == 14 and seed0.overall.p_value < 0.001
+    assert seed1.n == 12 and seed1.overall.p_value == 1.0  # the 12 trials both have
+    text = table3_markdown(sets, "Made by x.")
+    section = text[text.index("## Baselines against Ours (kqv, q=min)"):]
+    assert "| Key Point (q=16), seed 0 | -47 % (-64 to -25), p = 0.00012 | — | — | — |" \
+        in section
+    assert "| Key Point (q=16), seed 1 | +0 % (-24 to +24), p = 1* | — | — | — |" in section
+    assert text.index("## Baselines against") < text.index("## Failure reasons")
+    against = table3_json(sets)["against_kqv"]
+    assert against["reference"] == "kqv" and list(against["models"]) == ["keypoint-16"]
+    entries = against["models"]["keypoint-16"]["single"]
+    assert [(e["seed"], e["n"], e["unfinished"]) for e in entries] == [(0, 30, False),
+                                                                       (1, 12, True)]
+    assert entries[0]["mcnemar_exact_p"] == seed0.overall.p_value
+    only_kqv = table3_markdown([kqv], "Made by x.")
+    assert "## Baselines against" not in only_kqv
+    assert table3_json([kqv])["against_kqv"]["models"] == {}
