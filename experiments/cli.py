@@ -6,6 +6,7 @@
     gva evaluate --model runs/kqv-multiple --data runs/yumi-multiple-test.gva
     gva trials --model oracle --task single --n 30 --seed 0 --out runs/oracle-single
     gva trials --model runs/kqv-multiple --task multiple --n 30 --out runs/kqv-multiple-trials
+    gva compare runs/oracle-single runs/kqv-single-trials --out runs/kqv-vs-oracle.json
     gva show scene --scene paper-sim --task multiple --out runs/scene.png
     gva show attention --model runs/kqv-multiple --data runs/yumi-multiple-20.gva --out runs/att
     gva reproduce sim --out runs/table2 --seeds 3 --models kqv,fcn --tasks single --sizes 4,20
@@ -15,6 +16,10 @@
 ``evaluate``, ``show attention`` and ``trials`` take a checkpoint folder, with
 ``--model-class package.module:Class`` for a model that is not registered. ``trials`` also
 takes ``oracle`` or ``package.module:Class`` of a model that needs no weights.
+
+``compare`` pairs two finished runs of ``trials`` on the same trial list (task, seed, n): exact
+McNemar test and the difference in success rate with its interval (:mod:`sim.trials.compare`);
+it exits with status 1 when the second run is significantly worse than the first.
 
 ``reproduce sim`` and ``reproduce real`` run the paper's Tables II and III
 (:mod:`experiments.table2`, :mod:`experiments.table3`, ``docs/reproducing.md``); each exits
@@ -73,6 +78,12 @@ def _trials(parser: argparse.ArgumentParser) -> None:
     add_options(parser)
 
 
+def _compare(parser: argparse.ArgumentParser) -> None:
+    from experiments.commands.compare import add_options  # scipy.stats: only here
+
+    add_options(parser)
+
+
 def _collect(parser: argparse.ArgumentParser) -> None:
     from experiments.commands.collect import add_options  # torch: not for `gva trials`
 
@@ -114,6 +125,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="closed-loop pick trials at untrained positions",
         description="Runs pick trials: reset a scene from the seed, predict, plan, execute, "
         "judge by physics. Appends each trial to OUT/trials.jsonl; re-running resumes.",
+    )
+    commands.add_parser(
+        "compare", options=_compare,
+        help="two runs of trials on the same trials, compared pair by pair (is B worse?)",
+        description="Pairs the trials of two finished runs of gva trials (same task, seed and "
+        "n) by index: the pairs of outcomes, the exact McNemar test, the difference in success "
+        "rate B - A with its interval (Newcombe's, for paired data), overall and per "
+        "object type. Exit status 1 when B is significantly worse than A, else 0.",
     )
     commands.add_parser(
         "collect", options=_collect,

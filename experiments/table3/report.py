@@ -1,9 +1,10 @@
 """The reports of ``gva reproduce real``, rebuilt from every trial folder of every seed's folder.
 
 ``table3.json`` (per model, task and variant: each seed's successes, their mean and spread,
-and every seed's trials pooled) and ``table3.md`` (laid out like the paper's Table III, then
-intervals, held-out checks, failure reasons and GIFs). A trial folder of an interrupted run
-counts the trials it has, marked ``*``. What each file holds: ``docs/reproducing.md``.
+and every seed's trials pooled; each baseline against kqv, paired on the same trials) and
+``table3.md`` (laid out like the paper's Table III, then intervals, the paired comparisons,
+held-out checks, failure reasons and GIFs). A trial folder of an interrupted run counts the
+trials it has, marked ``*``. What each file holds: ``docs/reproducing.md``.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from experiments.table3.settings import (
 )
 from experiments.tables import MODEL_TITLES, TASK_TITLES, TASKS, duration, write_json, write_text
 from sim.tasks.task_spec import TargetSelection, load_task
+from sim.trials.compare import CONFIDENCE, SIGNIFICANCE, Comparison, compare_records, format_p
 from sim.trials.records import TrialOutcome, TrialRecord, TrialSummary
 
 PAPER_TABLE3 = {"single": 27, "multiple": 28, "selected-type": 26, "selected-position": 27}
@@ -107,6 +109,56 @@ def first_pick_errors_cm(records: Sequence[TrialRecord]) -> list[float]:
     return errors
 
 
+@dataclass(frozen=True)
+class BaselineComparison:
+    """A baseline's trials of one task and seed paired with kqv's on the same trials.
+
+    ``comparison`` has kqv as A and the baseline as B (its difference: baseline - kqv).
+    ``unfinished``: a set lacks some trials, and only the trials both have are paired.
+    """
+
+    model: str
+    task: str
+    seed: int
+    comparison: Comparison
+    unfinished: bool
+
+    def entry(self) -> dict[str, Any]:
+        """The comparison as ``table3.json`` holds it."""
+        return {"seed": self.seed, "unfinished": self.unfinished} | self.comparison.to_dict()
+
+    def cell(self) -> str:
+        """``-43 % (-61 to -20), p = 0.00098``: the difference, its interval and p."""
+        test = self.comparison.overall
+        return (f"{100 * test.difference:+.0f} % ({100 * test.interval.low:+.0f} to "
+                f"{100 * test.interval.high:+.0f}), p = {format_p(test.p_value)}"
+                + ("*" if self.unfinished else ""))
+
+
+def baseline_comparisons(sets: Sequence[TrialSetResult]) -> list[BaselineComparison]:
+    """Each baseline's plain trials against kqv's, per task and seed, on the trials both have.
+
+    Trial ``i`` of a seed is the same scene for every model (the seed's test stream), so the
+    sets pair by index (:mod:`sim.trials.compare`).
+    """
+    reference = {s.task: dict(s.per_seed) for s in sets
+                 if s.model == ROBUST_MODEL and s.variant is Variant.PLAIN}
+    found = []
+    for result in sets:
+        if result.model == ROBUST_MODEL or result.variant is not Variant.PLAIN:
+            continue
+        for seed, records in result.per_seed:
+            theirs = {r.index: r for r in reference.get(result.task, {}).get(seed, ())}
+            ours = {r.index: r for r in records}
+            common = sorted(set(theirs) & set(ours))
+            if not common:
+                continue
+            comparison = compare_records([theirs[i] for i in common], [ours[i] for i in common])
+            found.append(BaselineComparison(result.model, result.task, seed, comparison,
+                                            len(common) < result.expected))
+    return found
+
+
 def split_task(name: str) -> tuple[str, Variant]:
     """``single-dark`` -> (``single``, DARK); ``single`` -> (``single``, PLAIN)."""
     for variant in (Variant.DARK, Variant.DISTRACTOR):
@@ -187,7 +239,12 @@ def table3_json(sets: Sequence[TrialSetResult]) -> dict[str, Any]:
                 entry["shared_target_type"] = sum(shared_target_type(result.task, r)
                                                   for r in result.records)
             robustness[result.variant.value]["tasks"][result.task] = entry
+    against: dict[str, dict[str, list[dict[str, Any]]]] = {}
+    for paired in baseline_comparisons(sets):
+        against.setdefault(paired.model, {}).setdefault(paired.task, []).append(paired.entry())
     return {"tasks": models.get(ROBUST_MODEL, {}), "models": models, "robustness": robustness,
+            "against_kqv": {"reference": ROBUST_MODEL, "difference": f"model - {ROBUST_MODEL}",
+                            "models": against},
             "paper": {t: {"successes": k, "n": PAPER_TRIALS} for t, k in PAPER_TABLE3.items()}}
 
 
@@ -255,7 +312,8 @@ def table3_markdown(sets: Sequence[TrialSetResult], made_by: str,
     lines += [f"| {row_title(m, v)} | " + " | ".join(_interval(by_key.get((m, v, t)))
                                                     for t in TASKS) + " |"
               for m, v in _rows(sets)]
-    lines += ["", *checks_markdown(checks), "## Failure reasons", ""]
+    lines += ["", *comparisons_markdown(baseline_comparisons(sets)), *checks_markdown(checks),
+              "## Failure reasons", ""]
     for task in TASKS:
         present = [s for s in sets if s.task == task]
         if not present:
@@ -308,6 +366,27 @@ def _reasons(result: TrialSetResult) -> list[str]:
         lines.append(f"  - {where} ({record.target or '?'}{off}): "
                      f"{record.outcome.value}: {reason}")
     return lines
+
+
+def comparisons_markdown(comparisons: Sequence[BaselineComparison]) -> list[str]:
+    """The section of each baseline against kqv, paired on the same trials; none without one."""
+    if not comparisons:
+        return []
+    by_key = {(c.model, c.seed, c.task): c for c in comparisons}
+    rows = sorted({(c.model, c.seed) for c in comparisons},
+                  key=lambda row: (_model_order(row[0]), row[1]))
+    lines = [f"## Baselines against {model_title(ROBUST_MODEL)}, paired on the same trials", "",
+             f"Each baseline's trials against {ROBUST_MODEL}'s on the same test scenes (same "
+             f"seed, same trial index): the difference in success rate, baseline - "
+             f"{ROBUST_MODEL}, with its {100 * CONFIDENCE:.0f} % interval (Newcombe's hybrid "
+             "score interval for paired proportions), and the two-sided exact McNemar test's "
+             f"p. A negative difference with p < {SIGNIFICANCE:g}: the baseline is significantly "
+             "worse (`gva compare`, docs/trials.md). `*`: only the trials both sets have are "
+             "paired.", "", _HEADER, _RULE]
+    lines += [f"| {model_title(model)}, seed {seed} | "
+              + " | ".join(by_key[model, seed, t].cell() if (model, seed, t) in by_key else "—"
+                           for t in TASKS) + " |" for model, seed in rows]
+    return [*lines, ""]
 
 
 def checks_markdown(checks: Sequence[Mapping[str, Any]]) -> list[str]:

@@ -45,6 +45,14 @@ class TrialOutcome(enum.Enum):
 
 
 @dataclass(frozen=True)
+class TargetPick:
+    """One pick of a trial: the type of its target, and whether it was picked."""
+
+    target: str
+    picked: bool
+
+
+@dataclass(frozen=True)
 class TrialRecord:
     """Everything a trial did, as it goes into ``trials.jsonl``.
 
@@ -83,6 +91,15 @@ class TrialRecord:
     def success(self) -> bool:
         """Whether the pick succeeded."""
         return self.outcome is TrialOutcome.SUCCESS
+
+    def target_picks(self) -> tuple[TargetPick, ...]:
+        """Each pick of the trial by its target, in the order tried; none without a target.
+
+        A record without ``picks`` (written before they were kept) counts its one pick.
+        """
+        picks = self.picks or [{"target": self.target, "outcome": self.outcome.value}]
+        return tuple(TargetPick(pick["target"], pick["outcome"] == TrialOutcome.SUCCESS.value)
+                     for pick in picks if pick.get("target") is not None)
 
     def to_json(self) -> str:
         """One JSON line (no newline)."""
@@ -127,13 +144,10 @@ class TrialSummary:
         counts = Counter(r.outcome.value for r in records)
         per_object: dict[str, dict[str, int]] = {}
         for record in records:
-            for pick in record.picks or [{"target": record.target,
-                                          "outcome": record.outcome.value}]:
-                if pick.get("target") is None:
-                    continue
-                counts_of = per_object.setdefault(pick["target"], {"attempted": 0, "picked": 0})
+            for pick in record.target_picks():
+                counts_of = per_object.setdefault(pick.target, {"attempted": 0, "picked": 0})
                 counts_of["attempted"] += 1
-                counts_of["picked"] += pick["outcome"] == TrialOutcome.SUCCESS.value
+                counts_of["picked"] += pick.picked
         times = [r.wall_time_s for r in records]
         median = statistics.median(times) if times else 0.0
         return cls(successes, len(records), wilson_interval(successes, len(records)),

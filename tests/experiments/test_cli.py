@@ -42,6 +42,7 @@ def _loaded_after(argv: list[str]) -> set[str]:
     (["--help"], set()),
     (["reproduce", "--help"], set()),
     (["trials", "--out", "runs/x"], {"pinocchio"}),
+    (["compare", "runs/a", "runs/b"], set()),
     (["reproduce", "real", "--out", "runs/x"], {"pinocchio", "torch"}),
 ])
 def test_a_command_imports_only_what_it_needs(argv, allowed):

@@ -4,6 +4,7 @@ import pytest
 
 from sim.errors import RunFolderError
 from sim.trials.records import (
+    TargetPick,
     TrialLog,
     TrialOutcome,
     TrialRecord,
@@ -73,3 +74,17 @@ def test_summary_counts_every_outcome_and_median():
     assert set(summary.outcomes) == {o.value for o in TrialOutcome}
     assert summary.median_wall_time_s == 2.0
     assert summary.headline().startswith("2/3 successes (95 % Wilson interval")
+
+
+def test_target_picks_are_the_picks_or_the_one_pick_of_an_older_record():
+    older = TrialRecord(index=0, seed=0, task="single", model="oracle",
+                        outcome=TrialOutcome.MISSED, reason="test", target="mug")
+    assert older.target_picks() == (TargetPick("mug", False),)
+    assert record(0).target_picks() == ()  # no target: nothing to count
+    newer = TrialRecord(index=0, seed=0, task="multiple", model="oracle",
+                        outcome=TrialOutcome.MISSED, reason="test", target="mug",
+                        picks=[{"target": "sponge", "outcome": "success"},
+                               {"target": "mug", "outcome": "missed"}])
+    assert newer.target_picks() == (TargetPick("sponge", True), TargetPick("mug", False))
+    assert TrialSummary.of([older, newer]).per_object == {
+        "mug": {"attempted": 2, "picked": 0}, "sponge": {"attempted": 1, "picked": 1}}

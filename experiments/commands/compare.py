@@ -1,0 +1,47 @@
+"""``gva compare``: two finished runs of trials on the same trial list, compared pair by pair.
+
+Prints the pairs of outcomes, the exact McNemar test and B - A with its 95 % interval, overall
+and per object type (:mod:`sim.trials.compare` holds the statistics); ``--out`` also writes
+them as JSON. Exit status 1 when B is significantly worse than A, a CI job's signal; 0
+otherwise; 2 for bad input. No torch or pinocchio here.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from perception.files import atomic_write
+from sim.errors import InvalidInputError
+from sim.trials.compare import compare_runs
+
+
+def add_options(parser: argparse.ArgumentParser) -> None:
+    """The options of ``gva compare``."""
+    parser.add_argument("run_a", metavar="RUN_A", type=Path,
+                        help="the reference run: a folder gva trials finished")
+    parser.add_argument("run_b", metavar="RUN_B", type=Path,
+                        help="the run compared with it, of the same task, seed and n")
+    parser.add_argument("--out", type=Path, metavar="FILE",
+                        help="also write the comparison to FILE as JSON")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Compares the runs, prints (and writes) the comparison; 1 when B is significantly worse."""
+    if args.out is not None and args.out.is_dir():
+        raise InvalidInputError("--out", str(args.out), "a file to write, not a folder")
+    comparison = compare_runs(args.run_a, args.run_b)
+    labels = (f"{folder} (model {model})" for folder, model in
+              ((args.run_a, comparison.model_a), (args.run_b, comparison.model_b)))
+    for line in comparison.lines(*labels):
+        print(line)
+    if args.out is not None:
+        data = {"run_a": str(args.run_a), "run_b": str(args.run_b)} | comparison.to_dict() | {
+            "exit_status": comparison.exit_status}
+        text = json.dumps(data, indent=2, sort_keys=True) + "\n"
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(args.out, lambda temporary: temporary.write_text(text))
+        print(f"comparison: {args.out}")
+    return comparison.exit_status
