@@ -414,8 +414,12 @@ class Reports(NamedTuple):
     table: str  # the successes table, as in table3.md
 
 
-def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float) -> Reports:
-    """Writes ``table3.json`` and ``table3.md`` from what the folder holds."""
+def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float,
+                  session: dict[str, Any] | None = None) -> Reports:
+    """Writes ``table3.json`` and ``table3.md`` from what the folder holds.
+
+    ``session``: the provenance of the run that writes them (:mod:`sim.trials.provenance`).
+    """
     seeds = list(settings.training_seeds)
     sets = read_trial_sets(out, seeds, settings.n)
     gifs, failed = read_gifs(out, seeds), read_failed(out, seeds)
@@ -436,7 +440,7 @@ def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float
             "tasks": list(settings.tasks), "robustness": settings.robustness,
             "workers": settings.worker_count()},
         "wall_time_s": wall_time_s, "wall_time_all_runs_s": all_runs_s, "failed": failed,
-        "checks": checks}
+        "checks": checks, "provenance": session}
     paths = [out / "table3.json", out / "table3.md"]
     write_json(paths[0], table)
     text = table3_markdown(sets, made_by, gifs, failed, checks)

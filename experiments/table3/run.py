@@ -44,7 +44,8 @@ def run_reproduce_real(settings: ReproduceRealSettings, out: str | Path,
     out = Path(out)
     with run_folder_lock(out):  # one run per folder
         started = time.perf_counter()
-        claim_run_folder(out, settings.shared_identity(), provenance=provenance())
+        session = provenance()
+        claim_run_folder(out, settings.shared_identity(), provenance=session)
         for seed in settings.training_seeds:
             claim_run_folder(seed_folder(out, seed), settings.for_seed(seed).run_identity())
             write_variant_tasks(settings, seed_folder(out, seed))
@@ -57,6 +58,6 @@ def run_reproduce_real(settings: ReproduceRealSettings, out: str | Path,
         append_history(out, {"command": settings.command(out), "wall_time_s": round(wall_time_s, 1),
                              "computed": [o.name for o in computed], "skipped": len(skipped),
                              "workers": settings.worker_count(), "finished_at": time.time()})
-        reports = write_reports(settings, out, wall_time_s)
+        reports = write_reports(settings, out, wall_time_s, session)
         return RunReport(tuple(computed), tuple(skipped), tuple(reports.failed), wall_time_s,
                          tuple(reports.paths), tuple(reports.notes), reports.table)
