@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from perception.interface import Prediction, Target
+from perception.interface import LabelKind, PerceptionModel, Prediction, Target
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
@@ -71,8 +71,9 @@ def test_a_trial_refused_before_the_robot_moves_still_gets_a_frame():
     with TrialRunner(task, observer=recorder) as runner:
         oracle = runner.model
 
-        class FarAway:  # a grasp 80 cm beyond the target: no arm reaches it, nothing moves
+        class FarAway(PerceptionModel):  # a grasp 80 cm beyond the target: no arm reaches it
             name = "far"
+            label_kind = LabelKind.GRASP_POSE
 
             def predict(self, image, condition):
                 (target,) = oracle.predict(image, condition).targets
