@@ -39,6 +39,7 @@ from perception.plugins import build_plugin, installed_models, is_class_path, pl
 from perception.validation import HeldOutCheck, read_check
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import (
+    Scene,
     SeedStream,
     check_task_fits,
     condition_choices,
@@ -304,9 +305,14 @@ def run_trials(
 
     """
     out = Path(out_dir)
+    task = settings.task_spec
+    # Every scene is drawn first (a millisecond each): a task that random placement cannot fill
+    # is refused, naming its packing, before a model loads, a run folder is made or a trial runs.
+    scenes = [sample_scene(task, YUMI_SCENE, settings.seed, SeedStream.TEST, index)
+              for index in range(settings.n)]
     model = load_trial_model(settings)  # a refused model leaves no run folder behind
     log = TrialLog(out, settings.identity())
-    todo = [i for i in range(settings.n) if not log.done(i)]
+    todo = [scene for scene in scenes if not log.done(scene.index)]
     try:
         _run_todo(settings, model, log, todo, progress)
     except (KeyboardInterrupt, SystemExit) as stop:
@@ -314,9 +320,9 @@ def run_trials(
     return _write_summary(settings, log, out)
 
 
-def _run_todo(settings: TrialSettings, model: TrialModel, log: TrialLog, todo: list[int],
+def _run_todo(settings: TrialSettings, model: TrialModel, log: TrialLog, todo: list[Scene],
               progress: bool) -> None:
-    """Runs the trials ``todo``, appending each to ``log`` as it finishes."""
+    """Runs a trial on each scene of ``todo``, appending each to ``log`` as it finishes."""
     if not todo:
         return
     task = settings.task_spec
@@ -326,9 +332,8 @@ def _run_todo(settings: TrialSettings, model: TrialModel, log: TrialLog, todo: l
         total=settings.n, initial=settings.n - len(todo), disable=not progress,
         desc=f"{model.label} / {task.name}", unit="trial",
     ) as bar:
-        for index in todo:
-            scene = sample_scene(task, YUMI_SCENE, settings.seed, SeedStream.TEST, index)
-            log.append(runner.run(scene, index, settings.seed, settings.model))
+        for scene in todo:
+            log.append(runner.run(scene, scene.index, settings.seed, settings.model))
             summary = log.summary(settings.n)
             bar.set_postfix_str(f"{summary.successes}/{summary.n} ok")
             bar.update()
