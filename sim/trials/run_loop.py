@@ -54,6 +54,7 @@ from sim.trials.planner_setup import ObstacleSource, yumi_depth_config
 from sim.trials.records import TrialLog, TrialSummary
 from sim.trials.trial_runner import TRIAL_INPUTS, ModelFactory, TrialRunner
 from sim.world.head_camera import CameraConfig
+from sim.world.yumi_world import check_wait_s
 
 MODELS: dict[str, ModelFactory] = {"oracle": OraclePerception}
 """Perception models the trial runner builds by name; a checkpoint folder or
@@ -143,6 +144,7 @@ class TrialSettings:
             raise InvalidInputError("model_class", self.model_class, "None unless model is a "
                                     "checkpoint folder (it names the class that loads it)")
         check_task_fits(self.task_spec, YUMI_SCENE)  # also: an unknown task names the allowed
+        check_wait_s("settle_s", self.settle_s)
         if self.n < 1:
             raise InvalidInputError("n", self.n, "an integer >= 1")
         if self.seed < 0:
