@@ -198,9 +198,9 @@ def max_spaced_points(width_m: float, height_m: float, spacing_m: float) -> int:
     """
     if spacing_m <= 0.0:
         return MAX_OBJECTS
-    bound = (2.0 * width_m * height_m / (math.sqrt(3.0) * spacing_m**2)
-             + (width_m + height_m) / spacing_m + 1.0)
-    return min(MAX_OBJECTS, math.floor(bound + 1e-9))
+    across, along = width_m / spacing_m, height_m / spacing_m  # inf for a tiny spacing, not 0
+    bound = 2.0 / math.sqrt(3.0) * across * along + across + along + 1.0
+    return MAX_OBJECTS if not bound < MAX_OBJECTS else math.floor(bound + 1e-9)
 
 
 def _region(task: TaskSpec, spec: SceneSpec) -> tuple[tuple[float, float], tuple[float, float]]:

@@ -162,6 +162,7 @@ def test_the_area_bound_is_groemers_and_never_refuses_a_grid():
     assert max_spaced_points(1.0, 1.0, 1.0) == 4  # a square's corners, and no fifth point
     assert max_spaced_points(0.5, 1e-9, 0.1) == 6  # a segment: its 6 points 0.1 m apart
     assert max_spaced_points(0.15, 0.40, 0.0) == MAX_OBJECTS
+    assert max_spaced_points(0.28, 0.36, 5e-324) == MAX_OBJECTS  # spacing**2 would be 0.0
     for width, height, spacing in [(0.15, 0.40, 0.12), (0.28, 0.36, 0.1), (0.15, 0.40, 0.05),
                                    (0.3, 0.3, 0.15), (0.01, 0.40, 0.2), (0.15, 0.40, 0.5)]:
         grid = (math.floor(width / spacing + 1e-9) + 1) * (math.floor(height / spacing + 1e-9) + 1)
