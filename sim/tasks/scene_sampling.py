@@ -5,12 +5,18 @@ model was trained on: scene ``index`` of stream ``stream`` under seed ``seed`` i
 ``SeedSequence([seed, stream, index])``. A task's distractors are drawn after the scene, from
 ``SeedSequence([seed, stream, index, 1])``: a task with distractors presents the same scene
 as the task without them (same objects, poses, targets and condition), plus the distractors.
+
+Placement is rejection sampling, bounded: a task that cannot fit is refused before sampling by
+:func:`check_task_fits` (an area bound, Groemer's packing inequality), and one that the bound
+lets through but random placement cannot fill fails after :data:`MAX_PLACEMENT_CANDIDATES`
+drawn positions, with an error that names the count, the spacing and the region.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import enum
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -19,9 +25,13 @@ import numpy as np
 from perception.interface import NO_CONDITION, Condition, ConditionKind
 from sim.errors import InvalidInputError
 from sim.tasks.scene_specs import SceneSpec
-from sim.tasks.task_spec import SIDES, ObjectChoice, TargetSelection, TaskSpec
+from sim.tasks.task_spec import MAX_OBJECTS, SIDES, ObjectChoice, TargetSelection, TaskSpec
 
 MAX_PLACEMENT_TRIES = 200
+"""Positions drawn for one object before the scene's placement starts over; also the restarts."""
+MAX_PLACEMENT_CANDIDATES = 20_000
+"""Positions drawn for one scene's objects before sampling gives up (a fraction of a second).
+The built-in tasks draw at most 214 (1,800 scenes of each task in each scene): none nears it."""
 DISTRACTOR_STREAM = 1
 """The distractors' own seed stream, beside the scene's (see the module docstring)."""
 
@@ -128,8 +138,13 @@ def target_count(task: TaskSpec) -> int:
 
 
 def check_task_fits(task: TaskSpec, spec: SceneSpec) -> None:
-    """Raises a clear error if ``task`` cannot be drawn in ``spec``'s scene."""
-    where = f"task {task.name!r} in scene {spec.name!r}"
+    """Raises a clear error if ``task`` cannot be drawn in ``spec``'s scene.
+
+    Besides the types and ranges, it refuses a packing no placement could achieve: more objects
+    ``min_spacing_m`` apart than the region's area bound (:func:`max_spaced_points`) allows, or
+    sides that leave no room for an object on one side of the centre line.
+    """
+    where = f"task {task.name!r} ({task.source}) in scene {spec.name!r}"
     if task.objects is ObjectChoice.ONE_OF_EACH and task.count != len(spec.object_types):
         raise InvalidInputError(f"{where}: objects.count", task.count,
                                 f"{len(spec.object_types)} (one of each of "
@@ -144,6 +159,58 @@ def check_task_fits(task: TaskSpec, spec: SceneSpec) -> None:
         if own is not None and not (scene_range[0] <= own[0] and own[1] <= scene_range[1]):
             raise InvalidInputError(f"{where}: placement.{field}", list(own),
                                     f"a range within the scene's workspace {list(scene_range)}")
+    (x_low, x_high), (y_low, y_high) = _region(task, spec)
+    spacing = task.min_spacing_m
+    region = f"the placement region {_describe_region(task, spec)}"
+    if task.sides:
+        centre, margin = spec.centre_y_m, spacing / 2
+        if not (y_low < centre - margin and centre + margin < y_high):
+            field = "placement.y_m" if task.workspace_y_m is not None else "placement.min_spacing_m"
+            value = list(task.workspace_y_m) if task.workspace_y_m is not None else spacing
+            raise InvalidInputError(
+                f"{where}: {field}", value, f"room for an object on each side of y = {centre} m, "
+                f"{margin} m (min_spacing_m / 2) clear of it, within y {y_low} to {y_high} m")
+    else:
+        most = max_spaced_points(x_high - x_low, y_high - y_low, spacing)
+        if task.count > most:
+            raise InvalidInputError(
+                f"{where}: objects.count", task.count,
+                f"a count that can fit: no more than {most} objects {spacing} m apart fit in "
+                f"{region}, however placed (an area bound); lower objects.count or "
+                "placement.min_spacing_m")
+    total = task.count + len(task.distractors)
+    most = max_spaced_points(x_high - x_low + spacing, y_high - y_low + spacing, spacing)
+    if task.distractors and total > most:
+        raise InvalidInputError(
+            f"{where}: distractors.types", list(task.distractors),
+            f"at most {max(most - task.count, 0)} distractors: no more than {most} objects "
+            f"{spacing} m apart fit in {region} and the {spacing / 2} m band around it, however "
+            "placed (an area bound); fewer distractors, or lower placement.min_spacing_m")
+
+
+def max_spaced_points(width_m: float, height_m: float, spacing_m: float) -> int:
+    """An upper bound on how many points ``spacing_m`` apart fit in a ``width_m x height_m`` box.
+
+    Groemer's inequality (1960): in a convex region of area A and perimeter P, at most
+    2 A / (sqrt(3) d^2) + P / (2 d) + 1 points lie at mutual distances >= d. A count above it
+    cannot be placed however the placement is tried, so it is refused before sampling. Any
+    count fits at spacing 0 (the bound is :data:`~sim.tasks.task_spec.MAX_OBJECTS` then).
+    """
+    if spacing_m <= 0.0:
+        return MAX_OBJECTS
+    across, along = width_m / spacing_m, height_m / spacing_m  # inf for a tiny spacing, not 0
+    bound = 2.0 / math.sqrt(3.0) * across * along + across + along + 1.0
+    return MAX_OBJECTS if not bound < MAX_OBJECTS else math.floor(bound + 1e-9)
+
+
+def _region(task: TaskSpec, spec: SceneSpec) -> tuple[tuple[float, float], tuple[float, float]]:
+    """Where the task's objects are placed: its own ranges, else the scene's workspace [m]."""
+    return task.workspace_x_m or spec.workspace_x_m, task.workspace_y_m or spec.workspace_y_m
+
+
+def _describe_region(task: TaskSpec, spec: SceneSpec) -> str:
+    (x_low, x_high), (y_low, y_high) = _region(task, spec)
+    return f"x {x_low:.2f} to {x_high:.2f} m, y {y_low:.2f} to {y_high:.2f} m"
 
 
 def sample_scene(
@@ -176,8 +243,7 @@ def _place_distractors(task: TaskSpec, spec: SceneSpec, objects: tuple[PlacedObj
     Each goes in the workspace where it has room, else in a band ``min_spacing_m / 2`` wide
     around it (three objects can leave the workspace no room for a fourth).
     """
-    x_low, x_high = task.workspace_x_m or spec.workspace_x_m
-    y_low, y_high = task.workspace_y_m or spec.workspace_y_m
+    (x_low, x_high), (y_low, y_high) = _region(task, spec)
     placed = [o.position_xy_m for o in objects]
     added: list[PlacedObject] = []
     for object_type in task.distractors:
@@ -193,7 +259,7 @@ def _place_distractors(task: TaskSpec, spec: SceneSpec, objects: tuple[PlacedObj
             break
         else:
             raise InvalidInputError(
-                f"task {task.name!r} in scene {spec.name!r}: distractors.types",
+                f"task {task.name!r} ({task.source}) in scene {spec.name!r}: distractors.types",
                 list(task.distractors), f"distractors that fit {task.min_spacing_m} m from "
                 "every object (fewer, or lower placement.min_spacing_m)")
         placed.append(candidate)
@@ -205,9 +271,14 @@ def _place_distractors(task: TaskSpec, spec: SceneSpec, objects: tuple[PlacedObj
 def _place(
     task: TaskSpec, spec: SceneSpec, count: int, rng: np.random.Generator
 ) -> list[tuple[float, float]]:
-    x_range = task.workspace_x_m or spec.workspace_x_m
-    y_low, y_high = task.workspace_y_m or spec.workspace_y_m
+    """``count`` positions ``min_spacing_m`` apart, by rejection sampling.
+
+    Each object gets up to ``MAX_PLACEMENT_TRIES`` draws, else the scene starts over; after
+    ``MAX_PLACEMENT_CANDIDATES`` draws in all it gives up with an error naming the packing.
+    """
+    x_range, (y_low, y_high) = _region(task, spec)
     margin = task.min_spacing_m / 2
+    drawn = 0
     for _ in range(MAX_PLACEMENT_TRIES):
         placed: list[tuple[float, float]] = []
         for number in range(count):
@@ -217,6 +288,9 @@ def _place(
             elif task.sides and number == 1:
                 y_range = (y_low, spec.centre_y_m - margin)  # the right (-y) object
             for _ in range(MAX_PLACEMENT_TRIES):
+                if drawn == MAX_PLACEMENT_CANDIDATES:
+                    break
+                drawn += 1
                 candidate = (float(rng.uniform(*x_range)), float(rng.uniform(*y_range)))
                 if all(np.hypot(candidate[0] - x, candidate[1] - y) >= task.min_spacing_m
                        for x, y in placed):
@@ -224,12 +298,17 @@ def _place(
                     break
             else:
                 break
+            if len(placed) == number:  # this object found no room within the draws left
+                break
         if len(placed) == count:
             return placed
+        if drawn == MAX_PLACEMENT_CANDIDATES:
+            break
     raise InvalidInputError(
-        f"task {task.name!r} in scene {spec.name!r}",
-        f"{count} objects {task.min_spacing_m} m apart",
-        "a workspace large enough to place them (widen it or lower placement.min_spacing_m)",
+        f"task {task.name!r} ({task.source}) in scene {spec.name!r}: objects.count", count,
+        f"a count that fits: could not place {count} objects {task.min_spacing_m} m apart in "
+        f"the placement region {_describe_region(task, spec)} after {drawn} attempts; lower "
+        "objects.count or placement.min_spacing_m",
     )
 
 

@@ -112,6 +112,11 @@ def asked(scene: Scene, every_condition: bool) -> tuple[Scene, ...]:
 def collect(settings: CollectSettings, out_path: str | Path, progress: bool = True) -> Dataset:
     """Collects the dataset ``settings`` describes and writes it to ``out_path``."""
     task, spec = load_task(settings.task), get_scene_spec(settings.scene)
+    # Every scene is drawn first (a millisecond each): a task that random placement cannot
+    # fill is refused, naming its packing, before a world is built. (A yumi collection redraws
+    # failed demonstrations from later scenes: those are drawn when needed.)
+    for index in range(settings.size):
+        sample_scene(task, spec, settings.seed, settings.stream, index)
     bar = tqdm(total=settings.size, disable=not progress, unit="scene",
                desc=f"collect {spec.name} / {task.name}")
     with bar:

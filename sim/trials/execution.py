@@ -9,13 +9,14 @@ and the target stayed pinched between both fingers the whole time.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from control.pick import GripperCommand, PickPlan
 from robots import yumi
 from sim.errors import InvalidInputError
 from sim.trials.records import TrialOutcome
-from sim.world.yumi_world import World
+from sim.world.yumi_world import MAX_WAIT_S, World
 
 TOUCH_DISTANCE_M = 1e-4
 """Contact points closer than this count as touching [m]."""
@@ -39,9 +40,12 @@ class ExecutionSettings:
     check_every_steps: int = 6
 
     def __post_init__(self) -> None:
-        for name in ("lift_success_m", "hold_s", "close_timeout_s"):
-            if getattr(self, name) <= 0.0:
-                raise InvalidInputError(name, getattr(self, name), "a value > 0")
+        if not (math.isfinite(self.lift_success_m) and self.lift_success_m > 0.0):
+            raise InvalidInputError("lift_success_m", self.lift_success_m, "a finite rise > 0 m")
+        for name in ("hold_s", "close_timeout_s"):  # each a wait of the physics: bounded
+            value = getattr(self, name)
+            if not (math.isfinite(value) and 0.0 < value <= MAX_WAIT_S):
+                raise InvalidInputError(name, value, f"a time in (0, {MAX_WAIT_S}] s")
         if self.check_every_steps < 1:
             raise InvalidInputError("check_every_steps", self.check_every_steps, ">= 1")
 

@@ -56,6 +56,7 @@ from sim.trials.provenance import provenance
 from sim.trials.records import TrialLog, TrialRecord, TrialSummary, run_folder_lock
 from sim.trials.trial_runner import TRIAL_INPUTS, ModelFactory, TrialRunner
 from sim.world.head_camera import CameraConfig
+from sim.world.yumi_world import check_wait_s
 
 MODELS: dict[str, ModelFactory] = {"oracle": OraclePerception}
 """Perception models the trial runner builds by name; a checkpoint folder or
@@ -145,6 +146,7 @@ class TrialSettings:
             raise InvalidInputError("model_class", self.model_class, "None unless model is a "
                                     "checkpoint folder (it names the class that loads it)")
         check_task_fits(self.task_spec, YUMI_SCENE)  # also: an unknown task names the allowed
+        check_wait_s("settle_s", self.settle_s)
         if self.n < 1:
             raise InvalidInputError("n", self.n, "an integer >= 1")
         if self.seed < 0:
@@ -335,6 +337,10 @@ def run_trials(
     if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
         raise InvalidInputError("workers", workers, "an integer >= 1")
     out = Path(out_dir)
+    # Every scene is drawn first (a millisecond each): a task that random placement cannot fill
+    # is refused, naming its packing, before a model loads, a run folder is made or a trial runs.
+    for index in range(settings.n):
+        _scene(settings, index)
     model = load_trial_model(settings)  # a refused model leaves no run folder behind
     with run_folder_lock(out):
         session = provenance(settings.inputs())

@@ -65,7 +65,7 @@ from sim.trials.planner_setup import (
 from sim.trials.records import TrialOutcome, TrialRecord
 from sim.world.grip import Grip, grip_of
 from sim.world.head_camera import HeadCamera
-from sim.world.yumi_world import World
+from sim.world.yumi_world import World, check_wait_s
 
 _PLAN_OUTCOMES = {
     PlanStatus.UNREACHABLE: TrialOutcome.IK_UNREACHABLE,
@@ -142,6 +142,7 @@ class TrialRunner:
         if not isinstance(obstacles, ObstacleSource):
             allowed = ", ".join(f"ObstacleSource.{s.name}" for s in ObstacleSource)
             raise InvalidInputError("obstacles", obstacles, f"one of {allowed}")
+        check_wait_s("settle_s", settle_s)
         self.task = task
         self.settle_s = settle_s
         self.execution = execution or ExecutionSettings()

@@ -23,6 +23,7 @@ from pybullet_utils import bullet_client
 from sim.errors import InvalidInputError
 from sim.world.head_camera import CameraConfig, HeadCamera
 from sim.world.quiet import silenced_output
+from sim.world.yumi_world import check_wait_s
 
 PAPER_OBJECT_TYPES: tuple[str, ...] = ("duck", "soccer_ball", "mug")
 """The scene's object types, in one-hot (and target) order."""
@@ -79,8 +80,7 @@ class PaperWorldConfig:
     def __post_init__(self) -> None:
         if not 0.0 < self.time_step_s <= 0.01:
             raise InvalidInputError("time_step_s", self.time_step_s, "in (0, 0.01] s")
-        if self.settle_s < 0.0:
-            raise InvalidInputError("settle_s", self.settle_s, ">= 0 s")
+        check_wait_s("settle_s", self.settle_s)
 
 
 class PaperWorld:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from types import TracebackType
@@ -26,6 +27,16 @@ ROBOT_FOOTPRINT_M = ((-0.36, 0.135), (-0.2, 0.2))
 """x and y ranges the YuMi's base covers on the table [m] (robots/yumi/specs.py BODY_BOXES)."""
 StepHook = Callable[["World"], None]
 """Called with the world after each physics step (see :attr:`World.step_hook`)."""
+MAX_WAIT_S = 10.0
+"""Longest the physics runs in one go: a settle, the gripper's close, the hold [s] (2,400 steps
+at 240 Hz). ``World.step`` refuses more, so every loop that steps the simulator ends: each is
+bounded by such a wait or by a planned trajectory's length (one step per sample)."""
+
+
+def check_wait_s(name: str, value: float) -> None:
+    """Raises unless ``value`` is a wait the physics can run: finite, in [0, MAX_WAIT_S] s."""
+    if not (math.isfinite(value) and 0.0 <= value <= MAX_WAIT_S):
+        raise InvalidInputError(name, value, f"a time in [0, {MAX_WAIT_S}] s")
 
 
 @dataclass(frozen=True)
@@ -123,9 +134,10 @@ class World:
         return self.steps * self.config.time_step_s
 
     def step(self, n: int = 1) -> None:
-        """Advance the physics by ``n`` steps."""
-        if n < 0:
-            raise InvalidInputError("n", n, "a number of steps >= 0")
+        """Advance the physics by ``n`` steps, at most ``MAX_WAIT_S`` of simulated time."""
+        most = round(MAX_WAIT_S / self.config.time_step_s)
+        if not 0 <= n <= most:
+            raise InvalidInputError("n", n, f"a number of steps in [0, {most}] ({MAX_WAIT_S} s)")
         for _ in range(n):
             self.robot.before_step()
             self.client.stepSimulation()

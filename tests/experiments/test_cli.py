@@ -1,4 +1,5 @@
-"""``gva``'s parser: what each command imports, and defaults read from the settings dataclasses."""
+"""``gva``'s parser: what each command imports, defaults read from the settings dataclasses,
+and bad task files refused in one line."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from gva_cli import gva
 
 from experiments.cli import build_parser, main
 from experiments.table2.settings import ReproduceSimSettings
@@ -93,3 +95,51 @@ def test_ctrl_c_prints_the_command_that_resumes(tmp_path, capsys, monkeypatch):
     assert status == 130
     assert capsys.readouterr().err == (f"gva trials: interrupted; resume with: gva trials --n 2 "
                                        f"--out '{tmp_path / 'my run'}' --no-progress\n")
+
+
+BAD_TASK_FILES = {  # name: (file contents, what the one line must name besides the file)
+    "count-1e18": (b'name = "huge"\n[objects]\ncount = 1000000000000000000\n',
+                   ("objects.count = 1000000000000000000", "an integer in [1, 12]")),
+    "100-at-spacing-0": (b'name = "heap"\n[objects]\ncount = 100\n[placement]\n'
+                         b"min_spacing_m = 0\n", ("objects.count = 100", "an integer in [1, 12]")),
+    "nan-spacing": (b'name = "nan"\n[placement]\nmin_spacing_m = nan\n',
+                    ("placement.min_spacing_m = nan", "a distance in [0, 0.5] m")),
+    "sides-on-one-side": (b'name = "left-only"\n[objects]\nchoose = "same_type"\ncount = 2\n'
+                          b'[targets]\nselect = "condition"\n[condition]\nkind = "side"\n'
+                          b"[placement]\nsides = true\ny_m = [0.05, 0.15]\n",
+                          ("placement.y_m = [0.05, 0.15]", "room for an object on each side")),
+    "binary": (b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR\xff\xfe",
+               ("'not UTF-8 text'", "a TOML text file in UTF-8")),
+    "not-toml": (b"name: sponge-task\ncount: 2\n", ("'not valid TOML'", "TOML (")),
+}
+COMMANDS = {"trials": ["trials", "--n", "1"],
+            "collect": ["collect", "--scene", "yumi", "--size", "1"]}
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+@pytest.mark.parametrize("case", BAD_TASK_FILES)
+def test_a_bad_task_file_is_refused_in_one_line_with_status_2(tmp_path, command, case):
+    contents, named = BAD_TASK_FILES[case]
+    task = tmp_path / f"{case}.toml"
+    task.write_bytes(contents)
+    out = tmp_path / "out"
+    status, stdout, stderr = gva(*COMMANDS[command], "--task", task, "--out", out)
+    assert status == 2, stderr
+    assert stderr.endswith("\n") and stderr.count("\n") == 1, stderr  # one line, no progress bar
+    assert stderr.startswith(f"gva {command}: error: task") and f"{case}.toml" in stderr
+    assert all(part in stderr for part in named), stderr
+    assert "Traceback" not in stderr and not stdout and not out.exists()
+
+
+def test_a_bad_task_file_is_refused_within_a_timeout_not_after_a_hang(tmp_path):
+    # Before the count bound, this file ran for minutes; here a hang fails the test at the
+    # timeout instead of stalling the suite (the generous limit is no timing measurement).
+    task = tmp_path / "heap.toml"
+    task.write_bytes(BAD_TASK_FILES["100-at-spacing-0"][0])
+    done = subprocess.run(
+        [sys.executable, "-m", "experiments.cli", "trials", "--task", str(task), "--n", "1",
+         "--out", str(tmp_path / "out")],
+        cwd=ROOT, capture_output=True, text=True, timeout=120,
+    )
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.count("\n") == 1 and "objects.count = 100" in done.stderr

@@ -1,6 +1,8 @@
 """Plans that pass the collision check run in the simulator without touching anything but
 the target before the grasp; the contact watch that says so does catch real contacts."""
 
+import math
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -9,16 +11,34 @@ from control.depth_obstacles import GraspRegion, depth_obstacles
 from control.pick import PickRequest, PlanStatus
 from perception.catalog import get_object_spec
 from perception.grasps import grasp_pose
+from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_spec import ObjectChoice, TaskSpec
 from sim.trials.execution import ExecutionSettings, execute_pick
 from sim.trials.planner_setup import object_obstacles, table_obstacle, yumi_depth_config
 from sim.trials.records import TrialOutcome
+from sim.trials.run_loop import TrialSettings
 from sim.world.head_camera import HeadCamera
-from sim.world.yumi_world import World
+from sim.world.paper_world import PaperWorldConfig
+from sim.world.yumi_world import MAX_WAIT_S, World, check_wait_s
 
 CLUTTER = TaskSpec(name="clutter", objects=ObjectChoice.RANDOM, count=3, min_spacing_m=0.11)
+
+
+@pytest.mark.parametrize("build", [
+    lambda: ExecutionSettings(hold_s=math.nan),
+    lambda: ExecutionSettings(close_timeout_s=math.inf),
+    lambda: ExecutionSettings(hold_s=MAX_WAIT_S + 1),
+    lambda: ExecutionSettings(lift_success_m=math.nan),
+    lambda: TrialSettings(model="oracle", task="single", settle_s=math.inf),
+    lambda: PaperWorldConfig(settle_s=math.nan),
+    lambda: check_wait_s("settle_s", -0.1),
+], ids=["hold-nan", "close-inf", "hold-long", "lift-nan", "trial-settle-inf", "paper-settle-nan",
+        "settle-negative"])
+def test_every_wait_of_the_physics_is_finite_and_bounded(build) -> None:
+    with pytest.raises(InvalidInputError, match=r"is not allowed: a (time|finite rise)"):
+        build()
 
 
 @pytest.fixture(scope="module")

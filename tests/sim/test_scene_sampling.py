@@ -1,13 +1,20 @@
 import dataclasses
+import math
 
 import numpy as np
 import pytest
 
 from perception.interface import ConditionKind
 from sim.errors import InvalidInputError
-from sim.tasks.scene_sampling import SeedStream, sample_scene
+from sim.tasks.scene_sampling import (
+    MAX_PLACEMENT_CANDIDATES,
+    SeedStream,
+    check_task_fits,
+    max_spaced_points,
+    sample_scene,
+)
 from sim.tasks.scene_specs import YUMI_SCENE, get_scene_spec
-from sim.tasks.task_spec import builtin_tasks, load_task, task_from_toml
+from sim.tasks.task_spec import MAX_OBJECTS, builtin_tasks, load_task, task_from_toml
 
 SCENES = ("paper-sim", "yumi")
 
@@ -101,14 +108,65 @@ def test_distractors_join_the_same_scene_spaced_apart(task_name):
 
 def test_an_impossible_task_in_a_scene_is_named():
     crowded = task_from_toml(
-        'name = "crowded"\n[objects]\ncount = 9\n[placement]\nmin_spacing_m = 0.3')
-    with pytest.raises(InvalidInputError, match=r"task 'crowded' in scene 'yumi' = '9 objects "
-                       r"0\.3 m apart' is not allowed: a workspace large enough"):
+        'name = "crowded"\n[objects]\ncount = 9\n[placement]\nmin_spacing_m = 0.3', "c.toml")
+    message = (r"task 'crowded' \(c\.toml\) in scene 'yumi': objects\.count = 9 is not allowed: a "
+               r"count that can fit: no more than 3 objects 0\.3 m apart fit in the placement "
+               r"region x 0\.40 to 0\.55 m, y -0\.20 to 0\.20 m, however placed \(an area bound\); "
+               r"lower objects\.count or placement\.min_spacing_m")
+    with pytest.raises(InvalidInputError, match=message):
+        check_task_fits(crowded, YUMI_SCENE)  # refused before any sampling
+    with pytest.raises(InvalidInputError, match=message):
         sample_scene(crowded, YUMI_SCENE, 0, SeedStream.TEST, 0)
     alien = task_from_toml('name = "a"\n[distractors]\ntypes = ["duck"]')
     with pytest.raises(InvalidInputError, match=r"distractors\.types = \['duck'\] is not allowed: "
                        r"types of the scene: sponge, spray_bottle, mug, block"):
         sample_scene(alien, YUMI_SCENE, 0, SeedStream.TEST, 0)
+    cluttered = dataclasses.replace(crowded, count=2, distractors=("mug",) * 7)
+    with pytest.raises(InvalidInputError, match=r"distractors\.types = \['mug', .* is not allowed: "
+                       r"at most 6 distractors: no more than 8 objects 0\.3 m apart fit in the "
+                       r"placement region .* and the 0\.15 m band around it"):
+        check_task_fits(cluttered, YUMI_SCENE)
+
+
+@pytest.mark.parametrize(("placement", "message"), [
+    ("y_m = [0.05, 0.15]", r"placement\.y_m = \[0\.05, 0\.15\] is not allowed: room for an object "
+     r"on each side of y = 0\.0 m, 0\.06 m \(min_spacing_m / 2\) clear of it, within y 0\.05 to "
+     r"0\.15 m"),
+    ("min_spacing_m = 0.45", r"placement\.min_spacing_m = 0\.45 is not allowed: room for an object "
+     r"on each side of y = 0\.0 m, 0\.225 m"),
+])
+def test_sides_without_room_on_one_side_are_refused_before_sampling(placement, message):
+    task = task_from_toml('name = "s"\n[objects]\nchoose = "same_type"\ncount = 2\n[targets]\n'
+                          'select = "condition"\n[condition]\nkind = "side"\n[placement]\n'
+                          f"sides = true\n{placement}", "s.toml")
+    where = r"task 's' \(s\.toml\) in scene 'yumi': "
+    with pytest.raises(InvalidInputError, match=where + message):
+        check_task_fits(task, YUMI_SCENE)
+
+
+def test_a_packing_random_placement_cannot_fill_fails_after_bounded_attempts():
+    # 12 objects 0.1 m apart: under the area bound (13) of the 0.15 m x 0.40 m workspace, but
+    # a grid holds only 10 and random placement far fewer.
+    tight = task_from_toml('name = "t"\n[objects]\ncount = 12\n[placement]\nmin_spacing_m = 0.1',
+                           "t.toml")
+    check_task_fits(tight, YUMI_SCENE)
+    with pytest.raises(InvalidInputError, match=(
+            r"task 't' \(t\.toml\) in scene 'yumi': objects\.count = 12 is not allowed: a count "
+            r"that fits: could not place 12 objects 0\.1 m apart in the placement region x 0\.40 "
+            rf"to 0\.55 m, y -0\.20 to 0\.20 m after {MAX_PLACEMENT_CANDIDATES} attempts; lower "
+            r"objects\.count or placement\.min_spacing_m")):
+        sample_scene(tight, YUMI_SCENE, 0, SeedStream.TEST, 0)
+
+
+def test_the_area_bound_is_groemers_and_never_refuses_a_grid():
+    assert max_spaced_points(1.0, 1.0, 1.0) == 4  # a square's corners, and no fifth point
+    assert max_spaced_points(0.5, 1e-9, 0.1) == 6  # a segment: its 6 points 0.1 m apart
+    assert max_spaced_points(0.15, 0.40, 0.0) == MAX_OBJECTS
+    assert max_spaced_points(0.28, 0.36, 5e-324) == MAX_OBJECTS  # spacing**2 would be 0.0
+    for width, height, spacing in [(0.15, 0.40, 0.12), (0.28, 0.36, 0.1), (0.15, 0.40, 0.05),
+                                   (0.3, 0.3, 0.15), (0.01, 0.40, 0.2), (0.15, 0.40, 0.5)]:
+        grid = (math.floor(width / spacing + 1e-9) + 1) * (math.floor(height / spacing + 1e-9) + 1)
+        assert max_spaced_points(width, height, spacing) >= min(grid, MAX_OBJECTS)
 
 
 @pytest.mark.parametrize("task_name", ["selected-type", "selected-position"])

@@ -6,6 +6,7 @@ import pytest
 from perception.interface import ConditionKind
 from sim.errors import InvalidInputError
 from sim.tasks.task_spec import (
+    MAX_TASK_FILE_BYTES,
     ObjectChoice,
     TargetSelection,
     builtin_tasks,
@@ -54,8 +55,8 @@ def test_a_users_task_file_loads_from_its_path(tmp_path):
     ('name = "x"\ncolour = "red"', r"task file t\.toml: colour = 'red' is not allowed: a known "
      r"key: condition, description"),
     ('name = "x"\n[objects]\ncount = "two"', r"task file t\.toml: objects\.count = 'two' is not "
-     r"allowed: a int"),
-    ('name = "x"\n[objects]\ncount = true', r"objects\.count = True is not allowed: a int"),
+     r"allowed: an integer in \[1, 12\]"),
+    ('name = "x"\n[objects]\ncount = true', r"objects\.count = True is not allowed: an integer"),
     ('name = "x"\n[objects]\nchoose = "all"', r"objects\.choose = 'all' is not allowed: one of "
      r"'random', 'one_of_each', 'same_type'"),
     ('name = "x"\n[condition]\nkind = "colour"', r"condition\.kind = 'colour' is not allowed: "
@@ -67,15 +68,77 @@ def test_a_users_task_file_loads_from_its_path(tmp_path):
     ('name = "x"\n[placement]\nyaw_deg = [10, 5]', r"placement\.yaw_deg = \[10\.0, 5\.0\] is "
      r"not allowed: \[low, high\]"),
     ('name = "x"\n[placement]\nx_m = [0.4]', r"placement\.x_m = \[0\.4\] is not allowed: a list "
-     r"of two numbers"),
+     r"of two finite numbers"),
     ('name = "x"\n[lighting]\nbrightness = 0', r"lighting\.brightness = 0\.0 is not allowed: a "
      r"number in \(0, 2\]"),
     ('name = "x"\n[distractors]\ntypes = [3]', r"distractors\.types = \[3\] is not allowed: a "
      r"list of object type names"),
+    # Numbers: finite, and within the ranges docs/tasks.md states.
+    ('name = "x"\n[objects]\ncount = 1000000000000000000', r"task 'x' \(t\.toml\): objects\.count "
+     r"= 1000000000000000000 is not allowed: an integer in \[1, 12\]"),
+    ('name = "x"\n[objects]\ncount = 0', r"objects\.count = 0 is not allowed: an integer in \[1"),
+    ('name = "x"\n[objects]\ncount = 13', r"objects\.count = 13 is not allowed: an integer in"),
+    ('name = "x"\n[objects]\ncount = 1' + "0" * 400, r"objects\.count = 1000000000.*\.\.\. \(401 "
+     r"characters\) is not allowed"),
+    ('name = "x"\n[placement]\nmin_spacing_m = nan', r"task 'x' \(t\.toml\): placement\."
+     r"min_spacing_m = nan is not allowed: a distance in \[0, 0\.5\] m"),
+    ('name = "x"\n[placement]\nmin_spacing_m = -inf', r"min_spacing_m = -inf is not allowed"),
+    ('name = "x"\n[placement]\nmin_spacing_m = 0.6', r"min_spacing_m = 0\.6 is not allowed"),
+    ('name = "x"\n[placement]\nmin_spacing_m = 1' + "0" * 400, r"task file t\.toml: placement\."
+     r"min_spacing_m = 1000.*\(401 characters\) is not allowed: a finite number"),
+    ('name = "x"\n[placement]\nyaw_deg = [nan, 5]', r"placement\.yaw_deg = \[nan, 5\] is not "
+     r"allowed: a list of two finite numbers"),
+    ('name = "x"\n[placement]\nyaw_deg = [-720, 5]', r"placement\.yaw_deg = \[-720\.0, 5\.0\] "
+     r"is not allowed: \[low, high\] with -360 <= low < high <= 360"),
+    ('name = "x"\n[placement]\ny_m = [0.1, inf]', r"placement\.y_m = \[0\.1, inf\] is not "
+     r"allowed: a list of two finite numbers"),
+    ('name = "x"\n[placement]\nx_m = [0.4, 3.0]', r"placement\.x_m = \[0\.4, 3\.0\] is not "
+     r"allowed: \[low, high\] in metres with -1 <= low < high <= 1"),
+    ('name = "x"\n[lighting]\nbrightness = inf', r"lighting\.brightness = inf is not allowed"),
+    ('name = "x"\n[lighting]\nbrightness = nan', r"lighting\.brightness = nan is not allowed"),
+    ('name = "x"\n[objects]\ncount = 11\n[distractors]\ntypes = ["mug", "mug"]',
+     r"distractors\.types = \['mug', 'mug'\] is not allowed: at most 1 types \(objects\.count \+ "
+     r"distractors <= 12\)"),
+    # Strings: bounded, and nothing that breaks a one-line message.
+    ('name = "a\\nb"', r"task file t\.toml: name = 'a\\nb' is not allowed: 1-100 printable"),
+    (f'name = "{"n" * 200}"', r"name = 'nnn.*\.\.\. \(202 characters\) is not allowed: 1-100"),
+    (f'name = "x"\ndescription = "{"d" * 1001}"', r"description = 'ddd.* is not allowed: at most "
+     r"1000 characters"),
+    ('name = "x"\n[placement]\n"a\\nb" = 1', r'placement\."a\\nb" = 1 is not allowed: a known key'),
+    ('name = "x"\n[placement]\nsides = "yes"', r"placement\.sides = 'yes' is not allowed: true or "
+     r"false"),
+    ('a = ' + "[" * 5000 + "]" * 5000, r"task file t\.toml = 'arrays or tables nested too deeply' "
+     r"is not allowed"),
+    ('a = ' + "[" * 300 + "]" * 300, r"task file t\.toml: a = \[\[\[.*\.\.\. \(\d+ characters\) is "
+     r"not allowed: a known key"),
 ])
 def test_a_bad_task_file_names_the_field_the_value_and_what_is_allowed(text, message):
-    with pytest.raises(InvalidInputError, match=message):
+    with pytest.raises(InvalidInputError, match=message) as raised:
         task_from_toml(text, "t.toml")
+    assert "\n" not in str(raised.value) and len(str(raised.value)) < 400  # one readable line
+
+
+@pytest.mark.parametrize(("data", "message"), [
+    (b"\xff\xfename = 'x'", r"task file t\.toml = 'not UTF-8 text' is not allowed: a TOML text "
+     r"file in UTF-8 \(byte 0 is 0xff\)"),
+    (b"name = 'caf\xe9'", r"task file t\.toml = 'not UTF-8 text' is not allowed: .*\(byte 11 is "
+     r"0xe9\)"),
+    (b"\x00\x01\x02", r"task file t\.toml = 'not valid TOML' is not allowed: TOML"),
+    (b"#" * (MAX_TASK_FILE_BYTES + 1), r"task file t\.toml = '65537 bytes or more' is not allowed: "
+     r"a task file of at most 65536 bytes"),
+])
+def test_a_file_that_is_not_toml_text_is_named_in_one_line(tmp_path, data, message):
+    path = tmp_path / "t.toml"
+    path.write_bytes(data)
+    with pytest.raises(InvalidInputError, match=message) as raised:
+        load_task(path)
+    assert "\n" not in str(raised.value)
+
+
+def test_a_task_file_saved_with_a_byte_order_mark_loads(tmp_path):
+    path = tmp_path / "bom.toml"
+    path.write_bytes("\ufeff".encode() + GOOD.encode())
+    assert load_task(path).name == "mine"
 
 
 def test_unknown_task_and_missing_file_are_named():

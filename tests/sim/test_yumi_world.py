@@ -15,7 +15,7 @@ from perception.catalog import get_object_spec
 from perception.grasps import grasp_pose
 from robots import yumi
 from sim.errors import InvalidInputError, SimError
-from sim.world.yumi_world import World, WorldConfig
+from sim.world.yumi_world import MAX_WAIT_S, World, WorldConfig
 
 ARMS = [*yumi.ARM_JOINTS["r"], *yumi.ARM_JOINTS["l"]]
 
@@ -43,6 +43,14 @@ def test_config_errors_name_field_value_and_allowed() -> None:
         WorldConfig(table_center_xy_m=(0.6, 0.0))
     with pytest.raises(SimError):  # the package's base catches it too
         WorldConfig(solver_iterations=0)
+
+
+def test_a_step_call_runs_at_most_max_wait_s_of_physics(fresh: World) -> None:
+    most = _seconds(fresh, MAX_WAIT_S)
+    with pytest.raises(InvalidInputError, match=rf"n = {most + 1} is not allowed: a number of "
+                       rf"steps in \[0, {most}\] \(10\.0 s\)"):
+        fresh.step(most + 1)
+    assert fresh.steps == 0  # refused before any step
 
 
 def test_table_top_is_at_z_zero_in_front_of_the_robot(fresh: World) -> None:
