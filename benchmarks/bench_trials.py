@@ -4,7 +4,9 @@
 
 Runs ``gva trials --model oracle --task single`` for each seed in a fresh folder and reports
 the median wall time per trial (the bar: <= 2 s on a 2-core machine), with the time spent
-planning and the simulated time per trial, plus successes per seed and per object type.
+planning and the simulated time per trial, plus successes per seed and per object type, and
+what starting each trial from a rebuilt world costs (``World.rebuild``, the median of
+``--rebuilds``, and its share of the median trial).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from collections import Counter
 from pathlib import Path
 
 from sim.trials.run_loop import TrialSettings, run_trials
+from sim.world.yumi_world import World
 
 
 def main() -> None:
@@ -27,6 +30,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
     parser.add_argument("--task", default="single")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/trials.json"))
+    parser.add_argument("--rebuilds", type=int, default=30)
     args = parser.parse_args()
 
     runs, wall, sim = [], [], []
@@ -45,6 +49,12 @@ def main() -> None:
                      "run_wall_s": round(elapsed, 2)})
         print(f"seed {seed}: {summary.headline()}  ({elapsed:.1f} s for the run)")
 
+    with World() as world:
+        rebuild_s = []
+        for _ in range(args.rebuilds):
+            started = time.perf_counter()
+            world.rebuild()
+            rebuild_s.append(time.perf_counter() - started)
     result = {
         "machine": {"cpu_count": __import__("os").cpu_count(), "python": platform.python_version(),
                     "processor": platform.processor() or platform.machine()},
@@ -55,11 +65,18 @@ def main() -> None:
         "median_trial_sim_s": round(statistics.median(sim), 3),
         "real_time_factor": round(statistics.median(sim) / statistics.median(wall), 2),
         "successes_by_object": dict(picked),
+        "median_world_rebuild_s": round(statistics.median(rebuild_s), 4),
+        "world_rebuild_share_of_median_trial": round(
+            statistics.median(rebuild_s) / statistics.median(wall), 3),
+        "load_average_1_5_15min": [round(v, 2) for v in __import__("os").getloadavg()],
     }
     print(f"median wall time per trial: {result['median_trial_wall_s']} s "
           f"(p90 {result['p90_trial_wall_s']} s; simulated {result['median_trial_sim_s']} s, "
           f"{result['real_time_factor']}x real time)")
     print("successes by object:", dict(picked))
+    print(f"a world rebuilt per trial: {result['median_world_rebuild_s']} s (median of "
+          f"{args.rebuilds}), {100 * result['world_rebuild_share_of_median_trial']:.1f} % of the "
+          "median trial")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(result, indent=2) + "\n")
     print(f"wrote {args.out}")
