@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 from perception.dataset_file import read_metadata
-from sim.tasks.task_spec import builtin_tasks
+from sim.tasks.task_toml import builtin_tasks
 from sim.trials.collector import CollectSettings, collect
 
 SIZES = {"paper-sim": 100, "yumi": 20}

@@ -32,7 +32,7 @@ from perception.catalog import Pose, clear_of_table
 from perception.labels import nearest_rotation
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
-from sim.tasks.task_spec import load_task
+from sim.tasks.task_toml import load_task
 from sim.trials.planner_setup import ObstacleSource
 from sim.trials.trial_runner import TrialRunner
 from sim.world.grip import grip_of

@@ -23,7 +23,7 @@ import numpy as np
 from perception.interface import NO_CONDITION, Condition, Prediction, Target
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
-from sim.tasks.task_spec import load_task
+from sim.tasks.task_toml import load_task
 from sim.trials.oracle import OraclePerception
 from sim.trials.trial_runner import TrialRunner
 from sim.world.head_camera import HeadCamera

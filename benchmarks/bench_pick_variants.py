@@ -31,7 +31,7 @@ from control.depth_obstacles import OccludedSpace
 from perception.interface import NO_CONDITION, Condition, Prediction, Target
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
-from sim.tasks.task_spec import load_task
+from sim.tasks.task_toml import load_task
 from sim.trials.oracle import OraclePerception
 from sim.trials.planner_setup import yumi_depth_config
 from sim.trials.trial_runner import TrialRunner

@@ -20,7 +20,8 @@ import time
 from collections import Counter
 from pathlib import Path
 
-from sim.trials.run_loop import TrialSettings, run_trials
+from sim.trials.run_loop import run_trials
+from sim.trials.trial_settings import TrialSettings
 from sim.world.yumi_world import World
 
 

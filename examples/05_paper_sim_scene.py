@@ -13,7 +13,7 @@ from pathlib import Path
 from sim.tasks.scene_picture import write_scene_png
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import get_scene_spec
-from sim.tasks.task_spec import load_task
+from sim.tasks.task_toml import load_task
 from sim.world.paper_world import PaperWorld
 
 

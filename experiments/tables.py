@@ -28,10 +28,10 @@ from perception.registry import PRESETS, model_class
 from sim.errors import InvalidInputError, RunFolderError
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import scene_camera
-from sim.tasks.task_spec import load_task
+from sim.tasks.task_toml import load_task
 from sim.trials.collector import CollectSettings
 from sim.trials.records import differences, json_form
-from sim.trials.run_loop import task_identity
+from sim.trials.trial_settings import task_identity
 from sim.world.head_camera import CameraConfig
 
 MODELS = ("kqv", "keypoint-16", "keypoint-min", "dsae-16", "conv-ae", "fcn")

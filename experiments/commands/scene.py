@@ -9,7 +9,7 @@ from experiments.commands.arguments import integer
 from sim.tasks.scene_picture import render_scene, write_scene_png
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import get_scene_spec
-from sim.tasks.task_spec import load_task
+from sim.tasks.task_toml import load_task
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:

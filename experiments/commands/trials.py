@@ -1,6 +1,6 @@
 """``gva trials``: closed-loop pick trials at untrained positions, appended to a run folder.
 
-Defaults are :class:`~sim.trials.run_loop.TrialSettings`'. No torch here: ``gva trials --model
+Defaults are :class:`~sim.trials.trial_settings.TrialSettings`'. No torch here: ``gva trials --model
 oracle`` never loads it.
 """
 
@@ -13,13 +13,8 @@ from pathlib import Path
 from experiments.commands.arguments import integer, resume_command
 from sim.trials.planner_setup import ObstacleSource
 from sim.trials.records import TrialSummary
-from sim.trials.run_loop import (
-    TRIAL_WORKERS,
-    RunStopped,
-    TrialSettings,
-    held_out_check,
-    run_trials,
-)
+from sim.trials.run_loop import TRIAL_WORKERS, RunStopped, run_trials
+from sim.trials.trial_settings import TrialSettings, held_out_check
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:

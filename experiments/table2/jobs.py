@@ -40,7 +40,7 @@ from perception.registry import new_model
 from perception.train import TrainConfig, TrainReport
 from sim.tasks.scene_sampling import SeedStream
 from sim.trials.collector import CollectSettings, collect
-from sim.trials.run_loop import torch_threads
+from sim.trials.trial_settings import torch_threads
 
 # datasets
 

@@ -20,9 +20,9 @@ from experiments.tables import (
     model_config,
 )
 from perception.train import TrainConfig, available_threads
-from sim.tasks.task_spec import load_task
+from sim.tasks.task_toml import load_task
 from sim.trials.records import json_form
-from sim.trials.run_loop import task_identity
+from sim.trials.trial_settings import task_identity
 
 SIZES = (4, 20, 100)
 """Training set sizes of Table II."""

@@ -17,8 +17,8 @@ from typing import Any
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.trials.gif_recorder import TrialRecorder, join_trials, write_gif
-from sim.trials.run_loop import TrialSettings, load_trial_model, torch_threads
 from sim.trials.trial_runner import TrialRunner
+from sim.trials.trial_settings import TrialSettings, load_trial_model, torch_threads
 from sim.world.head_camera import CameraConfig
 
 

@@ -47,10 +47,11 @@ from perception.train import TrainConfig
 from perception.validation import fit_checked, write_check
 from sim.jobs import JobPool
 from sim.tasks.scene_sampling import SeedStream, target_count
-from sim.tasks.task_spec import load_task
+from sim.tasks.task_toml import load_task
 from sim.trials.collector import CollectSettings, collect
 from sim.trials.records import json_form
-from sim.trials.run_loop import TrialSettings, run_trials, torch_threads
+from sim.trials.run_loop import run_trials
+from sim.trials.trial_settings import TrialSettings, torch_threads
 
 # Rough seconds per unit of work on one loaded core, only for the progress bar's time left.
 COLLECT_S_PER_PICK = 1.2

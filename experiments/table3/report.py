@@ -22,12 +22,19 @@ from experiments.table3.settings import (
     ROBUST_MODEL,
     ReproduceRealSettings,
     Variant,
-    seed_folder,
+)
+from experiments.table3.trial_sets import (
+    TrialSetResult,
+    first_pick_errors_cm,
+    model_order,
+    read_trial_sets,
 )
 from experiments.tables import MODEL_TITLES, TASK_TITLES, TASKS, duration, write_json, write_text
-from sim.tasks.task_spec import TargetSelection, load_task
-from sim.trials.compare import CONFIDENCE, SIGNIFICANCE, Comparison, compare_records, format_p
-from sim.trials.records import TrialOutcome, TrialRecord, TrialSummary
+from sim.tasks.task_spec import TargetSelection
+from sim.tasks.task_toml import load_task
+from sim.trials.compare import Comparison, compare_records
+from sim.trials.paired_statistics import CONFIDENCE, SIGNIFICANCE, format_p
+from sim.trials.records import TrialOutcome, TrialRecord
 
 PAPER_TABLE3 = {"single": 27, "multiple": 28, "selected-type": 26, "selected-position": 27}
 """The paper's Table III: successful picks of 30 on the real YuMi, 20 demonstrations each."""
@@ -36,77 +43,6 @@ EXAMPLES = 3
 """Failed trials quoted per row in the failure reasons."""
 REASON_CHARS = 200
 """A quoted reason is cut to this length (a planner's reason lists every arm and via pose)."""
-
-
-@dataclass(frozen=True)
-class TrialSetResult:
-    """The trials of one model, task and variant found in a run folder, over its seeds.
-
-    ``per_seed`` holds each seed's trials (seed, records), in seed order; the summary pools
-    them.
-    """
-
-    model: str
-    task: str
-    variant: Variant
-    per_seed: tuple[tuple[int, tuple[TrialRecord, ...]], ...]
-    expected: int  # the n each seed's set was started with
-
-    @property
-    def records(self) -> tuple[TrialRecord, ...]:
-        """Every seed's trials, seed by seed."""
-        return tuple(record for _, records in self.per_seed for record in records)
-
-    @property
-    def summary(self) -> TrialSummary:
-        """Successes, interval and outcome counts of every trial present, pooled."""
-        return TrialSummary.of(list(self.records))
-
-    @property
-    def counts(self) -> list[int]:
-        """Each seed's successes."""
-        return [sum(r.success for r in records) for _, records in self.per_seed]
-
-    @property
-    def mean(self) -> float:
-        """The mean of the seeds' successes."""
-        return statistics.fmean(self.counts)
-
-    @property
-    def std(self) -> float:
-        """The sample standard deviation of the seeds' successes (0 for one seed)."""
-        return statistics.stdev(self.counts) if len(self.counts) > 1 else 0.0
-
-    @property
-    def unfinished(self) -> bool:
-        """Whether a seed has fewer trials than asked."""
-        return any(len(records) < self.expected for _, records in self.per_seed)
-
-    def entry(self) -> dict[str, Any]:
-        """The set as ``table3.json`` holds it: per seed, mean and spread, then pooled."""
-        summary = self.summary
-        errors = first_pick_errors_cm(self.records)
-        return {"per_seed": [{"seed": seed, "successes": count, "n": len(records),
-                              "unfinished": len(records) < self.expected}
-                             for (seed, records), count in zip(self.per_seed, self.counts,
-                                                               strict=True)],
-                "mean": self.mean, "std": self.std,
-                "successes": summary.successes, "n": summary.n,
-                "wilson95": list(summary.wilson95), "outcomes": summary.outcomes,
-                "per_object": summary.per_object, "unfinished": self.unfinished,
-                "median_position_error_cm": statistics.median(errors) if errors else None,
-                "median_wall_time_s": summary.median_wall_time_s}
-
-
-def first_pick_errors_cm(records: Sequence[TrialRecord]) -> list[float]:
-    """Each trial's first-pick grasp position error [cm], where the model predicted one."""
-    errors = []
-    for record in records:
-        first = record.picks[0] if record.picks else {}
-        error = first.get("position_error_m", record.position_error_m)
-        if error is not None:
-            errors.append(100.0 * error)
-    return errors
 
 
 @dataclass(frozen=True)
@@ -157,43 +93,6 @@ def baseline_comparisons(sets: Sequence[TrialSetResult]) -> list[BaselineCompari
             found.append(BaselineComparison(result.model, result.task, seed, comparison,
                                             len(common) < result.expected))
     return found
-
-
-def split_task(name: str) -> tuple[str, Variant]:
-    """``single-dark`` -> (``single``, DARK); ``single`` -> (``single``, PLAIN)."""
-    for variant in (Variant.DARK, Variant.DISTRACTOR):
-        if name.endswith(f"-{variant.value}"):
-            return name[:-len(variant.value) - 1], variant
-    return name, Variant.PLAIN
-
-
-def read_trial_sets(out: Path, seeds: Sequence[int], n: int) -> list[TrialSetResult]:
-    """Every trial folder of each seed's ``trials/`` (``<model>/<task>[-variant]``), in table order.
-
-    ``n`` is the trials each set is meant to have (the folder's ``run.json`` pins it). A row
-    holds the seeds that have its trial folder.
-    """
-    rows: dict[tuple[str, str, Variant], list[tuple[int, tuple[TrialRecord, ...]]]] = {}
-    for seed in seeds:
-        for log in sorted((seed_folder(out, seed) / "trials").glob("*/*/trials.jsonl")):
-            task, variant = split_task(log.parent.name)
-            if task not in TASKS:
-                continue
-            records = sorted((TrialRecord.from_json(line) for line in
-                              log.read_text().splitlines() if line.strip()),
-                             key=lambda r: r.index)
-            rows.setdefault((log.parent.parent.name, task, variant), []).append(
-                (seed, tuple(r for r in records if r.index < n)))
-    found = [TrialSetResult(model, task, variant, tuple(per_seed), n)
-             for (model, task, variant), per_seed in rows.items()]
-    found.sort(key=lambda s: (_model_order(s.model), list(Variant).index(s.variant),
-                              TASKS.index(s.task)))
-    return found
-
-
-def _model_order(model: str) -> tuple[int, str]:
-    known = list(MODEL_TITLES)
-    return (known.index(model) if model in known else len(known), model)
 
 
 def model_title(model: str) -> str:
@@ -276,7 +175,7 @@ _RULE = "|---" + "|---:" * len(TASKS) + "|"
 def _rows(sets: Sequence[TrialSetResult]) -> list[tuple[str, Variant]]:
     """(model, variant) of each row: plain rows first, models in the paper's order."""
     return sorted({(s.model, s.variant) for s in sets},
-                  key=lambda r: (list(Variant).index(r[1]), _model_order(r[0])))
+                  key=lambda r: (list(Variant).index(r[1]), model_order(r[0])))
 
 
 def successes_table(sets: Sequence[TrialSetResult]) -> str:
@@ -320,7 +219,7 @@ def table3_markdown(sets: Sequence[TrialSetResult], made_by: str,
             continue
         lines += [f"### {TASK_TITLES[task]}", ""]
         for result in sorted(present, key=lambda s: (list(Variant).index(s.variant),
-                                                     _model_order(s.model))):
+                                                     model_order(s.model))):
             lines += _reasons(result)
         lines.append("")
     if gifs:
@@ -374,7 +273,7 @@ def comparisons_markdown(comparisons: Sequence[BaselineComparison]) -> list[str]
         return []
     by_key = {(c.model, c.seed, c.task): c for c in comparisons}
     rows = sorted({(c.model, c.seed) for c in comparisons},
-                  key=lambda row: (_model_order(row[0]), row[1]))
+                  key=lambda row: (model_order(row[0]), row[1]))
     lines = [f"## Baselines against {model_title(ROBUST_MODEL)}, paired on the same trials", "",
              f"Each baseline's trials against {ROBUST_MODEL}'s on the same test scenes (same "
              f"seed, same trial index): the difference in success rate, baseline - "

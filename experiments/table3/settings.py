@@ -23,10 +23,11 @@ from perception.registry import MODELS, PRESETS
 from perception.train import TrainConfig, available_threads
 from perception.validation import CheckConfig
 from sim.tasks.scene_sampling import SeedStream
-from sim.tasks.task_spec import TaskSpec, load_task, task_to_toml
+from sim.tasks.task_spec import TaskSpec
+from sim.tasks.task_toml import load_task, task_to_toml
 from sim.trials.execution import ExecutionSettings
 from sim.trials.records import json_form
-from sim.trials.run_loop import TrialSettings, obstacle_identity, task_identity
+from sim.trials.trial_settings import TrialSettings, obstacle_identity, task_identity
 from sim.world.head_camera import CameraConfig
 
 SCENE = "yumi"
@@ -203,7 +204,7 @@ class ReproduceRealSettings:
                           "train": self.train_config(), "check": asdict(self.check)})
 
     def trial_settings(self, out: Path, trial_set: TrialSet) -> TrialSettings:
-        """The :class:`~sim.trials.run_loop.TrialSettings` of a set (its checkpoint must exist)."""
+        """The :class:`~sim.trials.trial_settings.TrialSettings` of a set (checkpoint present)."""
         task = (trial_set.unit.task if trial_set.variant is Variant.PLAIN
                 else str(variant_file(out, trial_set)))
         return TrialSettings(model=str(checkpoint_folder(out, trial_set.unit)), task=task,

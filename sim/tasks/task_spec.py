@@ -42,18 +42,13 @@ what is allowed. The ranges (and why each bound) are tabulated in ``docs/tasks.m
 from __future__ import annotations
 
 import enum
-import json
 import math
-import re
-import tomllib
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 from perception.interface import ConditionKind
 from sim.errors import InvalidInputError
 
-TASK_FILES = Path(__file__).resolve().parent / "task_files"
 SIDES = ("left", "right")
 """Side condition values: ``left`` is +y (the robot's left, the image's left)."""
 
@@ -74,10 +69,6 @@ MAX_NAME_CHARS = 100
 """A task's name is 1-100 printable characters: it is shown in progress bars and one-line errors."""
 MAX_DESCRIPTION_CHARS = 1000
 """A description is a sentence or two for people."""
-MAX_TASK_FILE_BYTES = 64 * 1024
-"""A task file is a few hundred bytes; a bigger file is refused unread (an image, a dataset)."""
-_SHOWN_CHARS = 120
-"""Longer values are shortened in error messages (a message stays one readable line)."""
 
 
 class ObjectChoice(enum.Enum):
@@ -135,12 +126,12 @@ class TaskSpec:
     def __post_init__(self) -> None:
         if not (isinstance(self.name, str) and 0 < len(self.name) <= MAX_NAME_CHARS
                 and self.name.isprintable()):
-            raise InvalidInputError(f"task file {self.source}: name", _brief(self.name),
+            raise InvalidInputError(f"task file {self.source}: name", brief(self.name),
                                     f"1-{MAX_NAME_CHARS} printable characters")
         where = f"task {self.name!r} ({self.source})"
 
         def bad(field: str, value: Any, allowed: str) -> InvalidInputError:
-            return InvalidInputError(f"{where}: {field}", _brief(value), allowed)
+            return InvalidInputError(f"{where}: {field}", brief(value), allowed)
 
         if len(self.description) > MAX_DESCRIPTION_CHARS:
             raise bad("description", self.description,
@@ -185,10 +176,10 @@ class TaskSpec:
 
 
 def _finite(*values: float) -> bool:
-    return all(_finite_number(v) for v in values)
+    return all(finite_number(v) for v in values)
 
 
-def _finite_number(value: Any) -> bool:
+def finite_number(value: Any) -> bool:
     """Whether ``value`` is an int or float (no bool) that a float holds, and not NaN or inf."""
     if isinstance(value, bool) or not isinstance(value, int | float):
         return False
@@ -196,6 +187,10 @@ def _finite_number(value: Any) -> bool:
         return math.isfinite(value)
     except OverflowError:  # an int beyond the float range
         return False
+
+
+_SHOWN_CHARS = 120
+"""Longer values are shortened in error messages (a message stays one readable line)."""
 
 
 class _Shown:
@@ -208,208 +203,10 @@ class _Shown:
         return f"{self.text[:_SHOWN_CHARS - 20]}... ({len(self.text)} characters)"
 
 
-def _brief(value: Any) -> Any:
+def brief(value: Any) -> Any:
     """``value``, or a shortened stand-in when its repr would not fit a one-line message."""
     try:
         text = repr(value)
     except RecursionError:  # lists nested hundreds deep: tomllib read them, repr cannot
         return _Shown("[" * _SHOWN_CHARS)
     return _Shown(text) if len(text) > _SHOWN_CHARS else value
-
-
-def _key(key: str) -> str:
-    """A TOML key as written: bare if it can be, else quoted (no newline reaches a message)."""
-    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else json.dumps(key)
-
-
-_SECTIONS: dict[str, set[str]] = {
-    "": {"name", "description", "objects", "targets", "condition", "placement", "lighting",
-         "distractors"},
-    "objects": {"choose", "count"},
-    "targets": {"select"},
-    "condition": {"kind"},
-    "placement": {"sides", "yaw_deg", "min_spacing_m", "x_m", "y_m"},
-    "lighting": {"brightness"},
-    "distractors": {"types"},
-}
-
-
-class _Reader:
-    """Typed access to a parsed TOML table, with errors that name the file and the field."""
-
-    def __init__(self, data: dict[str, Any], source: str) -> None:
-        self.data, self.source = data, source
-
-    def error(self, field: str, value: Any, allowed: str) -> InvalidInputError:
-        return InvalidInputError(f"task file {self.source}: {field}", _brief(value), allowed)
-
-    def check_keys(self) -> None:
-        for section, allowed in _SECTIONS.items():
-            table = self.data if not section else self.data.get(section, {})
-            if not isinstance(table, dict):
-                raise self.error(section, table, "a [table]")
-            for key in table:
-                if key not in allowed:
-                    prefix = f"{section}." if section else ""
-                    names = ", ".join(sorted(allowed))
-                    raise self.error(f"{prefix}{_key(key)}", table[key], f"a known key: {names}")
-
-    def get(self, section: str, key: str, kind: type | tuple[type, ...], default: Any,
-            allowed: str | None = None) -> Any:
-        """``section.key`` if it has type ``kind`` (a bool is no number), ``default`` if absent.
-
-        ``allowed`` says what the field takes in the error; by default, the type's name.
-        """
-        table = self.data if not section else self.data.get(section, {})
-        value = table.get(key, default)
-        field = f"{section}.{key}" if section else key
-        wrong_type = not isinstance(value, kind) or (isinstance(value, bool) and kind is not bool)
-        if value is not default and wrong_type:
-            kinds = (kind,) if isinstance(kind, type) else kind
-            raise self.error(field, value,
-                             allowed or f"a {' or '.join(k.__name__ for k in kinds)}")
-        return value
-
-    def choice(self, section: str, key: str, enum_type: type[enum.Enum], default: enum.Enum) -> Any:
-        value = self.get(section, key, str, default.value)
-        try:
-            return enum_type(value)
-        except ValueError:
-            allowed = ", ".join(repr(e.value) for e in enum_type)
-            raise self.error(f"{section}.{key}", value, f"one of {allowed}") from None
-
-    def number(self, section: str, key: str, default: float) -> float:
-        """``section.key`` as a float; NaN and inf pass (the task's range check names them)."""
-        value = self.get(section, key, (int, float), default, "a finite number")
-        try:
-            return float(value)
-        except OverflowError:  # TOML integers are unbounded in tomllib: 1e400 as digits
-            raise self.error(f"{section}.{key}", value, "a finite number") from None
-
-    def pair(self, section: str, key: str) -> tuple[float, float] | None:
-        """``section.key`` as ``(low, high)``, two finite numbers; None if absent."""
-        value = self.get(section, key, list, None, "a list of two finite numbers [low, high]")
-        if value is None:
-            return None
-        if len(value) != 2 or not all(_finite_number(v) for v in value):
-            raise self.error(f"{section}.{key}", value, "a list of two finite numbers [low, high]")
-        return float(value[0]), float(value[1])
-
-
-def task_from_toml(text: str, source: str = "<string>") -> TaskSpec:
-    """Reads a task from TOML text; every mistake is an error naming the file and the field."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
-        raise InvalidInputError(f"task file {source}", "not valid TOML",
-                                f"TOML ({error})") from None
-    except RecursionError:  # tomllib recurses per level: ~300 nested arrays exhaust the stack
-        raise InvalidInputError(f"task file {source}", "arrays or tables nested too deeply",
-                                "TOML nested as a task is (tables of keys, lists of values)"
-                                ) from None
-    reader = _Reader(data, source)
-    reader.check_keys()
-    name = reader.get("", "name", str, None)
-    if not name:
-        raise reader.error("name", name, "a non-empty string")
-    yaw = reader.pair("placement", "yaw_deg") or (-180.0, 180.0)
-    distractors = reader.get("distractors", "types", list, [])
-    if not all(isinstance(t, str) for t in distractors):
-        raise reader.error("distractors.types", distractors, "a list of object type names")
-    return TaskSpec(
-        name=name,
-        description=reader.get("", "description", str, ""),
-        objects=reader.choice("objects", "choose", ObjectChoice, ObjectChoice.RANDOM),
-        count=reader.get("objects", "count", int, 1, f"an integer in [1, {MAX_OBJECTS}]"),
-        targets=reader.choice("targets", "select", TargetSelection, TargetSelection.ALL),
-        condition=reader.choice("condition", "kind", ConditionKind, ConditionKind.NONE),
-        sides=reader.get("placement", "sides", bool, False, "true or false"),
-        yaw_range_rad=(math.radians(yaw[0]), math.radians(yaw[1])),
-        min_spacing_m=reader.number("placement", "min_spacing_m", 0.12),
-        workspace_x_m=reader.pair("placement", "x_m"),
-        workspace_y_m=reader.pair("placement", "y_m"),
-        brightness=reader.number("lighting", "brightness", 1.0),
-        distractors=tuple(distractors),
-        source=source,
-    )
-
-
-def task_from_bytes(data: bytes, source: str = "<bytes>") -> TaskSpec:
-    """Reads a task from a file's bytes: UTF-8 text (a leading BOM is skipped), then TOML."""
-    if len(data) > MAX_TASK_FILE_BYTES:
-        raise InvalidInputError(f"task file {source}", f"{len(data)} bytes or more",
-                                f"a task file of at most {MAX_TASK_FILE_BYTES} bytes")
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as error:
-        raise InvalidInputError(f"task file {source}", "not UTF-8 text", "a TOML text file in "
-                                f"UTF-8 (byte {error.start} is {data[error.start]:#04x})"
-                                ) from None
-    return task_from_toml(text, source)
-
-
-def task_to_toml(task: TaskSpec) -> str:
-    """``task`` as the text of a task file, every key written; ``task_from_toml`` reads it back.
-
-    Used to write variants of a task, e.g. the same task under dimmer light::
-
-        text = task_to_toml(dataclasses.replace(load_task("single"), name="single-dark",
-                                                brightness=0.5))
-    """
-
-    def value(item: Any) -> str:
-        if isinstance(item, bool):
-            return "true" if item else "false"
-        if isinstance(item, str):
-            return json.dumps(item)  # a JSON string is a TOML basic string
-        if isinstance(item, tuple | list):
-            return "[" + ", ".join(value(v) for v in item) + "]"
-        return repr(float(item)) if isinstance(item, float) else str(item)
-
-    placement: dict[str, Any] = {
-        "sides": task.sides,
-        "yaw_deg": [math.degrees(a) for a in task.yaw_range_rad],
-        "min_spacing_m": task.min_spacing_m}
-    if task.workspace_x_m is not None:
-        placement["x_m"] = list(task.workspace_x_m)
-    if task.workspace_y_m is not None:
-        placement["y_m"] = list(task.workspace_y_m)
-    tables: dict[str, dict[str, Any]] = {
-        "objects": {"choose": task.objects.value, "count": task.count},
-        "targets": {"select": task.targets.value},
-        "condition": {"kind": task.condition.value},
-        "placement": placement,
-        "lighting": {"brightness": task.brightness},
-        "distractors": {"types": list(task.distractors)},
-    }
-    lines = [f"name = {value(task.name)}", f"description = {value(task.description)}"]
-    for table, keys in tables.items():
-        lines += ["", f"[{table}]", *(f"{key} = {value(v)}" for key, v in keys.items())]
-    return "\n".join(lines) + "\n"
-
-
-def builtin_tasks() -> tuple[str, ...]:
-    """Names of the tasks that ship with gva (``sim/tasks/task_files/*.toml``)."""
-    return tuple(sorted(p.stem for p in TASK_FILES.glob("*.toml")))
-
-
-def load_task(name_or_path: str | Path) -> TaskSpec:
-    """A built-in task by name, or a task file by path."""
-    text = str(name_or_path)
-    path = Path(text)
-    if text.endswith(".toml") or path.is_file():
-        if not path.is_file():
-            raise InvalidInputError("task file", text, "an existing TOML file")
-        source = path.name if path.name.isprintable() else repr(path.name)
-        try:
-            with path.open("rb") as file:
-                data = file.read(MAX_TASK_FILE_BYTES + 1)  # enough to tell a file too big
-        except OSError as error:
-            raise InvalidInputError("task file", text, f"a readable file ({error.strerror})"
-                                    ) from None
-        return task_from_bytes(data, source)
-    if text not in builtin_tasks():
-        raise InvalidInputError(
-            "task", text, f"one of {', '.join(builtin_tasks())}, or the path of a .toml file"
-        )
-    return task_from_toml((TASK_FILES / f"{text}.toml").read_text(), f"{text}.toml")

@@ -41,7 +41,8 @@ from sim.tasks.scene_sampling import (
     sample_scene,
 )
 from sim.tasks.scene_specs import SCENE_NAMES, SceneSpec, get_scene_spec
-from sim.tasks.task_spec import TaskSpec, load_task
+from sim.tasks.task_spec import TaskSpec
+from sim.tasks.task_toml import load_task
 from sim.trials.records import TrialOutcome
 from sim.trials.trial_runner import TrialRunner
 from sim.world.yumi_world import World

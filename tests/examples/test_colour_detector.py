@@ -14,7 +14,7 @@ from perception.interface import Condition, ConditionKind
 from perception.plugins import build_plugin
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
-from sim.tasks.task_spec import load_task
+from sim.tasks.task_toml import load_task
 from sim.trials.pick_results import grasp_angle_rad
 from sim.trials.trial_runner import TrialRunner
 

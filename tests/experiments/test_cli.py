@@ -18,7 +18,7 @@ from experiments.table3.settings import ReproduceRealSettings
 from perception.train import TrainConfig
 from perception.validation import CheckConfig
 from sim.trials.collector import CollectSettings
-from sim.trials.run_loop import TrialSettings
+from sim.trials.trial_settings import TrialSettings
 
 ROOT = Path(__file__).resolve().parents[2]
 

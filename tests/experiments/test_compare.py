@@ -14,15 +14,11 @@ from pathlib import Path
 import pytest
 from gva_cli import gva
 
-from experiments.table3.report import (
-    TrialSetResult,
-    baseline_comparisons,
-    table3_json,
-    table3_markdown,
-)
+from experiments.table3.report import baseline_comparisons, table3_json, table3_markdown
 from experiments.table3.settings import Variant
+from experiments.table3.trial_sets import TrialSetResult
 from sim.trials.records import TrialOutcome, TrialRecord, TrialSummary
-from sim.trials.run_loop import TrialSettings
+from sim.trials.trial_settings import TrialSettings
 
 OK, FAILED = TrialOutcome.SUCCESS, TrialOutcome.PERCEPTION_FAILED
 TYPES = ("mug", "sponge", "spray_bottle")

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from gva_cli import gva
 
-from experiments.table3.report import TrialSetResult, checks_markdown, table3_markdown
+from experiments.table3.report import checks_markdown, table3_markdown
 from experiments.table3.run import run_reproduce_real
 from experiments.table3.settings import (
     ReproduceRealSettings,
@@ -20,10 +20,11 @@ from experiments.table3.settings import (
     trained_file,
     variant_file,
 )
+from experiments.table3.trial_sets import TrialSetResult
 from perception.registry import load_model
-from sim.tasks.task_spec import load_task
+from sim.tasks.task_toml import load_task
 from sim.trials.records import TrialOutcome, TrialRecord
-from sim.trials.run_loop import check_model_fits_task
+from sim.trials.trial_settings import check_model_fits_task
 
 TINY = ["--tasks", "single", "--demos", "2", "--n", "2", "--steps", "3", "--workers", "1",
         "--no-progress"]

@@ -7,12 +7,12 @@ import math
 import pytest
 
 from sim.errors import InvalidInputError
-from sim.trials.compare import (
+from sim.trials.compare import compare_records
+from sim.trials.paired_statistics import (
     Interval,
     PairedCounts,
     PairedTest,
     Verdict,
-    compare_records,
     mcnemar_exact_p,
     newcombe_paired_interval,
 )

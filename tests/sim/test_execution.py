@@ -18,7 +18,7 @@ from sim.tasks.task_spec import ObjectChoice, TaskSpec
 from sim.trials.execution import ExecutionSettings, execute_pick
 from sim.trials.planner_setup import object_obstacles, table_obstacle, yumi_depth_config
 from sim.trials.records import TrialOutcome
-from sim.trials.run_loop import TrialSettings
+from sim.trials.trial_settings import TrialSettings
 from sim.world.head_camera import HeadCamera
 from sim.world.paper_world import PaperWorldConfig
 from sim.world.yumi_world import MAX_WAIT_S, World, check_wait_s

@@ -10,7 +10,7 @@ from perception.interface import LabelKind, PerceptionModel, Prediction, Target
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
-from sim.tasks.task_spec import load_task
+from sim.tasks.task_toml import load_task
 from sim.trials.gif_recorder import (
     CAPTION_PX,
     RecordingSettings,

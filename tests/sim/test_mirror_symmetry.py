@@ -16,7 +16,7 @@ from perception.catalog import (
 from perception.grasps import grasp_pose
 from sim.tasks.mirror_symmetry import MIRROR_Y, mirror_symmetric, object_is_mirror_symmetric
 from sim.tasks.scene_specs import YUMI_SCENE
-from sim.tasks.task_spec import builtin_tasks, load_task, task_from_toml
+from sim.tasks.task_toml import builtin_tasks, load_task, task_from_toml
 from sim.world.head_camera import CameraConfig
 
 CATALOG = OBJECT_TYPES + DISTRACTOR_TYPES

@@ -5,9 +5,10 @@ from __future__ import annotations
 import json
 from importlib import metadata
 
-from sim.tasks.task_spec import TASK_FILES
+from sim.tasks.task_toml import TASK_FILES
 from sim.trials.provenance import file_sha256, git_revision, provenance
-from sim.trials.run_loop import TrialSettings, run_trials
+from sim.trials.run_loop import run_trials
+from sim.trials.trial_settings import TrialSettings
 
 
 def test_run_json_and_the_summary_say_what_made_the_trials(tmp_path):

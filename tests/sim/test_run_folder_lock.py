@@ -12,7 +12,8 @@ import pytest
 
 from sim.errors import RunFolderError
 from sim.trials.records import run_folder_lock
-from sim.trials.run_loop import TrialSettings, run_trials
+from sim.trials.run_loop import run_trials
+from sim.trials.trial_settings import TrialSettings
 
 ROOT = Path(__file__).resolve().parents[2]
 

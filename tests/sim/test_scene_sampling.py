@@ -14,7 +14,8 @@ from sim.tasks.scene_sampling import (
     sample_scene,
 )
 from sim.tasks.scene_specs import YUMI_SCENE, get_scene_spec
-from sim.tasks.task_spec import MAX_OBJECTS, builtin_tasks, load_task, task_from_toml
+from sim.tasks.task_spec import MAX_OBJECTS
+from sim.tasks.task_toml import builtin_tasks, load_task, task_from_toml
 
 SCENES = ("paper-sim", "yumi")
 

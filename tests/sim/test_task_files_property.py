@@ -27,7 +27,8 @@ from hypothesis import strategies as st
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import SCENE_NAMES, get_scene_spec
-from sim.tasks.task_spec import MAX_OBJECTS, load_task
+from sim.tasks.task_spec import MAX_OBJECTS
+from sim.tasks.task_toml import load_task
 
 FILE_NAME = "fuzz.toml"
 SCENES_SAMPLED = 2

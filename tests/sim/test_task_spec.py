@@ -5,10 +5,9 @@ import pytest
 
 from perception.interface import ConditionKind
 from sim.errors import InvalidInputError
-from sim.tasks.task_spec import (
+from sim.tasks.task_spec import ObjectChoice, TargetSelection
+from sim.tasks.task_toml import (
     MAX_TASK_FILE_BYTES,
-    ObjectChoice,
-    TargetSelection,
     builtin_tasks,
     load_task,
     task_from_toml,

@@ -1,0 +1,126 @@
+"""The trial folders of a ``gva reproduce real`` run, read back per model, task and variant.
+
+Every seed's ``trials/<model>/<task>[-variant]/trials.jsonl``, as the reports
+(:mod:`experiments.table3.report`) tabulate and compare them.
+"""
+
+from __future__ import annotations
+
+import statistics
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from experiments.table3.settings import Variant, seed_folder
+from experiments.tables import MODEL_TITLES, TASKS
+from sim.trials.records import TrialRecord, TrialSummary
+
+
+@dataclass(frozen=True)
+class TrialSetResult:
+    """The trials of one model, task and variant found in a run folder, over its seeds.
+
+    ``per_seed`` holds each seed's trials (seed, records), in seed order; the summary pools
+    them.
+    """
+
+    model: str
+    task: str
+    variant: Variant
+    per_seed: tuple[tuple[int, tuple[TrialRecord, ...]], ...]
+    expected: int  # the n each seed's set was started with
+
+    @property
+    def records(self) -> tuple[TrialRecord, ...]:
+        """Every seed's trials, seed by seed."""
+        return tuple(record for _, records in self.per_seed for record in records)
+
+    @property
+    def summary(self) -> TrialSummary:
+        """Successes, interval and outcome counts of every trial present, pooled."""
+        return TrialSummary.of(list(self.records))
+
+    @property
+    def counts(self) -> list[int]:
+        """Each seed's successes."""
+        return [sum(r.success for r in records) for _, records in self.per_seed]
+
+    @property
+    def mean(self) -> float:
+        """The mean of the seeds' successes."""
+        return statistics.fmean(self.counts)
+
+    @property
+    def std(self) -> float:
+        """The sample standard deviation of the seeds' successes (0 for one seed)."""
+        return statistics.stdev(self.counts) if len(self.counts) > 1 else 0.0
+
+    @property
+    def unfinished(self) -> bool:
+        """Whether a seed has fewer trials than asked."""
+        return any(len(records) < self.expected for _, records in self.per_seed)
+
+    def entry(self) -> dict[str, Any]:
+        """The set as ``table3.json`` holds it: per seed, mean and spread, then pooled."""
+        summary = self.summary
+        errors = first_pick_errors_cm(self.records)
+        return {"per_seed": [{"seed": seed, "successes": count, "n": len(records),
+                              "unfinished": len(records) < self.expected}
+                             for (seed, records), count in zip(self.per_seed, self.counts,
+                                                               strict=True)],
+                "mean": self.mean, "std": self.std,
+                "successes": summary.successes, "n": summary.n,
+                "wilson95": list(summary.wilson95), "outcomes": summary.outcomes,
+                "per_object": summary.per_object, "unfinished": self.unfinished,
+                "median_position_error_cm": statistics.median(errors) if errors else None,
+                "median_wall_time_s": summary.median_wall_time_s}
+
+
+def first_pick_errors_cm(records: Sequence[TrialRecord]) -> list[float]:
+    """Each trial's first-pick grasp position error [cm], where the model predicted one."""
+    errors = []
+    for record in records:
+        first = record.picks[0] if record.picks else {}
+        error = first.get("position_error_m", record.position_error_m)
+        if error is not None:
+            errors.append(100.0 * error)
+    return errors
+
+
+def split_task(name: str) -> tuple[str, Variant]:
+    """``single-dark`` -> (``single``, DARK); ``single`` -> (``single``, PLAIN)."""
+    for variant in (Variant.DARK, Variant.DISTRACTOR):
+        if name.endswith(f"-{variant.value}"):
+            return name[:-len(variant.value) - 1], variant
+    return name, Variant.PLAIN
+
+
+def read_trial_sets(out: Path, seeds: Sequence[int], n: int) -> list[TrialSetResult]:
+    """Every trial folder of each seed's ``trials/`` (``<model>/<task>[-variant]``), in table order.
+
+    ``n`` is the trials each set is meant to have (the folder's ``run.json`` pins it). A row
+    holds the seeds that have its trial folder.
+    """
+    rows: dict[tuple[str, str, Variant], list[tuple[int, tuple[TrialRecord, ...]]]] = {}
+    for seed in seeds:
+        for log in sorted((seed_folder(out, seed) / "trials").glob("*/*/trials.jsonl")):
+            task, variant = split_task(log.parent.name)
+            if task not in TASKS:
+                continue
+            records = sorted((TrialRecord.from_json(line) for line in
+                              log.read_text().splitlines() if line.strip()),
+                             key=lambda r: r.index)
+            rows.setdefault((log.parent.parent.name, task, variant), []).append(
+                (seed, tuple(r for r in records if r.index < n)))
+    found = [TrialSetResult(model, task, variant, tuple(per_seed), n)
+             for (model, task, variant), per_seed in rows.items()]
+    found.sort(key=lambda s: (model_order(s.model), list(Variant).index(s.variant),
+                              TASKS.index(s.task)))
+    return found
+
+
+def model_order(model: str) -> tuple[int, str]:
+    """Where ``model`` sorts in the tables: the paper's order, then others by name."""
+    known = list(MODEL_TITLES)
+    return (known.index(model) if model in known else len(known), model)

@@ -1,0 +1,275 @@
+"""What a run of trials is (:class:`TrialSettings`, the fields of ``run.json``) and its model.
+
+The model is named by ``TrialSettings.model``: ``"oracle"``; a checkpoint folder (``gva
+train`` writes one), checked against the task before the first trial; or a model of your own
+built with no arguments: ``"package.module:Class"`` or the name an installed package registers
+(:mod:`perception.plugins`). A model that uses torch runs its inference on one torch thread: a
+trial predicts one image at a time, where more threads cost more than they save, and runs of
+trials side by side would fight for the cores. :mod:`sim.trials.run_loop` runs the trials.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import enum
+import sys
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from perception.checks import check_inputs
+from perception.interface import LabelKind, PerceptionModel
+from perception.learnable import LearnableModel, ModelSpec
+from perception.plugins import build_plugin, installed_models, is_class_path, plugin_class
+from perception.validation import HeldOutCheck, read_check
+from sim.errors import InvalidInputError
+from sim.tasks.scene_sampling import (
+    check_task_fits,
+    condition_choices,
+    target_count,
+)
+from sim.tasks.scene_specs import YUMI_SCENE
+from sim.tasks.task_spec import TaskSpec
+from sim.tasks.task_toml import TASK_FILES, load_task
+from sim.trials.execution import ExecutionSettings
+from sim.trials.oracle import OraclePerception
+from sim.trials.planner_setup import ObstacleSource, yumi_depth_config
+from sim.trials.trial_runner import TRIAL_INPUTS, ModelFactory
+from sim.world.head_camera import CameraConfig
+from sim.world.yumi_world import check_wait_s
+
+MODELS: dict[str, ModelFactory] = {"oracle": OraclePerception}
+"""Perception models the trial runner builds by name; a checkpoint folder or
+``"package.module:Class"`` names any other (see :func:`load_trial_model`)."""
+
+_ALLOWED_MODELS = (f"one of {', '.join(MODELS)}, a checkpoint folder (gva train writes one), "
+                   "'package.module:Class' or the name an installed package registers in "
+                   "'gva.models'")
+
+
+class ModelSource(enum.Enum):
+    """Where the model of a run of trials comes from."""
+
+    BUILT_IN = "built_in"  # a name in MODELS
+    CHECKPOINT = "checkpoint"  # a checkpoint folder of a learnable model
+    CLASS = "class"  # "package.module:Class" or an installed plug-in's name: built with no
+    # arguments
+
+
+def model_source(model: str) -> ModelSource:
+    """Where ``model`` (a name, a folder or ``"package.module:Class"``) comes from."""
+    if not isinstance(model, str) or not model:
+        raise InvalidInputError("model", model, _ALLOWED_MODELS)
+    if model in MODELS:
+        return ModelSource.BUILT_IN
+    if Path(model).is_dir():
+        return ModelSource.CHECKPOINT
+    if is_class_path(model) or model in installed_models():
+        return ModelSource.CLASS
+    raise InvalidInputError("model", model, _ALLOWED_MODELS)
+
+
+def task_identity(task: TaskSpec) -> dict[str, Any]:
+    """A task's settings as JSON-able data (a resumed run must use the same task)."""
+    data = asdict(task)
+    data.pop("source")
+    for key, value in data.items():
+        if hasattr(value, "value"):
+            data[key] = value.value
+    return data
+
+
+def obstacle_identity(source: ObstacleSource) -> dict[str, Any]:
+    """What a run's picks are planned around, as ``run.json`` and ``summary.json`` show it."""
+    if source is not ObstacleSource.DEPTH:
+        return {"source": source.value}
+    depth = asdict(yumi_depth_config())
+    depth["occluded"] = depth["occluded"].value
+    return {"source": source.value, "depth": depth}
+
+
+@dataclass(frozen=True)
+class TrialSettings:
+    """What a run of trials does; the fields of ``run.json``.
+
+    Args:
+        model: ``"oracle"`` (see :data:`MODELS`), a checkpoint folder, or a model that builds
+            with no arguments: ``"package.module:Class"`` or an installed plug-in's name.
+        task: A built-in task name, or the path of a task TOML file.
+        n: Number of trials.
+        seed: Seed of the test scenes.
+        settle_s: Time objects settle on the table before the image is taken [s].
+        execution: How picks are executed and judged.
+        model_class: For a checkpoint folder only: ``"package.module:Class"`` that loads it
+            (needed when its model is not registered); None: the model its config names.
+        obstacles: What picks are planned around besides the table: the head camera's depth
+            image (the default), or ``ObstacleSource.TRUTH``, the simulator's true shapes, to
+            debug the planner (never for results: no real robot knows them).
+
+    """
+
+    model: str
+    task: str
+    n: int = 30
+    seed: int = 0
+    settle_s: float = 0.25
+    execution: ExecutionSettings = field(default_factory=ExecutionSettings)
+    model_class: str | None = None
+    obstacles: ObstacleSource = ObstacleSource.DEPTH
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.obstacles, ObstacleSource):
+            allowed = ", ".join(repr(s.value) for s in ObstacleSource)
+            raise InvalidInputError("obstacles", self.obstacles, f"one of {allowed}")
+        source = model_source(self.model)
+        if self.model_class is not None and source is not ModelSource.CHECKPOINT:
+            raise InvalidInputError("model_class", self.model_class, "None unless model is a "
+                                    "checkpoint folder (it names the class that loads it)")
+        check_task_fits(self.task_spec, YUMI_SCENE)  # also: an unknown task names the allowed
+        check_wait_s("settle_s", self.settle_s)
+        if self.n < 1:
+            raise InvalidInputError("n", self.n, "an integer >= 1")
+        if self.seed < 0:
+            raise InvalidInputError("seed", self.seed, "an integer >= 0")
+
+    @property
+    def task_spec(self) -> TaskSpec:
+        """The task, read from its name or file."""
+        return load_task(self.task)
+
+    def identity(self) -> dict[str, Any]:
+        """What identifies a run: a folder is only resumed by a run with the same identity."""
+        return {"model": self.model, "task": task_identity(self.task_spec), "seed": self.seed,
+                "scene": YUMI_SCENE.name, "camera": asdict(CameraConfig()),
+                "settle_s": self.settle_s, "execution": asdict(self.execution),
+                "obstacles": obstacle_identity(self.obstacles)} | self._model_identity()
+
+    def inputs(self) -> dict[str, Path | None]:
+        """The files the run reads, for its provenance: the task file and the checkpoint's."""
+        given = Path(self.task)
+        files: dict[str, Path | None] = {
+            "task_file": given if given.is_file() else TASK_FILES / f"{self.task}.toml"}
+        if model_source(self.model) is ModelSource.CHECKPOINT:
+            from perception.checkpoint import CONFIG_FILE, WEIGHTS_FILE
+
+            files |= {"checkpoint_weights": Path(self.model) / WEIGHTS_FILE,
+                      "checkpoint_config": Path(self.model) / CONFIG_FILE}
+        return files
+
+    def _model_identity(self) -> dict[str, Any]:
+        """A checkpoint by its SHA-256s, not its path: other weights or values, another run.
+
+        A run folder moved or copied with its checkpoint (or run from another directory)
+        resumes; the same folder holding other weights does not.
+        """
+        if model_source(self.model) is not ModelSource.CHECKPOINT:
+            return {}
+        from perception.checkpoint import read_config
+
+        config = read_config(self.model)
+        checksums = {key: config[key] for key in ("weights_sha256", "config_sha256")
+                     if key in config}  # a version-1 checkpoint has no config_sha256
+        return {"model": "checkpoint", "model_class": self.model_class} | checksums
+
+
+@dataclass(frozen=True)
+class TrialModel:
+    """The perception model of a run, as :class:`TrialRunner` builds it.
+
+    Args:
+        factory: Builds the model from the runner's world and camera.
+        label: A short name for progress bars.
+        one_torch_thread: Limit torch to one thread during the trials (a model that uses
+            torch: it was imported when the model was built).
+
+    """
+
+    factory: ModelFactory
+    label: str
+    one_torch_thread: bool
+
+
+def load_trial_model(settings: TrialSettings) -> TrialModel:
+    """The model ``settings.model`` names, built, loaded and checked against the task.
+
+    Raises:
+        InvalidInputError: The model cannot be found or built, reads what a trial does not
+            give, does not predict grasp poses, or was trained for another task; one line
+            that says which.
+        perception.checkpoint.CheckpointError: The checkpoint cannot be used.
+
+    """
+    source = model_source(settings.model)
+    if source is ModelSource.BUILT_IN:
+        return TrialModel(MODELS[settings.model], settings.model, one_torch_thread=False)
+    model: PerceptionModel
+    if source is ModelSource.CHECKPOINT:
+        from perception.registry import load_model  # imports torch: not for the oracle
+
+        model = load_model(settings.model, settings.model_class)
+        label = f"{model.name} {Path(settings.model).resolve().name}"
+    else:
+        if issubclass(plugin_class(settings.model), LearnableModel):
+            raise InvalidInputError("model", settings.model, "a model without weights; a "
+                                    "learnable one loads from its checkpoint folder: --model "
+                                    f"FOLDER --model-class {settings.model}")
+        model = build_plugin(settings.model)
+        label = model.name
+    check_inputs(model, TRIAL_INPUTS, settings.model)
+    check_model_fits_task(model, settings.task_spec, settings.model)
+    return TrialModel(lambda world, camera: model, label, one_torch_thread="torch" in sys.modules)
+
+
+def check_model_fits_task(model: PerceptionModel, task: TaskSpec, where: str) -> None:
+    """Raises unless ``model`` predicts grasp poses for what ``task`` asks in the yumi scene.
+
+    A model with a :class:`~perception.learnable.ModelSpec` must have been trained on the yumi
+    scene with the task's condition (kind and choices), target count and the head camera's
+    image size. Its task may have another name (e.g. the same task under dimmer light).
+    """
+    kind = getattr(model, "label_kind", None)
+    if kind is not LabelKind.GRASP_POSE:
+        shown = kind.value if isinstance(kind, LabelKind) else kind
+        raise InvalidInputError(f"model {where}: label_kind", shown, "'grasp_pose': pick trials "
+                                "need a grasp pose (TCP position and rotation) per target; a "
+                                "position model (e.g. one trained on paper-sim) cannot pick")
+    if not isinstance(model, LearnableModel) or not isinstance(model.spec, ModelSpec):
+        return
+    spec = model.spec
+    camera = CameraConfig()
+    needed = (YUMI_SCENE.name, task.condition.value, condition_choices(task, YUMI_SCENE),
+              target_count(task), camera.height_px, camera.width_px)
+    trained = (spec.scene, spec.condition_kind.value, tuple(spec.condition_choices),
+               spec.targets, spec.image_height_px, spec.image_width_px)
+    if trained != needed:
+        raise InvalidInputError(f"model {where}", f"trained for task {spec.task} "
+                                f"{_describe(*trained)}", f"a checkpoint for trial task "
+                                f"{task.name} {_describe(*needed)}")
+
+
+def _describe(scene: str, condition: str, choices: tuple[str, ...], targets: int,
+              height_px: int, width_px: int) -> str:
+    over = f"{condition} condition over {', '.join(choices)}" if choices else "no condition"
+    return (f"on scene {scene} ({over}; {targets} target{'s' * (targets != 1)}; "
+            f"{width_px}x{height_px} px images)")
+
+
+@contextlib.contextmanager
+def torch_threads(threads: int) -> Iterator[None]:
+    """Torch on ``threads`` CPU threads inside the block, as before after it."""
+    import torch
+
+    previous = torch.get_num_threads()
+    torch.set_num_threads(threads)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
+
+
+def held_out_check(settings: TrialSettings) -> HeldOutCheck | None:
+    """The held-out check of the trials' checkpoint (:mod:`perception.validation`), if any."""
+    if model_source(settings.model) is not ModelSource.CHECKPOINT:
+        return None
+    return read_check(settings.model)
