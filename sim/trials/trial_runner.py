@@ -252,8 +252,7 @@ class TrialRunner:
             return PickAttempt(target, truth, failed, TrialOutcome.PERCEPTION_FAILED,
                                failed.reason)
         planned = self.plan_pick(frame, prediction, number, total)
-        if self.observer is not None and isinstance(prediction, Prediction) and \
-                planned.predicted is not None:
+        if self.observer is not None and planned.predicted is not None:  # a checked Prediction
             self.observer.saw(frame.rgb, prediction)
         if planned.plan is None or planned.grip is None:
             assert planned.outcome is not None  # a plan phase that ends a pick says how
