@@ -21,3 +21,7 @@ class InvalidInputError(ControlError, ValueError):
         self.value = value
         self.allowed = allowed
         super().__init__(f"{field} = {value!r} is not allowed: {allowed}")
+
+    def __reduce__(self) -> tuple[type, tuple[str, object, str]]:
+        """Pickled by its three fields: it crosses to and from worker processes (and Ray)."""
+        return type(self), (self.field, self.value, self.allowed)

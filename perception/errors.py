@@ -14,6 +14,10 @@ class InvalidInputError(PerceptionError, ValueError):
         self.field, self.value, self.allowed = field, value, allowed
         super().__init__(f"{field} = {value!r} is not allowed: {allowed}")
 
+    def __reduce__(self) -> tuple[type, tuple[str, object, str]]:
+        """Pickled by its three fields: it crosses to and from worker processes (and Ray)."""
+        return type(self), (self.field, self.value, self.allowed)
+
 
 class InvalidPredictionError(PerceptionError):
     """A model's prediction a robot cannot act on; the message says what was wrong with it."""

@@ -9,6 +9,10 @@
 Torch and ``fork`` do not mix (a forked child inherits the parent's thread pools and locks), so
 the pool spawns its workers; each runs torch on one thread, and one worker runs the jobs in this
 process instead. Workers ignore Ctrl-C: the main process gets it and stops them.
+
+This is the local executor, the default. :class:`Executor` names where a run's jobs go, and
+:func:`sim.executors.open_pool` opens its pool: this one, or :class:`sim.ray_jobs.RayPool`,
+which runs the same functions on the same jobs as Ray tasks.
 """
 
 from __future__ import annotations
@@ -20,12 +24,89 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from typing import TypeVar
+from dataclasses import dataclass
+from enum import Enum
+from typing import Protocol, TypeVar
 
 from tqdm import tqdm
 
+from sim.errors import InvalidInputError
+
 Job = TypeVar("Job")
 Result = TypeVar("Result")
+
+
+class ExecutorKind(Enum):
+    """Where a run's jobs run."""
+
+    LOCAL = "local"  # this machine's process pool (:class:`JobPool`)
+    RAY = "ray"  # Ray tasks: a local Ray started for the run, or a cluster (:mod:`sim.ray_jobs`)
+
+
+@dataclass(frozen=True)
+class Executor:
+    """Where a run's jobs run; not part of any result's identity (the records are the same).
+
+    Args:
+        kind: The local process pool (default: no cluster, no start-up) or Ray.
+        ray_address: The Ray cluster to join (``ray://…`` or ``host:port``); None: the
+            ``RAY_ADDRESS`` environment variable, else a local Ray started for the run with as
+            many CPUs as the run's workers.
+
+    """
+
+    kind: ExecutorKind = ExecutorKind.LOCAL
+    ray_address: str | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.kind, ExecutorKind):
+            raise InvalidInputError("executor", self.kind,
+                                    " or ".join(kind.value for kind in ExecutorKind))
+        if self.ray_address is not None and (
+                not isinstance(self.ray_address, str) or not self.ray_address.strip()):
+            raise InvalidInputError("ray_address", self.ray_address,
+                                    "None or a Ray address such as 'ray://head:10001'")
+        if self.ray_address is not None and self.kind is not ExecutorKind.RAY:
+            raise InvalidInputError("ray_address", self.ray_address,
+                                    "only with the ray executor (--executor ray)")
+
+
+LOCAL = Executor()
+"""The default executor: this machine's process pool."""
+
+
+@dataclass(frozen=True)
+class JobResources:
+    """What one job holds while it runs: Ray schedules by it (the local pool does not).
+
+    Args:
+        cpus: CPU cores (a training on two torch threads asks for two).
+        gpus: GPUs (a training on a CUDA device asks for one).
+
+    """
+
+    cpus: float = 1.0
+    gpus: float = 0.0
+
+
+ONE_CPU = JobResources()
+"""What most jobs hold: one core (a trial, a collection, a training on one thread)."""
+
+
+class Pool(Protocol):
+    """What every executor's pool offers: run a function on each job, results here.
+
+    A context manager: on exit after an exception (Ctrl-C included) no job of the run goes on.
+    """
+
+    def __enter__(self) -> Pool: ...
+
+    def __exit__(self, kind: type[BaseException] | None, *_: object) -> None: ...
+
+    def run(self, function: Callable[[Job], Result], jobs: Sequence[Job],
+            on_done: Callable[[Result], None],
+            resources: Callable[[Job], JobResources] | None = None) -> None:
+        """Runs ``function`` on every job; ``on_done`` in this process, once per job."""
 
 
 ORPHAN_CHECK_S = 1.0
@@ -81,8 +162,13 @@ class JobPool:
         self._executor.shutdown(wait=True, cancel_futures=True)
 
     def run(self, function: Callable[[Job], Result], jobs: Sequence[Job],
-            on_done: Callable[[Result], None]) -> None:
-        """Runs ``function`` on every job; ``on_done`` here, as each finishes."""
+            on_done: Callable[[Result], None],
+            resources: Callable[[Job], JobResources] | None = None) -> None:
+        """Runs ``function`` on every job; ``on_done`` here, as each finishes.
+
+        ``resources`` is Ray's business: here each worker runs one job at a time, whatever the
+        job asks, as ``workers`` was chosen for this machine.
+        """
         if self.workers == 1 or (len(jobs) <= 1 and self._executor is None):
             for job in jobs:
                 on_done(function(job))

@@ -84,3 +84,18 @@ def depth_view():
     view = DepthView()
     yield view
     view.world.close()
+
+
+@pytest.fixture(scope="session")
+def local_ray():
+    """A local Ray of 2 CPUs, as CI's machine has, shared by every Ray test (started once).
+
+    A pool that finds Ray running joins it and leaves it running, so each test pays no start.
+    """
+    import ray
+
+    from sim.ray_jobs import start_local_ray
+
+    start_local_ray(2)
+    yield
+    ray.shutdown()

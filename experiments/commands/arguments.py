@@ -6,6 +6,8 @@ import argparse
 import shlex
 from collections.abc import Callable
 
+from sim.jobs import Executor, ExecutorKind
+
 
 def integer(minimum: int) -> Callable[[str], int]:
     """An argparse type: an integer >= ``minimum``, with a message that says so."""
@@ -38,3 +40,20 @@ def integers(text: str) -> tuple[int, ...]:
 def resume_command(args: argparse.Namespace) -> str:
     """The command line that was run, quoted for a shell: running it again resumes the run."""
     return shlex.join(["gva", *args.argv])
+
+
+def add_executor_options(parser: argparse.ArgumentParser) -> None:
+    """``--executor`` and ``--ray-address``: where a run's jobs go (docs/cluster.md)."""
+    parser.add_argument("--executor", choices=[kind.value for kind in ExecutorKind],
+                        default=Executor.kind.value,
+                        help="local: this machine's process pool (default); ray: Ray tasks, on "
+                        "a local Ray started for the run or the cluster of --ray-address "
+                        "(pip install -e '.[ray]')")
+    parser.add_argument("--ray-address", metavar="ADDRESS",
+                        help="the Ray cluster to join, e.g. ray://head:10001 (default: "
+                        "$RAY_ADDRESS, else a local Ray); every node must see --out")
+
+
+def executor(args: argparse.Namespace) -> Executor:
+    """The :class:`~sim.jobs.Executor` the options ask for (it refuses an address without Ray)."""
+    return Executor(ExecutorKind(args.executor), args.ray_address)

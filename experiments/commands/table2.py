@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from experiments.commands.arguments import integer, integers, names
+from experiments.commands.arguments import add_executor_options, executor, integer, integers, names
 from experiments.table2.run import run_reproduce_sim
 from experiments.table2.settings import SCENES, ReproduceSimSettings
 
@@ -38,6 +38,7 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scene", choices=SCENES, default=defaults.scene,
                         help="paper-sim (Table II) or yumi (the robot's demonstrations, "
                         "offline) (%(default)s)")
+    add_executor_options(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
     parser.set_defaults(run=run)
 
@@ -47,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     settings = ReproduceSimSettings(models=args.models, tasks=args.tasks, sizes=args.sizes,
                                     seeds=args.seeds, seed=args.seed, steps=args.steps,
                                     test_scenes=args.test_scenes, workers=args.workers,
-                                    scene=args.scene)
+                                    executor=executor(args), scene=args.scene)
     report = run_reproduce_sim(settings, args.out, progress=not args.no_progress)
     for line in report.summary_lines(
             "cell(s) computed", lambda r: f"{r['model']}-{r['task']}-{r['size']}-s{r['seed']}"):

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from experiments.commands.arguments import integer, names
+from experiments.commands.arguments import add_executor_options, executor, integer, names
 from experiments.table3.run import run_reproduce_real
 from experiments.table3.settings import ReproduceRealSettings
 from perception.validation import CheckConfig
@@ -48,6 +48,7 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         default=defaults.robustness,
                         help="also run kqv under darker light and with a distractor "
                         f"({'on' if defaults.robustness else 'off'})")
+    add_executor_options(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(run=run)
 
@@ -58,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
                                      demos=args.demos, steps=args.steps, seed=args.seed,
                                      seeds=args.seeds, check=CheckConfig(holdout=args.holdout),
                                      robustness=args.robustness, workers=args.workers,
-                                     train_threads=args.train_threads)
+                                     executor=executor(args), train_threads=args.train_threads)
     report = run_reproduce_real(settings, args.out, progress=not args.no_progress)
     for line in report.summary_lines("job(s) run", lambda record: record["job"]):
         print(line)

@@ -10,7 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from experiments.commands.arguments import integer, resume_command
+from experiments.commands.arguments import add_executor_options, executor, integer, resume_command
 from sim.trials.planner_setup import ObstacleSource
 from sim.trials.records import TrialSummary
 from sim.trials.run_loop import TRIAL_WORKERS, RunStopped, run_trials
@@ -38,6 +38,7 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         default=TrialSettings.obstacles.value,
                         help="what picks are planned around: the head camera's depth image "
                         "(default), or the simulator's true shapes, to debug the planner only")
+    add_executor_options(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(run=run)
 
@@ -54,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
     try:
         summary = run_trials(settings, args.out, progress=not args.no_progress,
-                             workers=args.workers)
+                             workers=args.workers, executor=executor(args))
     except RunStopped as stopped:  # Ctrl-C, or the model's SystemExit: what finished, kept
         print_summary(stopped.summary, args.out)
         print(f"gva trials: stopped: {stopped}; resume with: {resume_command(args)}",

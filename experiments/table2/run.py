@@ -23,7 +23,8 @@ from experiments.table2.jobs import (
 from experiments.table2.report import write_reports
 from experiments.table2.settings import Cell, ReproduceSimSettings
 from experiments.tables import RunReport, cost_bar
-from sim.jobs import JobPool
+from sim.executors import open_pool
+from sim.jobs import Pool
 from sim.trials.provenance import provenance
 from sim.trials.records import claim_run_folder, run_folder_lock
 
@@ -53,7 +54,7 @@ def run_reproduce_sim(settings: ReproduceSimSettings, out: str | Path,
                                    settings.test_scenes) if todo else []
         computed: list[CellOutcome] = []
         try:
-            with JobPool(workers) as pool:
+            with open_pool(settings.executor, workers, out) as pool:
                 with tqdm(total=len(collections), disable=not progress or not collections,
                           desc="collect datasets", unit="set") as bar:
                     pool.run(collect_datasets, collections, lambda job: bar.update())
@@ -71,7 +72,7 @@ def run_reproduce_sim(settings: ReproduceSimSettings, out: str | Path,
 
 
 def _run_cells(settings: ReproduceSimSettings, out: Path, todo: Sequence[Cell], skipped: int,
-               pool: JobPool, progress: bool, computed: list[CellOutcome]) -> None:
+               pool: Pool, progress: bool, computed: list[CellOutcome]) -> None:
     """Computes ``todo`` into ``computed`` under one bar whose length is the cells' cost."""
     jobs = [CellJob(cell, settings.cell_identity(cell), settings.steps, settings.test_scenes,
                     settings.seed, out, settings.scene) for cell in todo]

@@ -20,6 +20,7 @@ from experiments.tables import (
     model_config,
 )
 from perception.train import TrainConfig, available_threads
+from sim.jobs import LOCAL, Executor
 from sim.tasks.task_toml import load_task
 from sim.trials.records import json_form
 from sim.trials.trial_settings import task_identity
@@ -75,6 +76,8 @@ class ReproduceSimSettings:
         scene: ``paper-sim`` (the paper's Table II) or ``yumi`` (the robot's scenes, offline).
         workers: Processes running cells at once; None: the cores this process may use. One
             runs everything in this process.
+        executor: Where the jobs run: this machine's process pool (default) or Ray
+            (:class:`~sim.jobs.Executor`); the results are the same.
 
     """
 
@@ -87,6 +90,7 @@ class ReproduceSimSettings:
     test_scenes: int = 100
     workers: int | None = None
     scene: str = SCENE
+    executor: Executor = LOCAL
 
     def __post_init__(self) -> None:
         check_choices("scene", (self.scene,), SCENES)

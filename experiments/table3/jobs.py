@@ -1,7 +1,7 @@
 """The jobs of ``gva reproduce real`` and the three phases that run them (collect, train, try).
 
 Each job is a small frozen dataclass handed to a function that runs in a worker process
-(:class:`sim.jobs.JobPool`); it writes its files itself and returns a
+(:mod:`sim.jobs`, or Ray: :mod:`sim.ray_jobs`); it writes its files itself and returns a
 :class:`JobOutcome`. A job that raises is recorded in ``OUT/errors/<job>.json`` (message and
 traceback) and the run goes on; the jobs that needed its output are left out and named.
 Finished work is found on disk before each phase, so a re-run skips it.
@@ -45,7 +45,8 @@ from perception.dataset_file import DatasetError, load_dataset
 from perception.registry import new_model
 from perception.train import TrainConfig
 from perception.validation import fit_checked, write_check
-from sim.jobs import JobPool
+from sim.executors import open_pool
+from sim.jobs import ONE_CPU, JobResources
 from sim.tasks.scene_sampling import SeedStream, target_count
 from sim.tasks.task_toml import load_task
 from sim.trials.collector import CollectSettings, collect
@@ -113,6 +114,13 @@ class GifJob:
 
 
 Job = CollectJob | TrainJob | TrialsJob | GifJob
+
+
+def job_resources(job: Job) -> JobResources:
+    """What a job holds: a training its torch threads, every other job one core."""
+    if isinstance(job, TrainJob):
+        return JobResources(cpus=float(job.settings.train_threads))
+    return ONE_CPU
 
 
 def _targets(task: str) -> int:
@@ -262,8 +270,8 @@ def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
     first: list[Job] = [*collects_todo, *trains_todo]
     total = sum(cost(job) for job in first) + sum(later)
     computed: list[JobOutcome] = []
-    with JobPool(settings.worker_count()) as pool, cost_bar(total, "reproduce real",
-                                                            progress) as bar:
+    with open_pool(settings.executor, settings.worker_count(), out) as pool, \
+            cost_bar(total, "reproduce real", progress) as bar:
         def run(jobs: Sequence[Job]) -> None:
             by_name = {job.name: job for job in jobs}
 
@@ -275,7 +283,7 @@ def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
                 bar.update(cost(by_name[outcome.name]))
 
             ordered = sorted(jobs, key=lambda job: -cost(job))  # longest first
-            pool.run(run_job, ordered, done)
+            pool.run(run_job, ordered, done, job_resources)
 
         run(collects_todo)
         run([j for j in trains_todo if dataset_file(j.out, j.unit.task, j.settings).exists()])

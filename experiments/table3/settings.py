@@ -22,6 +22,7 @@ from experiments.tables import (
 from perception.registry import MODELS, PRESETS
 from perception.train import TrainConfig, available_threads
 from perception.validation import CheckConfig
+from sim.jobs import LOCAL, Executor
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.task_spec import TaskSpec
 from sim.tasks.task_toml import load_task, task_to_toml
@@ -123,6 +124,8 @@ class ReproduceRealSettings:
         seeds: Runs of the whole experiment, seeds ``S0 .. S0 + seeds - 1``.
         robustness: Also run :data:`ROBUST_MODEL`'s trials in the dark and with a distractor.
         workers: Processes at once; None: the cores this process may use.
+        executor: Where the jobs run: this machine's process pool (default) or Ray
+            (:class:`~sim.jobs.Executor`); the results are the same.
         check: How each training checks itself on demonstrations it holds out
             (:class:`~perception.validation.CheckConfig`); a model that fails is marked in its
             checkpoint and in the tables.
@@ -143,6 +146,7 @@ class ReproduceRealSettings:
     robustness: bool = True
     workers: int | None = None
     train_threads: int = 1
+    executor: Executor = LOCAL
     check: CheckConfig = field(default_factory=CheckConfig)
 
     def __post_init__(self) -> None:

@@ -24,7 +24,8 @@ from tqdm import tqdm
 
 from perception.files import atomic_write
 from sim.errors import InvalidInputError
-from sim.jobs import JobPool
+from sim.executors import open_pool
+from sim.jobs import LOCAL, Executor, ExecutorKind
 from sim.tasks.scene_sampling import (
     Scene,
     SeedStream,
@@ -68,14 +69,15 @@ class RunStopped(BaseException):
 
 def run_trials(
     settings: TrialSettings, out_dir: str | Path, progress: bool = True,
-    workers: int = TRIAL_WORKERS,
+    workers: int = TRIAL_WORKERS, executor: Executor = LOCAL,
 ) -> TrialSummary:
     """Runs (or resumes) ``settings.n`` trials into ``out_dir``; writes ``summary.json``.
 
     The folder is locked for the run (:func:`~sim.trials.records.run_folder_lock`). With
-    ``workers`` > 1 the trials run side by side in that many processes (:mod:`sim.jobs`), and
-    this process appends each record as it comes: every trial starts from a rebuilt world, so
-    the records are those of one process, in the order they finish.
+    ``workers`` > 1 the trials run side by side in that many processes (:mod:`sim.jobs`), or
+    with the Ray executor as Ray tasks, one per trial (:mod:`sim.ray_jobs`); this process
+    appends each record as it comes. Every trial starts from a rebuilt world, so the records
+    are those of one process, in the order they finish.
 
     Raises:
         RunStopped: Ctrl-C or ``SystemExit`` stopped the run; ``summary.json`` holds what
@@ -96,14 +98,15 @@ def run_trials(
         log = TrialLog(out, settings.identity(), session)
         todo = [i for i in range(settings.n) if not log.done(i)]
         try:
-            _run_todo(settings, model, log, [scenes[i] for i in todo], progress, workers)
+            _run_todo(settings, model, log, [scenes[i] for i in todo], progress,
+                      workers, executor)
         except (KeyboardInterrupt, SystemExit) as stop:
             raise RunStopped(_write_summary(settings, log, out, session), stop) from stop
         return _write_summary(settings, log, out, session)
 
 
 def _run_todo(settings: TrialSettings, model: TrialModel, log: TrialLog, todo: list[Scene],
-              progress: bool, workers: int) -> None:
+              progress: bool, workers: int, executor: Executor) -> None:
     """Runs a trial on each scene of ``todo``, appending each to ``log`` as it finishes."""
     if not todo:
         return
@@ -116,8 +119,8 @@ def _run_todo(settings: TrialSettings, model: TrialModel, log: TrialLog, todo: l
             bar.set_postfix_str(f"{summary.successes}/{summary.n} ok")
             bar.update()
 
-        if workers > 1 and len(todo) > 1:
-            with JobPool(min(workers, len(todo))) as pool:
+        if executor.kind is ExecutorKind.RAY or (workers > 1 and len(todo) > 1):
+            with open_pool(executor, min(workers, len(todo)), log.folder) as pool:
                 pool.run(run_trial_job, [TrialJob(settings, s.index) for s in todo], done)
             return
         threads = torch_threads(1) if model.one_torch_thread else contextlib.nullcontext()

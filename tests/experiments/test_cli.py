@@ -17,6 +17,7 @@ from experiments.table2.settings import ReproduceSimSettings
 from experiments.table3.settings import ReproduceRealSettings
 from perception.train import TrainConfig
 from perception.validation import CheckConfig
+from sim.jobs import Executor, ExecutorKind
 from sim.trials.collector import CollectSettings
 from sim.trials.trial_settings import TrialSettings
 
@@ -58,12 +59,15 @@ def _parsed(*argv: str) -> dict[str, object]:
 def test_the_defaults_are_the_settings_dataclasses_defaults():
     sim = _parsed("reproduce", "sim", "--out", "x")
     for field in dataclasses.fields(ReproduceSimSettings):
-        assert sim[field.name] == getattr(ReproduceSimSettings(), field.name), field.name
+        if field.name != "executor":
+            assert sim[field.name] == getattr(ReproduceSimSettings(), field.name), field.name
     real = _parsed("reproduce", "real", "--out", "x")
     for field in dataclasses.fields(ReproduceRealSettings):
-        if field.name != "check":
+        if field.name not in ("check", "executor"):
             assert real[field.name] == getattr(ReproduceRealSettings(), field.name), field.name
     assert real["holdout"] == ReproduceRealSettings().check.holdout
+    for parsed in (sim, real, _parsed("trials", "--out", "x")):
+        assert Executor(ExecutorKind(parsed["executor"]), parsed["ray_address"]) == Executor()
     trials = _parsed("trials", "--out", "x")
     assert (trials["n"], trials["seed"]) == (TrialSettings.n, TrialSettings.seed)
     assert trials["obstacles"] == TrialSettings.obstacles.value

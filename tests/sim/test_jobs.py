@@ -10,6 +10,9 @@ import textwrap
 import time
 from pathlib import Path
 
+import pytest
+
+from sim.errors import InvalidInputError
 from sim.jobs import JobPool
 
 
@@ -64,3 +67,15 @@ def test_workers_exit_when_the_main_process_is_killed(tmp_path: Path):
     while time.monotonic() < deadline and any(_alive(pid) for pid in workers):
         time.sleep(0.2)
     assert not any(_alive(pid) for pid in workers)
+
+
+def _refuse(value: int) -> int:
+    raise InvalidInputError("value", value, "an even number")
+
+
+def test_a_workers_bad_input_error_comes_back_whole():
+    """Raised in a worker, pickled home: the same type, field and message (not a pickling error)."""
+    with pytest.raises(InvalidInputError, match="is not allowed: an even number") as raised, \
+            JobPool(2) as pool:
+        pool.run(_refuse, [3, 5], print)
+    assert raised.value.field == "value"
