@@ -56,6 +56,11 @@ class DatasetJob:
     out: Path
     scene: str = SCENE
 
+    @property
+    def name(self) -> str:
+        """``collect-single-train-s0``: the job's name in Ray's task list."""
+        return f"collect-{self.task}-{self.stream.name.lower()}-s{self.seed}"
+
 
 def collect_datasets(job: DatasetJob) -> DatasetJob:
     """Collects the largest of ``job.sizes`` once and writes the smaller sets as its prefixes."""
@@ -99,6 +104,11 @@ class CellJob:
     test_seed: int
     out: Path
     scene: str = SCENE
+
+    @property
+    def name(self) -> str:
+        """``kqv-single-20-s0``: the cell's name, as in messages and Ray's task list."""
+        return self.cell.name
 
 
 @dataclass(frozen=True)

@@ -137,6 +137,11 @@ class TrialJob:
     settings: TrialSettings
     index: int
 
+    @property
+    def name(self) -> str:
+        """``trial-7``: the job's name in Ray's task list."""
+        return f"trial-{self.index}"
+
 
 _WORKER_RUNNER: list[tuple[TrialSettings, TrialRunner]] = []
 """The runner a worker process keeps for its run (built at its first trial)."""

@@ -1,0 +1,95 @@
+"""A Ray node lost in the middle of a run: the run still finishes with every cell, none twice.
+
+    python benchmarks/check_ray_node_loss.py [--out benchmarks/results/ray_node_loss.json]
+
+Starts a two-node Ray on this machine (``ray.cluster_utils.Cluster``: a head and a worker
+node of one CPU each, both seeing this machine's disk as a cluster sees shared storage), runs
+a small ``gva reproduce sim`` on it with ``--executor ray --ray-address``, and removes the
+worker node, its raylet and worker processes killed, while one of its cells runs. It then
+checks that every cell was computed exactly once and that ``table2.json`` holds each cell, and
+writes what it saw. Exit status 1 if not, or if no cell was running on the node when it went.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+import tempfile
+import threading
+import time
+from collections import Counter
+from pathlib import Path
+
+import ray
+from ray.cluster_utils import Cluster
+from ray.util.state import list_tasks
+
+from experiments.table2.run import run_reproduce_sim
+from experiments.table2.settings import ReproduceSimSettings
+from sim.jobs import Executor, ExecutorKind
+
+SETTINGS = ReproduceSimSettings(models=("kqv", "fcn"), tasks=("single",), sizes=(4, 20),
+                                seeds=1, steps=200, test_scenes=20, workers=2)
+
+
+def _running_on(node_id: str) -> list[str]:
+    """The names of the tasks running on a node now."""
+    return [task.name for task in list_tasks(filters=[("state", "=", "RUNNING")])
+            if task.node_id == node_id]
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path,
+                        default=Path("benchmarks/results/ray_node_loss.json"))
+    args = parser.parse_args()
+
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1})
+    worker = cluster.add_node(num_cpus=1)
+    cluster.wait_for_nodes()
+    ray.init(address=cluster.address)
+    executor = Executor(ExecutorKind.RAY, ray_address=cluster.address)
+    report: list = []
+    with tempfile.TemporaryDirectory() as folder:
+        out = Path(folder) / "run"
+        run = threading.Thread(target=lambda: report.append(run_reproduce_sim(
+            dataclasses.replace(SETTINGS, executor=executor), out, progress=False)))
+        started = time.perf_counter()
+        run.start()
+        lost: list[str] = []
+        while run.is_alive() and not lost:  # wait until a cell runs on the worker node
+            time.sleep(1.0)
+            lost = [n for n in _running_on(worker.unique_id) if not n.startswith("collect")]
+        if lost:
+            time.sleep(5.0)  # well into its training
+            lost = [n for n in _running_on(worker.unique_id) if not n.startswith("collect")]
+            cluster.remove_node(worker)
+            print(f"removed the worker node while it ran {lost}", flush=True)
+        run.join()
+        wall_s = time.perf_counter() - started
+        cells = json.loads((out / "table2.json").read_text())["cells"]
+        computed = Counter(outcome.cell.name for outcome in report[0].computed)
+    ray.shutdown()
+    cluster.shutdown()
+
+    expected = sorted(cell.name for cell in SETTINGS.cells())
+    in_table = sorted(f"{c['model']}-{c['task']}-{c['size']}-s{c['seed']}" for c in cells)
+    ok = bool(lost) and sorted(computed) == expected and in_table == expected and \
+        all(count == 1 for count in computed.values()) and not report[0].failed
+    result = {"settings": "gva reproduce sim --models kqv,fcn --tasks single --sizes 4,20 "
+                          "--seeds 1 --steps 200 --test-scenes 20 --executor ray",
+              "nodes": "head 1 CPU + worker 1 CPU on one machine (ray.cluster_utils.Cluster)",
+              "running_on_the_lost_node": lost, "cells_expected": len(expected),
+              "cells_computed": dict(computed), "cells_in_table2": len(in_table),
+              "failed": [o.cell.name for o in report[0].failed], "wall_s": round(wall_s, 1),
+              "passed": ok}
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(result, indent=2) + "\n")
+    print(json.dumps(result, indent=2))
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
