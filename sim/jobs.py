@@ -88,6 +88,11 @@ class JobResources:
     cpus: float = 1.0
     gpus: float = 0.0
 
+    @classmethod
+    def training(cls, threads: int, device: str) -> JobResources:
+        """What a training holds: its torch threads, and one GPU when it trains on CUDA."""
+        return cls(cpus=float(threads), gpus=1.0 if device.startswith("cuda") else 0.0)
+
 
 ONE_CPU = JobResources()
 """What most jobs hold: one core (a trial, a collection, a training on one thread)."""

@@ -121,9 +121,9 @@ class RayPool:
 
 
 def start_local_ray(cpus: int) -> None:
-    """Starts a Ray on this machine for one run: ``cpus`` CPUs, no GPU, no dashboard."""
+    """Starts a Ray on this machine for one run: ``cpus`` CPUs, its GPUs, no dashboard."""
     logging.getLogger("ray").setLevel(logging.ERROR)  # start-up chatter, not results
-    ray.init(num_cpus=cpus, num_gpus=0, include_dashboard=False,
+    ray.init(num_cpus=cpus, include_dashboard=False,
              object_store_memory=LOCAL_OBJECT_STORE_BYTES, logging_level=logging.ERROR,
              _system_config=LOCAL_SYSTEM_CONFIG)
 

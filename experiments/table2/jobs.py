@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from experiments.table2.settings import (
+    CELL_THREADS,
     SCENE,
     Cell,
     ReproduceSimSettings,
@@ -38,6 +39,7 @@ from perception.dataset_file import DatasetError, load_dataset, save_dataset
 from perception.evaluate import EvaluationResult, evaluate
 from perception.registry import new_model
 from perception.train import TrainConfig, TrainReport
+from sim.jobs import JobResources
 from sim.tasks.scene_sampling import SeedStream
 from sim.trials.collector import CollectSettings, collect
 from sim.trials.trial_settings import torch_threads
@@ -152,8 +154,8 @@ def _train_and_score(job: CellJob) -> _Scored:
                                         job.test_seed), job.scene, cell.task, job.test_scenes,
                            job.test_seed)
         model = new_model(cell.model, train, seed=cell.seed)
-        report = model.fit(train, TrainConfig(steps=job.steps, seed=cell.seed, threads=1),
-                           progress=False)
+        config = TrainConfig(steps=job.steps, seed=cell.seed, threads=CELL_THREADS)
+        report = model.fit(train, config, progress=False)
         model.save(checkpoint_folder(out, cell))
         return _Scored(report, evaluate(model, test), test)
 
@@ -206,3 +208,8 @@ def sort_cells(settings: ReproduceSimSettings, out: Path) -> tuple[list[Cell], l
     todo = [cell for cell in settings.cells() if cell not in done]
     todo.sort(key=lambda cell: -cell.cost)  # stable: the paper's order among equals
     return todo, done
+
+
+def cell_resources(job: CellJob) -> JobResources:
+    """What a cell holds while it runs: its training's one thread (and a GPU were it on CUDA)."""
+    return JobResources.training(CELL_THREADS, TrainConfig.device)

@@ -15,6 +15,7 @@ from tqdm import tqdm
 from experiments.table2.jobs import (
     CellJob,
     CellOutcome,
+    cell_resources,
     collect_datasets,
     compute_cell,
     dataset_jobs,
@@ -88,4 +89,4 @@ def _run_cells(settings: ReproduceSimSettings, out: Path, todo: Sequence[Cell], 
         bar.update(outcome.cell.cost)
 
     with bar:
-        pool.run(compute_cell, jobs, done)
+        pool.run(compute_cell, jobs, done, cell_resources)

@@ -60,6 +60,9 @@ class Cell:
         return min(self.size, 16) * (1.5 if self.model in TWO_PHASE_MODELS else 1.0)
 
 
+CELL_THREADS = 1
+"""Torch threads of a cell's training: one, so cells train side by side, one per core."""
+
 @dataclass(frozen=True)
 class ReproduceSimSettings:
     """What ``gva reproduce sim`` runs; its fields' defaults are the command's.
@@ -116,7 +119,7 @@ class ReproduceSimSettings:
 
     def run_identity(self) -> dict[str, Any]:
         """What every cell of a folder shares; ``run.json`` holds it."""
-        train = asdict(TrainConfig(steps=self.steps, threads=1))
+        train = asdict(TrainConfig(steps=self.steps, threads=CELL_THREADS))
         train.pop("seed")  # each cell's own
         return {"format_version": FORMAT_VERSION, "experiment": "reproduce-sim",
                 "scene": self.scene,

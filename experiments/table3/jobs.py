@@ -117,9 +117,10 @@ Job = CollectJob | TrainJob | TrialsJob | GifJob
 
 
 def job_resources(job: Job) -> JobResources:
-    """What a job holds: a training its torch threads, every other job one core."""
+    """What a job holds: a training its torch threads (and a GPU on CUDA), others one core."""
     if isinstance(job, TrainJob):
-        return JobResources(cpus=float(job.settings.train_threads))
+        train = job.settings.train_config()
+        return JobResources.training(train["threads"], train["device"])
     return ONE_CPU
 
 

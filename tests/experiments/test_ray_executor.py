@@ -12,9 +12,10 @@ from pathlib import Path
 
 from experiments.table2.run import run_reproduce_sim
 from experiments.table2.settings import ReproduceSimSettings
+from experiments.table3.jobs import CollectJob, TrainJob, job_resources
 from experiments.table3.run import run_reproduce_real
-from experiments.table3.settings import ReproduceRealSettings
-from sim.jobs import Executor, ExecutorKind
+from experiments.table3.settings import ReproduceRealSettings, Unit
+from sim.jobs import Executor, ExecutorKind, JobResources
 from sim.trials.run_loop import run_trials
 from sim.trials.trial_settings import TrialSettings
 
@@ -67,3 +68,11 @@ def test_trials_on_ray_write_the_records_of_one_process(local_ray, tmp_path):
     on_ray = run_trials(settings, tmp_path / "ray", progress=False, workers=2, executor=RAY)
     assert on_ray.n == straight.n == 3
     assert _records(tmp_path / "straight") == _records(tmp_path / "ray")
+
+
+def test_each_job_declares_what_it_holds():
+    settings = ReproduceRealSettings(tasks=("single",), train_threads=2)
+    train = TrainJob("train-kqv-single-s0", Unit("kqv", "single"), settings, {}, Path("out"))
+    collect = CollectJob("collect-single-s0", "single", settings, Path("out"))
+    assert job_resources(train) == JobResources(cpus=2.0)
+    assert job_resources(collect) == JobResources(cpus=1.0)

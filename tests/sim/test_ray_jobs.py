@@ -148,3 +148,8 @@ def test_ctrl_c_stops_the_runs_tasks_and_keeps_what_finished(tmp_path):
         time.sleep(0.2)
     assert not any(_alive(pid) for pid in workers)
     assert (tmp_path / "0.done").exists() and not (tmp_path / "1.done").exists()
+
+
+def test_a_training_asks_for_its_threads_and_a_gpu_only_on_cuda():
+    assert JobResources.training(2, "cpu") == JobResources(cpus=2.0, gpus=0.0)
+    assert JobResources.training(1, "cuda:0") == JobResources(cpus=1.0, gpus=1.0)
