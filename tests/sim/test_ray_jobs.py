@@ -153,3 +153,11 @@ def test_ctrl_c_stops_the_runs_tasks_and_keeps_what_finished(tmp_path):
 def test_a_training_asks_for_its_threads_and_a_gpu_only_on_cuda():
     assert JobResources.training(2, "cpu") == JobResources(cpus=2.0, gpus=0.0)
     assert JobResources.training(1, "cuda:0") == JobResources(cpus=1.0, gpus=1.0)
+
+
+def test_the_cluster_address_comes_from_the_option_or_the_environment(monkeypatch, tmp_path):
+    monkeypatch.setenv("RAY_ADDRESS", "head:6379")
+    assert RayPool(2, None, tmp_path).address == "head:6379"
+    assert RayPool(2, "other:6379", tmp_path).address == "other:6379"
+    monkeypatch.delenv("RAY_ADDRESS")
+    assert RayPool(2, None, tmp_path).address is None  # a local Ray for the run
