@@ -1,0 +1,60 @@
+"""The sentence encoder: pinned weights, offline, one vector per sentence, cached."""
+
+from __future__ import annotations
+
+import socket
+
+import numpy as np
+import pytest
+
+from perception.errors import InvalidInputError
+from perception.sentences import (
+    EMBEDDING_SIZE,
+    WEIGHTS_SHA256,
+    SentenceEncoder,
+    model_folder,
+    weights_sha256,
+)
+
+
+def _no_network(*args, **kwargs):
+    raise AssertionError("the sentence encoder tried the network")
+
+
+@pytest.fixture(scope="module")
+def encoder(tmp_path_factory) -> SentenceEncoder:
+    """The packaged encoder, unpacked into a cache of this test's, with no network at all."""
+    cache = tmp_path_factory.mktemp("cache")
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("GVA_CACHE", str(cache))
+        patch.setattr(socket.socket, "connect", _no_network)
+        return SentenceEncoder()
+
+
+def test_the_packaged_weights_are_the_pinned_revision(encoder, tmp_path, monkeypatch):
+    monkeypatch.setenv("GVA_CACHE", str(tmp_path))  # unpacked again, here
+    assert weights_sha256(model_folder() / "model.safetensors") == WEIGHTS_SHA256
+    assert (tmp_path / f"all-MiniLM-L6-v2-{WEIGHTS_SHA256[:12]}" / "tokenizer.json").is_file()
+
+
+def test_a_changed_weights_file_is_refused_naming_both_hashes(tmp_path):
+    (tmp_path / "model.safetensors").write_bytes(b"not the model")
+    with pytest.raises(InvalidInputError, match=WEIGHTS_SHA256) as refused:
+        SentenceEncoder(tmp_path)
+    assert weights_sha256(tmp_path / "model.safetensors") in str(refused.value)
+    with pytest.raises(InvalidInputError, match=r"model\.safetensors"):
+        SentenceEncoder(tmp_path / "missing")
+
+
+def test_sentences_become_unit_vectors_near_for_the_same_meaning(encoder, monkeypatch):
+    monkeypatch.setattr(socket.socket, "connect", _no_network)
+    mug, cup, spray = (encoder.encode(s) for s in (
+        "pick up the mug", "grab the cup", "the bottle you spray with"))
+    assert mug.shape == (EMBEDDING_SIZE,) and mug.dtype == np.float32
+    assert np.linalg.norm(mug) == pytest.approx(1.0, abs=1e-5)
+    assert float(mug @ cup) > float(mug @ spray)
+    assert encoder.encode("pick up the mug") is mug  # cached: the same array
+    with pytest.raises(ValueError):
+        mug[0] = 2.0  # read-only, as the cache shares it
+    with pytest.raises(InvalidInputError, match="sentence"):
+        encoder.encode("  ")
