@@ -21,10 +21,10 @@ import threading
 import time
 from collections import Counter
 from pathlib import Path
+from typing import Any
 
 import ray
 from ray.cluster_utils import Cluster
-from ray.util.state import list_tasks
 
 from experiments.table2.run import run_reproduce_sim
 from experiments.table2.settings import ReproduceSimSettings
@@ -34,10 +34,23 @@ SETTINGS = ReproduceSimSettings(models=("kqv", "fcn"), tasks=("single",), sizes=
                                 seeds=1, steps=200, test_scenes=20, workers=2)
 
 
-def _running_on(node_id: str) -> list[str]:
-    """The names of the tasks running on a node now."""
-    return [task.name for task in list_tasks(filters=[("state", "=", "RUNNING")])
-            if task.node_id == node_id]
+def _running_on(node: Any) -> list[str]:
+    """The names of the tasks running on a node now: its raylet's workers that are not idle.
+
+    Ray titles a worker process ``ray::<task name>`` while it runs a task (``ray::IDLE``
+    between tasks); the state API would need the dashboard, which a run does not start.
+    """
+    raylet = node.all_processes["raylet"][0].process.pid
+    names = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            parent = int(stat.read_text().rsplit(")", 1)[1].split()[1])
+            title = (stat.parent / "cmdline").read_bytes().split(b"\0")[0].decode()
+        except (OSError, IndexError, ValueError):
+            continue  # the process ended while we read it
+        if parent == raylet and title.startswith("ray::") and title != "ray::IDLE":
+            names.append(title.removeprefix("ray::"))
+    return names
 
 
 def main() -> int:
@@ -58,24 +71,25 @@ def main() -> int:
             dataclasses.replace(SETTINGS, executor=executor), out, progress=False)))
         started = time.perf_counter()
         run.start()
+        cells = {cell.name for cell in SETTINGS.cells()}
         lost: list[str] = []
         while run.is_alive() and not lost:  # wait until a cell runs on the worker node
             time.sleep(1.0)
-            lost = [n for n in _running_on(worker.unique_id) if not n.startswith("collect")]
+            lost = [name for name in _running_on(worker) if name in cells]
         if lost:
             time.sleep(5.0)  # well into its training
-            lost = [n for n in _running_on(worker.unique_id) if not n.startswith("collect")]
+            lost = [name for name in _running_on(worker) if name in cells]
             cluster.remove_node(worker)
             print(f"removed the worker node while it ran {lost}", flush=True)
         run.join()
         wall_s = time.perf_counter() - started
-        cells = json.loads((out / "table2.json").read_text())["cells"]
+        table = json.loads((out / "table2.json").read_text())["cells"]
         computed = Counter(outcome.cell.name for outcome in report[0].computed)
     ray.shutdown()
     cluster.shutdown()
 
     expected = sorted(cell.name for cell in SETTINGS.cells())
-    in_table = sorted(f"{c['model']}-{c['task']}-{c['size']}-s{c['seed']}" for c in cells)
+    in_table = sorted(f"{c['model']}-{c['task']}-{c['size']}-s{c['seed']}" for c in table)
     ok = bool(lost) and sorted(computed) == expected and in_table == expected and \
         all(count == 1 for count in computed.values()) and not report[0].failed
     result = {"settings": "gva reproduce sim --models kqv,fcn --tasks single --sizes 4,20 "
