@@ -9,9 +9,8 @@ Runs the small Table II the issue names (``--models kqv,fcn --tasks single --siz
 fresh ``gva`` process in a fresh folder. It reports each run's wall time (Ray's includes
 starting and stopping its local Ray), the median ratio Ray / local (the bar: <= 1.15 on a 2-core
 machine), and Ray's fixed cost measured alone: ``ray.init``, a first task's round trip and
-``ray.shutdown``, the median of as many starts. A run of 20 s pays it as much as one of hours:
-the same Table II at ``--steps 100 --test-scenes 20`` (20 s a run) measured 1.37, and at
-``--steps 300`` (50 s) 1.18. It also checks that both
+``ray.shutdown``, the median of as many starts. A short run pays that as much as a long one
+(what shorter runs gave: docs/decisions/ray-executor.md). It also checks that both
 executors wrote the same ``table2.json`` cells and the same ``table3.json`` counts, and exits 1
 where they differ.
 """

@@ -40,9 +40,8 @@ LOCAL_OBJECT_STORE_BYTES = 256 * 2**20
 """The object store of a Ray started for one run: jobs return small results (a cell's error,
 a trial's record), and Ray's default (30 % of memory) would take gigabytes from training."""
 LOCAL_SYSTEM_CONFIG = {"worker_niceness": 0}
-"""A Ray started for a run gives its workers the priority of the local pool's (Ray's default,
-15, lets any other process on the machine starve them: 35 s per trial instead of 1.6 s
-beside a training, measured)."""
+"""A Ray started for a run gives its workers the local pool's priority: Ray's default, 15, lets
+any other process on the machine starve them (docs/decisions/ray-executor.md)."""
 CHECK_TIMEOUT_S = 120.0
 """How long the shared-folder check waits for every node (a busy cluster may queue it)."""
 ENV_ADDRESS = "RAY_ADDRESS"
