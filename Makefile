@@ -21,8 +21,9 @@ demo: $(STAMP)
 	$(BIN)/gva reproduce real --out runs/demo --tasks single --models kqv --no-robustness \
 		--train-threads 2
 
+# One worker per core; a module's tests stay together, so its module fixtures are made once.
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n auto --dist loadscope
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -42,6 +42,8 @@ a trial's record), and Ray's default (30 % of memory) would take gigabytes from 
 LOCAL_SYSTEM_CONFIG = {"worker_niceness": 0}
 """A Ray started for a run gives its workers the local pool's priority: Ray's default, 15, lets
 any other process on the machine starve them (docs/decisions/ray-executor.md)."""
+WAIT_S = 0.5
+"""The longest this process waits in Ray before it looks at signals again [s]."""
 CHECK_TIMEOUT_S = 120.0
 """How long the shared-folder check waits for every node (a busy cluster may queue it)."""
 ENV_ADDRESS = "RAY_ADDRESS"
@@ -112,7 +114,8 @@ class RayPool:
                                ).remote(job)
             self._pending[ref] = job
         while self._pending:
-            ready, _ = ray.wait(list(self._pending), num_returns=1)
+            # A bounded wait returns to Python each time, where a pending Ctrl-C is raised.
+            ready, _ = ray.wait(list(self._pending), num_returns=1, timeout=WAIT_S)
             for ref in ready:
                 result = ray.get(ref)
                 del self._pending[ref]

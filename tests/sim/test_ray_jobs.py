@@ -133,7 +133,9 @@ def test_ctrl_c_stops_the_runs_tasks_and_keeps_what_finished(tmp_path):
                 Path(HERE, "stopped").touch()
     """)
     (tmp_path / "driver.py").write_text(script)
-    driver = subprocess.Popen([sys.executable, str(tmp_path / "driver.py")], cwd=tmp_path)
+    log = (tmp_path / "driver.log").open("w")
+    driver = subprocess.Popen([sys.executable, str(tmp_path / "driver.py")], cwd=tmp_path,
+                              stdout=log, stderr=subprocess.STDOUT)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and not (
             (tmp_path / "0.done").exists() and (tmp_path / "1.pid").exists()
@@ -142,7 +144,12 @@ def test_ctrl_c_stops_the_runs_tasks_and_keeps_what_finished(tmp_path):
     workers = [int((tmp_path / f"{v}.pid").read_text()) for v in (1, 2)]
     assert all(_alive(pid) for pid in workers)
     driver.send_signal(signal.SIGINT)
-    assert driver.wait(timeout=60) == 0 and (tmp_path / "stopped").exists()
+    try:
+        status = driver.wait(timeout=60)
+    finally:
+        driver.kill()
+        log.close()
+    assert status == 0 and (tmp_path / "stopped").exists(), (tmp_path / "driver.log").read_text()
     deadline = time.monotonic() + 20
     while time.monotonic() < deadline and any(_alive(pid) for pid in workers):
         time.sleep(0.2)
