@@ -112,7 +112,7 @@ def _alive(pid: int) -> bool:
 def test_ctrl_c_stops_the_runs_tasks_and_keeps_what_finished(tmp_path):
     """A driver of its own (its own local Ray): Ctrl-C while two jobs run and one finished."""
     script = textwrap.dedent(f"""
-        import os, time
+        import os, signal, time
         from pathlib import Path
         from sim.executors import open_pool
         from sim.jobs import Executor, ExecutorKind
@@ -126,6 +126,9 @@ def test_ctrl_c_stops_the_runs_tasks_and_keeps_what_finished(tmp_path):
             return value
 
         if __name__ == "__main__":
+            # As at a terminal: a shell's background job (CI's, say) starts with Ctrl-C
+            # ignored, and Python then keeps it ignored.
+            signal.signal(signal.SIGINT, signal.default_int_handler)
             try:
                 with open_pool(Executor(ExecutorKind.RAY), 2, HERE) as pool:
                     pool.run(job, [0, 1, 2], lambda v: Path(HERE, f"{{v}}.done").touch())
