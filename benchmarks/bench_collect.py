@@ -18,7 +18,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from perception.dataset_file import read_metadata
+from perception.learning.dataset_file import read_metadata
 from sim.tasks.task_toml import builtin_tasks
 from sim.trials.collector import CollectSettings, collect
 

@@ -31,14 +31,14 @@ from typing import Any
 import numpy as np
 import torch
 
-from perception.data import Dataset
-from perception.dataset_file import load_dataset
-from perception.evaluate import evaluate
 from perception.interface import ConditionKind, LabelKind
-from perception.learnable import ModelSpec
+from perception.learning.data import Dataset
+from perception.learning.dataset_file import load_dataset
+from perception.learning.evaluate import evaluate
+from perception.learning.learnable import ModelSpec
+from perception.learning.train import TrainConfig, available_threads
 from perception.models.base import LabelScaler
 from perception.models.kqv import KqvConfig, KqvModel
-from perception.train import TrainConfig, available_threads
 
 ERROR_BARS_CM = {"single": 2.0, "selected-type": 3.0}
 INFERENCE_BAR_MS, TRAINING_BAR_S, SWITCH_BAR = 5.0, 180.0, 0.95

@@ -17,7 +17,7 @@ heatmap):
   backward).
 
 Medians of ``--repeats`` runs of ``--steps`` steps each, after a warm-up; the training's step
-count (:class:`~perception.train.TrainConfig`, :class:`~perception.models.kqv.KqvConfig`'s
+count (:class:`~perception.learning.train.TrainConfig`, :class:`~perception.models.kqv.KqvConfig`'s
 starts) turns them into a training's seconds.
 """
 
@@ -37,11 +37,11 @@ from typing import Any
 import numpy as np
 import torch
 
-from perception.data import Dataset
+from perception.learning.data import Dataset
+from perception.learning.train import Batch, TrainConfig, batch_indices, photometric_augment
 from perception.models.base import images_to_tensor, unit
 from perception.models.kqv import KqvModel
 from perception.registry import new_model
-from perception.train import Batch, TrainConfig, batch_indices, photometric_augment
 
 
 def median_ms(run: Callable[[], Any], steps: int, repeats: int) -> float:

@@ -21,8 +21,8 @@ from typing import Any, Generic, Protocol, TypeVar
 
 from tqdm import tqdm
 
-from perception.dataset_file import read_metadata
 from perception.files import atomic_write
+from perception.learning.dataset_file import read_metadata
 from perception.models.torch_model import TorchModel
 from perception.registry import PRESETS, model_class
 from sim.errors import InvalidInputError, RunFolderError
@@ -41,7 +41,7 @@ TASKS = ("single", "multiple", "selected-type", "selected-position")
 TWO_PHASE_MODELS = ("dsae-16", "conv-ae")
 """Models trained in two phases (autoencoder, then targets): they take longer to train."""
 NO_IMAGE = "no-image"
-"""The row of :func:`perception.evaluate.label_mean_error_cm` in Table II."""
+"""The row of :func:`perception.learning.evaluate.label_mean_error_cm` in Table II."""
 MODEL_TITLES = {
     "kqv": "Ours (kqv, q=min)", "keypoint-16": "Key Point (q=16)",
     "keypoint-min": "Key Point (q=min)", "dsae-16": "Deep Spatial AE (q=16)",

@@ -21,10 +21,10 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from perception.checkpoint import CONFIG_FILE, CheckpointError, read_config
-from perception.data import Dataset
 from perception.interface import InvalidInputError, PerceptionModel
-from perception.learnable import LearnableModel
+from perception.learning.checkpoint import CONFIG_FILE, CheckpointError, read_config
+from perception.learning.data import Dataset
+from perception.learning.learnable import LearnableModel
 from perception.models.conv_ae import ConvAeModel
 from perception.models.dsae import DsaeModel
 from perception.models.fcn import FcnModel

@@ -15,7 +15,6 @@ from typing import Any
 import numpy as np
 
 from perception.camera import PinholeCamera, RgbdFrame
-from perception.data import Dataset, DatasetMetadata
 from perception.interface import (
     NO_CONDITION,
     Condition,
@@ -26,8 +25,9 @@ from perception.interface import (
     Prediction,
     Target,
 )
-from perception.labels import label_vector
-from perception.learnable import ModelSpec
+from perception.learning.data import Dataset, DatasetMetadata
+from perception.learning.labels import label_vector
+from perception.learning.learnable import ModelSpec
 from perception.models.base import LabelScaler
 from perception.models.kqv import KqvModel
 

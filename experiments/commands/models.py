@@ -2,8 +2,8 @@
 
 Each prints what a reader needs (one summary line, the file it wrote) and returns the exit
 status; errors are raised for :func:`experiments.cli.main` to report in one line. Training
-defaults are :class:`~perception.train.TrainConfig`'s and
-:class:`~perception.validation.CheckConfig`'s.
+defaults are :class:`~perception.learning.train.TrainConfig`'s and
+:class:`~perception.learning.validation.CheckConfig`'s.
 """
 
 from __future__ import annotations
@@ -17,17 +17,17 @@ from pathlib import Path
 import numpy as np
 
 from experiments.commands.arguments import integer
-from perception.checkpoint import CONFIG_FILE, WEIGHTS_FILE, read_config
-from perception.data import Dataset
-from perception.dataset_file import load_dataset
 from perception.drawing import AttentionRow, attention_figure, write_png
-from perception.evaluate import evaluate
 from perception.files import atomic_write
 from perception.interface import InvalidInputError, PerceptionError, Prediction
-from perception.learnable import LearnableModel
+from perception.learning.checkpoint import CONFIG_FILE, WEIGHTS_FILE, read_config
+from perception.learning.data import Dataset
+from perception.learning.dataset_file import load_dataset
+from perception.learning.evaluate import evaluate
+from perception.learning.learnable import LearnableModel
+from perception.learning.train import TrainConfig
+from perception.learning.validation import CHECK_FILE, CheckConfig, fit_checked, write_check
 from perception.registry import load_model, new_model
-from perception.train import TrainConfig
-from perception.validation import CHECK_FILE, CheckConfig, fit_checked, write_check
 
 
 def add_options(parser: argparse.ArgumentParser, command: str) -> None:

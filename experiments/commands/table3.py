@@ -1,7 +1,7 @@
 """``gva reproduce real``: the paper's Table III on the simulated YuMi, its options and summary.
 
 Defaults are :class:`~experiments.table3.settings.ReproduceRealSettings`' (and the held-out
-check's, :class:`~perception.validation.CheckConfig`'s).
+check's, :class:`~perception.learning.validation.CheckConfig`'s).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from pathlib import Path
 from experiments.commands.arguments import add_executor_options, executor, integer, names
 from experiments.table3.run import run_reproduce_real
 from experiments.table3.settings import ReproduceRealSettings
-from perception.validation import CheckConfig
+from perception.learning.validation import CheckConfig
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:

@@ -16,10 +16,10 @@ from matplotlib.figure import Figure  # an Agg canvas of its own, no global back
 
 from experiments.table2.settings import BOLD_BELOW_CM, SIZES, Key, ReproduceSimSettings
 from experiments.tables import MODEL_TITLES, MODELS, NO_IMAGE, TASK_TITLES, TASKS, dataset_path
-from perception.data import Dataset
-from perception.dataset_file import load_dataset
 from perception.drawing import draw_points, enlarge
 from perception.files import atomic_write
+from perception.learning.data import Dataset
+from perception.learning.dataset_file import load_dataset
 from perception.registry import load_model
 from sim.tasks.scene_sampling import SeedStream
 

@@ -34,11 +34,11 @@ from experiments.tables import (
     refuse_other_settings,
     write_json,
 )
-from perception.data import Dataset
-from perception.dataset_file import DatasetError, load_dataset, save_dataset
-from perception.evaluate import EvaluationResult, evaluate
+from perception.learning.data import Dataset
+from perception.learning.dataset_file import DatasetError, load_dataset, save_dataset
+from perception.learning.evaluate import EvaluationResult, evaluate
+from perception.learning.train import TrainConfig, TrainReport
 from perception.registry import new_model
-from perception.train import TrainConfig, TrainReport
 from sim.jobs import JobResources
 from sim.tasks.scene_sampling import SeedStream
 from sim.trials.collector import CollectSettings, collect

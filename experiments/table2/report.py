@@ -34,9 +34,9 @@ from experiments.tables import (
     write_json,
     write_text,
 )
-from perception.data import Dataset
-from perception.dataset_file import load_dataset
-from perception.evaluate import label_mean_error_cm
+from perception.learning.data import Dataset
+from perception.learning.dataset_file import load_dataset
+from perception.learning.evaluate import label_mean_error_cm
 from sim.tasks.scene_sampling import SeedStream
 
 RATIO_FLAGGED = 2.0

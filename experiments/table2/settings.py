@@ -19,7 +19,7 @@ from experiments.tables import (
     check_counts,
     model_config,
 )
-from perception.train import TrainConfig, available_threads
+from perception.learning.train import TrainConfig, available_threads
 from sim.jobs import LOCAL, Executor
 from sim.tasks.task_toml import load_task
 from sim.trials.records import json_form
@@ -74,7 +74,7 @@ class ReproduceSimSettings:
         seeds: Number of training seeds.
         seed: S0, the first training seed and the seed of the test scenes.
         steps: Optimiser steps per training phase (other training settings:
-            :class:`~perception.train.TrainConfig`'s, torch on one thread).
+            :class:`~perception.learning.train.TrainConfig`'s, torch on one thread).
         test_scenes: Test scenes per task (the paper's 100; fewer for a quick check).
         scene: ``paper-sim`` (the paper's Table II) or ``yumi`` (the robot's scenes, offline).
         workers: Processes running cells at once; None: the cores this process may use. One

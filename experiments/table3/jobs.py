@@ -41,10 +41,10 @@ from experiments.tables import (
     refuse_other_settings,
     write_json,
 )
-from perception.dataset_file import DatasetError, load_dataset
+from perception.learning.dataset_file import DatasetError, load_dataset
+from perception.learning.train import TrainConfig
+from perception.learning.validation import fit_checked, write_check
 from perception.registry import new_model
-from perception.train import TrainConfig
-from perception.validation import fit_checked, write_check
 from sim.executors import open_pool
 from sim.jobs import ONE_CPU, JobResources
 from sim.tasks.scene_sampling import SeedStream, target_count

@@ -296,7 +296,7 @@ def checks_markdown(checks: Sequence[Mapping[str, Any]]) -> list[str]:
     retried = sum(c["attempts"] > 1 for c in checks if c["passed"])
     lines = ["## Held-out checks", "",
              f"Each training held out part of its own demonstrations and scored the trained "
-             f"model on them (`perception.validation`): {len(checks) - len(failed)} of "
+             f"model on them (`perception.learning.validation`): {len(checks) - len(failed)} of "
              f"{len(checks)} passed" + (f", {retried} of them at a later start" if retried
                                         else "") + "."]
     lines += [f"- **FAILED**: {c['model']} {c['task']} seed {c['seed']} after {c['attempts']} "

@@ -19,9 +19,9 @@ from experiments.tables import (
     model_config,
     write_text,
 )
+from perception.learning.train import TrainConfig, available_threads
+from perception.learning.validation import CheckConfig
 from perception.registry import MODELS, PRESETS
-from perception.train import TrainConfig, available_threads
-from perception.validation import CheckConfig
 from sim.jobs import LOCAL, Executor
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.task_spec import TaskSpec
@@ -127,8 +127,8 @@ class ReproduceRealSettings:
         executor: Where the jobs run: this machine's process pool (default) or Ray
             (:class:`~sim.jobs.Executor`); the results are the same.
         check: How each training checks itself on demonstrations it holds out
-            (:class:`~perception.validation.CheckConfig`); a model that fails is marked in its
-            checkpoint and in the tables.
+            (:class:`~perception.learning.validation.CheckConfig`); a model that fails is
+            marked in its checkpoint and in the tables.
         train_threads: Torch threads of each training job. 1 lets units train side by side, one
             per core; a run with a single unit (``make demo``) trains alone, and two threads on
             two cores halve its training time. Results depend on it (float sums in another

@@ -29,10 +29,10 @@ import torch
 from torch import Tensor, nn
 
 from perception.interface import InvalidInputError
-from perception.learnable import ModelSpec, check_choices
+from perception.learning.learnable import ModelSpec, check_choices
+from perception.learning.train import Batch
 from perception.models.base import MLP, normalise_images
 from perception.models.torch_model import NetOutput, Phase, TorchModel, pose_size, split_pose
-from perception.train import Batch
 
 RECONSTRUCTION_PX = (16, 32, 64)
 """Reconstruction sizes a decoder allows (square, a multiple of 8 for conv-ae's upsampling)."""

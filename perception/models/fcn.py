@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 from torch import Tensor, nn
 
-from perception.learnable import ModelSpec
+from perception.learning.learnable import ModelSpec
 from perception.models.baselines import (
     BaselineConfig,
     BaselineModel,

@@ -25,7 +25,7 @@ import torch
 from torch import Tensor, nn
 
 from perception.interface import InvalidInputError
-from perception.learnable import ModelSpec
+from perception.learning.learnable import ModelSpec
 from perception.models.base import coordinate_grid, softmax2d, spatial_expectation
 from perception.models.baselines import (
     BaselineConfig,

@@ -14,16 +14,16 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from perception.data import Dataset
-from perception.evaluate import evaluate
 from perception.interface import InvalidInputError, Prediction
-from perception.mirror import MIRROR_FLAG, Mirror
+from perception.learning.data import Dataset
+from perception.learning.evaluate import evaluate
+from perception.learning.mirror import MIRROR_FLAG, Mirror
+from perception.learning.train import Batch, TrainConfig, TrainReport, train
+from perception.learning.validation import split_scenes
 from perception.models.base import LabelScaler, images_to_tensor, normalised_to_pixels
 from perception.models.kqv_config import KqvConfig
 from perception.models.kqv_net import KqvNet
 from perception.models.torch_model import Phase, TorchModel, present_mean
-from perception.train import Batch, TrainConfig, TrainReport, train
-from perception.validation import split_scenes
 
 
 class KqvModel(TorchModel):

@@ -10,7 +10,7 @@ import math
 from dataclasses import dataclass
 
 from perception.interface import InvalidInputError
-from perception.learnable import check_choices
+from perception.learning.learnable import check_choices
 from perception.models.rotations import ROTATION_CODES
 
 QUERY_MODES = ("auto", "base", "conditioned", "conditioned+base")
@@ -67,7 +67,7 @@ class KqvConfig:
             ``"6d"`` (Zhou et al.) or ``"axis-line"`` (the approach axis and the closing axis's
             line tensor, the same for a grasp and its half-turn twin).
         mirror: Whether training also shows a random half of each batch mirrored across the
-            world's xz-plane, labels with it (:mod:`perception.mirror`). None: where the
+            world's xz-plane, labels with it (:mod:`perception.learning.mirror`). None: where the
             dataset's collector says its task allows it.
         head_width: Width of the head MLP's two hidden layers (and of the type head's one).
         rotation_loss_weight: Weight of the chordal rotation loss against the position loss;

@@ -16,7 +16,7 @@ import torch
 from torch import Tensor, nn
 
 from perception.interface import ConditionKind, InvalidInputError, LabelKind
-from perception.learnable import ModelSpec
+from perception.learning.learnable import ModelSpec
 from perception.models.base import (
     MLP,
     CoordConv,

@@ -12,7 +12,7 @@ import torch
 from torch import Tensor, nn
 
 from perception.interface import InvalidInputError
-from perception.learnable import ModelSpec
+from perception.learning.learnable import ModelSpec
 from perception.models.base import LabelScaler, normalised_to_pixels, pixels_to_normalised
 
 

@@ -19,7 +19,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from perception.learnable import check_choices
+from perception.learning.learnable import check_choices
 
 ROTATION_CODES = ("6d", "axis-line")
 

@@ -1,10 +1,10 @@
 """What every torch model here shares: predicting, the target loss, training phases, checkpoints.
 
-A :class:`TorchModel` is a :class:`~perception.learnable.LearnableModel` built around one
+A :class:`TorchModel` is a :class:`~perception.learning.learnable.LearnableModel` built around one
 ``nn.Module`` whose ``forward(images, conditions)`` returns a :class:`NetOutput`: the targets
 in the label scaler's units, plus the attention points and heatmaps where the network has them.
 A subclass names its hyper-parameter dataclass and builds its network; predicting, the loss on
-the labels, ``fit`` (one :class:`Phase` or more, through :func:`perception.train.train`),
+the labels, ``fit`` (one :class:`Phase` or more, through :func:`perception.learning.train.train`),
 ``save`` and ``load`` are the same for all::
 
     class Tiny(TorchModel):
@@ -30,19 +30,19 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from perception.checkpoint import (
+from perception.interface import ConditionKind, InvalidInputError, LabelKind, Prediction, Target
+from perception.learning.checkpoint import (
     CONFIG_FILE,
     CheckpointError,
     check_shapes,
     load_checkpoint,
     save_checkpoint,
 )
-from perception.data import Dataset
-from perception.interface import ConditionKind, InvalidInputError, LabelKind, Prediction, Target
-from perception.learnable import LearnableModel, ModelSpec
+from perception.learning.data import Dataset
+from perception.learning.learnable import LearnableModel, ModelSpec
+from perception.learning.train import Batch, TrainConfig, TrainReport, train
 from perception.models.base import LabelScaler, images_to_tensor, normalised_to_pixels
 from perception.models.rotations import axis_line_loss, rotation_from_6d, symmetric_chordal_loss
-from perception.train import Batch, TrainConfig, TrainReport, train
 
 
 class NetOutput(NamedTuple):

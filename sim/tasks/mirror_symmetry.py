@@ -1,9 +1,9 @@
 """Whether a task's demonstrations stay true when mirrored across the world's xz-plane.
 
 A learner may train on each demonstration's mirror image as well (y -> -y; see
-:mod:`perception.mirror`) only if the mirrored image shows a scene the task could have drawn
-and its mirrored labels are that scene's labels. The simulator knows what that takes, so the
-collector records the answer in a dataset (``metadata.extra["mirror_symmetric"]``):
+:mod:`perception.learning.mirror`) only if the mirrored image shows a scene the task could
+have drawn and its mirrored labels are that scene's labels. The simulator knows what that
+takes, so the collector records the answer in a dataset (``metadata.extra["mirror_symmetric"]``):
 
 * the camera sits on the xz-plane looking along it, with z up (the yumi head camera);
 * every object the task may present is its own mirror image (the catalog's are);

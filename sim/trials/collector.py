@@ -7,7 +7,7 @@ redrawn from the next scene of the training stream, and counted). A demonstratio
 image the camera takes before each of its picks, as a trial sees them: a ``multiple`` scene
 gives three samples, the second without the first target, the third with the last alone; a
 sample's record lists the targets already taken under ``"taken"`` (their labels say where they
-were; :meth:`perception.data.Dataset.target_present` marks them absent). Either way, scene
+were; :meth:`perception.learning.data.Dataset.target_present` marks them absent). Either way, scene
 ``i`` of a dataset comes from the training seed stream, never the test stream the trials use,
 unless the settings ask for the test stream: a ``paper-sim`` test set (Table II scores models
 on 100 test scenes) is collected like a training set, from ``SeedStream.TEST``. Scene ``i``
@@ -26,11 +26,11 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from perception.data import Dataset, DatasetMetadata
-from perception.dataset_file import save_dataset
 from perception.interface import Prediction
-from perception.labels import label_vector
-from perception.mirror import MIRROR_FLAG
+from perception.learning.data import Dataset, DatasetMetadata
+from perception.learning.dataset_file import save_dataset
+from perception.learning.labels import label_vector
+from perception.learning.mirror import MIRROR_FLAG
 from sim.errors import InvalidInputError, SimError
 from sim.tasks.mirror_symmetry import mirror_symmetric
 from sim.tasks.scene_sampling import (

@@ -46,7 +46,7 @@ from perception.interface import (
     Prediction,
     Target,
 )
-from perception.labels import nearest_rotation
+from perception.learning.labels import nearest_rotation
 from robots import yumi
 from sim.errors import InvalidInputError, SimError
 from sim.tasks.scene_sampling import Scene

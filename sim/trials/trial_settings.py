@@ -20,9 +20,9 @@ from typing import Any
 
 from perception.checks import check_inputs
 from perception.interface import LabelKind, PerceptionModel
-from perception.learnable import LearnableModel, ModelSpec
+from perception.learning.learnable import LearnableModel, ModelSpec
+from perception.learning.validation import HeldOutCheck, read_check
 from perception.plugins import build_plugin, installed_models, is_class_path, plugin_class
-from perception.validation import HeldOutCheck, read_check
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import (
     check_task_fits,
@@ -151,7 +151,7 @@ class TrialSettings:
         files: dict[str, Path | None] = {
             "task_file": given if given.is_file() else TASK_FILES / f"{self.task}.toml"}
         if model_source(self.model) is ModelSource.CHECKPOINT:
-            from perception.checkpoint import CONFIG_FILE, WEIGHTS_FILE
+            from perception.learning.checkpoint import CONFIG_FILE, WEIGHTS_FILE
 
             files |= {"checkpoint_weights": Path(self.model) / WEIGHTS_FILE,
                       "checkpoint_config": Path(self.model) / CONFIG_FILE}
@@ -165,7 +165,7 @@ class TrialSettings:
         """
         if model_source(self.model) is not ModelSource.CHECKPOINT:
             return {}
-        from perception.checkpoint import read_config
+        from perception.learning.checkpoint import read_config
 
         config = read_config(self.model)
         checksums = {key: config[key] for key in ("weights_sha256", "config_sha256")
@@ -197,7 +197,7 @@ def load_trial_model(settings: TrialSettings) -> TrialModel:
         InvalidInputError: The model cannot be found or built, reads what a trial does not
             give, does not predict grasp poses, or was trained for another task; one line
             that says which.
-        perception.checkpoint.CheckpointError: The checkpoint cannot be used.
+        perception.learning.checkpoint.CheckpointError: The checkpoint cannot be used.
 
     """
     source = model_source(settings.model)
@@ -224,8 +224,8 @@ def load_trial_model(settings: TrialSettings) -> TrialModel:
 def check_model_fits_task(model: PerceptionModel, task: TaskSpec, where: str) -> None:
     """Raises unless ``model`` predicts grasp poses for what ``task`` asks in the yumi scene.
 
-    A model with a :class:`~perception.learnable.ModelSpec` must have been trained on the yumi
-    scene with the task's condition (kind and choices), target count and the head camera's
+    A model with a :class:`~perception.learning.learnable.ModelSpec` must have been trained on
+    the yumi scene with the task's condition (kind and choices), target count and the head camera's
     image size. Its task may have another name (e.g. the same task under dimmer light).
     """
     kind = getattr(model, "label_kind", None)
@@ -269,7 +269,7 @@ def torch_threads(threads: int) -> Iterator[None]:
 
 
 def held_out_check(settings: TrialSettings) -> HeldOutCheck | None:
-    """The held-out check of the trials' checkpoint (:mod:`perception.validation`), if any."""
+    """The trials' checkpoint's held-out check (:mod:`perception.learning.validation`), if any."""
     if model_source(settings.model) is not ModelSource.CHECKPOINT:
         return None
     return read_check(settings.model)

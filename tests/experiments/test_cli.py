@@ -15,8 +15,8 @@ from gva_cli import gva
 from experiments.cli import build_parser, main
 from experiments.table2.settings import ReproduceSimSettings
 from experiments.table3.settings import ReproduceRealSettings
-from perception.train import TrainConfig
-from perception.validation import CheckConfig
+from perception.learning.train import TrainConfig
+from perception.learning.validation import CheckConfig
 from sim.jobs import Executor, ExecutorKind
 from sim.trials.collector import CollectSettings
 from sim.trials.trial_settings import TrialSettings

@@ -12,10 +12,10 @@ import pytest
 from user_models import synthetic_dataset
 
 from experiments.cli import main
-from perception.checkpoint import read_config
-from perception.dataset_file import save_dataset
 from perception.drawing import figure_shape, number_size
 from perception.interface import LabelKind
+from perception.learning.checkpoint import read_config
+from perception.learning.dataset_file import save_dataset
 from perception.registry import load_model
 
 FAST = ["--steps", "5", "--batch-size", "4", "--threads", "1", "--holdout", "0", "--no-progress"]

@@ -19,7 +19,7 @@ from experiments.table2.report import (
 from experiments.table2.run import run_reproduce_sim
 from experiments.table2.settings import Cell, ReproduceSimSettings, cell_path
 from experiments.tables import MODELS, model_config
-from perception.dataset_file import load_dataset
+from perception.learning.dataset_file import load_dataset
 from sim.errors import InvalidInputError, RunFolderError
 
 TINY = ["--models", "kqv,fcn", "--tasks", "single", "--sizes", "4", "--seeds", "1",

@@ -4,8 +4,9 @@ import torch
 from user_models import BACKGROUND, TYPES, synthetic_dataset
 
 from perception.interface import Condition, ConditionKind, InvalidInputError, LabelKind
-from perception.labels import check_rotations
-from perception.learnable import ModelSpec
+from perception.learning.labels import check_rotations
+from perception.learning.learnable import ModelSpec
+from perception.learning.train import TrainConfig, train
 from perception.models.base import LabelScaler
 from perception.models.baselines import GREY_WEIGHTS, Decoder
 from perception.models.conv_ae import ConvAeConfig, ConvAeModel
@@ -13,7 +14,6 @@ from perception.models.dsae import DsaeConfig, DsaeModel
 from perception.models.fcn import FcnConfig, FcnModel
 from perception.models.keypoint import KeypointConfig, KeypointModel
 from perception.registry import MODELS, load_model, new_model
-from perception.train import TrainConfig, train
 
 FAST = TrainConfig(steps=40, batch_size=8, learning_rate=3e-3, log_every=10, threads=1)
 NAMES = ("keypoint-16", "keypoint-min", "dsae-16", "conv-ae", "fcn")

@@ -6,7 +6,8 @@ import torch
 from safetensors.torch import load_file, save_file
 from user_models import synthetic_dataset, typed_dataset
 
-from perception.checkpoint import (
+from perception.interface import LabelKind
+from perception.learning.checkpoint import (
     CONFIG_FILE,
     FORMAT_VERSION,
     WEIGHTS_FILE,
@@ -17,9 +18,8 @@ from perception.checkpoint import (
     load_checkpoint,
     read_config,
 )
-from perception.interface import LabelKind
+from perception.learning.train import TrainConfig
 from perception.models.kqv import KqvConfig, KqvModel
-from perception.train import TrainConfig
 
 
 @pytest.fixture(scope="module")

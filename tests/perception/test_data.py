@@ -7,17 +7,17 @@ import pytest
 from safetensors import safe_open
 from safetensors.numpy import save_file
 
-import perception.dataset_file as dataset_file
-from perception.data import FORMAT_VERSION, Dataset, DatasetMetadata
-from perception.dataset_file import (
+import perception.learning.dataset_file as dataset_file
+from perception.interface import ConditionKind, InvalidInputError, LabelKind
+from perception.learning.data import FORMAT_VERSION, Dataset, DatasetMetadata
+from perception.learning.dataset_file import (
     HEADER_KEY,
     DatasetError,
     load_dataset,
     read_metadata,
     save_dataset,
 )
-from perception.interface import ConditionKind, InvalidInputError, LabelKind
-from perception.labels import label_vector, split_label
+from perception.learning.labels import label_vector, split_label
 
 
 def rotations(rng: np.random.Generator, n: int) -> np.ndarray:

@@ -15,8 +15,9 @@ from user_models import (
 )
 
 from perception.interface import Condition, ConditionKind, InvalidInputError, LabelKind
-from perception.labels import check_rotations
-from perception.learnable import ModelSpec
+from perception.learning.labels import check_rotations
+from perception.learning.learnable import ModelSpec
+from perception.learning.train import Batch, TrainConfig
 from perception.models.base import (
     LabelScaler,
     coordinate_grid,
@@ -27,7 +28,6 @@ from perception.models.base import (
     spatial_expectation,
 )
 from perception.models.kqv import KqvConfig, KqvModel
-from perception.train import Batch, TrainConfig
 
 
 def test_softmax2d_sums_to_one_per_head():

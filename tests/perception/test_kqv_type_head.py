@@ -8,11 +8,11 @@ import torch
 from user_models import BACKGROUND, TYPES, spec, trained_scaler, typed_dataset
 
 from perception.interface import InvalidInputError, LabelKind
-from perception.learnable import ModelSpec
-from perception.mirror import Mirror
+from perception.learning.learnable import ModelSpec
+from perception.learning.mirror import Mirror
+from perception.learning.train import Batch, TrainConfig
 from perception.models.base import images_to_tensor
 from perception.models.kqv import KqvConfig, KqvModel
-from perception.train import Batch, TrainConfig
 
 
 @pytest.fixture(scope="module")

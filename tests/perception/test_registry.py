@@ -2,12 +2,12 @@ import numpy as np
 import pytest
 from user_models import CentreModel, DepthReader, MyKqv, synthetic_dataset
 
-from perception.checkpoint import CheckpointError
-from perception.evaluate import predict_dataset
 from perception.interface import InvalidInputError
+from perception.learning.checkpoint import CheckpointError
+from perception.learning.evaluate import predict_dataset
+from perception.learning.train import TrainConfig
 from perception.models.kqv import KqvModel
 from perception.registry import MODELS, load_model, model_class
-from perception.train import TrainConfig
 
 
 def test_registered_name():

@@ -6,7 +6,7 @@ import torch
 from user_models import DOWN, rot_z
 
 from perception.interface import InvalidInputError
-from perception.labels import check_rotations
+from perception.learning.labels import check_rotations
 from perception.models.rotations import (
     CLOSING_REFERENCE,
     FLIP_Z,

@@ -8,8 +8,6 @@ import torch
 from user_models import TYPES, CentreModel, synthetic_dataset, typed_dataset
 
 from experiments.cli import main
-from perception.dataset_file import save_dataset
-from perception.evaluate import evaluate, label_mean_error_cm
 from perception.interface import (
     NO_CONDITION,
     Condition,
@@ -19,11 +17,19 @@ from perception.interface import (
     Prediction,
     Target,
 )
-from perception.labels import split_label
-from perception.learnable import ModelSpec
+from perception.learning.dataset_file import save_dataset
+from perception.learning.evaluate import evaluate, label_mean_error_cm
+from perception.learning.labels import split_label
+from perception.learning.learnable import ModelSpec
+from perception.learning.train import (
+    TrainConfig,
+    TrainReport,
+    batch_indices,
+    photometric_augment,
+    train,
+)
 from perception.models.base import LabelScaler
 from perception.models.kqv import KqvConfig, KqvModel
-from perception.train import TrainConfig, TrainReport, batch_indices, photometric_augment, train
 
 FAST = TrainConfig(steps=60, batch_size=8, learning_rate=3e-3, log_every=10, threads=1)
 
@@ -167,7 +173,7 @@ def _with_positions(dataset, positions_m, choices):
     """``dataset`` with these (N, 1, 3) positions and these condition indices."""
     import dataclasses
 
-    from perception.labels import label_vector
+    from perception.learning.labels import label_vector
 
     n = len(positions_m)
     kept = dataset.subset(range(n))

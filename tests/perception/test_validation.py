@@ -11,12 +11,12 @@ import pytest
 from gva_cli import gva
 from user_models import TYPES, synthetic_dataset
 
-from perception.data import Dataset
-from perception.dataset_file import save_dataset
 from perception.interface import InvalidInputError, Prediction, Target
-from perception.learnable import LearnableModel, ModelSpec
-from perception.train import TrainConfig, TrainReport
-from perception.validation import (
+from perception.learning.data import Dataset
+from perception.learning.dataset_file import save_dataset
+from perception.learning.learnable import LearnableModel, ModelSpec
+from perception.learning.train import TrainConfig, TrainReport
+from perception.learning.validation import (
     CheckConfig,
     attempt_seed,
     check_model,

@@ -31,7 +31,9 @@ import numpy as np
 from safetensors import SafetensorError, safe_open
 from safetensors.numpy import save_file
 
-from perception.data import (
+from perception.files import FileError, atomic_write, read_safetensors_header
+from perception.interface import ConditionKind, InvalidInputError, LabelKind
+from perception.learning.data import (
     FORMAT_VERSION,
     TENSORS,
     Dataset,
@@ -39,8 +41,6 @@ from perception.data import (
     canonical_json,
     expected_arrays,
 )
-from perception.files import FileError, atomic_write, read_safetensors_header
-from perception.interface import ConditionKind, InvalidInputError, LabelKind
 
 HEADER_KEY = "gva.dataset"  # the one safetensors metadata entry this module reads and writes
 _NAMES = ", ".join(TENSORS)

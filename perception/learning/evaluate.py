@@ -18,7 +18,6 @@ from typing import Any
 import numpy as np
 
 from perception.checks import check_inputs
-from perception.data import Dataset
 from perception.interface import (
     Condition,
     ConditionKind,
@@ -27,8 +26,9 @@ from perception.interface import (
     PerceptionModel,
     Prediction,
 )
-from perception.labels import split_label
-from perception.learnable import LearnableModel
+from perception.learning.data import Dataset
+from perception.learning.labels import split_label
+from perception.learning.learnable import LearnableModel
 from perception.models.rotations import symmetric_angle_rad
 
 

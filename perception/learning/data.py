@@ -2,7 +2,7 @@
 
 :class:`Dataset` holds images, conditions, labels and the scene record of each sample, checked
 against its :class:`DatasetMetadata` when built. Its file, written and read strictly, is
-:mod:`perception.dataset_file`.
+:mod:`perception.learning.dataset_file`.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from perception.interface import ConditionKind, InvalidInputError, LabelKind
-from perception.labels import LABEL_DIMS, check_rotations, split_label
+from perception.learning.labels import LABEL_DIMS, check_rotations, split_label
 
 FORMAT_VERSION = 1
 TENSORS = ("images", "conditions", "labels")  # a dataset's arrays, in its file's order

@@ -15,7 +15,7 @@ from sim.trials.records import run_folder_lock
 from sim.trials.run_loop import run_trials
 from sim.trials.trial_settings import TrialSettings
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def test_a_folder_in_use_is_refused_with_who_holds_it(tmp_path):

@@ -23,13 +23,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from perception.data import Dataset
 from perception.files import atomic_write
 from perception.interface import InvalidInputError
+from perception.learning.data import Dataset
 
 if TYPE_CHECKING:  # torch: not for the settings of a run (`gva --help`, run identities)
-    from perception.learnable import LearnableModel
-    from perception.train import TrainConfig, TrainReport
+    from perception.learning.learnable import LearnableModel
+    from perception.learning.train import TrainConfig, TrainReport
 
 CHECK_FILE = "check.json"
 """The held-out check's file in a checkpoint folder."""
@@ -185,7 +185,7 @@ def split_scenes(dataset: Dataset, holdout: float, seed: int) -> tuple[Dataset, 
 def check_model(model: LearnableModel, held_out: Dataset, limit_cm: float, attempt: int,
                 model_seed: int) -> HeldOutCheck:
     """Scores ``model`` on ``held_out`` against ``limit_cm``: whole, each condition, each head."""
-    from perception.evaluate import evaluate  # torch, once a model is trained
+    from perception.learning.evaluate import evaluate  # torch, once a model is trained
 
     result = evaluate(model, held_out)
     means = [("held-out mean", result.mean_position_error_cm)]

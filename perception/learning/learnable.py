@@ -6,9 +6,9 @@ dataclass. It predicts a whole batch at once (:meth:`LearnableModel.predict_batc
 checks one image and one condition and calls it.
 
 Adding a model: subclass :class:`LearnableModel`, implement ``fit``, ``save``, ``load`` and
-``predict_batch`` (:mod:`perception.train` is the training loop, :mod:`perception.checkpoint`
-the file format), then register the class in :mod:`perception.registry` or name it as
-``"package.module:Class"``.
+``predict_batch`` (:mod:`perception.learning.train` is the training loop,
+:mod:`perception.learning.checkpoint` the file format), then register the class in
+:mod:`perception.registry` or name it as ``"package.module:Class"``.
 """
 
 from __future__ import annotations
@@ -23,7 +23,6 @@ from typing import TYPE_CHECKING, Any, Self
 import numpy as np
 
 from perception.camera import PinholeCamera
-from perception.data import Dataset, DatasetMetadata
 from perception.interface import (
     NO_CONDITION,
     Condition,
@@ -34,10 +33,11 @@ from perception.interface import (
     Prediction,
     check_image,
 )
-from perception.labels import LABEL_DIMS
+from perception.learning.data import Dataset, DatasetMetadata
+from perception.learning.labels import LABEL_DIMS
 
 if TYPE_CHECKING:
-    from perception.train import TrainConfig, TrainReport
+    from perception.learning.train import TrainConfig, TrainReport
 
 
 @dataclass(frozen=True)

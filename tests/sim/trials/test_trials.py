@@ -10,7 +10,6 @@ from user_models import synthetic_dataset
 
 from experiments.cli import main
 from perception.catalog import OBJECT_TYPES, get_object_spec
-from perception.checkpoint import read_config
 from perception.grasps import grasp_pose
 from perception.interface import (
     NO_CONDITION,
@@ -20,11 +19,12 @@ from perception.interface import (
     Prediction,
     Target,
 )
-from perception.learnable import ModelSpec
+from perception.learning.checkpoint import read_config
+from perception.learning.learnable import ModelSpec
+from perception.learning.train import TrainConfig
+from perception.learning.validation import CHECK_FILE, HeldOutCheck
 from perception.models.base import LabelScaler
 from perception.models.kqv import KqvModel
-from perception.train import TrainConfig
-from perception.validation import CHECK_FILE, HeldOutCheck
 from sim.errors import InvalidInputError, RunFolderError, TargetNotFoundError
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE

@@ -3,9 +3,9 @@ import pytest
 from user_models import synthetic_dataset
 
 from experiments.cli import main
-from perception.dataset_file import DatasetError, load_dataset
 from perception.interface import LabelKind
-from perception.labels import split_label
+from perception.learning.dataset_file import DatasetError, load_dataset
+from perception.learning.labels import split_label
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import get_scene_spec

@@ -8,7 +8,8 @@ draws batches, augments them, steps the optimiser and reports. Read top to botto
 
 Augmentation is photometric only (brightness, contrast, colour gain, pixel noise): no label in
 the world frame fits a shifted or cropped image. Why, and the one flip a model may add
-(:mod:`perception.mirror`, in ``kqv``'s ``batch_loss``): ``docs/decisions/kqv.md#mirror-flip``.
+(:mod:`perception.learning.mirror`, in ``kqv``'s ``batch_loss``):
+``docs/decisions/kqv.md#mirror-flip``.
 """
 
 from __future__ import annotations
@@ -25,8 +26,8 @@ import torch
 from torch import Tensor, nn
 from tqdm import tqdm
 
-from perception.data import Dataset
 from perception.interface import InvalidInputError, PerceptionError
+from perception.learning.data import Dataset
 from perception.models.base import images_to_tensor
 
 BRIGHTNESS = (0.7, 1.3)  # image gain: the yumi tasks light scenes at 0.3-1.0 brightness

@@ -14,8 +14,8 @@ import torch
 from torch import Tensor
 
 from perception.interface import ConditionKind, InvalidInputError, LabelKind
-from perception.learnable import ModelSpec
-from perception.train import Batch
+from perception.learning.learnable import ModelSpec
+from perception.learning.train import Batch
 
 MIRROR_FLAG = "mirror_symmetric"
 """The dataset ``extra`` key under which a collector says its samples may be mirrored."""
