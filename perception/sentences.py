@@ -17,7 +17,6 @@ the same few sentences again and again.
 from __future__ import annotations
 
 import functools
-import hashlib
 import importlib.util
 import os
 import zipfile
@@ -26,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from perception.errors import InvalidInputError
-from perception.files import atomic_write
+from perception.files import atomic_write, file_sha256
 
 WEIGHTS_SHA256 = "53aa51172d142c89d9012cce15ae4d6cc0ca6895895114379cacb4fab128d9db"
 """SHA-256 of all-MiniLM-L6-v2's ``model.safetensors`` at revision 1110a243."""
@@ -38,15 +37,6 @@ ENV_FOLDER = "GVA_SENTENCE_MODEL"
 """Environment variable naming a local folder that holds the model (overrides the package)."""
 ENV_CACHE = "GVA_CACHE"
 """Where the packaged model is unpacked (default ``~/.cache/gva``)."""
-
-
-def weights_sha256(path: Path) -> str:
-    """The SHA-256 of a weights file."""
-    digest = hashlib.sha256()
-    with path.open("rb") as file:
-        for block in iter(lambda: file.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def model_folder(folder: str | Path | None = None) -> Path:
@@ -65,7 +55,7 @@ def model_folder(folder: str | Path | None = None) -> Path:
     if not weights.is_file():
         raise InvalidInputError("sentence model", str(path),
                                 "a folder with all-MiniLM-L6-v2's model.safetensors")
-    found = weights_sha256(weights)
+    found = file_sha256(weights)
     if found != WEIGHTS_SHA256:
         raise InvalidInputError(
             "sentence model weights", f"{weights} (SHA-256 {found})",

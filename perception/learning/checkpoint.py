@@ -31,7 +31,7 @@ import torch
 from safetensors import SafetensorError
 from safetensors.torch import load_file, save_file
 
-from perception.files import FileError, atomic_write, read_safetensors_header
+from perception.files import FileError, atomic_write, file_sha256, read_safetensors_header
 from perception.interface import InvalidInputError
 
 FORMAT_VERSION = 2
@@ -72,7 +72,7 @@ def save_checkpoint(folder: str | Path, model: str, config: Mapping[str, Any],
     weights = {name: tensor.detach().cpu().contiguous() for name, tensor in tensors.items()}
     atomic_write(folder / WEIGHTS_FILE, lambda path: save_file(weights, str(path)))
     record = {"format_version": FORMAT_VERSION, "model": model,
-              "weights_sha256": _sha256(folder / WEIGHTS_FILE), **config}
+              "weights_sha256": file_sha256(folder / WEIGHTS_FILE), **config}
     record["config_sha256"] = config_sha256(record)
     text = json.dumps(record, indent=2, sort_keys=True, allow_nan=False) + "\n"
     atomic_write(folder / CONFIG_FILE, lambda path: path.write_text(text, encoding="utf-8"))
@@ -133,7 +133,7 @@ def load_checkpoint(folder: str | Path, model: str | None = None) -> Checkpoint:
         raise CheckpointError(path, f"missing: a checkpoint folder holds {CONFIG_FILE} and "
                               f"{WEIGHTS_FILE}")
     read_safetensors_header(path, CheckpointError)
-    if _sha256(path) != config["weights_sha256"]:
+    if file_sha256(path) != config["weights_sha256"]:
         raise CheckpointError(path, f"its SHA-256 does not match {CONFIG_FILE}: the weights "
                               "were changed or damaged after saving")
     try:
@@ -157,11 +157,3 @@ def check_shapes(checkpoint: Checkpoint, expected: Mapping[str, torch.Tensor]) -
             raise CheckpointError(path, f"tensor {name} is {found[name].dtype} "
                                   f"{tuple(found[name].shape)}; the network {CONFIG_FILE} "
                                   f"describes needs {tensor.dtype} {tuple(tensor.shape)}")
-
-
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with path.open("rb") as file:
-        for block in iter(lambda: file.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()

@@ -9,7 +9,6 @@ PyBullet.
 
 from __future__ import annotations
 
-import hashlib
 import platform
 import subprocess
 import sys
@@ -17,6 +16,8 @@ import time
 from importlib import metadata
 from pathlib import Path
 from typing import Any
+
+from perception.files import file_sha256
 
 ROOT = Path(__file__).resolve().parents[2]
 """The project's folder (a git checkout when installed from one)."""
@@ -59,15 +60,6 @@ def git_revision() -> dict[str, Any] | None:
         return None
     changed = git("status", "--porcelain", "--untracked-files=no")
     return {"commit": commit, "modified": bool(changed)}
-
-
-def file_sha256(path: Path) -> str:
-    """The SHA-256 of a file's bytes."""
-    digest = hashlib.sha256()
-    with Path(path).open("rb") as file:
-        for block in iter(lambda: file.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def _version(name: str) -> str | None:

@@ -6,13 +6,13 @@ import torch
 from safetensors.torch import load_file, save_file
 from user_models import synthetic_dataset, typed_dataset
 
+from perception.files import file_sha256
 from perception.interface import LabelKind
 from perception.learning.checkpoint import (
     CONFIG_FILE,
     FORMAT_VERSION,
     WEIGHTS_FILE,
     CheckpointError,
-    _sha256,
     config_sha256,
     config_verified,
     load_checkpoint,
@@ -73,7 +73,7 @@ def test_config_json_describes_the_model(saved):
     assert set(config["label_scaler"]) == {"centre_m", "scale_m"}
     assert config["hyperparameters"]["channels"] == [16, 32]
     assert config["training"]["steps"] == 3
-    assert config["weights_sha256"] == _sha256(folder / WEIGHTS_FILE)
+    assert config["weights_sha256"] == file_sha256(folder / WEIGHTS_FILE)
 
 
 @pytest.mark.parametrize("name", [WEIGHTS_FILE, CONFIG_FILE])
@@ -148,7 +148,7 @@ def test_missing_tensor(saved, tmp_path):
     tensors = load_file(str(folder / WEIGHTS_FILE))
     tensors.pop("head.0.bias")
     save_file(tensors, str(folder / WEIGHTS_FILE))  # a consistent file, with its checksum
-    edit_config(folder, lambda c: c.update(weights_sha256=_sha256(folder / WEIGHTS_FILE)))
+    edit_config(folder, lambda c: c.update(weights_sha256=file_sha256(folder / WEIGHTS_FILE)))
     with pytest.raises(CheckpointError, match=r"lacks tensors head.0.bias that the network"):
         KqvModel.load(folder)
 

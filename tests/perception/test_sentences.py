@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from perception.errors import InvalidInputError
+from perception.files import file_sha256
 from perception.sentences import (
     EMBEDDING_SIZE,
     WEIGHTS_SHA256,
     SentenceEncoder,
     model_folder,
-    weights_sha256,
 )
 
 
@@ -33,7 +33,7 @@ def encoder(tmp_path_factory) -> SentenceEncoder:
 
 def test_the_packaged_weights_are_the_pinned_revision(encoder, tmp_path, monkeypatch):
     monkeypatch.setenv("GVA_CACHE", str(tmp_path))  # unpacked again, here
-    assert weights_sha256(model_folder() / "model.safetensors") == WEIGHTS_SHA256
+    assert file_sha256(model_folder() / "model.safetensors") == WEIGHTS_SHA256
     assert (tmp_path / f"all-MiniLM-L6-v2-{WEIGHTS_SHA256[:12]}" / "tokenizer.json").is_file()
 
 
@@ -41,7 +41,7 @@ def test_a_changed_weights_file_is_refused_naming_both_hashes(tmp_path):
     (tmp_path / "model.safetensors").write_bytes(b"not the model")
     with pytest.raises(InvalidInputError, match=WEIGHTS_SHA256) as refused:
         SentenceEncoder(tmp_path)
-    assert weights_sha256(tmp_path / "model.safetensors") in str(refused.value)
+    assert file_sha256(tmp_path / "model.safetensors") in str(refused.value)
     with pytest.raises(InvalidInputError, match=r"model\.safetensors"):
         SentenceEncoder(tmp_path / "missing")
 
