@@ -17,7 +17,7 @@ def open_pool(executor: Executor, workers: int, out: Path) -> Pool:
     Args:
         executor: Where the jobs run.
         workers: Processes of the local pool, or CPUs of a local Ray started for the run.
-        out: The run folder; under Ray every node must see it (checked on enter).
+        out: The run folder; under Ray every node must see it (checked at the first job).
 
     """
     if executor.kind is ExecutorKind.LOCAL:

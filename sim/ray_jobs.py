@@ -59,7 +59,7 @@ class RayPool:
     Args:
         workers: CPUs of a local Ray started for the run (a cluster has its own).
         address: A cluster to join; None: ``$RAY_ADDRESS``, else a local Ray.
-        shared_folder: The run folder; every node must see it (checked on enter).
+        shared_folder: The run folder; every node must see it (checked at the first job).
 
     """
 
@@ -68,7 +68,7 @@ class RayPool:
         self.address = address or os.environ.get(ENV_ADDRESS) or None
         self.shared_folder = Path(shared_folder)
         self._started = self._connected = False
-        self._pending: dict[Any, Any] = {}
+        self._pending: set[Any] = set()  # this run's unfinished tasks
 
     def __enter__(self) -> RayPool:
         return self
@@ -112,13 +112,13 @@ class RayPool:
             ref = task.options(num_cpus=need.cpus, num_gpus=need.gpus, max_retries=JOB_RETRIES,
                                retry_exceptions=False, name=getattr(job, "name", None)
                                ).remote(job)
-            self._pending[ref] = job
+            self._pending.add(ref)
         while self._pending:
             # A bounded wait returns to Python each time, where a pending Ctrl-C is raised.
             ready, _ = ray.wait(list(self._pending), num_returns=1, timeout=WAIT_S)
             for ref in ready:
                 result = ray.get(ref)
-                del self._pending[ref]
+                self._pending.remove(ref)
                 on_done(result)
 
 
