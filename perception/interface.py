@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import abc
 import enum
+import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import ClassVar
@@ -34,11 +35,12 @@ import numpy as np
 
 from perception.camera import PinholeCamera, RgbdFrame
 from perception.errors import InvalidInputError, InvalidPredictionError, PerceptionError
+from perception.sentences import EMBEDDING_SIZE, embed
 
-__all__ = ["NO_CONDITION", "Condition", "ConditionKind", "InvalidInputError",
+__all__ = ["NO_CONDITION", "PICTURE_PX", "Condition", "ConditionKind", "InvalidInputError",
            "InvalidPredictionError", "LabelKind", "ModelInput", "PerceptionError",
            "PerceptionModel", "PinholeCamera", "Prediction", "RgbdFrame", "Target",
-           "check_image"]
+           "check_image", "condition_size"]
 
 
 class LabelKind(enum.Enum):
@@ -49,39 +51,109 @@ class LabelKind(enum.Enum):
 
 
 class ConditionKind(enum.Enum):
-    """What a top-down condition names (paper Table I)."""
+    """What a top-down condition is: a one-hot choice (paper Table I), a sentence or a picture."""
 
     NONE = "none"  # baseline tasks: no condition, Base Queries only
-    OBJECT_TYPE = "object_type"  # selected type: which object to attend to
-    SIDE = "side"  # selected position: the object on the left or on the right
+    OBJECT_TYPE = "object_type"  # selected type: which object to attend to, one-hot
+    SIDE = "side"  # selected position: the object on the left or on the right, one-hot
+    TEXT = "text"  # a sentence that names the target ("grab the thing you spray with")
+    IMAGE = "image"  # a small picture of the wanted object, taken in another scene
+
+    @property
+    def one_hot(self) -> bool:
+        """Whether the condition is a choice among named values (its vector is one-hot)."""
+        return self in (ConditionKind.OBJECT_TYPE, ConditionKind.SIDE)
+
+
+PICTURE_PX = 32
+"""An image condition is a (32, 32, 3) uint8 picture: big enough to tell the objects apart by
+colour and shape, small enough to keep as a dataset row (3,072 numbers)."""
+MAX_SENTENCE_CHARS = 500
+"""A text condition is a sentence or two; the encoder reads at most 256 word pieces."""
+
+
+def condition_size(kind: ConditionKind, choices: Sequence[str]) -> int:
+    """C, the length of the vector a model reads for a condition of ``kind`` over ``choices``."""
+    if kind.one_hot:
+        return len(choices)
+    if kind is ConditionKind.TEXT:
+        return EMBEDDING_SIZE
+    if kind is ConditionKind.IMAGE:
+        return PICTURE_PX * PICTURE_PX * 3
+    return 0
 
 
 @dataclass(frozen=True)
 class Condition:
-    """A top-down condition, as a name and as the one-hot vector a learned Query reads.
+    """A top-down condition: what the Query is asked for, and the vector a learned Query reads.
 
     Args:
-        kind: What the condition names.
-        value: The named choice (``"mug"``, ``"left"``); None for :attr:`ConditionKind.NONE`.
-        choices: Every value this kind allows, in one-hot order.
+        kind: What the condition is.
+        value: The named choice (``"mug"``, ``"left"``) for a one-hot kind; the sentence for
+            :attr:`ConditionKind.TEXT`; for :attr:`ConditionKind.IMAGE`, set to
+            ``"picture <sha256[:12]>"`` of the picture (so equal pictures compare equal);
+            None for :attr:`ConditionKind.NONE`.
+        choices: Every value a one-hot kind allows, in one-hot order; () for the other kinds (a
+            sentence or a picture is open: it is not a choice among names).
+        picture: The (:data:`PICTURE_PX`, :data:`PICTURE_PX`, 3) uint8 RGB picture of an image
+            condition; None otherwise.
 
     """
 
     kind: ConditionKind = ConditionKind.NONE
     value: str | None = None
     choices: tuple[str, ...] = ()
+    picture: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.kind, ConditionKind):
+            allowed = ", ".join(repr(kind.value) for kind in ConditionKind)
+            raise InvalidInputError("condition.kind", self.kind, f"a ConditionKind: {allowed}")
+        if not self.kind.one_hot and self.choices:
+            raise InvalidInputError("condition.choices", self.choices,
+                                    f"() when kind is {self.kind.value!r}")
+        if self.kind is not ConditionKind.IMAGE and self.picture is not None:
+            raise InvalidInputError("condition.picture", "a picture",
+                                    "None unless kind is 'image'")
         if self.kind is ConditionKind.NONE:
-            if self.value is not None or self.choices:
+            if self.value is not None:
                 raise InvalidInputError("condition.value", self.value, "None when kind is 'none'")
+        elif self.kind is ConditionKind.TEXT:
+            if not isinstance(self.value, str) or not self.value.strip() or \
+                    len(self.value) > MAX_SENTENCE_CHARS:
+                raise InvalidInputError("condition.value", self.value,
+                                        f"a sentence of 1-{MAX_SENTENCE_CHARS} characters")
+        elif self.kind is ConditionKind.IMAGE:
+            picture = self.picture
+            shape = (PICTURE_PX, PICTURE_PX, 3)
+            if not isinstance(picture, np.ndarray) or picture.dtype != np.uint8 or \
+                    picture.shape != shape:
+                found = f"{getattr(picture, 'dtype', type(picture).__name__)} " \
+                    f"{getattr(picture, 'shape', '')}"
+                raise InvalidInputError("condition.picture", found, f"uint8 of shape {shape}")
+            picture = picture.copy()
+            picture.flags.writeable = False
+            object.__setattr__(self, "picture", picture)
+            object.__setattr__(self, "value",
+                               f"picture {hashlib.sha256(picture.tobytes()).hexdigest()[:12]}")
         elif self.value not in self.choices:
             raise InvalidInputError(
                 "condition.value", self.value, f"one of {', '.join(self.choices) or '(no choices)'}"
             )
 
-    def one_hot(self) -> np.ndarray:
-        """The condition as a float32 one-hot vector of length ``len(choices)`` (empty for none)."""
+    def vector(self) -> np.ndarray:
+        """The float32 vector a learned Query reads (:func:`condition_size` long).
+
+        One-hot kinds: a one-hot vector in ``choices`` order; text: the sentence's embedding
+        (:mod:`perception.sentences`, loaded at the first sentence); image: the picture's
+        pixels in [0, 1], row by row; none: an empty vector.
+        """
+        if self.kind is ConditionKind.TEXT:
+            assert self.value is not None  # checked when built
+            return embed(self.value).copy()  # the cached one is shared and read-only
+        if self.kind is ConditionKind.IMAGE:
+            assert self.picture is not None
+            return (self.picture.reshape(-1) / np.float32(255.0)).astype(np.float32)
         vector = np.zeros(len(self.choices), dtype=np.float32)
         if self.value is not None:
             vector[self.choices.index(self.value)] = 1.0

@@ -118,3 +118,14 @@ class SentenceEncoder:
         vector = vector.astype(np.float32)
         vector.flags.writeable = False  # shared by the cache: nobody may change it
         return vector
+
+
+@functools.cache
+def shared_encoder() -> SentenceEncoder:
+    """The process's one encoder (loaded at the first sentence, about 9 s; then kept)."""
+    return SentenceEncoder()
+
+
+def embed(sentence: str) -> np.ndarray:
+    """``sentence``'s embedding by the process's shared encoder: what a text condition reads."""
+    return shared_encoder().encode(sentence)

@@ -38,6 +38,9 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         default=TrialSettings.obstacles.value,
                         help="what picks are planned around: the head camera's depth image "
                         "(default), or the simulator's true shapes, to debug the planner only")
+    parser.add_argument("--phrases", type=Path, metavar="FILE",
+                        help="a text task's test sentences from FILE: lines of "
+                        "phrase<TAB>target, target an object type or a side")
     add_executor_options(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(run=run)
@@ -47,7 +50,8 @@ def run(args: argparse.Namespace) -> int:
     """Runs (or resumes) the trials and prints their summary; the exit status."""
     settings = TrialSettings(model=args.model, task=args.task, n=args.n, seed=args.seed,
                              model_class=args.model_class,
-                             obstacles=ObstacleSource(args.obstacles))
+                             obstacles=ObstacleSource(args.obstacles),
+                             phrases=None if args.phrases is None else str(args.phrases))
     check = held_out_check(settings)
     if check is not None and not check.passed:
         print(f"WARNING: checkpoint {args.model} failed its training's held-out check "

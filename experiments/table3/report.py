@@ -29,7 +29,15 @@ from experiments.table3.trial_sets import (
     model_order,
     read_trial_sets,
 )
-from experiments.tables import MODEL_TITLES, TASK_TITLES, TASKS, duration, write_json, write_text
+from experiments.tables import (
+    ALL_TASKS,
+    MODEL_TITLES,
+    TASK_TITLES,
+    TASKS,
+    duration,
+    write_json,
+    write_text,
+)
 from sim.tasks.task_spec import TargetSelection
 from sim.tasks.task_toml import load_task
 from sim.trials.compare import Comparison, compare_records
@@ -168,8 +176,20 @@ def _interval(result: TrialSetResult | None) -> str:
     return f"{100 * low:.0f}-{100 * high:.0f} %{error}"
 
 
-_HEADER = "| | " + " | ".join(TASK_TITLES[t] for t in TASKS) + " |"
-_RULE = "|---" + "|---:" * len(TASKS) + "|"
+def _columns(sets: Sequence[TrialSetResult]) -> tuple[str, ...]:
+    """The tables' columns: the paper's tasks, then any task beyond it that was run."""
+    run = {s.task for s in sets}
+    return TASKS + tuple(t for t in ALL_TASKS if t not in TASKS and t in run)
+
+
+def _header(tasks: Sequence[str]) -> list[str]:
+    return ["| | " + " | ".join(TASK_TITLES[t] for t in tasks) + " |",
+            "|---" + "|---:" * len(tasks) + "|"]
+
+
+def _paper(task: str) -> str:
+    """The paper's count, or a dash for a task it did not run."""
+    return f"{PAPER_TABLE3[task]}/{PAPER_TRIALS}" if task in PAPER_TABLE3 else "—"
 
 
 def _rows(sets: Sequence[TrialSetResult]) -> list[tuple[str, Variant]]:
@@ -181,9 +201,10 @@ def _rows(sets: Sequence[TrialSetResult]) -> list[tuple[str, Variant]]:
 def successes_table(sets: Sequence[TrialSetResult]) -> str:
     """The Table III layout: the paper's row, then a row per model and variant, ``k/30``."""
     by_key = {(s.model, s.variant, s.task): s for s in sets}
-    lines = [_HEADER, _RULE, "| Paper (real YuMi, 20 demonstrations) | "
-             + " | ".join(f"{PAPER_TABLE3[t]}/{PAPER_TRIALS}" for t in TASKS) + " |"]
-    lines += [f"| {row_title(m, v)} | " + " | ".join(_cell(by_key.get((m, v, t))) for t in TASKS)
+    tasks = _columns(sets)
+    lines = [*_header(tasks), "| Paper (real YuMi, 20 demonstrations) | "
+             + " | ".join(_paper(t) for t in tasks) + " |"]
+    lines += [f"| {row_title(m, v)} | " + " | ".join(_cell(by_key.get((m, v, t))) for t in tasks)
               + " |" for m, v in _rows(sets)]
     return "\n".join(lines)
 
@@ -207,13 +228,13 @@ def table3_markdown(sets: Sequence[TrialSetResult], made_by: str,
         "present.", "",
         successes_table(sets), "",
         "95 % Wilson interval of the success rate (every seed's trials pooled); median grasp "
-        "position error of the first pick [cm]:", "", _HEADER, _RULE]
+        "position error of the first pick [cm]:", "", *_header(_columns(sets))]
     lines += [f"| {row_title(m, v)} | " + " | ".join(_interval(by_key.get((m, v, t)))
-                                                    for t in TASKS) + " |"
+                                                    for t in _columns(sets)) + " |"
               for m, v in _rows(sets)]
     lines += ["", *comparisons_markdown(baseline_comparisons(sets)), *checks_markdown(checks),
               "## Failure reasons", ""]
-    for task in TASKS:
+    for task in ALL_TASKS:
         present = [s for s in sets if s.task == task]
         if not present:
             continue
@@ -281,7 +302,7 @@ def comparisons_markdown(comparisons: Sequence[BaselineComparison]) -> list[str]
              "score interval for paired proportions), and the two-sided exact McNemar test's "
              f"p. A negative difference with p < {SIGNIFICANCE:g}: the baseline is significantly "
              "worse (`gva compare`, docs/trials.md). `*`: only the trials both sets have are "
-             "paired.", "", _HEADER, _RULE]
+             "paired.", "", *_header(TASKS)]
     lines += [f"| {model_title(model)}, seed {seed} | "
               + " | ".join(by_key[model, seed, t].cell() if (model, seed, t) in by_key else "—"
                            for t in TASKS) + " |" for model, seed in rows]

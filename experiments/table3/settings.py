@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from experiments.tables import (
+    ALL_TASKS,
     TASKS,
     check_choices,
     check_counts,
@@ -115,7 +116,7 @@ class ReproduceRealSettings:
 
     Args:
         models: Models to train, names :func:`~perception.registry.new_model` takes.
-        tasks: Tasks, from :data:`~experiments.tables.TASKS`.
+        tasks: Tasks, from :data:`~experiments.tables.ALL_TASKS` (default: the paper's).
         n: Trials per model and task (the paper's 30).
         demos: Demonstrations per task (the paper's 20).
         steps: Optimiser steps of training.
@@ -152,7 +153,7 @@ class ReproduceRealSettings:
     def __post_init__(self) -> None:
         custom = tuple(m for m in self.models if ":" in m)  # package.module:Class
         check_choices("models", self.models, (*allowed_models(), *custom))
-        check_choices("tasks", self.tasks, TASKS)
+        check_choices("tasks", self.tasks, ALL_TASKS)
         check_counts(self, {"n": 1, "demos": 1, "steps": 1, "seed": 0, "seeds": 1,
                             "train_threads": 1}, self.workers)
 
@@ -166,8 +167,8 @@ class ReproduceRealSettings:
         return replace(self, seed=seed, seeds=1)
 
     def units(self) -> list[Unit]:
-        """Every unit: models in the given order, tasks in the paper's."""
-        return [Unit(m, t) for m in self.models for t in TASKS if t in self.tasks]
+        """Every unit: models in the given order, tasks in the paper's, then those beyond it."""
+        return [Unit(m, t) for m in self.models for t in ALL_TASKS if t in self.tasks]
 
     def trial_sets(self) -> list[TrialSet]:
         """Every set of trials: each unit's, and the robustness variants of kqv's units."""

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from experiments.table3.settings import Variant, seed_folder
-from experiments.tables import MODEL_TITLES, TASKS
+from experiments.tables import ALL_TASKS, MODEL_TITLES
 from sim.trials.records import TrialRecord, TrialSummary
 
 
@@ -106,7 +106,7 @@ def read_trial_sets(out: Path, seeds: Sequence[int], n: int) -> list[TrialSetRes
     for seed in seeds:
         for log in sorted((seed_folder(out, seed) / "trials").glob("*/*/trials.jsonl")):
             task, variant = split_task(log.parent.name)
-            if task not in TASKS:
+            if task not in ALL_TASKS:
                 continue
             records = sorted((TrialRecord.from_json(line) for line in
                               log.read_text().splitlines() if line.strip()),
@@ -116,7 +116,7 @@ def read_trial_sets(out: Path, seeds: Sequence[int], n: int) -> list[TrialSetRes
     found = [TrialSetResult(model, task, variant, tuple(per_seed), n)
              for (model, task, variant), per_seed in rows.items()]
     found.sort(key=lambda s: (model_order(s.model), list(Variant).index(s.variant),
-                              TASKS.index(s.task)))
+                              ALL_TASKS.index(s.task)))
     return found
 
 

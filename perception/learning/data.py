@@ -15,7 +15,14 @@ from typing import Any
 
 import numpy as np
 
-from perception.interface import ConditionKind, InvalidInputError, LabelKind
+from perception.interface import (
+    PICTURE_PX,
+    Condition,
+    ConditionKind,
+    InvalidInputError,
+    LabelKind,
+    condition_size,
+)
 from perception.learning.labels import LABEL_DIMS, check_rotations, split_label
 
 FORMAT_VERSION = 1
@@ -35,8 +42,10 @@ class DatasetMetadata:
         image_width_px: W, image columns.
         label_kind: What each label holds; it fixes :attr:`label_dim`.
         targets: q, targets per sample.
-        condition_kind: What the condition names.
-        condition_choices: The one-hot order; () exactly when ``condition_kind`` is none.
+        condition_kind: What the condition is (a one-hot choice, a sentence, a picture).
+        condition_choices: What the conditions may name: the one-hot order for a one-hot kind;
+            for a sentence or a picture, the targets they name (object types or sides, which
+            the scene records hold per sample); () exactly when ``condition_kind`` is none.
         camera: JSON-able camera description (placement, field of view, ...).
         extra: Anything else JSON-able worth keeping (e.g. how many demonstrations were redrawn).
         format_version: The file format; this gva reads and writes :data:`FORMAT_VERSION` only.
@@ -103,7 +112,9 @@ class Dataset:
     Args:
         metadata: What the samples are; every shape below follows from it.
         images: (N, H, W, 3) uint8 RGB, row 0 at the top.
-        conditions: (N, C) float32 one-hot rows in ``metadata.condition_choices`` order.
+        conditions: (N, C) float32 rows: what a model reads of each sample's condition
+            (:meth:`perception.interface.Condition.vector`): one-hot in
+            ``metadata.condition_choices`` order, a sentence's embedding, or a picture's pixels.
         labels: (N, q, D) float32 in the :func:`label_vector` layout.
         scenes: One JSON-able record per sample (object types and poses, targets, condition),
             kept in JSON form like ``metadata.camera``.
@@ -124,11 +135,7 @@ class Dataset:
             found = f"{getattr(array, 'dtype', type(array).__name__)} {np.shape(array)}"
             if not isinstance(array, np.ndarray) or array.dtype != dtype or array.shape != shape:
                 raise InvalidInputError(name, found, f"{dtype} {layout} = {shape} from metadata")
-        one_hot = (self.conditions.sum(axis=1) == 1) & np.isin(self.conditions, (0, 1)).all(axis=1)
-        if self.conditions.shape[1] and not one_hot.all():
-            row = int(np.flatnonzero(~one_hot)[0])
-            raise InvalidInputError(f"conditions[{row}]", self.conditions[row].tolist(),
-                                    "a one-hot row: one 1.0, the rest 0.0")
+        _check_conditions(self.metadata.condition_kind, self.conditions)
         if not np.all(np.isfinite(self.labels)):
             raise InvalidInputError("labels", "non-finite values", "finite values")
         rotation = split_label(self.labels).rotation
@@ -187,6 +194,39 @@ class Dataset:
         meta = replace(part.metadata, extra=part.metadata.extra | {"scenes": count})
         return Dataset(meta, part.images, part.conditions, part.labels, part.scenes)
 
+    def condition_names(self) -> tuple[str | None, ...]:
+        """(N,) what each sample's condition names, one of ``condition_choices``; None: none.
+
+        A one-hot row names its choice; a sentence or a picture names the value its scene
+        record keeps under ``"condition"`` (what the collector drew it for).
+        """
+        meta = self.metadata
+        if meta.condition_kind is ConditionKind.NONE:
+            return (None,) * len(self)
+        if meta.condition_kind.one_hot:
+            return tuple(meta.condition_choices[int(i)] for i in self.conditions.argmax(axis=1))
+        names = tuple(record.get("condition", {}).get("value") for record in self.scenes)
+        wrong = [n for n, name in enumerate(names) if name not in meta.condition_choices]
+        if wrong:
+            raise InvalidInputError(f"scenes[{wrong[0]}].condition.value", names[wrong[0]],
+                                    f"one of {', '.join(meta.condition_choices)}")
+        return names
+
+    def condition(self, index: int) -> Condition:
+        """Sample ``index``'s condition as a model is given it (its vector is the row)."""
+        meta = self.metadata
+        kind = meta.condition_kind
+        if kind is ConditionKind.NONE:
+            return Condition()
+        if kind.one_hot:
+            value = meta.condition_choices[int(np.argmax(self.conditions[index]))]
+            return Condition(kind, value, meta.condition_choices)
+        if kind is ConditionKind.IMAGE:
+            picture = np.rint(self.conditions[index] * 255.0).astype(np.uint8)
+            return Condition(kind, picture=picture.reshape(PICTURE_PX, PICTURE_PX, 3))
+        query = self.scenes[index].get("query", {})
+        return Condition(kind, query.get("value"))
+
     def target_types(self) -> tuple[tuple[str | None, ...], ...]:
         """(N, q) each target's object type as its scene record names it; None where it does not.
 
@@ -226,6 +266,26 @@ class Dataset:
         return np.where(self.target_present(), indices, -1)
 
 
+def _check_conditions(kind: ConditionKind, conditions: np.ndarray) -> None:
+    """An error naming the first row that is not a condition vector of ``kind``."""
+    if kind.one_hot:
+        good = (conditions.sum(axis=1) == 1) & np.isin(conditions, (0, 1)).all(axis=1)
+        allowed = "a one-hot row: one 1.0, the rest 0.0"
+    elif kind is ConditionKind.TEXT:
+        good = np.abs(np.linalg.norm(conditions, axis=1) - 1.0) < 1e-3
+        allowed = "a sentence embedding of unit length"
+    elif kind is ConditionKind.IMAGE:
+        good = ((conditions >= 0) & (conditions <= 1)).all(axis=1)
+        allowed = "a picture's pixels in [0, 1]"
+    else:
+        return
+    if not good.all():
+        row = int(np.flatnonzero(~good)[0])
+        shown = conditions[row].tolist()
+        raise InvalidInputError(f"conditions[{row}]", shown if len(shown) <= 6 else
+                                f"{shown[:6]}...", allowed)
+
+
 def _target_type(record: Mapping[str, Any], k: int) -> str | None:
     """The type of target ``k`` in a scene record; None if the record does not say."""
     try:
@@ -240,7 +300,8 @@ def expected_arrays(metadata: DatasetMetadata) -> dict[str, tuple[np.dtype, tupl
     n, h, w, q = metadata.size, metadata.image_height_px, metadata.image_width_px, metadata.targets
     return {
         "images": (np.dtype(np.uint8), (n, h, w, 3), "(N, H, W, 3)"),
-        "conditions": (np.dtype(np.float32), (n, len(metadata.condition_choices)), "(N, C)"),
+        "conditions": (np.dtype(np.float32), (n, condition_size(
+            metadata.condition_kind, metadata.condition_choices)), "(N, C)"),
         "labels": (np.dtype(np.float32), (n, q, metadata.label_dim), "(N, q, D)"),
     }
 

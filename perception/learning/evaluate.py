@@ -19,7 +19,6 @@ import numpy as np
 
 from perception.checks import check_inputs
 from perception.interface import (
-    Condition,
     ConditionKind,
     InvalidInputError,
     ModelInput,
@@ -115,17 +114,8 @@ def predict_dataset(model: PerceptionModel, dataset: Dataset, batch_size: int = 
                 for prediction in model.predict_batch(
                     dataset.images[start:start + batch_size],
                     dataset.conditions[start:start + batch_size])]
-    return [model.predict(image, condition_of(dataset, index))
+    return [model.predict(image, dataset.condition(index))
             for index, image in enumerate(dataset.images)]
-
-
-def condition_of(dataset: Dataset, index: int) -> Condition:
-    """The :class:`Condition` whose one-hot vector is sample ``index``'s condition row."""
-    meta = dataset.metadata
-    if meta.condition_kind is ConditionKind.NONE:
-        return Condition()
-    value = meta.condition_choices[int(np.argmax(dataset.conditions[index]))]
-    return Condition(meta.condition_kind, value, meta.condition_choices)
 
 
 def evaluate(model: PerceptionModel, dataset: Dataset, batch_size: int = 32) -> EvaluationResult:
@@ -200,10 +190,10 @@ def per_condition(errors: np.ndarray, present: np.ndarray, dataset: Dataset
     meta = dataset.metadata
     if meta.condition_kind is ConditionKind.NONE:
         return None
-    chosen = dataset.conditions.argmax(axis=1)  # (N,)
-    return {value: float(errors[(chosen == c)[:, None] & present].mean())
-            for c, value in enumerate(meta.condition_choices)
-            if ((chosen == c)[:, None] & present).any()}
+    chosen = np.array(dataset.condition_names())  # (N,)
+    return {value: float(errors[(chosen == value)[:, None] & present].mean())
+            for value in meta.condition_choices
+            if ((chosen == value)[:, None] & present).any()}
 
 
 def type_accuracy(predictions: list[Prediction], dataset: Dataset) -> float | None:
@@ -246,9 +236,9 @@ def label_mean_error_cm(train: Dataset, test: Dataset) -> float:
     if train.metadata.condition_kind is ConditionKind.NONE:
         predicted_m = np.broadcast_to(train_m.mean(axis=0), test_m.shape)
     else:
-        train_choice, test_choice = train.conditions.argmax(axis=1), test.conditions.argmax(axis=1)
+        train_choice = np.array(train.condition_names())
         overall_m = train_m.mean(axis=0)
         predicted_m = np.stack([
             train_m[train_choice == c].mean(axis=0) if np.any(train_choice == c) else overall_m
-            for c in test_choice])
+            for c in test.condition_names()])
     return float(np.linalg.norm(predicted_m - test_m, axis=-1).mean() * 100)

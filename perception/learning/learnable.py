@@ -32,6 +32,7 @@ from perception.interface import (
     PerceptionModel,
     Prediction,
     check_image,
+    condition_size,
 )
 from perception.learning.data import Dataset, DatasetMetadata
 from perception.learning.labels import LABEL_DIMS
@@ -49,8 +50,9 @@ class ModelSpec:
         task: The task name.
         label_kind: What the model predicts per target.
         targets: q, targets (attention heads) per image.
-        condition_kind: What the condition names.
-        condition_choices: The one-hot order of the condition; () for none.
+        condition_kind: What the condition is (a one-hot choice, a sentence, a picture).
+        condition_choices: What the condition may name: the one-hot order of a one-hot kind,
+            the targets a sentence or a picture names; () for none.
         image_height_px: H of the images the model reads.
         image_width_px: W of the images the model reads.
         camera: The geometry of the camera the images come from, where the dataset records it
@@ -98,8 +100,8 @@ class ModelSpec:
 
     @property
     def condition_size(self) -> int:
-        """C, the length of the one-hot condition (0 without one)."""
-        return len(self.condition_choices)
+        """C, the length of the condition vector a model reads (0 without one)."""
+        return condition_size(self.condition_kind, self.condition_choices)
 
     @classmethod
     def from_metadata(cls, metadata: DatasetMetadata) -> ModelSpec:
@@ -158,7 +160,7 @@ class LearnableModel(PerceptionModel):
 
     @abc.abstractmethod
     def predict_batch(self, images: np.ndarray, conditions: np.ndarray) -> list[Prediction]:
-        """Predictions for uint8 images (B, H, W, 3) and one-hot conditions (B, C), in order."""
+        """Predictions for uint8 images (B, H, W, 3) and condition vectors (B, C), in order."""
 
     @abc.abstractmethod
     def fit(self, dataset: Dataset, config: TrainConfig, progress: bool = True) -> TrainReport:
@@ -177,12 +179,12 @@ class LearnableModel(PerceptionModel):
         """Predicts the targets in one uint8 (H, W, 3) image under ``condition``."""
         spec = self.spec
         check_image(image, (spec.image_height_px, spec.image_width_px, 3))
-        if condition.kind is not spec.condition_kind or condition.choices != \
-                spec.condition_choices:
-            choices = ", ".join(spec.condition_choices) or "none"
+        wanted = spec.condition_choices if spec.condition_kind.one_hot else ()
+        if condition.kind is not spec.condition_kind or condition.choices != wanted:
+            over = f" over ({', '.join(wanted)})" if wanted else ""
             raise InvalidInputError("condition", f"{condition.kind.value} {condition.choices}",
-                                    f"a {spec.condition_kind.value} condition over ({choices})")
-        return self.predict_batch(image[None], condition.one_hot()[None])[0]
+                                    f"a {spec.condition_kind.value} condition{over}")
+        return self.predict_batch(image[None], condition.vector()[None])[0]
 
     def check_batch(self, images: np.ndarray, conditions: np.ndarray) -> None:
         """An error unless ``images`` (B, H, W, 3) uint8 and ``conditions`` (B, C) fit the spec."""

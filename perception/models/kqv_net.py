@@ -72,8 +72,10 @@ class KqvNet(nn.Module):
         )
         mode = c.query_mode
         if mode == "auto":
+            # A sentence or a picture may name a type: it refines the shared Base Query too.
             mode = {ConditionKind.NONE: "base", ConditionKind.OBJECT_TYPE: "conditioned+base",
-                    ConditionKind.SIDE: "conditioned"}[spec.condition_kind]
+                    ConditionKind.SIDE: "conditioned", ConditionKind.TEXT: "conditioned+base",
+                    ConditionKind.IMAGE: "conditioned+base"}[spec.condition_kind]
         if "conditioned" in mode and not spec.condition_size:
             raise InvalidInputError("query_mode", c.query_mode, "'base' or 'auto' for a task "
                                     "without a condition")
@@ -126,7 +128,7 @@ class KqvNet(nn.Module):
                                                                  len(types)))) if wanted else None
 
     def queries(self, conditions: Tensor) -> Tensor:
-        """The Query vectors for one-hot conditions (B, C): (B, q, Ck + 2)."""
+        """The Query vectors for condition vectors (B, C): (B, q, Ck + 2)."""
         batch = conditions.shape[0]
         parts = []
         if self.base_queries is not None:

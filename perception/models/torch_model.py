@@ -177,7 +177,7 @@ class TorchModel(LearnableModel):
 
     @torch.no_grad()
     def predict_batch(self, images: np.ndarray, conditions: np.ndarray) -> list[Prediction]:
-        """Predictions for uint8 images (B, H, W, 3) and one-hot conditions (B, C), in order."""
+        """Predictions for uint8 images (B, H, W, 3) and condition vectors (B, C), in order."""
         self.check_batch(images, conditions)
         out = self.network(images_to_tensor(images), torch.as_tensor(conditions).float())
         return self.to_predictions(out, conditions)

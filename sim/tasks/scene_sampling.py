@@ -24,6 +24,7 @@ import numpy as np
 
 from perception.interface import NO_CONDITION, Condition, ConditionKind
 from sim.errors import InvalidInputError
+from sim.tasks.queries import query_for
 from sim.tasks.scene_specs import SceneSpec
 from sim.tasks.task_spec import MAX_OBJECTS, SIDES, ObjectChoice, TargetSelection, TaskSpec
 
@@ -63,7 +64,9 @@ class Scene:
         seed, stream, index: Where in the seed streams this scene was drawn.
         objects: The presented objects, distractors last.
         targets: Indices into ``objects``, in target order.
-        condition: The top-down condition the model is given.
+        condition: The top-down condition: what it names, which the referee judges by.
+        query: What the model is given for it where that differs (a sentence, a picture:
+            :mod:`sim.tasks.queries`); None: the condition itself (one-hot tasks).
 
     """
 
@@ -75,6 +78,12 @@ class Scene:
     objects: tuple[PlacedObject, ...]
     targets: tuple[int, ...]
     condition: Condition = NO_CONDITION
+    query: Condition | None = None
+
+    @property
+    def given(self) -> Condition:
+        """The condition as the model is given it: the query, else the condition itself."""
+        return self.condition if self.query is None else self.query
 
     def to_record(self) -> dict[str, Any]:
         """The scene as JSON-able data (datasets and trial records keep it)."""
@@ -87,9 +96,10 @@ class Scene:
                         for o in self.objects],
             "targets": list(self.targets),
             "condition": {"kind": self.condition.kind.value, "value": self.condition.value},
-        }
+        } | ({} if self.query is None else {
+            "query": {"kind": self.query.kind.value, "value": self.query.value}})
 
-    def asking(self, value: str) -> Scene:
+    def asking(self, value: str, task: TaskSpec) -> Scene:
         """The same scene, objects and poses, asked for condition ``value`` and its target.
 
         A collector shows one image under every condition of its task this way (each with the
@@ -107,7 +117,8 @@ class Scene:
         asked = Condition(self.condition.kind, value, self.condition.choices)
         target = _target_of(self.objects, asked)
         assert target is not None  # askable() holds only values with a target
-        return dataclasses.replace(self, condition=asked, targets=(target,))
+        query = query_for(task, asked, self.seed, self.stream, self.index)
+        return dataclasses.replace(self, condition=asked, targets=(target,), query=query)
 
     def askable(self) -> tuple[str, ...]:
         """The condition values this scene has a target for, in one-hot order (() for none)."""
@@ -178,6 +189,8 @@ def check_task_fits(task: TaskSpec, spec: SceneSpec) -> None:
                 f"a count that can fit: no more than {most} objects {spacing} m apart fit in "
                 f"{region}, however placed (an area bound); lower objects.count or "
                 "placement.min_spacing_m")
+    if task.phrasings is not None:
+        task.phrasings.check_targets(condition_choices(task, spec), where)
     total = task.count + len(task.distractors)
     most = max_spaced_points(x_high - x_low + spacing, y_high - y_low + spacing, spacing)
     if task.distractors and total > most:
@@ -233,7 +246,8 @@ def sample_scene(
         distractor_rng = np.random.default_rng(np.random.SeedSequence(
             [seed, int(stream), index, DISTRACTOR_STREAM]))
         objects += _place_distractors(task, spec, objects, distractor_rng)
-    return Scene(task.name, spec.name, seed, stream, index, objects, targets, condition)
+    return Scene(task.name, spec.name, seed, stream, index, objects, targets, condition,
+                 query_for(task, condition, seed, stream, index))
 
 
 def _place_distractors(task: TaskSpec, spec: SceneSpec, objects: tuple[PlacedObject, ...],

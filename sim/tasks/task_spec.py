@@ -17,6 +17,7 @@ a user writes a new one as a TOML file and passes its path wherever a task name 
 
     [condition]
     kind = "side"             # none | object_type | side
+    given_as = "one_hot"      # one_hot | text (with [condition.phrases]) | image
 
     [placement]
     sides = true              # one object each side of the workspace's centre line
@@ -48,6 +49,7 @@ from typing import Any
 
 from perception.interface import ConditionKind
 from sim.errors import InvalidInputError
+from sim.tasks.phrasings import Phrasings
 
 SIDES = ("left", "right")
 """Side condition values: ``left`` is +y (the robot's left, the image's left)."""
@@ -79,6 +81,14 @@ class ObjectChoice(enum.Enum):
     SAME_TYPE = "same_type"  # ``count`` objects of one random type
 
 
+class ConditionForm(enum.Enum):
+    """How the condition is given to the model: a one-hot name, a sentence, a picture."""
+
+    ONE_HOT = "one_hot"  # the paper's: a one-hot type or side
+    TEXT = "text"  # a sentence drawn from the task's phrasings of the target
+    IMAGE = "image"  # a picture of an object of the wanted type, from scenes of its own
+
+
 class TargetSelection(enum.Enum):
     """Which presented objects are targets."""
 
@@ -97,6 +107,9 @@ class TaskSpec:
         count: How many objects are presented (``one_of_each``: the scene's type count).
         targets: Which objects are targets.
         condition: What the top-down condition names.
+        given_as: How the model is given it (``[condition] given_as``).
+        phrasings: The sentences per target a text condition draws from
+            (``[condition.phrases.train]`` and ``[condition.phrases.test]``); None otherwise.
         sides: Place one object on each side of the workspace's centre line (y = centre).
         yaw_range_rad: Range of object yaw about the vertical [rad].
         min_spacing_m: Smallest distance between object centres [m].
@@ -114,6 +127,8 @@ class TaskSpec:
     count: int = 1
     targets: TargetSelection = TargetSelection.ALL
     condition: ConditionKind = ConditionKind.NONE
+    given_as: ConditionForm = ConditionForm.ONE_HOT
+    phrasings: Phrasings | None = None
     sides: bool = False
     yaw_range_rad: tuple[float, float] = (-math.pi, math.pi)
     min_spacing_m: float = 0.12
@@ -156,6 +171,18 @@ class TaskSpec:
         if self.condition is ConditionKind.SIDE and not (self.sides and self.count == 2):
             raise bad("placement.sides", self.sides, "true, with objects.count = 2, when "
                       "condition.kind = 'side' (one object on each side)")
+        if self.condition in (ConditionKind.TEXT, ConditionKind.IMAGE):
+            raise bad("condition.kind", self.condition.value, "none, object_type or side (what "
+                      "is named; condition.given_as says in what form)")
+        if self.given_as is not ConditionForm.ONE_HOT and self.condition is ConditionKind.NONE:
+            raise bad("condition.given_as", self.given_as.value, "'one_hot' without a condition")
+        if self.given_as is ConditionForm.IMAGE and self.condition is not \
+                ConditionKind.OBJECT_TYPE:
+            raise bad("condition.given_as", "image", "'one_hot' or 'text' when condition.kind "
+                      "is 'side' (a picture shows an object, not a side)")
+        if (self.given_as is ConditionForm.TEXT) != (self.phrasings is not None):
+            raise bad("condition.phrases", "absent" if self.phrasings is None else "given",
+                      "a [condition.phrases] table exactly when condition.given_as = 'text'")
         if self.sides and self.count != 2:
             raise bad("objects.count", self.count, "2 when placement.sides = true")
         low, high = (math.degrees(a) for a in self.yaw_range_rad)
@@ -173,6 +200,13 @@ class TaskSpec:
         if not (_finite(self.brightness) and 0.0 < self.brightness <= MAX_BRIGHTNESS):
             raise bad("lighting.brightness", self.brightness,
                       f"a number in (0, {MAX_BRIGHTNESS:g}]")
+
+
+    @property
+    def model_condition(self) -> ConditionKind:
+        """The kind of condition the model is given: what is named, or a sentence, a picture."""
+        return {ConditionForm.ONE_HOT: self.condition, ConditionForm.TEXT: ConditionKind.TEXT,
+                ConditionForm.IMAGE: ConditionKind.IMAGE}[self.given_as]
 
 
 def _finite(*values: float) -> bool:

@@ -7,6 +7,7 @@ allowed, in one line. The built-in tasks are ``sim/tasks/task_files/*.toml``.
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import json
 import math
@@ -17,8 +18,10 @@ from typing import Any
 
 from perception.interface import ConditionKind
 from sim.errors import InvalidInputError
+from sim.tasks.phrasings import Phrasings, read_phrase_file
 from sim.tasks.task_spec import (
     MAX_OBJECTS,
+    ConditionForm,
     ObjectChoice,
     TargetSelection,
     TaskSpec,
@@ -40,7 +43,7 @@ _SECTIONS: dict[str, set[str]] = {
          "distractors"},
     "objects": {"choose", "count"},
     "targets": {"select"},
-    "condition": {"kind"},
+    "condition": {"kind", "given_as", "phrases"},
     "placement": {"sides", "yaw_deg", "min_spacing_m", "x_m", "y_m"},
     "lighting": {"brightness"},
     "distractors": {"types"},
@@ -136,6 +139,8 @@ def task_from_toml(text: str, source: str = "<string>") -> TaskSpec:
         count=reader.get("objects", "count", int, 1, f"an integer in [1, {MAX_OBJECTS}]"),
         targets=reader.choice("targets", "select", TargetSelection, TargetSelection.ALL),
         condition=reader.choice("condition", "kind", ConditionKind, ConditionKind.NONE),
+        given_as=reader.choice("condition", "given_as", ConditionForm, ConditionForm.ONE_HOT),
+        phrasings=_phrasings(reader, source),
         sides=reader.get("placement", "sides", bool, False, "true or false"),
         yaw_range_rad=(math.radians(yaw[0]), math.radians(yaw[1])),
         min_spacing_m=reader.number("placement", "min_spacing_m", 0.12),
@@ -145,6 +150,49 @@ def task_from_toml(text: str, source: str = "<string>") -> TaskSpec:
         distractors=tuple(distractors),
         source=source,
     )
+
+
+def _phrasings(reader: _Reader, source: str) -> Phrasings | None:
+    """``[condition.phrases]``: tables ``train`` and ``test`` of target = [phrasings]."""
+    table = reader.get("condition", "phrases", dict, None, "a table with tables train and test")
+    if table is None:
+        return None
+    if set(table) != {"train", "test"}:
+        raise reader.error("condition.phrases", sorted(table), "exactly the tables train and "
+                           "test")
+    for split in ("train", "test"):
+        if not isinstance(table[split], dict):
+            raise reader.error(f"condition.phrases.{split}", table[split],
+                               "a table of target = [phrasings]")
+    return Phrasings(tuple(table["train"].items()), tuple(table["test"].items()),
+                     f"task file {source}")
+
+
+def with_test_phrases(task: TaskSpec, path: str | Path, targets: tuple[str, ...],
+                      known: tuple[str, ...]) -> TaskSpec:
+    """``task`` tested with the phrase file ``path`` (``gva trials --phrases``).
+
+    ``targets`` are the values the task names in its scene, ``known`` every value a condition
+    names there (its types and the sides): a file's lines for known values the task does not
+    name (another task's sides, say) are left out, so one file serves several tasks; an
+    unknown one is refused as a typo.
+
+    Raises:
+        InvalidInputError: The task is not given as text, the file is malformed, or it leaves
+            a target without a phrasing.
+
+    """
+    if task.phrasings is None:
+        raise InvalidInputError("phrases", str(path), f"a task given as text (task {task.name!r}"
+                                f" is given as {task.given_as.value})")
+    table = read_phrase_file(path, known)
+    kept = tuple((target, phrases) for target, phrases in table if target in targets)
+    missing = [t for t in targets if t not in dict(kept)]
+    if missing:
+        raise InvalidInputError(f"phrases {Path(path).name}", f"no line for {missing}",
+                                f"at least one phrase for every target of task {task.name!r} "
+                                f"({', '.join(targets)})")
+    return dataclasses.replace(task, phrasings=task.phrasings.with_test(kept, Path(path).name))
 
 
 def task_from_bytes(data: bytes, source: str = "<bytes>") -> TaskSpec:
@@ -190,11 +238,14 @@ def task_to_toml(task: TaskSpec) -> str:
     tables: dict[str, dict[str, Any]] = {
         "objects": {"choose": task.objects.value, "count": task.count},
         "targets": {"select": task.targets.value},
-        "condition": {"kind": task.condition.value},
+        "condition": {"kind": task.condition.value, "given_as": task.given_as.value},
         "placement": placement,
         "lighting": {"brightness": task.brightness},
         "distractors": {"types": list(task.distractors)},
     }
+    if task.phrasings is not None:
+        for split, phrases in task.phrasings.to_json().items():
+            tables[f"condition.phrases.{split}"] = {_key(t): p for t, p in phrases.items()}
     lines = [f"name = {value(task.name)}", f"description = {value(task.description)}"]
     for table, keys in tables.items():
         lines += ["", f"[{table}]", *(f"{key} = {value(v)}" for key, v in keys.items())]

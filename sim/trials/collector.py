@@ -103,10 +103,10 @@ class CollectSettings:
         return self.every_condition
 
 
-def asked(scene: Scene, every_condition: bool) -> tuple[Scene, ...]:
+def asked(task: TaskSpec, scene: Scene, every_condition: bool) -> tuple[Scene, ...]:
     """The scene as drawn, then (with ``every_condition``) under each other value it can be."""
     others = [value for value in scene.askable() if value != scene.condition.value]
-    return (scene,) + (tuple(scene.asking(value) for value in others)
+    return (scene,) + (tuple(scene.asking(value, task) for value in others)
                        if every_condition else ())
 
 
@@ -131,7 +131,7 @@ def collect(settings: CollectSettings, out_path: str | Path, progress: bool = Tr
         scene=spec.name, task=task.name, size=len(images), seed=settings.seed,
         image_height_px=first.shape[0], image_width_px=first.shape[1],
         label_kind=spec.label_kind, targets=labels[0].shape[0],
-        condition_kind=task.condition, condition_choices=condition_choices(task, spec),
+        condition_kind=task.model_condition, condition_choices=condition_choices(task, spec),
         camera=camera,
         extra=extra | {"task": _task_json(task), "object_types": list(spec.object_types)},
     )
@@ -168,10 +168,10 @@ def _collect_paper(
                       for o in scene.objects]
             world.settle()
             image = world.render(task.brightness)
-            for question in asked(scene, settings.asks_every_condition):
+            for question in asked(task, scene, settings.asks_every_condition):
                 labels = np.stack([label_vector(world.object_position_m(bodies[t]))
                                    for t in question.targets])
-                samples.append((image, question.condition.one_hot(), labels,
+                samples.append((image, question.given.vector(), labels,
                                 question.to_record()))
             bar.update()
         camera = _camera_json(world.camera)
@@ -239,14 +239,14 @@ def _collect_yumi(
                 bar.set_postfix_str(f"{len(redrawn)} redrawn")
                 continue
             record = scene.to_record()
-            samples += [(image, scene.condition.one_hot(), labels,
+            samples += [(image, scene.given.vector(), labels,
                          record | {"taken": taken} if taken else record)
                         for image, labels, taken in images.stages]
             first = images.stages[0][0]
-            samples += [(first, question.condition.one_hot(),
+            samples += [(first, question.given.vector(),
                          np.stack([images.first[bodies[t]] for t in question.targets]),
                          question.to_record())
-                        for question in asked(scene, settings.asks_every_condition)[1:]]
+                        for question in asked(task, scene, settings.asks_every_condition)[1:]]
             kept += 1
             bar.update()
         camera = _camera_json(runner.camera)

@@ -39,6 +39,7 @@ from perception.checks import check_inputs, check_prediction
 from perception.errors import InvalidPredictionError
 from perception.grasps import grasp_pose
 from perception.interface import (
+    Condition,
     LabelKind,
     ModelInput,
     PerceptionError,
@@ -234,6 +235,14 @@ class TrialRunner:
         return TrialResult(last.outcome, f"pick {len(picks)} of {len(targets)} ({last.target}): "
                            f"{last.reason}", tuple(picks))
 
+    def condition_for(self, scene: Scene) -> Condition:
+        """What the model is given: the scene's sentence or picture (:attr:`Scene.given`).
+
+        The oracle alone is given the name itself: it is the referee's own demonstrator, which
+        reads the simulator's truth by design (demonstrations, checks of the run machinery).
+        """
+        return scene.condition if isinstance(self.model, OraclePerception) else scene.given
+
     def pick(self, scene: Scene, number: int, total: int, body: int) -> PickAttempt:
         """Pick ``number`` of ``total``: sense, predict, plan from that alone, run, judge.
 
@@ -244,7 +253,7 @@ class TrialRunner:
         truth = self.truth(body)  # the referee's label of this image, kept from the plan phase
         target = self.world.object_spec(body).name
         try:
-            prediction = self.model.predict_frame(frame, scene.condition)
+            prediction = self.model.predict_frame(frame, self.condition_for(scene))
         except Exception as error:  # the model's failure, recorded with its traceback
             failed = PlannedPick(TrialOutcome.PERCEPTION_FAILED, f"{self.model.name}'s predict "
                                  f"raised {type(error).__name__}: {error}",

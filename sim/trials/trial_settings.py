@@ -30,8 +30,8 @@ from sim.tasks.scene_sampling import (
     target_count,
 )
 from sim.tasks.scene_specs import YUMI_SCENE
-from sim.tasks.task_spec import TaskSpec
-from sim.tasks.task_toml import TASK_FILES, load_task
+from sim.tasks.task_spec import SIDES, TaskSpec
+from sim.tasks.task_toml import TASK_FILES, load_task, with_test_phrases
 from sim.trials.execution import ExecutionSettings
 from sim.trials.oracle import OraclePerception
 from sim.trials.planner_setup import ObstacleSource, yumi_depth_config
@@ -74,6 +74,7 @@ def task_identity(task: TaskSpec) -> dict[str, Any]:
     """A task's settings as JSON-able data (a resumed run must use the same task)."""
     data = asdict(task)
     data.pop("source")
+    data["phrasings"] = None if task.phrasings is None else task.phrasings.to_json()
     for key, value in data.items():
         if hasattr(value, "value"):
             data[key] = value.value
@@ -106,6 +107,8 @@ class TrialSettings:
         obstacles: What picks are planned around besides the table: the head camera's depth
             image (the default), or ``ObstacleSource.TRUTH``, the simulator's true shapes, to
             debug the planner (never for results: no real robot knows them).
+        phrases: A phrase file (lines ``phrase<TAB>target``) that replaces a text task's test
+            phrasings; None: the task's own.
 
     """
 
@@ -117,6 +120,7 @@ class TrialSettings:
     execution: ExecutionSettings = field(default_factory=ExecutionSettings)
     model_class: str | None = None
     obstacles: ObstacleSource = ObstacleSource.DEPTH
+    phrases: str | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.obstacles, ObstacleSource):
@@ -135,8 +139,12 @@ class TrialSettings:
 
     @property
     def task_spec(self) -> TaskSpec:
-        """The task, read from its name or file."""
-        return load_task(self.task)
+        """The task, read from its name or file (its test phrasings from ``phrases``, if set)."""
+        task = load_task(self.task)
+        if self.phrases is None:
+            return task
+        return with_test_phrases(task, self.phrases, condition_choices(task, YUMI_SCENE),
+                                 YUMI_SCENE.object_types + SIDES)
 
     def identity(self) -> dict[str, Any]:
         """What identifies a run: a folder is only resumed by a run with the same identity."""
@@ -150,6 +158,8 @@ class TrialSettings:
         given = Path(self.task)
         files: dict[str, Path | None] = {
             "task_file": given if given.is_file() else TASK_FILES / f"{self.task}.toml"}
+        if self.phrases is not None:
+            files["phrases_file"] = Path(self.phrases)
         if model_source(self.model) is ModelSource.CHECKPOINT:
             from perception.learning.checkpoint import CONFIG_FILE, WEIGHTS_FILE
 
@@ -238,7 +248,7 @@ def check_model_fits_task(model: PerceptionModel, task: TaskSpec, where: str) ->
         return
     spec = model.spec
     camera = CameraConfig()
-    needed = (YUMI_SCENE.name, task.condition.value, condition_choices(task, YUMI_SCENE),
+    needed = (YUMI_SCENE.name, task.model_condition.value, condition_choices(task, YUMI_SCENE),
               target_count(task), camera.height_px, camera.width_px)
     trained = (spec.scene, spec.condition_kind.value, tuple(spec.condition_choices),
                spec.targets, spec.image_height_px, spec.image_width_px)

@@ -175,7 +175,7 @@ def test_a_scene_asked_another_value_targets_the_object_it_names(task_name):
     for scene in scenes(task_name, "yumi", SeedStream.TRAIN, n=20):
         assert set(scene.askable()) == set(scene.condition.choices)
         for value in scene.askable():
-            asked = scene.asking(value)
+            asked = scene.asking(value, load_task(task_name))
             assert (asked.objects, asked.index) == (scene.objects, scene.index)
             assert asked.condition.value == value
             target = asked.objects[asked.targets[0]]
@@ -184,15 +184,15 @@ def test_a_scene_asked_another_value_targets_the_object_it_names(task_name):
             else:
                 ys = sorted(o.position_xy_m[1] for o in asked.objects)
                 assert target.position_xy_m[1] == (ys[-1] if value == "left" else ys[0])
-        assert scene.asking(scene.condition.value) == scene
+        assert scene.asking(scene.condition.value, load_task(task_name)) == scene
 
 
 def test_a_value_a_scene_cannot_be_asked_is_named():
     scene = scenes("selected-type", "yumi", SeedStream.TRAIN, n=1)[0]
     with pytest.raises(InvalidInputError, match=r"condition value = 'duck' is not allowed: one "
                        r"of \['sponge', 'spray_bottle', 'mug'\]"):
-        scene.asking("duck")
+        scene.asking("duck", load_task("selected-type"))
     single = scenes("single", "yumi", SeedStream.TRAIN, n=1)[0]
     assert single.askable() == ()
     with pytest.raises(InvalidInputError, match="nothing: the scene's task has no condition"):
-        single.asking("left")
+        single.asking("left", load_task("single"))
