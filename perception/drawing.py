@@ -76,6 +76,11 @@ class AttentionRow:
     highlighted: bool = True
 
 
+CAPTION_LINE_PX = 14
+"""Height of one caption line (Pillow's default font is 11 px high)."""
+CAPTION_BACKGROUND, CAPTION_TEXT = (20, 20, 20), (235, 235, 235)
+
+
 def head_colour(head: int) -> Colour:
     """The colour of attention head ``head`` (the palette repeats after eight heads)."""
     return HEAD_COLOURS[head % len(HEAD_COLOURS)]
@@ -207,13 +212,14 @@ def draw_points(panel: np.ndarray, points_px: np.ndarray, scale: int,
                     digit_scale)
 
 
-def attention_figure(image: np.ndarray, rows: Sequence[AttentionRow], scale: int = 3
-                     ) -> np.ndarray:
+def attention_figure(image: np.ndarray, rows: Sequence[AttentionRow], scale: int = 3,
+                     caption: Sequence[str] = ()) -> np.ndarray:
     """The attention figure (H', W', 3) uint8 of ``image`` (H, W, 3), one line per row.
 
     Layout (see :func:`figure_shape`): a label strip when any row has a label, the image
     panel, then the heatmap panels, :data:`HEATMAP_COLUMNS` to a line; every panel is the
-    image's size times ``scale``, :data:`GAP_PX` apart.
+    image's size times ``scale``, :data:`GAP_PX` apart. ``caption`` lines (the sentence each
+    row was asked, say) are written above it (:func:`with_caption`).
     """
     image = np.asarray(image)
     if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
@@ -253,7 +259,26 @@ def attention_figure(image: np.ndarray, rows: Sequence[AttentionRow], scale: int
             v0 = top + line * (height + GAP_PX)
             u0 = left + (1 + column) * (width + GAP_PX)
             figure[v0:v0 + height, u0:u0 + width] = panel
-    return figure
+    return with_caption(figure, caption) if caption else figure
+
+
+def with_caption(image: np.ndarray, lines: Sequence[str]) -> np.ndarray:
+    """``image`` under a dark strip holding ``lines`` of text, :data:`CAPTION_LINE_PX` each.
+
+    Letters are Pillow's built-in bitmap font (Pillow is imported here only: digits alone
+    need no imaging library); a line too long for the width is cut with an ellipsis.
+    """
+    from PIL import Image, ImageDraw
+
+    width = image.shape[1]
+    strip = Image.new("RGB", (width, CAPTION_LINE_PX * len(lines)), CAPTION_BACKGROUND)
+    draw = ImageDraw.Draw(strip)
+    for k, line in enumerate(lines):
+        text = line
+        while text and draw.textlength(text) > width - 6:
+            text = text[:-2] + "…" if len(text) > 2 else ""
+        draw.text((3, 1 + k * CAPTION_LINE_PX), text, fill=CAPTION_TEXT)
+    return np.concatenate([np.asarray(strip, dtype=np.uint8), image], axis=0)
 
 
 def figure_shape(image_hw: tuple[int, int], scale: int, heads: int, rows: int,

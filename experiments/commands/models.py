@@ -19,7 +19,7 @@ import numpy as np
 from experiments.commands.arguments import integer
 from perception.drawing import AttentionRow, attention_figure, write_png
 from perception.files import atomic_write
-from perception.interface import InvalidInputError, PerceptionError, Prediction
+from perception.interface import ConditionKind, InvalidInputError, PerceptionError, Prediction
 from perception.learning.checkpoint import CONFIG_FILE, WEIGHTS_FILE, read_config
 from perception.learning.data import Dataset
 from perception.learning.dataset_file import load_dataset
@@ -145,6 +145,12 @@ def run_evaluate(args: argparse.Namespace) -> int:
         print(f"median heatmap entropy: {result.median_heatmap_entropy_nats:.2f} nats")
     if result.type_accuracy is not None:
         print(f"object type stated right: {100 * result.type_accuracy:.1f} % of targets")
+    if result.attention_on_named_fraction is not None:
+        print(f"attention on the named object: {100 * result.attention_on_named_fraction:.1f} "
+              "% of images")
+    if result.attention_switch_fraction is not None:
+        print(f"attention moves to the named object under every condition: "
+              f"{100 * result.attention_switch_fraction:.1f} % of scenes")
     out: Path = args.out or args.model / f"evaluation-{args.data.stem}.json"
     data = {"checkpoint": str(args.model.resolve()),
             "weights_sha256": read_config(args.model)["weights_sha256"],
@@ -167,27 +173,37 @@ def run_show_attention(args: argparse.Namespace) -> int:
                               "points, so there is nothing to draw (conv-ae and fcn have none; "
                               "kqv, keypoint and dsae have them)")
     choices = meta.condition_choices
-    by_condition = [model.predict_batch(images, np.repeat(np.eye(len(choices), dtype=np.float32)
-                                                          [c:c + 1], count, axis=0))
-                    for c in range(len(choices))]  # [C][n]
+    names = dataset.condition_names()
+    # One row per value: its one-hot vector, or the first sentence (picture) that names it.
+    asked = [names.index(value) for value in choices if value in names]
+    by_condition = [model.predict_batch(images, np.repeat(dataset.conditions[j:j + 1], count,
+                                                          axis=0)) for j in asked]  # [C][n]
     if choices:
-        print(f"rows: {', '.join(f'{c} = {name}' for c, name in enumerate(choices))} "
-              "(the sample's own condition is the white number)")
+        print("rows: " + ", ".join(f"{c} = {_asked(dataset, j)}" for c, j in enumerate(asked))
+              + " (the sample's own condition is the white number)")
     print("dots: attention points, numbered by head; panels: each head's heatmap")
     for i in range(count):
         if choices:
-            chosen = int(np.argmax(dataset.conditions[i]))
+            chosen = next((c for c, j in enumerate(asked) if names[j] == names[i]), -1)
             rows = [AttentionRow(p[i].attention_px, p[i].heatmaps, label=c,
                                  highlighted=c == chosen) for c, p in enumerate(by_condition)]
         else:
             rows = [AttentionRow(own[i].attention_px, own[i].heatmaps)]
+        text = meta.condition_kind is ConditionKind.TEXT
+        caption = [f"{c}: {_asked(dataset, j)}" for c, j in enumerate(asked)] if text else []
         path = write_png(args.out / f"attention-{i:03d}.png",
-                         attention_figure(images[i], rows, args.scale))
-        condition = f", condition {choices[chosen]}" if choices else ""
+                         attention_figure(images[i], rows, args.scale, caption))
+        condition = f", condition {_asked(dataset, i)}" if choices else ""
         print(f"sample {i}{condition}: {path}")
         for line in _sample_lines(own[i], dataset.labels[i]):
             print(f"  {line}")
     return 0
+
+
+def _asked(dataset: Dataset, index: int) -> str:
+    """Sample ``index``'s condition for people: its value, and the sentence that asked for it."""
+    name, given = dataset.condition_names()[index], dataset.condition(index)
+    return f'{name} ("{given.value}")' if given.kind is ConditionKind.TEXT else str(name)
 
 
 def _model_and_dataset(args: argparse.Namespace) -> tuple[LearnableModel, Dataset]:

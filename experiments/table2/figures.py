@@ -15,9 +15,10 @@ import numpy as np
 from matplotlib.figure import Figure  # an Agg canvas of its own, no global backend state
 
 from experiments.table2.settings import BOLD_BELOW_CM, SIZES, Key, ReproduceSimSettings
-from experiments.tables import MODEL_TITLES, MODELS, NO_IMAGE, TASK_TITLES, TASKS, dataset_path
+from experiments.tables import ALL_TASKS, MODEL_TITLES, MODELS, NO_IMAGE, TASK_TITLES, dataset_path
 from perception.drawing import draw_points, enlarge
 from perception.files import atomic_write
+from perception.interface import ConditionKind
 from perception.learning.data import Dataset
 from perception.learning.dataset_file import load_dataset
 from perception.registry import load_model
@@ -38,7 +39,7 @@ def plot_table2(stats: Mapping[Key, tuple[float, float | None, int]], path: Path
 
     ``reference`` (the no-image reference's spread) is drawn as a dotted black line.
     """
-    tasks = [t for t in TASKS if any(k[1] == t for k in stats)]
+    tasks = [t for t in ALL_TASKS if any(k[1] == t for k in stats)]
     models = [m for m in MODELS if any(k[0] == m for k in stats)]
     sizes = [s for s in SIZES if any(k[2] == s for k in stats)]
     figure = Figure(figsize=(3.6 * len(tasks) + 1.2, 3.8), layout="constrained")
@@ -86,7 +87,7 @@ def draw_fig5(settings: ReproduceSimSettings, out: Path, cells: Sequence[Mapping
     models = [m for m in FIG5_MODELS if any(k[0] == m for k in chosen)]
     notes = [f"fig5.png: {m} has no finished cell in this folder; drawn without it"
              for m in FIG5_MODELS if m not in models]
-    tasks = [t for t in TASKS if any(k[1] == t for k in chosen)]
+    tasks = [t for t in ALL_TASKS if any(k[1] == t for k in chosen)]
     if not models:
         return [], ["fig5.png not drawn: neither kqv nor keypoint-16 has a finished cell in "
                     "this folder"]
@@ -133,6 +134,8 @@ def _draw_fig5_panels(axes: np.ndarray, test: Dataset, model_name: str,
         truth = test.labels[k, :, :3]  # (q, 3) [m]
         error_cm = 100 * np.mean([np.linalg.norm(target.position_m - truth[j])
                                   for j, target in enumerate(prediction.targets)])
-        wanted = f"{choices[int(np.argmax(test.conditions[k]))]}, " if choices else ""
+        given = test.condition(k)
+        wanted = "" if not choices else (f'"{given.value}"\n' if given.kind is ConditionKind.TEXT
+                                         else f"{test.condition_names()[k]}, ")
         axis.set_xlabel(f"{wanted}{error_cm:.1f} cm")
     axes[0].set_ylabel(f"{MODEL_TITLES[model_name]}\n{cell['size']} scenes, seed {cell['seed']}")

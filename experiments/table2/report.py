@@ -23,11 +23,11 @@ from experiments.table2.settings import (
     ReproduceSimSettings,
 )
 from experiments.tables import (
+    ALL_TASKS,
     MODEL_TITLES,
     MODELS,
     NO_IMAGE,
     TASK_TITLES,
-    TASKS,
     dataset_path,
     duration,
     read_json,
@@ -65,7 +65,7 @@ PAPER_TABLE2_CM: Mapping[str, Mapping[str, tuple[float, float, float]]] = {
 
 
 def _order(record: Mapping[str, Any]) -> tuple[int, int, int, int]:
-    return (MODELS.index(record["model"]), TASKS.index(record["task"]),
+    return (MODELS.index(record["model"]), ALL_TASKS.index(record["task"]),
             SIZES.index(record["size"]), record["seed"])
 
 
@@ -123,7 +123,7 @@ def no_image_reference(settings: ReproduceSimSettings, out: Path,
     tests: dict[str, Dataset] = {}
     records = []
     for task, size, seed in sorted({(c["task"], c["size"], c["seed"]) for c in cells},
-                                   key=lambda k: (TASKS.index(k[0]), k[1], k[2])):
+                                   key=lambda k: (ALL_TASKS.index(k[0]), k[1], k[2])):
         train_path = dataset_path(out, task, SeedStream.TRAIN, size, seed)
         test_path = dataset_path(out, task, SeedStream.TEST, settings.test_scenes, settings.seed)
         if not (train_path.is_file() and test_path.is_file()):
@@ -141,8 +141,8 @@ def differences_markdown(stats: Mapping[Key, tuple[float, float | None, int]]) -
              "no-image level | Paper above it |", "|---|---|---:|---:|---:|---:|---:|---|---|"]
     for (model, task, size), (mean, _, _) in sorted(
             stats.items(), key=lambda kv: (MODELS.index(kv[0][0]) if kv[0][0] in MODELS
-                                           else len(MODELS), TASKS.index(kv[0][1]), kv[0][2])):
-        if model == NO_IMAGE:
+                                           else len(MODELS), ALL_TASKS.index(kv[0][1]), kv[0][2])):
+        if model == NO_IMAGE or task not in PAPER_TABLE2_CM[model]:  # a task beyond the paper
             continue
         paper = PAPER_TABLE2_CM[model][task][SIZES.index(size)]
         ratio = paper / mean
@@ -171,7 +171,7 @@ def table2_markdown(cells: Sequence[Mapping[str, Any]], failed: Sequence[Mapping
     """
     present = [*cells, *failed]
     models = [m for m in MODELS if any(c["model"] == m for c in present)]
-    tasks = [t for t in TASKS if any(c["task"] == t for c in present)]
+    tasks = [t for t in ALL_TASKS if any(c["task"] == t for c in present)]
     sizes = [s for s in SIZES if any(c["size"] == s for c in present)]
     stats, above = spread(cells), failures(cells)
     most = max((n for _, _, n in stats.values()), default=0)
@@ -183,7 +183,8 @@ def table2_markdown(cells: Sequence[Mapping[str, Any]], failed: Sequence[Mapping
         ours[model][(task, size)] = _shown(mean, std) + (f" (n={n})" if n < most else "") + (
             f" [{count}/{n} > {BOLD_BELOW_CM:g}, worst {worst:.1f}]" if count and n > 1 else "")
     paper = {m: {(t, s): _shown(PAPER_TABLE2_CM[m][t][SIZES.index(s)], None)
-                 for t in tasks for s in sizes} for m in models}
+                 if t in PAPER_TABLE2_CM[m] else "—" for t in tasks for s in sizes}
+             for m in models}
     references = spread(reference)
     if references:
         ours[NO_IMAGE] = {(t, s): _shown(mean, std)

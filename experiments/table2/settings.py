@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from experiments.tables import (
+    ALL_TASKS,
     MODELS,
     TASKS,
     TWO_PHASE_MODELS,
@@ -69,7 +70,7 @@ class ReproduceSimSettings:
 
     Args:
         models: Models, from :data:`~experiments.tables.MODELS`.
-        tasks: Tasks, from :data:`~experiments.tables.TASKS`.
+        tasks: Tasks, from :data:`~experiments.tables.ALL_TASKS` (default: the paper's).
         sizes: Training set sizes, from :data:`SIZES`.
         seeds: Number of training seeds.
         seed: S0, the first training seed and the seed of the test scenes.
@@ -98,7 +99,7 @@ class ReproduceSimSettings:
     def __post_init__(self) -> None:
         check_choices("scene", (self.scene,), SCENES)
         check_choices("models", self.models, MODELS)
-        check_choices("tasks", self.tasks, TASKS)
+        check_choices("tasks", self.tasks, ALL_TASKS)
         check_choices("sizes", self.sizes, SIZES)
         check_counts(self, {"seeds": 1, "seed": 0, "steps": 1, "test_scenes": 1}, self.workers)
 
@@ -110,7 +111,7 @@ class ReproduceSimSettings:
     def cells(self) -> list[Cell]:
         """Every cell, in the paper's order (models, tasks, sizes, then seeds)."""
         return [Cell(m, t, s, seed) for m in MODELS if m in self.models
-                for t in TASKS if t in self.tasks for s in SIZES if s in self.sizes
+                for t in ALL_TASKS if t in self.tasks for s in SIZES if s in self.sizes
                 for seed in self.training_seeds]
 
     def worker_count(self) -> int:

@@ -14,6 +14,7 @@ import dataclasses
 from pathlib import Path
 from typing import Any
 
+from perception.interface import ConditionKind
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.trials.gif_recorder import TrialRecorder, join_trials, write_gif
@@ -39,8 +40,9 @@ def record_gif(model_name: str, trials: TrialSettings, count: int, path: Path
     with torch_threads(1), TrialRunner(task, model.factory, trials.settle_s, trials.execution,
                                        observer=recorder, obstacles=trials.obstacles) as runner:
         for index in range(count):
-            recorder.start(f"{model_name} / {task.name}, trial {index}")
             scene = sample_scene(task, YUMI_SCENE, trials.seed, SeedStream.TEST, index)
+            asked = f': "{scene.given.value}"' if scene.given.kind is ConditionKind.TEXT else ""
+            recorder.start(f"{model_name} / {task.name}, trial {index}{asked}")
             record = runner.run(scene, index, trials.seed, trials.model)
             recorded.append(recorder.finish(record.outcome.value))
             shown.append({"index": index, "outcome": record.outcome.value,

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from perception.camera import PinholeCamera
 from perception.checks import check_inputs
 from perception.interface import (
     ConditionKind,
@@ -59,6 +60,13 @@ class EvaluationResult:
         median_heatmap_entropy_nats: Median entropy of the present targets' heatmaps [nats]:
             near ``ln(h w)`` (6.9 for 32 x 32) where the Queries never found their objects;
             None for a model without heatmaps.
+        attention_on_named_fraction: Under a condition that names one target: the fraction of
+            images whose attention point is nearer the named object than any other object (in
+            pixels, each object's centre projected at the target's height); None where the
+            task has no such condition, the model no attention point or the dataset no camera.
+        attention_switch_fraction: The same per scene, over the scenes asked under two or more
+            conditions (``gva collect --every-condition``): the fraction whose attention lands
+            on the named object under every one, i.e. moves when the condition changes.
 
     """
 
@@ -79,6 +87,8 @@ class EvaluationResult:
     per_stage_mean_position_error_cm: tuple[float, ...] = ()
     per_condition_mean_position_error_cm: dict[str, float] | None = None
     median_heatmap_entropy_nats: float | None = None
+    attention_on_named_fraction: float | None = None
+    attention_switch_fraction: float | None = None
 
     def to_json(self) -> dict[str, Any]:
         """The result as JSON-able data (tuples become lists)."""
@@ -172,7 +182,36 @@ def evaluate(model: PerceptionModel, dataset: Dataset, batch_size: int = 32) -> 
             if scored.any()),
         per_condition_mean_position_error_cm=per_condition(position_cm, present, dataset),
         median_heatmap_entropy_nats=heatmap_entropy(predictions, present),
+        **attention_on_named(predictions, dataset),
     )
+
+
+def attention_on_named(predictions: list[Prediction], dataset: Dataset
+                       ) -> dict[str, float | None]:
+    """Whether each image's attention lands on the object its condition names (see the fields).
+
+    The objects' centres come from the scene records (x, y) at the label's height; the nearest
+    one to the attention point in the image is the one attended to.
+    """
+    none: dict[str, float | None] = {"attention_on_named_fraction": None,
+                                     "attention_switch_fraction": None}
+    meta = dataset.metadata
+    camera = PinholeCamera.from_record(meta.camera)
+    if meta.condition_kind is ConditionKind.NONE or meta.targets != 1 or camera is None or \
+            any(p.attention_px.shape[0] < 1 for p in predictions):
+        return none
+    height_m = split_label(dataset.labels.astype(np.float64)).position_m[:, 0, 2]  # (N,)
+    on_named = []
+    for prediction, record, z in zip(predictions, dataset.scenes, height_m, strict=True):
+        centres = np.array([[*o["position_xy_m"], z] for o in record["objects"]])  # (k, 3)
+        distance = np.linalg.norm(camera.project(centres) - prediction.attention_px[0], axis=1)
+        on_named.append(int(np.argmin(distance)) == record["targets"][0])
+    by_scene: dict[int, list[bool]] = {}
+    for key, hit in zip(dataset.scene_keys(), on_named, strict=True):
+        by_scene.setdefault(key, []).append(hit)
+    switched = [all(hits) for hits in by_scene.values() if len(hits) > 1]
+    return {"attention_on_named_fraction": float(np.mean(on_named)),
+            "attention_switch_fraction": float(np.mean(switched)) if switched else None}
 
 
 def heatmap_entropy(predictions: list[Prediction], present: np.ndarray) -> float | None:

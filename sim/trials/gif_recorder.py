@@ -27,7 +27,14 @@ from pathlib import Path
 
 import numpy as np
 
-from perception.drawing import draw_dot, draw_number, enlarge, head_colour
+from perception.drawing import (
+    CAPTION_LINE_PX,
+    draw_dot,
+    draw_number,
+    enlarge,
+    head_colour,
+    with_caption,
+)
 from perception.files import atomic_write
 from perception.interface import Prediction
 from sim.errors import InvalidInputError
@@ -37,7 +44,7 @@ from sim.world.yumi_world import World
 ROBOT_VIEW = CameraConfig(position_m=(1.1, -0.5, 0.6), target_m=(0.28, 0.0, 0.2),
                           vertical_fov_deg=52.0, horizontal_fov_deg=None)
 """A camera in front of the robot, to its right, that sees both arms and the workspace."""
-CAPTION_PX = 14
+CAPTION_PX = CAPTION_LINE_PX
 """Height of the caption strip above the two panels."""
 MAX_FRAMES = 40
 """Frames kept per trial: longer trials keep evenly spaced ones (and always the last)."""
@@ -149,12 +156,8 @@ def _fit(image: np.ndarray, height_px: int) -> np.ndarray:
 
 
 def _caption(frame: np.ndarray, text: str) -> None:
-    """Writes ``text`` in the frame's caption strip (Pillow's built-in bitmap font)."""
-    from PIL import Image, ImageDraw
-
-    strip = Image.new("RGB", (frame.shape[1], CAPTION_PX), (20, 20, 20))
-    ImageDraw.Draw(strip).text((3, 1), text, fill=(235, 235, 235))
-    frame[:CAPTION_PX] = np.asarray(strip)
+    """Writes ``text`` in the frame's caption strip (:func:`perception.drawing.with_caption`)."""
+    frame[:CAPTION_PX] = with_caption(frame[CAPTION_PX:CAPTION_PX], [text])
 
 
 def join_trials(trials: Sequence[Sequence[np.ndarray]], frame_ms: int = 150,
