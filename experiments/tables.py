@@ -38,8 +38,9 @@ MODELS = ("kqv", "keypoint-16", "keypoint-min", "dsae-16", "conv-ae", "fcn")
 """The paper's models, in its row order (names :func:`perception.registry.new_model` takes)."""
 TASKS = ("single", "multiple", "selected-type", "selected-position")
 """The paper's tasks (its Table I), in its column order."""
-BEYOND_TASKS = ("selected-type-text", "selected-position-text")
-"""Tasks beyond the paper: its selected tasks with the condition given as a sentence."""
+BEYOND_TASKS = ("selected-type-text", "selected-position-text", "selected-type-image")
+"""Tasks beyond the paper: its selected tasks with the condition given as a sentence or a
+picture."""
 ALL_TASKS = TASKS + BEYOND_TASKS
 """Every task the experiments run, in column order."""
 TWO_PHASE_MODELS = ("dsae-16", "conv-ae")
@@ -55,7 +56,8 @@ MODEL_TITLES = {
 TASK_TITLES = {"single": "Single Object", "multiple": "Multiple Objects",
                "selected-type": "Selected Type", "selected-position": "Selected Position",
                "selected-type-text": "Selected Type (sentence)",
-               "selected-position-text": "Selected Position (sentence)"}
+               "selected-position-text": "Selected Position (sentence)",
+               "selected-type-image": "Selected Type (picture)"}
 
 
 def model_config(model: str, seed: int) -> dict[str, Any]:

@@ -41,8 +41,10 @@ def record_gif(model_name: str, trials: TrialSettings, count: int, path: Path
                                        observer=recorder, obstacles=trials.obstacles) as runner:
         for index in range(count):
             scene = sample_scene(task, YUMI_SCENE, trials.seed, SeedStream.TEST, index)
-            asked = f': "{scene.given.value}"' if scene.given.kind is ConditionKind.TEXT else ""
-            recorder.start(f"{model_name} / {task.name}, trial {index}{asked}")
+            given = scene.given
+            asked = f': "{given.value}"' if given.kind is ConditionKind.TEXT else (
+                " (picture: top right)" if given.kind is ConditionKind.IMAGE else "")
+            recorder.start(f"{model_name} / {task.name}, trial {index}{asked}", given.picture)
             record = runner.run(scene, index, trials.seed, trials.model)
             recorded.append(recorder.finish(record.outcome.value))
             shown.append({"index": index, "outcome": record.outcome.value,

@@ -117,7 +117,7 @@ class Scene:
         asked = Condition(self.condition.kind, value, self.condition.choices)
         target = _target_of(self.objects, asked)
         assert target is not None  # askable() holds only values with a target
-        query = query_for(task, asked, self.seed, self.stream, self.index)
+        query = query_for(task, self.scene, asked, self.seed, self.stream, self.index)
         return dataclasses.replace(self, condition=asked, targets=(target,), query=query)
 
     def askable(self) -> tuple[str, ...]:
@@ -247,7 +247,7 @@ def sample_scene(
             [seed, int(stream), index, DISTRACTOR_STREAM]))
         objects += _place_distractors(task, spec, objects, distractor_rng)
     return Scene(task.name, spec.name, seed, stream, index, objects, targets, condition,
-                 query_for(task, condition, seed, stream, index))
+                 query_for(task, spec.name, condition, seed, stream, index))
 
 
 def _place_distractors(task: TaskSpec, spec: SceneSpec, objects: tuple[PlacedObject, ...],

@@ -89,13 +89,18 @@ class TrialRecorder:
         self.camera = HeadCamera(self.settings.robot_view)
         self.caption = ""
         self.frames: list[np.ndarray] = []
+        self.inset: np.ndarray | None = None  # an image condition's picture, drawn in it
         self._seen: np.ndarray | None = None  # the head panel: last image with its points
         self._world: World | None = None  # the world of the last physics step
         self._next_frame_s = 0.0
 
-    def start(self, caption: str) -> None:
-        """Starts a new trial's recording, captioned ``caption``."""
+    def start(self, caption: str, inset: np.ndarray | None = None) -> None:
+        """Starts a new trial's recording, captioned ``caption``.
+
+        ``inset``: a picture drawn in the head panel's top right corner (an image condition's).
+        """
         self.caption, self.frames, self._seen, self._world = caption, [], None, None
+        self.inset = inset
         self._next_frame_s = 0.0
 
     def saw(self, image: np.ndarray, prediction: Prediction) -> None:
@@ -108,6 +113,10 @@ class TrialRecorder:
             if np.all(np.isfinite(point)):
                 draw_number(panel, head, (round(point[0]) + 5, round(point[1]) - 2),
                             head_colour(head))
+        if self.inset is not None:  # framed in white, in the corner no workspace pixel uses
+            h, w = self.inset.shape[:2]
+            panel[:h + 2, -w - 2:] = 255
+            panel[1:h + 1, -w - 1:-1] = self.inset
         self._seen = panel
 
     def stepped(self, world: World) -> None:
