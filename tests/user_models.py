@@ -17,6 +17,7 @@ import numpy as np
 from perception.camera import PinholeCamera, RgbdFrame
 from perception.interface import (
     NO_CONDITION,
+    PICTURE_PX,
     Condition,
     ConditionKind,
     LabelKind,
@@ -276,3 +277,28 @@ class DepthReader(FixedGrasp):
         points = frame.points_world().reshape(-1, 3)
         highest = points[np.nanargmax(points[:, 2])]
         return Prediction((Target(highest, DOWN.copy()),))
+
+
+def given_as(dataset: Dataset, kind: ConditionKind, rows: np.ndarray,
+             queries: list[str | None]) -> Dataset:
+    """A conditioned synthetic dataset whose conditions are given as ``kind`` (text, image).
+
+    ``rows`` (N, C) are the vectors a model reads (embeddings, picture pixels); each scene
+    record keeps the named type under ``"condition"`` and ``queries[n]`` (a sentence) under
+    ``"query"``, as the simulator's collector writes them.
+    """
+    names = [TYPES[int(i)] for i in dataset.conditions.argmax(axis=1)]
+    scenes = tuple(record | {"condition": {"kind": "object_type", "value": name}}
+                   | ({} if query is None else {"query": {"kind": kind.value, "value": query}})
+                   for record, name, query in zip(dataset.scenes, names, queries, strict=True))
+    metadata = replace(dataset.metadata, condition_kind=kind)
+    return Dataset(metadata, dataset.images, rows.astype(np.float32), dataset.labels, scenes)
+
+
+def colour_picture(k: int, rng: np.random.Generator) -> np.ndarray:
+    """A (32, 32, 3) picture of type ``k``: its colour, a little off, on a noisy background."""
+    picture = rng.integers(90, 160, (PICTURE_PX, PICTURE_PX, 3)).astype(np.int16)
+    v, u = (int(c) for c in rng.integers(4, 12, size=2))
+    shade = COLOURS[k].astype(np.int16) + rng.integers(-25, 26, 3)
+    picture[v:v + 16, u:u + 16] = shade
+    return np.clip(picture, 0, 255).astype(np.uint8)

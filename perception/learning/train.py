@@ -26,7 +26,7 @@ import torch
 from torch import Tensor, nn
 from tqdm import tqdm
 
-from perception.interface import InvalidInputError, PerceptionError
+from perception.interface import ConditionKind, InvalidInputError, PerceptionError
 from perception.learning.data import Dataset
 from perception.models.base import images_to_tensor
 
@@ -53,7 +53,14 @@ class TrainConfig:
         weight_decay: Adam's L2 penalty on every parameter.
         seed: Seeds batch order (numpy) and augmentation (torch); the weights' initial values
             come from the model's own seed.
-        augment: Photometric augmentation on or off (see the module docstring).
+        augment: Photometric augmentation on or off (see the module docstring); with it, a
+            sentence's embedding is jittered too (``sentence_noise``).
+        sentence_noise: Under a text condition, Gaussian noise of this standard deviation per
+            dimension is added to each embedding, which is then made unit length again (0.05:
+            the jittered vector keeps a cosine of about 0.8 with the sentence's). A Query
+            then answers alike in a neighbourhood of each training sentence, not only at it:
+            the ridge-like smoothing that lets a few phrasings per target carry to new ones
+            (``docs/decisions/open-conditions.md``).
         device: Torch device, ``"cpu"`` (the project's target) or e.g. ``"cuda"``.
         threads: CPU threads for torch; None uses the cores this process may run on.
         log_every: Steps between two points of the loss curve.
@@ -67,6 +74,7 @@ class TrainConfig:
     weight_decay: float = 0.0
     seed: int = 0
     augment: bool = True
+    sentence_noise: float = 0.05
     device: str = "cpu"
     threads: int | None = None
     log_every: int = 25
@@ -80,6 +88,8 @@ class TrainConfig:
             raise InvalidInputError("seed", self.seed, "an integer >= 0")
         if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
             raise InvalidInputError("learning_rate", self.learning_rate, "a finite value > 0")
+        if not (math.isfinite(self.sentence_noise) and self.sentence_noise >= 0):
+            raise InvalidInputError("sentence_noise", self.sentence_noise, "a finite value >= 0")
         if not (math.isfinite(self.weight_decay) and self.weight_decay >= 0):
             raise InvalidInputError("weight_decay", self.weight_decay, "a finite value >= 0")
         if self.lr_schedule not in ("cosine", "constant"):
@@ -96,7 +106,7 @@ class Batch(NamedTuple):
     """One training batch, as a model's ``batch_loss`` receives it."""
 
     images: Tensor  # (B, 3, H, W) float32 in [0, 1], augmented
-    conditions: Tensor  # (B, C) float32 one-hot
+    conditions: Tensor  # (B, C) float32 condition vectors (one-hot, embeddings, pixels)
     labels: Tensor  # (B, q, D) float32, as the dataset holds them (not yet scaled)
     type_indices: Tensor | None = None  # (B, q) int64: each target's type in the dataset's
     # object_types (Dataset.target_type_indices), -1 unknown; None: not given
@@ -238,6 +248,8 @@ def train(
                                                  0.5 * (1 + math.cos(math.pi * step /
                                                                      config.steps)))
     conditions = torch.from_numpy(dataset.conditions).to(device)  # (N, C)
+    jitter = config.augment and config.sentence_noise > 0 and \
+        dataset.metadata.condition_kind is ConditionKind.TEXT
     labels = torch.from_numpy(dataset.labels).to(device)  # (N, q, D)
     type_indices = torch.from_numpy(dataset.target_type_indices()).to(device)  # (N, q)
     present = torch.from_numpy(dataset.target_present()).to(device)  # (N, q)
@@ -252,8 +264,12 @@ def train(
             images = images_to_tensor(dataset.images[index], device)  # (B, 3, H, W)
             if config.augment:
                 images = photometric_augment(images, generator)
-            loss = batch_loss(Batch(images, conditions[index], labels[index],
-                                    type_indices[index], present[index]))
+            asked = conditions[index]  # (B, C)
+            if jitter:
+                noise = torch.randn(asked.shape, generator=generator).to(device)
+                asked = nn.functional.normalize(asked + config.sentence_noise * noise, dim=1)
+            loss = batch_loss(Batch(images, asked, labels[index], type_indices[index],
+                                    present[index]))
             if not torch.isfinite(loss):
                 raise TrainingError(f"{description}: the loss became {loss.item()} at step "
                                     f"{step}; try a lower learning_rate (now "

@@ -7,8 +7,10 @@ import socket
 import numpy as np
 import pytest
 
+import perception.sentences as sentences
 from perception.errors import InvalidInputError
 from perception.files import file_sha256
+from perception.interface import Condition, ConditionKind
 from perception.sentences import (
     EMBEDDING_SIZE,
     WEIGHTS_SHA256,
@@ -58,3 +60,13 @@ def test_sentences_become_unit_vectors_near_for_the_same_meaning(encoder, monkey
         mug[0] = 2.0  # read-only, as the cache shares it
     with pytest.raises(InvalidInputError, match="sentence"):
         encoder.encode("  ")
+
+
+def test_a_text_conditions_vector_is_its_sentences_embedding(encoder, monkeypatch):
+    monkeypatch.setattr(socket.socket, "connect", _no_network)
+    monkeypatch.setattr(sentences, "shared_encoder", lambda: encoder)
+    condition = Condition(ConditionKind.TEXT, "the thing you spray with")
+    vector = condition.vector()
+    np.testing.assert_array_equal(vector, encoder.encode("the thing you spray with"))
+    vector[0] = 2.0  # the caller's own copy: the cached embedding is untouched
+    assert encoder.encode("the thing you spray with")[0] != 2.0

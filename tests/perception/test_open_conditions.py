@@ -1,0 +1,198 @@
+"""Conditions given as a sentence or a picture: their checks, datasets of them, and kqv on them.
+
+The sentence encoder itself is tested in test_sentences.py; here a sentence's vector is any
+unit vector, which is all a model sees of it.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from user_models import (
+    CAMERA,
+    TYPES,
+    colour_picture,
+    given_as,
+    spec,
+    synthetic_dataset,
+    trained_scaler,
+)
+
+from perception.interface import (
+    NO_CONDITION,
+    PICTURE_PX,
+    Condition,
+    ConditionKind,
+    InvalidInputError,
+    LabelKind,
+    PerceptionModel,
+    Prediction,
+    Target,
+    condition_size,
+)
+from perception.learning.data import Dataset
+from perception.learning.dataset_file import load_dataset, save_dataset
+from perception.learning.evaluate import evaluate
+from perception.learning.labels import label_vector
+from perception.learning.train import TrainConfig
+from perception.models.kqv import KqvConfig, KqvModel
+
+PICTURE = np.full((PICTURE_PX, PICTURE_PX, 3), 200, np.uint8)
+
+
+def test_a_text_condition_is_a_sentence_and_nothing_else():
+    assert Condition(ConditionKind.TEXT, "pick up the red mug").value == "pick up the red mug"
+    for value in (None, "", "   ", "x" * 501):
+        with pytest.raises(InvalidInputError, match=r"condition\.value"):
+            Condition(ConditionKind.TEXT, value)
+    with pytest.raises(InvalidInputError, match=r"condition.choices = .* \(\) when kind is "
+                                                r"'text'"):
+        Condition(ConditionKind.TEXT, "the mug", ("mug",))
+    with pytest.raises(InvalidInputError, match=r"condition\.picture"):
+        Condition(ConditionKind.TEXT, "the mug", picture=PICTURE)
+
+
+def test_an_image_condition_is_named_by_its_pictures_hash():
+    first = Condition(ConditionKind.IMAGE, picture=PICTURE)
+    assert first.value.startswith("picture ") and len(first.value) == len("picture ") + 12
+    assert first == Condition(ConditionKind.IMAGE, picture=PICTURE.copy())
+    other = PICTURE.copy()
+    other[0, 0] = 0
+    assert first != Condition(ConditionKind.IMAGE, picture=other)
+    assert not first.picture.flags.writeable  # a copy, frozen: the caller's array may change
+    vector = first.vector()
+    assert vector.shape == (condition_size(ConditionKind.IMAGE, ()),) == (3 * 32 * 32,)
+    assert vector.dtype == np.float32 and np.allclose(vector, 200 / 255)
+    for picture, found in ((None, "NoneType"), (PICTURE[:16], "uint8 (16, 32, 3)"),
+                           (PICTURE.astype(float), "float64")):
+        with pytest.raises(InvalidInputError, match=rf"condition.picture = '{re.escape(found)}"):
+            Condition(ConditionKind.IMAGE, picture=picture)
+
+
+def test_one_hot_conditions_are_unchanged():
+    condition = Condition(ConditionKind.SIDE, "right", ("left", "right"))
+    assert condition.vector().tolist() == [0.0, 1.0]
+    assert Condition().vector().shape == (0,)
+    assert condition_size(ConditionKind.OBJECT_TYPE, TYPES) == 3
+    assert condition_size(ConditionKind.TEXT, TYPES) == 384
+
+
+def _unit_rows(count: int, seed: int) -> np.ndarray:
+    rows = np.random.default_rng(seed).normal(size=(count, 384))
+    return (rows / np.linalg.norm(rows, axis=1, keepdims=True)).astype(np.float32)
+
+
+def _text_dataset(size: int, seed: int) -> Dataset:
+    """The synthetic selected-type scenes, each type named by one fixed random 'sentence'."""
+    base = synthetic_dataset(size=size, conditioned=True, seed=seed)
+    names = base.conditions.argmax(axis=1)
+    return given_as(base, ConditionKind.TEXT, _unit_rows(len(TYPES), 0)[names],
+                    [f"the {TYPES[k]} square" for k in names])
+
+
+def test_a_text_dataset_keeps_sentences_and_names(tmp_path):
+    dataset = _text_dataset(6, seed=1)
+    assert dataset.condition_names() == tuple(TYPES[k] for k in
+                                              synthetic_dataset(6, conditioned=True, seed=1)
+                                              .conditions.argmax(axis=1))
+    assert dataset.condition(2) == Condition(ConditionKind.TEXT,
+                                             f"the {dataset.condition_names()[2]} square")
+    assert load_dataset(save_dataset(dataset, tmp_path / "text.gva")) == dataset
+    bad = dataset.conditions.copy()
+    bad[3] *= 2
+    with pytest.raises(InvalidInputError, match=r"conditions\[3\] .* a sentence embedding of "
+                                                r"unit length"):
+        Dataset(dataset.metadata, dataset.images, bad, dataset.labels, dataset.scenes)
+    wrong = tuple(record | {"condition": {"value": "purple"}} for record in dataset.scenes)
+    with pytest.raises(InvalidInputError, match=r"scenes\[0\].condition.value = 'purple'"):
+        Dataset(dataset.metadata, dataset.images, dataset.conditions, dataset.labels,
+                wrong).condition_names()
+
+
+def test_an_image_dataset_gives_back_each_picture():
+    base = synthetic_dataset(size=4, conditioned=True, seed=2)
+    rng = np.random.default_rng(0)
+    pictures = [colour_picture(int(k), rng) for k in base.conditions.argmax(axis=1)]
+    rows = np.stack([Condition(ConditionKind.IMAGE, picture=p).vector() for p in pictures])
+    dataset = given_as(base, ConditionKind.IMAGE, rows, [None] * 4)
+    for n, picture in enumerate(pictures):
+        assert np.array_equal(dataset.condition(n).picture, picture)
+    with pytest.raises(InvalidInputError, match=r"a picture's pixels in \[0, 1\]"):
+        Dataset(dataset.metadata, dataset.images, rows * 2, dataset.labels, dataset.scenes)
+
+
+def test_kqv_reads_a_sentence_vector_and_checks_the_condition_it_is_given(tmp_path):
+    dataset = _text_dataset(6, seed=3)
+    model = KqvModel.for_dataset(dataset, KqvConfig(seed=0))
+    model.fit(dataset, TrainConfig(steps=2, batch_size=4, threads=1), progress=False)
+    assert model.spec.condition_size == 384
+    loaded = KqvModel.load(model.save(tmp_path / "ckpt"))
+    image = dataset.images[0]
+    vector = dataset.conditions[0]
+    # predict() takes the Condition and reads its vector; the loaded model predicts the same.
+    np.testing.assert_allclose(
+        loaded.predict_batch(image[None], vector[None])[0].targets[0].position_m,
+        model.predict_batch(image[None], vector[None])[0].targets[0].position_m, atol=1e-6)
+    with pytest.raises(InvalidInputError, match=r"condition = .* a text condition$"):
+        model.predict(image, Condition(ConditionKind.OBJECT_TYPE, "red", TYPES))
+
+
+def test_kqv_learns_to_attend_to_the_pictured_colour_in_pictures_it_never_saw():
+    """Pictures of each colour (shades, places, backgrounds vary) steer the attention."""
+    rng = np.random.default_rng(0)
+
+    def pictured(size: int, seed: int) -> Dataset:
+        base = synthetic_dataset(size=size, conditioned=True, seed=seed, image_px=48)
+        rows = np.stack([Condition(ConditionKind.IMAGE, picture=colour_picture(int(k), rng))
+                         .vector() for k in base.conditions.argmax(axis=1)])
+        return given_as(base, ConditionKind.IMAGE, rows, [None] * size)
+
+    train, test = pictured(48, seed=4), pictured(24, seed=5)
+    model = KqvModel.for_dataset(train, KqvConfig(seed=0))
+    assert model.network.picture_net is not None and spec().condition_size == 0
+    model.fit(train, TrainConfig(steps=300, batch_size=16, learning_rate=3e-3, threads=1),
+              progress=False)
+    result = evaluate(model, test)
+    # The images span 0.3 m: chance (a random one of three squares) is about 15 cm off.
+    assert result.mean_position_error_cm < 5.0, result.headline()
+
+
+class _PointsAt(PerceptionModel):
+    """Attends, image after image, to the pixels it is handed (a stand-in for a model)."""
+
+    name = "points-at"
+    label_kind = LabelKind.POSITION
+
+    def __init__(self, points_px: list[np.ndarray]) -> None:
+        self.points = iter(points_px)
+
+    def predict(self, image, condition=NO_CONDITION):
+        return Prediction((Target(np.zeros(3)),), next(self.points)[None])
+
+
+def test_attention_on_the_named_object_is_scored_per_image_and_per_scene():
+    """Two scenes of three objects, each asked for all three: the model misses once."""
+    xy = [[(0.35, 0.10), (0.45, -0.05), (0.55, 0.08)], [(0.40, -0.12), (0.50, 0.12), (0.38, 0.0)]]
+    scenes, labels, points = [], [], []
+    for s, objects in enumerate(xy):
+        for target in range(3):
+            scenes.append({"index": s, "targets": [target],
+                           "objects": [{"type": TYPES[k], "position_xy_m": list(p)}
+                                       for k, p in enumerate(objects)],
+                           "condition": {"kind": "object_type", "value": TYPES[target]}})
+            labels.append(label_vector(np.array([[*objects[target], 0.02]])))
+            aimed = objects[target] if (s, target) != (1, 2) else objects[0]  # one miss
+            points.append(CAMERA.project(np.array([[*aimed, 0.02]]))[0])
+    base = synthetic_dataset(size=6, conditioned=True)
+    metadata = replace(base.metadata, camera=CAMERA.to_json())
+    dataset = Dataset(metadata, base.images, np.eye(3, dtype=np.float32)[[0, 1, 2] * 2],
+                      np.array(labels, np.float32), tuple(scenes))
+    result = evaluate(_PointsAt(points), dataset)
+    assert result.attention_on_named_fraction == pytest.approx(5 / 6)
+    assert result.attention_switch_fraction == pytest.approx(1 / 2)
+    unconditioned = evaluate(trained_scaler(KqvModel.for_dataset(synthetic_dataset(size=2))),
+                             synthetic_dataset(size=2))
+    assert unconditioned.attention_on_named_fraction is None
