@@ -12,7 +12,9 @@ Inference: median wall time of ``predict(image, condition)`` at batch 1 on a 128
 collect``; the test set from another seed, so no test scene was trained on): the training time
 (bar: 180 s for 20 scenes on 2 cores), the mean position error on the test scenes (bars: 2 cm
 for ``single``, 3 cm for ``selected-type``) and, for a conditioned task, how often switching the
-condition puts the attention point on the object the condition names (bar: 95 % of scenes).
+condition puts the attention point on the object the condition names (bar: 95 % of scenes;
+``perception.learning.evaluate.attention_on_named``, on a test set collected with
+``--every-condition``).
 """
 
 from __future__ import annotations
@@ -32,7 +34,6 @@ import numpy as np
 import torch
 
 from perception.interface import ConditionKind, LabelKind
-from perception.learning.data import Dataset
 from perception.learning.dataset_file import load_dataset
 from perception.learning.evaluate import evaluate
 from perception.learning.learnable import ModelSpec
@@ -60,42 +61,6 @@ def inference_ms(kind: LabelKind, repeats: int, threads: int) -> float:
     return statistics.median(times) * 1e3
 
 
-def object_pixels(dataset: Dataset, height_m: float = 0.04) -> list[np.ndarray]:
-    """Per scene, the pixels of its objects' centres (taken ``height_m`` above the table)."""
-    from sim.world.head_camera import CameraConfig, HeadCamera
-
-    projector = HeadCamera(CameraConfig.from_json(dataset.metadata.camera))
-    return [projector.project(np.array([[*o["position_xy_m"], height_m]
-                                        for o in scene["objects"]]))
-            for scene in dataset.scenes]
-
-
-def switch_rate(model: KqvModel, dataset: Dataset) -> float:
-    """Share of scenes in which every condition puts the attention on the object it names.
-
-    The attention point must lie nearest the object the condition names (its type, or the
-    left/right one of two).
-    """
-    meta, pixels = dataset.metadata, object_pixels(dataset)
-    good = 0
-    for index, scene in enumerate(dataset.scenes):
-        objects = [o for o in scene["objects"] if not o.get("distractor")]
-        hits = []
-        for choice in meta.condition_choices:
-            one_hot = np.eye(len(meta.condition_choices), dtype=np.float32)[
-                meta.condition_choices.index(choice)]
-            point = model.predict_batch(dataset.images[index:index + 1], one_hot[None])[0]
-            distances = np.linalg.norm(pixels[index] - point.attention_px[0], axis=1)
-            nearest = int(np.argmin(distances))
-            if meta.condition_kind is ConditionKind.OBJECT_TYPE:
-                hits.append(objects[nearest]["type"] == choice)
-            else:  # side: left is +y
-                ys = [o["position_xy_m"][1] for o in objects]
-                hits.append(nearest == int(np.argmax(ys) if choice == "left" else np.argmin(ys)))
-        good += all(hits)
-    return good / len(dataset)
-
-
 def accuracy(train_path: Path, test_path: Path, steps: int) -> dict[str, Any]:
     """Trains on one dataset with the default settings (``steps`` steps) and scores on another."""
     train_set, test_set = load_dataset(train_path), load_dataset(test_path)
@@ -118,8 +83,8 @@ def accuracy(train_path: Path, test_path: Path, steps: int) -> dict[str, Any]:
     }
     print(f"{result.headline()}; trained in {training_s:.1f} s ({steps} steps, "
           f"{report.threads} threads)")
-    if test_set.metadata.condition_kind is not ConditionKind.NONE:
-        row["attention_switch_rate"] = switch_rate(model, test_set)
+    if result.attention_switch_fraction is not None:  # a test set asked every condition
+        row["attention_switch_rate"] = result.attention_switch_fraction
         row["switch_bar"] = SWITCH_BAR
         print(f"switching the condition moves attention onto the named object in "
               f"{row['attention_switch_rate']:.0%} of test scenes")
@@ -139,7 +104,11 @@ def main() -> None:
 
 
 def default_pairs(folder: Path) -> list[tuple[Path, Path]]:
-    """Collects paper-sim single and selected-type: 20 scenes of seed 0, 100 of seed 1000."""
+    """Collects paper-sim single and selected-type: 20 scenes of seed 0, 100 of seed 1000.
+
+    Each scene of a conditioned task is asked every condition (the test scenes too), so the
+    evaluation can say whether switching the condition moves the attention.
+    """
     from sim.trials.collector import CollectSettings, collect
 
     pairs = []
@@ -147,8 +116,8 @@ def default_pairs(folder: Path) -> list[tuple[Path, Path]]:
         paths = []
         for size, seed in ((20, 0), (100, 1000)):
             path = folder / f"paper-sim-{task}-{size}-s{seed}.gva"
-            collect(CollectSettings(scene="paper-sim", task=task, size=size, seed=seed), path,
-                    progress=False)
+            collect(CollectSettings(scene="paper-sim", task=task, size=size, seed=seed,
+                                    every_condition=True), path, progress=False)
             paths.append(path)
         pairs.append((paths[0], paths[1]))
     return pairs

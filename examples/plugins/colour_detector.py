@@ -280,8 +280,12 @@ def choose(detections: list[Detection], condition: Condition) -> list[Detection]
 
     None: every object of a target type, by catalog type order, then from the robot's right
     (-y) to its left. An object type: that type's object (the nearest the robot if several).
-    A side: the leftmost (+y, ``"left"``) or the rightmost object.
+    A side: the leftmost (+y, ``"left"``) or the rightmost object. A sentence or a picture
+    is refused: reading them is what a learned Query is for.
     """
+    if condition.kind in (ConditionKind.TEXT, ConditionKind.IMAGE):
+        raise InvalidPredictionError(f"colour-detector reads one-hot conditions (an object type, "
+                                     f"a side), not a {condition.kind.value} condition")
     found = sorted((d for d in detections if d.object_type in OBJECT_TYPES),
                    key=lambda d: (OBJECT_TYPES.index(d.object_type), d.y_m))
     if condition.kind is ConditionKind.OBJECT_TYPE:

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from experiments.commands.arguments import integer
+from perception.interface import ConditionKind
 from sim.tasks.scene_picture import render_scene, write_scene_png
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import get_scene_spec
@@ -36,6 +37,9 @@ def run(args: argparse.Namespace) -> int:
     path = write_scene_png(image, args.out, args.scale)
     targets = ", ".join(scene.objects[i].object_type for i in scene.targets)
     condition = f"; condition {scene.condition.value}" if scene.condition.value else ""
+    if scene.query is not None:  # what the model is given for it
+        condition += (f', asked as "{scene.query.value}"' if scene.query.kind is
+                      ConditionKind.TEXT else f", shown as a {scene.query.value}")
     print(f"{args.scene} / {task.name}, {args.stream} scene {args.index}: targets {targets}"
           f"{condition}; {image.shape[1]}x{image.shape[0]} px image")
     print(f"wrote {path}")

@@ -1,0 +1,74 @@
+"""How well the frozen sentence encoder alone tells a text task's test phrasings apart.
+
+    python benchmarks/check_sentence_prototypes.py [--out FILE]
+
+(default ``benchmarks/results/sentence_prototypes.json``).
+
+For each built-in text task and scene, and for the example phrase file of new wordings: each
+target's prototype is the mean embedding of its training phrasings; a test phrasing is named
+right when its own target's prototype is the nearest (cosine). No image, no training: what a
+Query could at best read from the words, and where the encoder itself confuses them (sides).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from perception.sentences import embed
+from sim.tasks.scene_sampling import condition_choices
+from sim.tasks.scene_specs import get_scene_spec
+from sim.tasks.task_spec import SIDES
+from sim.tasks.task_toml import load_task, with_test_phrases
+
+NEW_WORDINGS = Path(__file__).resolve().parents[1] / "examples" / "phrases" / "new-wordings.tsv"
+
+
+def prototype_scores(task_name: str, scene: str, phrases: Path | None = None) -> dict:
+    """Each test phrasing's cosine to every target's training prototype, and the verdict."""
+    spec = get_scene_spec(scene)
+    task = load_task(task_name)
+    targets = condition_choices(task, spec)
+    if phrases is not None:
+        task = with_test_phrases(task, phrases, targets, spec.object_types + SIDES)
+    assert task.phrasings is not None
+    prototypes = {t: np.mean([embed(p) for p in task.phrasings.of("train", t)], axis=0)
+                  for t in targets}
+    rows = []
+    for target in targets:
+        for phrase in task.phrasings.of("test", target):
+            cosine = {t: float(embed(phrase) @ v / np.linalg.norm(v))
+                      for t, v in prototypes.items()}
+            rows.append({"phrase": phrase, "target": target, "cosine": cosine,
+                         "nearest": max(cosine, key=cosine.__getitem__)})
+    right = sum(r["nearest"] == r["target"] for r in rows)
+    return {"task": task_name, "scene": scene,
+            "phrases": phrases.name if phrases else "the task's test", "named_right": right,
+            "phrasings": len(rows), "rows": rows}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path,
+                        default=Path("benchmarks/results/sentence_prototypes.json"))
+    args = parser.parse_args()
+    results = [prototype_scores("selected-type-text", "yumi"),
+               prototype_scores("selected-type-text", "paper-sim"),
+               prototype_scores("selected-position-text", "yumi"),
+               prototype_scores("selected-type-text", "yumi", NEW_WORDINGS),
+               prototype_scores("selected-position-text", "yumi", NEW_WORDINGS)]
+    for result in results:
+        print(f"{result['task']} / {result['scene']} ({result['phrases']}): "
+              f"{result['named_right']} of {result['phrasings']} test phrasings nearest their "
+              "own target's prototype")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(results, indent=2) + "\n")
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
