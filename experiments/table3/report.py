@@ -283,7 +283,9 @@ def _reasons(result: TrialSetResult) -> list[str]:
         reason = record.reason if len(record.reason) <= REASON_CHARS else (
             record.reason[:REASON_CHARS - 3] + "...")
         where = f"seed {record.seed} trial {record.index}" if seeds else f"trial {record.index}"
-        lines.append(f"  - {where} ({record.target or '?'}{off}): "
+        given = record.asked or {}
+        asked = f', asked "{given.get("value")}"' if given.get("kind") == "text" else ""
+        lines.append(f"  - {where} ({record.target or '?'}{off}{asked}): "
                      f"{record.outcome.value}: {reason}")
     return lines
 

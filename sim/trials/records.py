@@ -63,6 +63,9 @@ class TrialRecord:
     given: the grip the model's prediction asked for (:meth:`sim.world.grip.Grip.to_record`) and
     the obstacles' source with their size (points, occupied cells). The top-level pick fields
     describe the last pick tried; ``picks`` lists every pick of a multi-target trial.
+    ``asked`` is what the model was given for a condition, where it is no one-hot name (the
+    scene record's ``query``): ``{"kind": "text", "value": <the sentence>}``, or ``{"kind":
+    "image", "value": "picture <sha256[:12]>"}``.
     """
 
     index: int
@@ -86,6 +89,7 @@ class TrialRecord:
     picks: list[dict[str, Any]] = field(default_factory=list)
     sim_time_s: float = 0.0
     wall_time_s: float = 0.0
+    asked: dict[str, Any] | None = None
 
     @property
     def success(self) -> bool:

@@ -210,10 +210,11 @@ class TrialRunner:
             last = traceback.extract_tb(error.__traceback__)[-1]
             result = TrialResult(TrialOutcome.ERROR, f"{type(error).__name__}: {error} "
                                  f"({Path(last.filename).name}:{last.lineno})")
+        record = scene.to_record()
         return TrialRecord(index=index, seed=seed, task=scene.task, model=model_name,
-                           objects=scene.to_record()["objects"], **result.record_fields(),
+                           objects=record["objects"], **result.record_fields(),
                            sim_time_s=self.world.time_s,
-                           wall_time_s=time.perf_counter() - started)
+                           wall_time_s=time.perf_counter() - started, asked=record.get("query"))
 
     def pick_targets(self, scene: Scene, bodies: list[int]) -> TrialResult:
         """Picks every target of ``scene`` in order, until one fails; how the trial went."""
