@@ -147,3 +147,14 @@ def test_a_bad_task_file_is_refused_within_a_timeout_not_after_a_hang(tmp_path):
     )
     assert done.returncode == 2, done.stderr
     assert done.stderr.count("\n") == 1 and "objects.count = 100" in done.stderr
+
+
+def test_a_bad_phrase_file_is_refused_in_one_line_naming_its_line(tmp_path):
+    phrases = tmp_path / "mine.tsv"
+    phrases.write_text("the absorbent scourer\tsponge\nthe atomiser spray_bottle\n")
+    out = tmp_path / "out"
+    status, stdout, stderr = gva("trials", "--task", "selected-type-text", "--phrases", phrases,
+                                 "--n", "1", "--out", out)
+    assert status == 2, stderr
+    assert stderr.count("\n") == 1 and "phrases mine.tsv line 2" in stderr, stderr
+    assert "phrase<TAB>target" in stderr and not out.exists()
