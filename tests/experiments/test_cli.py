@@ -155,6 +155,6 @@ def test_a_bad_phrase_file_is_refused_in_one_line_naming_its_line(tmp_path):
     out = tmp_path / "out"
     status, stdout, stderr = gva("trials", "--task", "selected-type-text", "--phrases", phrases,
                                  "--n", "1", "--out", out)
-    assert status == 2, stderr
+    assert status == 2 and not stdout, stderr
     assert stderr.count("\n") == 1 and "phrases mine.tsv line 2" in stderr, stderr
     assert "phrase<TAB>target" in stderr and not out.exists()
