@@ -3,12 +3,13 @@ import pytest
 from user_models import synthetic_dataset
 
 from experiments.cli import main
-from perception.interface import LabelKind
+from perception.interface import ConditionKind, LabelKind
 from perception.learning.dataset_file import DatasetError, load_dataset
 from perception.learning.labels import split_label
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import get_scene_spec
+from sim.tasks.task_toml import load_task
 from sim.trials.collector import CollectSettings, collect
 
 
@@ -169,3 +170,23 @@ def test_a_training_scene_is_asked_every_condition_and_a_test_scene_its_own(tmp_
               ["position_xy_m"][1] for record in (first, second)}
         assert ys["left"] > ys["right"]  # the robot's left is +y
     assert train.first_scenes(2).metadata.extra["scenes"] == 2 and len(train.first_scenes(2)) == 4
+
+
+@pytest.mark.parametrize("task", ["selected-type-text", "selected-type-image"])
+def test_a_sentence_or_picture_dataset_keeps_what_each_sample_was_asked(tmp_path, task):
+    """Every condition of a training scene, each with its own sentence or picture as the row."""
+    data = collect(CollectSettings("paper-sim", task, size=2, seed=0), tmp_path / "d.gva",
+                   progress=False)
+    spec = get_scene_spec("paper-sim")
+    assert data.metadata.condition_kind is (ConditionKind.TEXT if task.endswith("text")
+                                            else ConditionKind.IMAGE)
+    assert data.metadata.condition_choices == spec.object_types and len(data) == 6
+    assert sorted(data.condition_names()) == sorted(spec.object_types * 2)
+    phrasings = load_task(task).phrasings
+    for n, record in enumerate(data.scenes):
+        given = data.condition(n)
+        assert record["query"] == {"kind": given.kind.value, "value": given.value}
+        assert record["condition"]["value"] == data.condition_names()[n]
+        if phrasings is not None:  # a training scene says a training phrasing of its target
+            assert given.value in phrasings.of("train", data.condition_names()[n])
+        np.testing.assert_allclose(given.vector(), data.conditions[n], atol=1e-6)
