@@ -11,6 +11,7 @@ from pathlib import Path
 from experiments.commands.arguments import add_executor_options, executor, integer, integers, names
 from experiments.table2.run import run_reproduce_sim
 from experiments.table2.settings import SCENES, ReproduceSimSettings
+from experiments.tables import BEYOND_TASKS
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:
@@ -26,7 +27,8 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--models", type=names, default=defaults.models,
                         help=f"comma-separated (default all: {','.join(defaults.models)})")
     parser.add_argument("--tasks", type=names, default=defaults.tasks,
-                        help=f"comma-separated (default all: {','.join(defaults.tasks)})")
+                        help=f"comma-separated (default the paper's: {','.join(defaults.tasks)}; "
+                        f"beyond it: {','.join(BEYOND_TASKS)})")
     parser.add_argument("--sizes", type=integers, default=defaults.sizes,
                         help="training set sizes, comma-separated (default all: "
                         f"{','.join(str(s) for s in defaults.sizes)})")

@@ -12,6 +12,7 @@ from pathlib import Path
 from experiments.commands.arguments import add_executor_options, executor, integer, names
 from experiments.table3.run import run_reproduce_real
 from experiments.table3.settings import ReproduceRealSettings
+from experiments.tables import BEYOND_TASKS
 from perception.learning.validation import CheckConfig
 
 
@@ -31,7 +32,8 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         help="torch threads per training job (%(default)s: jobs train side by "
                         "side; a one-task run trains faster on all cores; results depend on it)")
     parser.add_argument("--tasks", type=names, default=defaults.tasks,
-                        help=f"comma-separated (default all: {','.join(defaults.tasks)})")
+                        help=f"comma-separated (default the paper's: {','.join(defaults.tasks)}; "
+                        f"beyond it: {','.join(BEYOND_TASKS)})")
     parser.add_argument("--models", type=names, default=defaults.models,
                         help="comma-separated names gva train takes, e.g. kqv,keypoint-16,fcn "
                         f"(default {','.join(defaults.models)})")
