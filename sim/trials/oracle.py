@@ -37,6 +37,9 @@ class OraclePerception(PerceptionModel):
 
     ``candidates``, when set, limits the targets to those bodies (a scene's distractors are
     presented but never targets); objects taken off the table drop out by themselves.
+    ``named``, when set, is what the scene's condition names: asked by a sentence or a
+    picture, the oracle reads the target from it, as it reads the poses, from the truth.
+    The trial runner sets both per scene.
     """
 
     name = "oracle"
@@ -46,10 +49,16 @@ class OraclePerception(PerceptionModel):
         self.world = world
         self.camera = camera
         self.candidates: tuple[int, ...] | None = None
+        self.named: Condition | None = None
 
     def predict(self, image: np.ndarray, condition: Condition = NO_CONDITION) -> Prediction:
         """The canonical grasp of each target; the image is checked but not needed."""
         check_image(image)
+        if condition.kind in (ConditionKind.TEXT, ConditionKind.IMAGE):
+            if self.named is None:
+                raise TargetNotFoundError(f"the oracle reads a {condition.kind.value} condition "
+                                          "through what its scene names, and none was set")
+            condition = self.named
         bodies = self._targets(condition)
         targets, centres = [], []
         for body in bodies:

@@ -39,7 +39,6 @@ from perception.checks import check_inputs, check_prediction
 from perception.errors import InvalidPredictionError
 from perception.grasps import grasp_pose
 from perception.interface import (
-    Condition,
     LabelKind,
     ModelInput,
     PerceptionError,
@@ -185,6 +184,7 @@ class TrialRunner:
         if isinstance(self.model, OraclePerception):  # distractors are never the oracle's targets
             self.model.candidates = tuple(b for b, o in zip(bodies, scene.objects, strict=True)
                                           if not o.distractor)
+            self.model.named = scene.condition  # what a sentence or a picture stands for
         return bodies
 
     def sense(self) -> RgbdFrame:
@@ -236,14 +236,6 @@ class TrialRunner:
         return TrialResult(last.outcome, f"pick {len(picks)} of {len(targets)} ({last.target}): "
                            f"{last.reason}", tuple(picks))
 
-    def condition_for(self, scene: Scene) -> Condition:
-        """What the model is given: the scene's sentence or picture (:attr:`Scene.given`).
-
-        The oracle alone is given the name itself: it is the referee's own demonstrator, which
-        reads the simulator's truth by design (demonstrations, checks of the run machinery).
-        """
-        return scene.condition if isinstance(self.model, OraclePerception) else scene.given
-
     def pick(self, scene: Scene, number: int, total: int, body: int) -> PickAttempt:
         """Pick ``number`` of ``total``: sense, predict, plan from that alone, run, judge.
 
@@ -254,7 +246,7 @@ class TrialRunner:
         truth = self.truth(body)  # the referee's label of this image, kept from the plan phase
         target = self.world.object_spec(body).name
         try:
-            prediction = self.model.predict_frame(frame, self.condition_for(scene))
+            prediction = self.model.predict_frame(frame, scene.given)
         except Exception as error:  # the model's failure, recorded with its traceback
             failed = PlannedPick(TrialOutcome.PERCEPTION_FAILED, f"{self.model.name}'s predict "
                                  f"raised {type(error).__name__}: {error}",

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import numpy as np
+import pytest
+
 from perception.interface import (
     NO_CONDITION,
     Condition,
@@ -9,6 +12,7 @@ from perception.interface import (
     LabelKind,
     PerceptionModel,
 )
+from sim.errors import TargetNotFoundError
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.trials.oracle import OraclePerception
@@ -48,3 +52,19 @@ def test_a_text_task_hands_the_model_the_sentence_and_records_it(tmp_path):
     assert given == [Condition(ConditionKind.TEXT, wanted)]
     assert record.asked == {"kind": "text", "value": wanted}
     assert record.outcome.value == "success", record.reason
+
+
+def test_the_oracle_is_told_what_the_sentence_stands_for(tmp_path):
+    """The referee's demonstrator picks a text task's target from the truth, as it picks poses."""
+    task = TrialSettings("oracle", "selected-type-text").task_spec
+    scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 1)
+    with TrialRunner(task) as runner:
+        record = runner.run(scene, 1, 0, "oracle")
+        assert runner.model.named == scene.condition
+    assert record.outcome.value == "success", record.reason
+    assert record.target == scene.condition.value
+    assert record.asked == {"kind": "text", "value": scene.given.value}
+    untold = OraclePerception(runner.world, runner.camera)
+    with pytest.raises(TargetNotFoundError, match="reads a text condition through what its "
+                                                   "scene names"):
+        untold.predict(np.zeros((8, 8, 3), np.uint8), scene.given)
