@@ -179,7 +179,8 @@ def run_show_attention(args: argparse.Namespace) -> int:
     by_condition = [model.predict_batch(images, np.repeat(dataset.conditions[j:j + 1], count,
                                                           axis=0)) for j in asked]  # [C][n]
     if choices:
-        print("rows: " + ", ".join(f"{c} = {_asked(dataset, j)}" for c, j in enumerate(asked))
+        print("rows: " + ", ".join(f"{c} = {_asked(dataset, names, j)}"
+                                   for c, j in enumerate(asked))
               + " (the sample's own condition is the white number)")
     print("dots: attention points, numbered by head; panels: each head's heatmap")
     for i in range(count):
@@ -190,20 +191,26 @@ def run_show_attention(args: argparse.Namespace) -> int:
         else:
             rows = [AttentionRow(own[i].attention_px, own[i].heatmaps)]
         text = meta.condition_kind is ConditionKind.TEXT
-        caption = [f"{c}: {_asked(dataset, j)}" for c, j in enumerate(asked)] if text else []
+        caption = [f"{c}: {_asked(dataset, names, j)}" for c, j in enumerate(asked)] if text \
+            else []
         path = write_png(args.out / f"attention-{i:03d}.png",
                          attention_figure(images[i], rows, args.scale, caption))
-        condition = f", condition {_asked(dataset, i)}" if choices else ""
+        condition = f", condition {_asked(dataset, names, i)}" if choices else ""
         print(f"sample {i}{condition}: {path}")
         for line in _sample_lines(own[i], dataset.labels[i]):
             print(f"  {line}")
     return 0
 
 
-def _asked(dataset: Dataset, index: int) -> str:
-    """Sample ``index``'s condition for people: its value, and the sentence that asked for it."""
-    name, given = dataset.condition_names()[index], dataset.condition(index)
-    return f'{name} ("{given.value}")' if given.kind is ConditionKind.TEXT else str(name)
+def _asked(dataset: Dataset, names: Sequence[str | None], index: int) -> str:
+    """Sample ``index``'s condition for people: its value, and the sentence that asked for it.
+
+    ``names`` is the dataset's :meth:`~perception.learning.data.Dataset.condition_names`,
+    computed once by the caller.
+    """
+    given = dataset.condition(index)
+    return f'{names[index]} ("{given.value}")' if given.kind is ConditionKind.TEXT \
+        else str(names[index])
 
 
 def _model_and_dataset(args: argparse.Namespace) -> tuple[LearnableModel, Dataset]:

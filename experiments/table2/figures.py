@@ -122,7 +122,7 @@ def _draw_fig5_panels(axes: np.ndarray, test: Dataset, model_name: str,
     count = min(len(axes), len(test))
     predictions = load_model(out / cell["checkpoint"]).predict_batch(
         test.images[:count], test.conditions[:count])
-    choices = test.metadata.condition_choices
+    choices, names = test.metadata.condition_choices, test.condition_names()
     for k, (axis, prediction) in enumerate(zip(axes, predictions, strict=False)):
         image = test.images[k]  # (H, W, 3)
         panel = enlarge(image, image.shape[0] * FIG5_SCALE, image.shape[1] * FIG5_SCALE)
@@ -136,6 +136,6 @@ def _draw_fig5_panels(axes: np.ndarray, test: Dataset, model_name: str,
                                   for j, target in enumerate(prediction.targets)])
         given = test.condition(k)
         wanted = "" if not choices else (f'"{given.value}"\n' if given.kind is ConditionKind.TEXT
-                                         else f"{test.condition_names()[k]}, ")
+                                         else f"{names[k]}, ")
         axis.set_xlabel(f"{wanted}{error_cm:.1f} cm")
     axes[0].set_ylabel(f"{MODEL_TITLES[model_name]}\n{cell['size']} scenes, seed {cell['seed']}")
