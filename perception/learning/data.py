@@ -227,6 +227,22 @@ class Dataset:
         query = self.scenes[index].get("query", {})
         return Condition(kind, query.get("value"))
 
+    def condition_prototypes(self) -> np.ndarray:
+        """(k, C) float32: per ``condition_choices`` entry, the mean of its distinct conditions.
+
+        Each distinct sentence (or picture) counts once, however many samples ask it, so a
+        model that reads a new condition by its likeness to these (kqv's sentence prototypes)
+        weighs every training wording alike. A choice no sample names gets zeros.
+        """
+        names = np.array(self.condition_names(), dtype=object)
+        prototypes = np.zeros((len(self.metadata.condition_choices), self.conditions.shape[1]),
+                              dtype=np.float32)
+        for k, choice in enumerate(self.metadata.condition_choices):
+            rows = self.conditions[names == choice]
+            if len(rows):
+                prototypes[k] = np.unique(rows, axis=0).mean(axis=0)
+        return prototypes
+
     def target_types(self) -> tuple[tuple[str | None, ...], ...]:
         """(N, q) each target's object type as its scene record names it; None where it does not.
 

@@ -9,6 +9,7 @@ from outside. Its settings are :class:`KqvConfig`; where they depart from the pa
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import torch
@@ -43,8 +44,20 @@ class KqvModel(TorchModel):
         """The Key, Value, Query and head networks for this spec."""
         network = KqvNet(self.spec, self.config)
         network.scaler = self.scaler
+        if network.prototypes is not None and self._prototypes is not None:
+            network.prototypes.copy_(self._prototypes)
         return network
 
+    @classmethod
+    def hyperparameters_from(cls, saved: dict[str, Any]) -> dict[str, Any]:
+        """The saved hyper-parameters, with older checkpoints' settings made explicit.
+
+        A checkpoint from before sentence prototypes reads the sentence embedding itself, as
+        it was trained to.
+        """
+        return {"sentence_reading": "embedding"} | saved
+
+    _prototypes: Tensor | None = None  # (k, C) a sentence task's prototypes, set on first fit
     _steps_taken = 0  # training steps of the current fit, for the temperature warm-up
     _mirror: Mirror | None = None  # mirrors training samples (KqvConfig.mirror)
 
@@ -89,6 +102,9 @@ class KqvModel(TorchModel):
             self.spec.check_dataset(dataset)
             self.scaler = LabelScaler.fit(dataset.labels[..., :3])
             self.network.scaler = self.scaler
+            if self.network.prototypes is not None:  # what each target's sentences sound like
+                self._prototypes = torch.from_numpy(dataset.condition_prototypes())
+                self.network.prototypes.copy_(self._prototypes)
         if not fresh or self.config.starts == 1 or config.steps <= self.config.start_steps:
             self._steps_taken = 0
             return super().fit(dataset, config, progress)

@@ -16,6 +16,7 @@ from perception.models.rotations import ROTATION_CODES
 QUERY_MODES = ("auto", "base", "conditioned", "conditioned+base")
 READOUTS = ("auto", "mlp", "ray")
 INPUT_NORMS = ("auto", "fixed", "per-image")
+SENTENCE_READINGS = ("prototypes", "embedding")
 
 
 @dataclass(frozen=True)
@@ -76,6 +77,13 @@ class KqvConfig:
             it attends to; it trains after the pose, on the frozen network. None: for grasp-pose
             labels where the dataset names its types, unless the condition is an object type.
         type_steps: Optimiser steps of that type phase.
+        sentence_reading: How a sentence condition becomes the Query MLP's input.
+            ``"prototypes"``: its cosine to each named target's prototype (the mean embedding
+            of the training sentences that named it), softmaxed at ``sentence_temperature``, so
+            words never trained on carry over as far as the frozen encoder relates them;
+            ``"embedding"``: the 384-d embedding itself (checkpoints written before
+            prototypes existed read it so).
+        sentence_temperature: Divides those cosines before the softmax.
         seed: Seeds the initial weights.
 
     """
@@ -102,6 +110,8 @@ class KqvConfig:
     rotation_loss_weight: float = 0.1
     type_head: bool | None = None
     type_steps: int = 300
+    sentence_reading: str = "prototypes"
+    sentence_temperature: float = 0.02
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -121,7 +131,8 @@ class KqvConfig:
         check_choices("readout", self.readout, READOUTS)
         check_choices("input_norm", self.input_norm, INPUT_NORMS)
         check_choices("rotation", self.rotation, ROTATION_CODES)
-        for name in ("temperature", "warmup_temperature"):
+        check_choices("sentence_reading", self.sentence_reading, SENTENCE_READINGS)
+        for name in ("temperature", "warmup_temperature", "sentence_temperature"):
             if not (math.isfinite(getattr(self, name)) and getattr(self, name) > 0):
                 raise InvalidInputError(name, getattr(self, name), "a finite value > 0")
         if not (math.isfinite(self.start_holdout) and 0 <= self.start_holdout < 1):

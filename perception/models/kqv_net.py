@@ -62,6 +62,8 @@ def picture_encoder() -> nn.Sequential:
 class KqvNet(nn.Module):
     """The network: FCN1 (Key), FCN2 (Feature Value), the Queries, the head MLP, the type head."""
 
+    prototypes: Tensor | None  # (k, C) a sentence task's target prototypes, or None
+
     def __init__(self, spec: ModelSpec, config: KqvConfig) -> None:
         super().__init__()
         c, key, value = config, config.key_dim, config.value_dim
@@ -102,6 +104,15 @@ class KqvNet(nn.Module):
             if "base" in mode else None  # (q, Ck + 2)
         pictured = spec.condition_kind is ConditionKind.IMAGE
         condition_in = PICTURE_FEATURES if pictured else spec.condition_size
+        # A sentence is read by its likeness to each named target's training sentences
+        # (KqvConfig.sentence_reading); the prototypes come from the first fit's dataset.
+        self.sentence_temperature = c.sentence_temperature
+        if spec.condition_kind is ConditionKind.TEXT and c.sentence_reading == "prototypes":
+            self.register_buffer("prototypes", torch.zeros(len(spec.condition_choices),
+                                                           spec.condition_size))  # (k, C)
+            condition_in = len(spec.condition_choices)
+        else:
+            self.prototypes = None
         self.query_mlp = MLP((condition_in, hidden, spec.targets * query_dim)) \
             if "conditioned" in mode else None
         if self.query_mlp is not None and self.base_queries is not None:
@@ -159,8 +170,22 @@ class KqvNet(nn.Module):
             if self.picture_net is not None:  # rows of pixels -> (B, PICTURE_FEATURES)
                 pictures = conditions.view(batch, PICTURE_PX, PICTURE_PX, 3).permute(0, 3, 1, 2)
                 conditions = self.picture_net((pictures - 0.5) / 0.25)
+            elif self.prototypes is not None:  # sentences -> (B, k) weights on the targets
+                conditions = self.sentence_weights(conditions)
             parts.append(self.query_mlp(conditions).view(batch, self.targets, -1))
         return torch.stack(parts).sum(dim=0)  # (B, q, Ck + 2)
+
+    def sentence_weights(self, embeddings: Tensor) -> Tensor:
+        """How sentence embeddings (B, C) read as the named targets: (B, k), rows summing to 1.
+
+        The softmax, at ``sentence_temperature``, of each sentence's cosine to every target's
+        prototype. Raises where the network reads sentences otherwise.
+        """
+        if self.prototypes is None:
+            raise InvalidInputError("sentence_reading", "not 'prototypes'",
+                                    "a kqv model of a sentence task that reads by prototypes")
+        cosines = unit(embeddings, dim=-1) @ unit(self.prototypes, dim=-1).T  # (B, k)
+        return torch.softmax(cosines / self.sentence_temperature, dim=-1)
 
     def attend(self, images: Tensor, queries: Tensor) -> Attention:
         """Selection and extraction: images (B, 3, H, W) in [0, 1], queries (B, q', Ck + 2)."""

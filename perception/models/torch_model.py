@@ -228,7 +228,7 @@ class TorchModel(LearnableModel):
         data = checkpoint.config
         try:
             model = cls(ModelSpec.from_json(data["spec"]),
-                        cls.config_class(**data["hyperparameters"]),
+                        cls.config_class(**cls.hyperparameters_from(data["hyperparameters"])),
                         LabelScaler.from_json(data["label_scaler"]))
         except (KeyError, TypeError, ValueError) as error:
             raise CheckpointError(checkpoint.folder / CONFIG_FILE, f"cannot rebuild the model "
@@ -236,6 +236,15 @@ class TorchModel(LearnableModel):
         check_shapes(checkpoint, model.network.state_dict())
         model.network.load_state_dict(checkpoint.tensors)
         return model
+
+    @classmethod
+    def hyperparameters_from(cls, saved: dict[str, Any]) -> dict[str, Any]:
+        """The keyword arguments of :attr:`config_class` a checkpoint's saved values give.
+
+        A model whose later versions add a setting that changes older checkpoints' networks
+        names here the value those checkpoints were trained with; by default, as saved.
+        """
+        return saved
 
     def _scaler(self) -> LabelScaler:
         if self.scaler is None:
