@@ -8,6 +8,11 @@ For each built-in text task and scene, and for the example phrase file of new wo
 target's prototype is the mean embedding of its training phrasings; a test phrasing is named
 right when its own target's prototype is the nearest (cosine). No image, no training: what a
 Query could at best read from the words, and where the encoder itself confuses them (sides).
+
+It also chooses kqv's ``sentence_temperature`` from the training phrasings alone: each one in
+turn is left out of its target's prototype and read as kqv reads a sentence (softmax of its
+cosines over the temperature); the temperature whose mean weight on the right target is
+highest wins. No test phrasing takes part in that choice.
 """
 
 from __future__ import annotations
@@ -50,6 +55,31 @@ def prototype_scores(task_name: str, scene: str, phrases: Path | None = None) ->
             "phrasings": len(rows), "rows": rows}
 
 
+TEMPERATURES = (0.01, 0.02, 0.05, 0.1, 0.2)
+
+
+def leave_one_out(task_name: str, scene: str) -> dict:
+    """Mean softmax weight each training phrasing gives its own target, left out of it."""
+    spec = get_scene_spec(scene)
+    task = load_task(task_name)
+    assert task.phrasings is not None
+    targets = condition_choices(task, spec)
+    rows = [(embed(p), k) for k, t in enumerate(targets) for p in task.phrasings.of("train", t)]
+    weights: dict[str, float] = {}
+    for temperature in TEMPERATURES:
+        right = []
+        for n, (vector, own) in enumerate(rows):
+            cosines = np.array([vector @ (v := np.mean([r for m, (r, k) in enumerate(rows)
+                                                        if k == target and m != n], axis=0))
+                                / np.linalg.norm(v) for target in range(len(targets))])
+            soft = np.exp((cosines - cosines.max()) / temperature)
+            right.append(soft[own] / soft.sum())
+        weights[str(temperature)] = float(np.mean(right))
+    return {"task": task_name, "scene": scene, "phrasings": len(rows),
+            "mean_weight_on_own_target": weights,
+            "best_temperature": float(max(weights, key=weights.__getitem__))}
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path,
@@ -64,8 +94,16 @@ def main() -> int:
         print(f"{result['task']} / {result['scene']} ({result['phrases']}): "
               f"{result['named_right']} of {result['phrasings']} test phrasings nearest their "
               "own target's prototype")
+    choices = [leave_one_out(task, scene) for task, scene in
+               (("selected-type-text", "yumi"), ("selected-type-text", "paper-sim"),
+                ("selected-position-text", "yumi"))]
+    for choice in choices:
+        print(f"{choice['task']} / {choice['scene']}: training phrasings left out, weight on "
+              "their own target by temperature " + ", ".join(
+                  f"{t}: {w:.3f}" for t, w in choice["mean_weight_on_own_target"].items()))
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(results, indent=2) + "\n")
+    args.out.write_text(json.dumps({"nearest_prototype": results,
+                                    "temperature_leave_one_out": choices}, indent=2) + "\n")
     print(f"wrote {args.out}")
     return 0
 

@@ -27,6 +27,7 @@ from perception.learning.evaluate import evaluate
 from perception.learning.learnable import LearnableModel
 from perception.learning.train import TrainConfig
 from perception.learning.validation import CHECK_FILE, CheckConfig, fit_checked, write_check
+from perception.models.kqv import KqvModel
 from perception.registry import load_model, new_model
 
 
@@ -182,6 +183,11 @@ def run_show_attention(args: argparse.Namespace) -> int:
         print("rows: " + ", ".join(f"{c} = {_asked(dataset, names, j)}"
                                    for c, j in enumerate(asked))
               + " (the sample's own condition is the white number)")
+    if isinstance(model, KqvModel) and (read := model.read_sentences(
+            dataset.conditions[asked])) is not None:
+        for c, weights in enumerate(read):
+            print(f"kqv reads row {c}'s sentence as " + ", ".join(
+                f"{choice} {w:.2f}" for choice, w in zip(choices, weights, strict=True)))
     print("dots: attention points, numbered by head; panels: each head's heatmap")
     for i in range(count):
         if choices:

@@ -222,6 +222,18 @@ class KqvModel(TorchModel):
         return self.network.queries(torch.as_tensor(conditions).float()).numpy()
 
     @torch.no_grad()
+    def read_sentences(self, embeddings: np.ndarray) -> np.ndarray | None:
+        """How sentence embeddings (B, C) read as the named targets: (B, k) weights, or None.
+
+        The weights the Query MLP is given (:attr:`KqvConfig.sentence_reading` ``"prototypes"``),
+        in ``spec.condition_choices`` order, each row summing to 1; None for a model that reads
+        no sentence or reads the embedding itself. What the model took a sentence to mean.
+        """
+        if self.network.prototypes is None:
+            return None
+        return self.network.sentence_weights(torch.as_tensor(embeddings).float()).numpy()
+
+    @torch.no_grad()
     def attend(self, images: np.ndarray, queries: np.ndarray) -> dict[str, np.ndarray]:
         """Attention of uint8 images (B, H, W, 3) under any Queries (B, q', Ck + 2).
 

@@ -8,12 +8,13 @@ import json
 import struct
 from pathlib import Path
 
+import numpy as np
 import pytest
-from user_models import synthetic_dataset
+from user_models import TYPES, given_as, synthetic_dataset
 
 from experiments.cli import main
 from perception.drawing import figure_shape, number_size
-from perception.interface import LabelKind
+from perception.interface import ConditionKind, LabelKind
 from perception.learning.checkpoint import read_config
 from perception.learning.dataset_file import save_dataset
 from perception.registry import load_model
@@ -173,6 +174,22 @@ def test_show_attention_draws_a_row_per_condition(files: dict[str, Path],
     label_width = number_size(10, 2)[0] + 4
     width, height = png_size(tmp_path / "attention-000.png")
     assert (height, width) == (4 + 3 * (64 + 4), 4 + label_width + 2 * (64 + 4))
+
+
+def test_show_attention_says_how_kqv_read_each_sentence(tmp_path: Path) -> None:
+    base = synthetic_dataset(size=6, conditioned=True)
+    names = base.conditions.argmax(axis=1)
+    sentences = np.random.default_rng(0).normal(size=(len(TYPES), 384))
+    sentences /= np.linalg.norm(sentences, axis=1, keepdims=True)
+    data = save_dataset(given_as(base, ConditionKind.TEXT, sentences[names],
+                                 [f"the {TYPES[k]} one" for k in names]), tmp_path / "text.gva")
+    assert gva("train", "--model", "kqv", "--data", data, "--out", tmp_path / "k", *FAST)[0] == 0
+    status, out, err = gva("show", "attention", "--model", tmp_path / "k", "--data", data,
+                           "--out", tmp_path / "png", "--count", 1)
+    assert status == 0, err
+    assert out.startswith('rows: 0 = red ("the red one"), 1 = green ("the green one")')
+    # Each type's one sentence is its prototype: read as that type, nearly all of it.
+    assert "kqv reads row 0's sentence as red 1.00, green 0.00, blue 0.00\n" in out
 
 
 def test_show_attention_refuses_a_model_without_attention_points(

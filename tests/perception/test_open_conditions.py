@@ -6,11 +6,13 @@ unit vector, which is all a model sees of it.
 
 from __future__ import annotations
 
+import json
 import re
 from dataclasses import replace
 
 import numpy as np
 import pytest
+import torch
 from user_models import (
     CAMERA,
     TYPES,
@@ -33,6 +35,7 @@ from perception.interface import (
     Target,
     condition_size,
 )
+from perception.learning.checkpoint import save_checkpoint
 from perception.learning.data import Dataset
 from perception.learning.dataset_file import load_dataset, save_dataset
 from perception.learning.evaluate import evaluate
@@ -138,6 +141,65 @@ def test_kqv_reads_a_sentence_vector_and_checks_the_condition_it_is_given(tmp_pa
         model.predict_batch(image[None], vector[None])[0].targets[0].position_m, atol=1e-6)
     with pytest.raises(InvalidInputError, match=r"condition = .* a text condition$"):
         model.predict(image, Condition(ConditionKind.OBJECT_TYPE, "red", TYPES))
+
+
+def test_a_datasets_prototypes_count_each_distinct_sentence_once():
+    base = synthetic_dataset(size=12, conditioned=True, seed=6)
+    names = base.conditions.argmax(axis=1)
+    often = int(np.bincount(names, minlength=len(TYPES)).argmax())  # asked 3 times or more
+    rows = _unit_rows(len(TYPES), 0)[names]
+    other = _unit_rows(1, 1)[0]
+    rows[np.flatnonzero(names == often)[0]] = other  # one sample words it otherwise
+    dataset = given_as(base, ConditionKind.TEXT, rows, [None] * len(names))
+    prototypes = dataset.condition_prototypes()
+    np.testing.assert_allclose(prototypes[often], (_unit_rows(len(TYPES), 0)[often] + other) / 2,
+                               atol=1e-7)  # each wording once, however often it was asked
+    one = dataset.subset([0])
+    assert not np.delete(one.condition_prototypes(), names[0], axis=0).any()  # never named
+
+
+def _worded(size: int, seed: int, wordings: range) -> Dataset:
+    """Synthetic selected-type scenes; each names its type by one of several wordings.
+
+    A wording is its type's direction plus as much noise again (cosine about 0.7 to it), as a
+    sentence encoder places different wordings of one thing near each other.
+    """
+    base = synthetic_dataset(size=size, conditioned=True, seed=seed, image_px=48)
+    meaning = _unit_rows(len(TYPES), 7)
+    noise = _unit_rows(len(TYPES) * 8, 8).reshape(len(TYPES), 8, 384)
+    rng = np.random.default_rng(seed)
+    names = base.conditions.argmax(axis=1)
+    chosen = rng.choice(list(wordings), size=size)
+    rows = meaning[names] + noise[names, chosen]
+    rows /= np.linalg.norm(rows, axis=1, keepdims=True)
+    return given_as(base, ConditionKind.TEXT, rows,
+                    [f"wording {w} of {TYPES[k]}" for k, w in zip(names, chosen, strict=True)])
+
+
+def test_kqv_reads_wordings_it_never_saw_by_their_likeness_to_the_trained_ones(tmp_path):
+    train, test = _worded(48, seed=4, wordings=range(3)), _worded(24, seed=5, wordings=range(3, 8))
+    model = KqvModel.for_dataset(train, KqvConfig(seed=0))
+    model.fit(train, TrainConfig(steps=300, batch_size=16, learning_rate=3e-3, threads=1),
+              progress=False)
+    weights = model.network.sentence_weights(torch.from_numpy(test.conditions)).numpy()
+    named = [TYPES.index(name) for name in test.condition_names()]
+    assert (weights.argmax(axis=1) == named).all()  # every new wording read as its type
+    result = evaluate(model, test)
+    assert result.mean_position_error_cm < 5.0, result.headline()  # chance: about 15 cm
+    loaded = KqvModel.load(model.save(tmp_path / "ckpt"))
+    assert loaded.network.prototypes is not None
+    np.testing.assert_array_equal(loaded.network.prototypes.numpy(),
+                                  train.condition_prototypes())
+    # A checkpoint from before prototypes read the embedding itself, and still loads so.
+    legacy = KqvModel.for_dataset(train, KqvConfig(seed=0, sentence_reading="embedding"))
+    legacy.fit(train, TrainConfig(steps=2, batch_size=4, threads=1), progress=False)
+    folder = legacy.save(tmp_path / "legacy")
+    config = json.loads((folder / "config.json").read_text())
+    del config["hyperparameters"]["sentence_reading"]
+    save_checkpoint(folder, "kqv", {k: v for k, v in config.items() if k not in
+                                    ("format_version", "model", "weights_sha256",
+                                     "config_sha256")}, legacy.network.state_dict())
+    assert KqvModel.load(folder).config.sentence_reading == "embedding"
 
 
 def test_kqv_learns_to_attend_to_the_pictured_colour_in_pictures_it_never_saw():
