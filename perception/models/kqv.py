@@ -231,7 +231,8 @@ class KqvModel(TorchModel):
         """
         if self.network.prototypes is None:
             return None
-        return self.network.sentence_weights(torch.as_tensor(embeddings).float()).numpy()
+        rows = torch.from_numpy(np.array(embeddings, np.float32))  # a copy: theirs may be frozen
+        return self.network.sentence_weights(rows).numpy()
 
     @torch.no_grad()
     def attend(self, images: np.ndarray, queries: np.ndarray) -> dict[str, np.ndarray]:

@@ -167,13 +167,22 @@ class KqvNet(nn.Module):
         if self.base_queries is not None:
             parts.append(self.base_queries.expand(batch, -1, -1))  # (B, q, Ck + 2)
         if self.query_mlp is not None:
-            if self.picture_net is not None:  # rows of pixels -> (B, PICTURE_FEATURES)
-                pictures = conditions.view(batch, PICTURE_PX, PICTURE_PX, 3).permute(0, 3, 1, 2)
-                conditions = self.picture_net((pictures - 0.5) / 0.25)
-            elif self.prototypes is not None:  # sentences -> (B, k) weights on the targets
-                conditions = self.sentence_weights(conditions)
-            parts.append(self.query_mlp(conditions).view(batch, self.targets, -1))
+            parts.append(self.conditioned_queries(self.query_mlp, conditions)
+                         .view(batch, self.targets, -1))
         return torch.stack(parts).sum(dim=0)  # (B, q, Ck + 2)
+
+    def conditioned_queries(self, mlp: nn.Module, conditions: Tensor) -> Tensor:
+        """The Conditioned-Query MLP's answer for condition vectors (B, C): (B, q (Ck + 2))."""
+        if self.picture_net is not None:  # rows of pixels -> (B, PICTURE_FEATURES)
+            pictures = conditions.view(-1, PICTURE_PX, PICTURE_PX, 3).permute(0, 3, 1, 2)
+            return mlp(self.picture_net((pictures - 0.5) / 0.25))
+        if self.prototypes is not None:
+            # A sentence's Query is the weighted mean of the targets' own Queries (the MLP of
+            # each one-hot), so one read 90 % as a target attends mostly as it does; the MLP
+            # of the weights themselves answered such blends arbitrarily.
+            own = mlp(torch.eye(len(self.prototypes), device=conditions.device))  # (k, ...)
+            return self.sentence_weights(conditions) @ own
+        return mlp(conditions)
 
     def sentence_weights(self, embeddings: Tensor) -> Tensor:
         """How sentence embeddings (B, C) read as the named targets: (B, k), rows summing to 1.
