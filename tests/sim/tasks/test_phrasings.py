@@ -195,3 +195,16 @@ def test_the_new_wordings_example_shares_no_content_word_with_training(tmp_path)
     # No word in common, nor one inside the other ("teacup" holds "cup").
     shared = {(n, t) for n in new for t in trained if n in t or t in n}
     assert not shared, shared
+
+
+def test_the_retired_test_phrasings_still_serve_as_a_phrase_file():
+    """examples/phrases/retired-test-phrasings.tsv: no phrasing trained on, every target."""
+    path = Path(__file__).parents[3] / "examples" / "phrases" / "retired-test-phrasings.tsv"
+    table = dict(read_phrase_file(path, KNOWN))
+    assert set(table) == set(KNOWN) and all(len(phrases) >= 8 for phrases in table.values())
+    for name in ("selected-type-text", "selected-position-text"):
+        task = load_task(name)
+        trained = {p.lower() for _, phrases in task.phrasings.train for p in phrases}
+        tested = {p.lower() for _, phrases in task.phrasings.test for p in phrases}
+        retired = {p.lower() for phrases in table.values() for p in phrases}
+        assert not retired & trained and not retired & tested
