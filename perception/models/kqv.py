@@ -225,7 +225,7 @@ class KqvModel(TorchModel):
     def read_sentences(self, embeddings: np.ndarray) -> np.ndarray | None:
         """How sentence embeddings (B, C) read as the named targets: (B, k) weights, or None.
 
-        The weights the Query MLP is given (:attr:`KqvConfig.sentence_reading` ``"prototypes"``),
+        The weights :attr:`KqvConfig.sentence_reading` reads the Query from (by prototypes),
         in ``spec.condition_choices`` order, each row summing to 1; None for a model that reads
         no sentence or reads the embedding itself. What the model took a sentence to mean.
         """

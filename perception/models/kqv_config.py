@@ -16,7 +16,7 @@ from perception.models.rotations import ROTATION_CODES
 QUERY_MODES = ("auto", "base", "conditioned", "conditioned+base")
 READOUTS = ("auto", "mlp", "ray")
 INPUT_NORMS = ("auto", "fixed", "per-image")
-SENTENCE_READINGS = ("prototypes", "embedding")
+SENTENCE_READINGS = ("nearest", "prototypes", "embedding")
 
 
 @dataclass(frozen=True)
@@ -77,13 +77,15 @@ class KqvConfig:
             it attends to; it trains after the pose, on the frozen network. None: for grasp-pose
             labels where the dataset names its types, unless the condition is an object type.
         type_steps: Optimiser steps of that type phase.
-        sentence_reading: How a sentence condition becomes the Query MLP's input.
-            ``"prototypes"``: its cosine to each named target's prototype (the mean embedding
-            of the training sentences that named it), softmaxed at ``sentence_temperature``, so
-            words never trained on carry over as far as the frozen encoder relates them;
-            ``"embedding"``: the 384-d embedding itself (checkpoints written before
-            prototypes existed read it so).
-        sentence_temperature: Divides those cosines before the softmax.
+        sentence_reading: How a sentence condition becomes a Query. Each named target has a
+            prototype, the mean embedding of the training sentences that named it, and a
+            sentence's weights are the softmax of its cosines to them at
+            ``sentence_temperature``. ``"nearest"``: the Query of the target it reads most
+            likely (a sentence names one target, and a Query between two attends to neither);
+            ``"prototypes"``: the weighted mean of the targets' Queries; ``"embedding"``: the
+            Query MLP reads the 384-d embedding itself (checkpoints from before prototypes).
+        sentence_temperature: Divides those cosines before the softmax (the weights
+            ``KqvModel.read_sentences`` reports; ``"nearest"`` reads only their largest).
         seed: Seeds the initial weights.
 
     """
@@ -110,7 +112,7 @@ class KqvConfig:
     rotation_loss_weight: float = 0.1
     type_head: bool | None = None
     type_steps: int = 300
-    sentence_reading: str = "prototypes"
+    sentence_reading: str = "nearest"
     sentence_temperature: float = 0.02
     seed: int = 0
 

@@ -107,7 +107,8 @@ class KqvNet(nn.Module):
         # A sentence is read by its likeness to each named target's training sentences
         # (KqvConfig.sentence_reading); the prototypes come from the first fit's dataset.
         self.sentence_temperature = c.sentence_temperature
-        if spec.condition_kind is ConditionKind.TEXT and c.sentence_reading == "prototypes":
+        self.nearest_sentence = c.sentence_reading == "nearest"
+        if spec.condition_kind is ConditionKind.TEXT and c.sentence_reading != "embedding":
             self.register_buffer("prototypes", torch.zeros(len(spec.condition_choices),
                                                            spec.condition_size))  # (k, C)
             condition_in = len(spec.condition_choices)
@@ -177,11 +178,14 @@ class KqvNet(nn.Module):
             pictures = conditions.view(-1, PICTURE_PX, PICTURE_PX, 3).permute(0, 3, 1, 2)
             return mlp(self.picture_net((pictures - 0.5) / 0.25))
         if self.prototypes is not None:
-            # A sentence's Query is the weighted mean of the targets' own Queries (the MLP of
-            # each one-hot), so one read 90 % as a target attends mostly as it does; the MLP
-            # of the weights themselves answered such blends arbitrarily.
+            # The Query of the target a sentence reads most likely, or (``"prototypes"``) the
+            # mean of the targets' Queries under its weights; each target's Query is the MLP of
+            # its one-hot, so a sentence read right attends as the one-hot condition does.
             own = mlp(torch.eye(len(self.prototypes), device=conditions.device))  # (k, ...)
-            return self.sentence_weights(conditions) @ own
+            weights = self.sentence_weights(conditions)  # (B, k)
+            if self.nearest_sentence:
+                return own[weights.argmax(dim=-1)]
+            return weights @ own
         return mlp(conditions)
 
     def sentence_weights(self, embeddings: Tensor) -> Tensor:
@@ -191,7 +195,7 @@ class KqvNet(nn.Module):
         prototype. Raises where the network reads sentences otherwise.
         """
         if self.prototypes is None:
-            raise InvalidInputError("sentence_reading", "not 'prototypes'",
+            raise InvalidInputError("sentence_reading", "'embedding' or no sentence task",
                                     "a kqv model of a sentence task that reads by prototypes")
         cosines = unit(embeddings, dim=-1) @ unit(self.prototypes, dim=-1).T  # (B, k)
         return torch.softmax(cosines / self.sentence_temperature, dim=-1)

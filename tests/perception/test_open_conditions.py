@@ -184,6 +184,11 @@ def test_kqv_reads_wordings_it_never_saw_by_their_likeness_to_the_trained_ones(t
     weights = model.network.sentence_weights(torch.from_numpy(test.conditions)).numpy()
     named = [TYPES.index(name) for name in test.condition_names()]
     assert (weights.argmax(axis=1) == named).all()  # every new wording read as its type
+    with torch.no_grad():  # ... and given that type's own Query, as its trained wordings are
+        queries = model.network.queries(torch.from_numpy(test.conditions))
+        first = [train.condition_names().index(name) for name in test.condition_names()]
+        torch.testing.assert_close(queries, model.network.queries(
+            torch.from_numpy(train.conditions[first])), rtol=0, atol=0)
     result = evaluate(model, test)
     assert result.mean_position_error_cm < 5.0, result.headline()  # chance: about 15 cm
     loaded = KqvModel.load(model.save(tmp_path / "ckpt"))
