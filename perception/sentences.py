@@ -1,7 +1,7 @@
 """Sentence embeddings for text conditions: a frozen, pinned all-MiniLM-L6-v2, never downloaded.
 
-A text condition ("pick up the red mug") becomes a 384-d unit vector that kqv's Conditioned-
-Query MLP maps to a Query, as it maps a one-hot vector. The encoder is sentence-transformers'
+A text condition ("pick up the red mug") becomes a 384-d unit vector, which kqv reads by its
+likeness to the training sentences of each target it knows. The encoder is sentence-transformers'
 all-MiniLM-L6-v2 at revision ``1110a243``: small (22 M parameters), trained on a billion
 sentence pairs, the default model of sentence-transformers.
 
