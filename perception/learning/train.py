@@ -57,9 +57,10 @@ class TrainConfig:
             sentence's embedding is jittered too (``sentence_noise``).
         sentence_noise: Under a text condition, Gaussian noise of this standard deviation per
             dimension is added to each embedding, which is then made unit length again (0.05:
-            the jittered vector keeps a cosine of about 0.8 with the sentence's). A Query
-            then answers alike in a neighbourhood of each training sentence, not only at it:
-            the ridge-like smoothing that lets a few phrasings per target carry to new ones
+            a cosine of about 0.7 with the sentence's). For a model that reads the embedding
+            itself, so it answers alike near each training sentence (kqv's ``"embedding"``
+            reading trained with 0.05). 0, the default: kqv reads a sentence by prototypes,
+            where noise only makes some training sentences read as another target
             (``docs/decisions/open-conditions.md``).
         device: Torch device, ``"cpu"`` (the project's target) or e.g. ``"cuda"``.
         threads: CPU threads for torch; None uses the cores this process may run on.
@@ -74,7 +75,7 @@ class TrainConfig:
     weight_decay: float = 0.0
     seed: int = 0
     augment: bool = True
-    sentence_noise: float = 0.05
+    sentence_noise: float = 0.0
     device: str = "cpu"
     threads: int | None = None
     log_every: int = 25

@@ -40,7 +40,7 @@ from perception.learning.data import Dataset
 from perception.learning.dataset_file import load_dataset, save_dataset
 from perception.learning.evaluate import evaluate
 from perception.learning.labels import label_vector
-from perception.learning.train import TrainConfig
+from perception.learning.train import Batch, TrainConfig, train
 from perception.models.kqv import KqvConfig, KqvModel
 
 PICTURE = np.full((PICTURE_PX, PICTURE_PX, 3), 200, np.uint8)
@@ -205,6 +205,30 @@ def test_kqv_reads_wordings_it_never_saw_by_their_likeness_to_the_trained_ones(t
                                     ("format_version", "model", "weights_sha256",
                                      "config_sha256")}, legacy.network.state_dict())
     assert KqvModel.load(folder).config.sentence_reading == "embedding"
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.05])
+def test_training_jitters_sentences_only_when_asked(noise):
+    """Sentence noise (for a model that reads the embedding) is off unless set."""
+    assert TrainConfig().sentence_noise == 0.0
+    dataset = _text_dataset(6, seed=3)
+    seen: list[torch.Tensor] = []
+    weight = torch.nn.Parameter(torch.zeros(1))
+
+    def loss(batch: Batch) -> torch.Tensor:
+        seen.append(batch.conditions.clone())
+        return (weight - 1).square().sum()
+
+    train(torch.nn.Module(), loss, dataset, TrainConfig(steps=3, batch_size=6, threads=1,
+                                                        sentence_noise=noise),
+          progress=False, parameters=[weight])
+    asked = torch.cat(seen)  # (18, 384), each a row of the dataset, jittered or not
+    torch.testing.assert_close(asked.norm(dim=1), torch.ones(len(asked)))
+    cosines = (asked @ torch.from_numpy(dataset.conditions).T).max(dim=1).values
+    if noise == 0:
+        torch.testing.assert_close(cosines, torch.ones(len(asked)))
+    else:  # 0.05 per dimension in 384: about 0.7 of the sentence's own direction is left
+        assert 0.6 < float(cosines.mean()) < 0.8
 
 
 def test_kqv_learns_to_attend_to_the_pictured_colour_in_pictures_it_never_saw():
