@@ -9,6 +9,8 @@ target's prototype is the mean embedding of its training phrasings; a test phras
 right when its own target's prototype is the nearest (cosine). No image, no training: what a
 Query could at best read from the words, and where the encoder itself confuses them (sides).
 
+It lists the training phrasings nearer another target's prototype than their own (themselves
+included): under kqv's nearest reading each trains that target's Query on the wrong object.
 It also chooses kqv's ``sentence_temperature`` from the training phrasings alone: each one in
 turn is left out of its target's prototype and read as kqv reads a sentence (softmax of its
 cosines over the temperature); the temperature whose mean weight on the right target is
@@ -59,24 +61,34 @@ TEMPERATURES = (0.01, 0.02, 0.05, 0.1, 0.2)
 
 
 def leave_one_out(task_name: str, scene: str) -> dict:
-    """Mean softmax weight each training phrasing gives its own target, left out of it."""
+    """Each training phrasing read against the prototypes: left out of its own, and left in.
+
+    Left out: the mean softmax weight on its own target, per temperature. Left in: the
+    phrasings nearest another target's prototype all the same. (A model's prototypes come from
+    the phrasings its dataset drew, so a seed may misread others.)
+    """
     spec = get_scene_spec(scene)
     task = load_task(task_name)
     assert task.phrasings is not None
     targets = condition_choices(task, spec)
-    rows = [(embed(p), k) for k, t in enumerate(targets) for p in task.phrasings.of("train", t)]
+    rows = [(embed(p), k, p) for k, t in enumerate(targets) for p in task.phrasings.of("train", t)]
+
+    def cosines(vector: np.ndarray, left_out: int | None) -> np.ndarray:
+        means = [np.mean([r for m, (r, k, _) in enumerate(rows) if k == target and m != left_out],
+                         axis=0) for target in range(len(targets))]
+        return np.array([vector @ v / np.linalg.norm(v) for v in means])
+
     weights: dict[str, float] = {}
     for temperature in TEMPERATURES:
         right = []
-        for n, (vector, own) in enumerate(rows):
-            cosines = np.array([vector @ (v := np.mean([r for m, (r, k) in enumerate(rows)
-                                                        if k == target and m != n], axis=0))
-                                / np.linalg.norm(v) for target in range(len(targets))])
-            soft = np.exp((cosines - cosines.max()) / temperature)
+        for n, (vector, own, _) in enumerate(rows):
+            soft = np.exp((cosines(vector, n) - cosines(vector, n).max()) / temperature)
             right.append(soft[own] / soft.sum())
         weights[str(temperature)] = float(np.mean(right))
+    misread = [phrase for vector, own, phrase in rows
+               if int(np.argmax(cosines(vector, None))) != own]
     return {"task": task_name, "scene": scene, "phrasings": len(rows),
-            "mean_weight_on_own_target": weights,
+            "read_as_another_target": misread, "mean_weight_on_own_target": weights,
             "best_temperature": float(max(weights, key=weights.__getitem__))}
 
 
@@ -98,6 +110,8 @@ def main() -> int:
                (("selected-type-text", "yumi"), ("selected-type-text", "paper-sim"),
                 ("selected-position-text", "yumi"))]
     for choice in choices:
+        print(f"{choice['task']} / {choice['scene']}: training phrasings read as another "
+              f"target: {choice['read_as_another_target'] or 'none'}")
         print(f"{choice['task']} / {choice['scene']}: training phrasings left out, weight on "
               "their own target by temperature " + ", ".join(
                   f"{t}: {w:.3f}" for t, w in choice["mean_weight_on_own_target"].items()))
