@@ -207,6 +207,22 @@ def test_kqv_reads_wordings_it_never_saw_by_their_likeness_to_the_trained_ones(t
     assert KqvModel.load(folder).config.sentence_reading == "embedding"
 
 
+def test_the_prototypes_reading_mixes_the_targets_queries_by_the_sentences_weights():
+    train = _worded(12, seed=4, wordings=range(3))
+    model = KqvModel.for_dataset(train, KqvConfig(seed=0, sentence_reading="prototypes",
+                                                  sentence_temperature=1.0))  # soft: blends
+    model.fit(train, TrainConfig(steps=5, batch_size=4, threads=1), progress=False)
+    net, rows = model.network, torch.from_numpy(_worded(6, seed=5, wordings=range(3, 8))
+                                                .conditions)
+    with torch.no_grad():
+        own = torch.stack([net.queries(torch.from_numpy(train.condition_prototypes()[[k]]))[0]
+                           for k in range(len(TYPES))])  # (k, q, Ck + 2), a target's own Query
+        weights = net.sentence_weights(rows)  # (B, k)
+        assert bool((weights.max(dim=1).values < 1).all())  # blends, not one-hot readings
+        torch.testing.assert_close(net.queries(rows),
+                                   torch.einsum("bk,kqc->bqc", weights, own), atol=1e-5, rtol=0)
+
+
 @pytest.mark.parametrize("noise", [0.0, 0.05])
 def test_training_jitters_sentences_only_when_asked(noise):
     """Sentence noise (for a model that reads the embedding) is off unless set."""
