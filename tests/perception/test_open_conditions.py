@@ -215,8 +215,8 @@ def test_the_prototypes_reading_mixes_the_targets_queries_by_the_sentences_weigh
     net, rows = model.network, torch.from_numpy(_worded(6, seed=5, wordings=range(3, 8))
                                                 .conditions)
     with torch.no_grad():
-        own = torch.stack([net.queries(torch.from_numpy(train.condition_prototypes()[[k]]))[0]
-                           for k in range(len(TYPES))])  # (k, q, Ck + 2), a target's own Query
+        # (k, q, Ck + 2): each target's own Query, what its one-hot condition would get
+        own = net.base_queries + net.query_mlp(torch.eye(len(TYPES))).view(len(TYPES), 1, -1)
         weights = net.sentence_weights(rows)  # (B, k)
         assert bool((weights.max(dim=1).values < 1).all())  # blends, not one-hot readings
         torch.testing.assert_close(net.queries(rows),
