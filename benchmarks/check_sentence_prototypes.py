@@ -78,13 +78,14 @@ def leave_one_out(task_name: str, scene: str) -> dict:
                          axis=0) for target in range(len(targets))]
         return np.array([vector @ v / np.linalg.norm(v) for v in means])
 
+    left_out = np.stack([cosines(vector, n) for n, (vector, _, _) in enumerate(rows)])  # (n, k)
+    left_out -= left_out.max(axis=1, keepdims=True)
+    own = np.array([k for _, k, _ in rows])
     weights: dict[str, float] = {}
     for temperature in TEMPERATURES:
-        right = []
-        for n, (vector, own, _) in enumerate(rows):
-            soft = np.exp((cosines(vector, n) - cosines(vector, n).max()) / temperature)
-            right.append(soft[own] / soft.sum())
-        weights[str(temperature)] = float(np.mean(right))
+        soft = np.exp(left_out / temperature)  # (n, k)
+        weights[str(temperature)] = float(np.mean(soft[np.arange(len(rows)), own] /
+                                                  soft.sum(axis=1)))
     misread = [phrase for vector, own, phrase in rows
                if int(np.argmax(cosines(vector, None))) != own]
     return {"task": task_name, "scene": scene, "phrasings": len(rows),
