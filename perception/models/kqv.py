@@ -87,7 +87,7 @@ class KqvModel(TorchModel):
             self.network.temperature = self.config.temperature
         if self.network.type_head is None or not (dataset.target_type_indices() >= 0).any():
             return pose
-        types = train(self.network, self.type_loss, dataset,
+        types = train(self.network, self.type_loss, self._named(dataset),
                       replace(config, steps=self.config.type_steps), progress,
                       description=f"{self.name} {self.spec.task} [object types]",
                       parameters=self.network.type_head.parameters())
@@ -107,13 +107,32 @@ class KqvModel(TorchModel):
                 self.network.prototypes.copy_(self._prototypes)
         if not fresh or self.config.starts == 1 or config.steps <= self.config.start_steps:
             self._steps_taken = 0
-            return super().fit(dataset, config, progress)
+            return super().fit(self._named(dataset), config, progress)
         start, spent_s = self._best_start(dataset, config, progress)
-        rest = super().fit(dataset, replace(config, steps=config.steps - start.steps),
-                           progress)  # the warm-up goes on from the step the start reached
+        rest = super().fit(self._named(dataset), replace(
+            config, steps=config.steps - start.steps), progress)  # warm-up goes on from there
         chained = TrainReport.chain([start, rest])
         self.report = replace(chained, config=config, wall_time_s=chained.wall_time_s + spent_s)
         return self.report
+
+    def _named(self, dataset: Dataset) -> Dataset:
+        """The dataset as the Queries train on it: each sentence replaced by what it names.
+
+        A model that reads a sentence by prototypes gives it the Query of the target it reads
+        as. A training sentence that reads as another target (MiniLM puts "left" and "right"
+        close) would then train that target's Query on this one's object, half a table away.
+        The scene records say what each sentence names, so each training sentence becomes its
+        named target's prototype (at unit length), which reads as that target: every target's
+        Query trains on exactly the scenes that name it. Other datasets are returned as given.
+        """
+        prototypes = self.network.prototypes
+        if prototypes is None:
+            return dataset
+        rows = prototypes.numpy()  # (k, C); zeros for a choice no sample names (none is asked)
+        units = rows / np.maximum(np.linalg.norm(rows, axis=1, keepdims=True), 1e-12)
+        choices = dataset.metadata.condition_choices
+        named = [choices.index(name) for name in dataset.condition_names()]
+        return replace(dataset, conditions=units[named].astype(np.float32))
 
     def phases(self) -> list[Phase]:
         """One phase: the target loss on every parameter but the type head's (see :meth:`fit`)."""
@@ -131,10 +150,12 @@ class KqvModel(TorchModel):
 
         The starts train on the scenes :attr:`KqvConfig.start_holdout` leaves and are compared
         by their mean position error on the held-out ones (by training loss where nothing is
-        held out). Returns the kept start's report and the wall time the dropped ones took [s].
+        held out), which keep their own sentences (:meth:`_named` is for training only).
+        Returns the kept start's report and the wall time the dropped ones took [s].
         """
         short = replace(config, steps=self.config.start_steps)
         kept, held = split_scenes(dataset, self.config.start_holdout, config.seed)
+        kept = self._named(kept)
         tried: list[tuple[float, float, int, KqvNet, TrainReport]] = []
         for number in range(self.config.starts):
             seed = self.config.seed if number == 0 else int(

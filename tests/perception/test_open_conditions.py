@@ -207,6 +207,40 @@ def test_kqv_reads_wordings_it_never_saw_by_their_likeness_to_the_trained_ones(t
     assert KqvModel.load(folder).config.sentence_reading == "embedding"
 
 
+def test_a_training_sentence_read_as_another_target_still_trains_its_named_targets_query():
+    """MiniLM puts "left" near "right": such a sentence must not train the other side's Query."""
+    dataset = _worded(24, seed=4, wordings=range(3))
+    names = dataset.condition_names()
+    misread, other = 0, TYPES[(TYPES.index(names[0]) + 1) % len(TYPES)]
+    twin = next(n for n, name in enumerate(names) if name == other)
+    rows = dataset.conditions.copy()
+    rows[misread] = rows[twin]  # named names[0], worded as `other` is
+    dataset = replace(dataset, conditions=rows)
+    model = KqvModel.for_dataset(dataset, KqvConfig(seed=0))
+    asked: list[tuple[torch.Tensor, torch.Tensor]] = []
+    loss = model.batch_loss
+
+    def recording(batch: Batch) -> torch.Tensor:
+        asked.append((batch.conditions.clone(), batch.labels.clone()))
+        return loss(batch)
+
+    model.batch_loss = recording  # type: ignore[method-assign]
+    model.fit(dataset, TrainConfig(steps=6, batch_size=24, threads=1), progress=False)
+    net = model.network
+    with torch.no_grad():  # the premise: as asked, the sentence reads as the other target
+        reading = net.sentence_weights(torch.from_numpy(rows[[misread]])).argmax(dim=1)
+    assert TYPES[int(reading[0])] == other
+    labels, seen = torch.from_numpy(dataset.labels), set()
+    for conditions, batch_labels in asked:  # each sample by its labels, which are its own
+        samples = [int(np.flatnonzero((labels == row).flatten(1).all(dim=1))[0])
+                   for row in batch_labels]
+        with torch.no_grad():
+            trained_as = net.sentence_weights(conditions).argmax(dim=1).tolist()
+        assert [TYPES[k] for k in trained_as] == [names[n] for n in samples]
+        seen.update(samples)
+    assert misread in seen
+
+
 def test_the_prototypes_reading_mixes_the_targets_queries_by_the_sentences_weights():
     train = _worded(12, seed=4, wordings=range(3))
     model = KqvModel.for_dataset(train, KqvConfig(seed=0, sentence_reading="prototypes",
