@@ -15,6 +15,12 @@ It also chooses kqv's ``sentence_temperature`` from the training phrasings alone
 turn is left out of its target's prototype and read as kqv reads a sentence (softmax of its
 cosines over the temperature); the temperature whose mean weight on the right target is
 highest wins. No test phrasing takes part in that choice.
+
+It also sets the prototypes' nearest mean beside a linear probe (logistic regression on the
+embedding, scikit-learn, no intercept, ``C`` = 100), two ways: each training phrasing left out
+in turn, and the retired test phrasings read against all the training ones. The first favours
+the probe wherever phrasings come in pairs that differ by one word ("the object on the
+left"/"... right"): a left-out phrasing's twin stays in the other target's prototype only.
 """
 
 from __future__ import annotations
@@ -22,8 +28,10 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from sklearn.linear_model import LogisticRegression
 
 from perception.sentences import embed
 from sim.tasks.scene_sampling import condition_choices
@@ -31,7 +39,10 @@ from sim.tasks.scene_specs import get_scene_spec
 from sim.tasks.task_spec import SIDES
 from sim.tasks.task_toml import load_task, with_test_phrases
 
-NEW_WORDINGS = Path(__file__).resolve().parents[1] / "examples" / "phrases" / "new-wordings.tsv"
+PHRASES = Path(__file__).resolve().parents[1] / "examples" / "phrases"
+NEW_WORDINGS = PHRASES / "new-wordings.tsv"
+RETIRED = PHRASES / "retired-test-phrasings.tsv"
+PROBE_C = 100.0  # the linear probe's inverse L2 strength
 
 
 def prototype_scores(task_name: str, scene: str, phrases: Path | None = None) -> dict:
@@ -44,7 +55,7 @@ def prototype_scores(task_name: str, scene: str, phrases: Path | None = None) ->
     assert task.phrasings is not None
     prototypes = {t: np.mean([embed(p) for p in task.phrasings.of("train", t)], axis=0)
                   for t in targets}
-    rows = []
+    rows: list[dict[str, Any]] = []
     for target in targets:
         for phrase in task.phrasings.of("test", target):
             cosine = {t: float(embed(phrase) @ v / np.linalg.norm(v))
@@ -93,6 +104,44 @@ def leave_one_out(task_name: str, scene: str) -> dict:
             "best_temperature": float(max(weights, key=weights.__getitem__))}
 
 
+def probe(vectors: np.ndarray, targets: np.ndarray) -> LogisticRegression:
+    """The linear probe fitted on embeddings (n, C) of the given targets (n,)."""
+    return LogisticRegression(C=PROBE_C, fit_intercept=False, max_iter=5000).fit(vectors, targets)
+
+
+def nearest_mean_and_probe(task_name: str, scene: str) -> dict:
+    """How many phrasings the prototypes and the linear probe name right, two ways."""
+    spec = get_scene_spec(scene)
+    task = load_task(task_name)
+    assert task.phrasings is not None
+    targets = condition_choices(task, spec)
+    own = np.array([k for k, t in enumerate(targets) for _ in task.phrasings.of("train", t)])
+    vectors = np.stack([embed(p) for t in targets for p in task.phrasings.of("train", t)])
+
+    def nearest(rows: np.ndarray, keep: np.ndarray) -> np.ndarray:
+        means = np.stack([vectors[keep & (own == k)].mean(axis=0) for k in range(len(targets))])
+        return (rows @ (means / np.linalg.norm(means, axis=1, keepdims=True)).T).argmax(axis=1)
+
+    everyone = np.ones(len(own), dtype=bool)
+    left_out = {"prototypes": 0, "linear probe": 0}
+    for n in range(len(own)):
+        keep = everyone.copy()
+        keep[n] = False
+        left_out["prototypes"] += int(nearest(vectors[n:n + 1], keep)[0] == own[n])
+        left_out["linear probe"] += int(probe(vectors[keep], own[keep])
+                                        .predict(vectors[n:n + 1])[0] == own[n])
+    lines = [line.rstrip("\n").split("\t") for line in RETIRED.read_text().splitlines()
+             if line.strip() and not line.startswith("#")]
+    retired = [(phrase, targets.index(target)) for phrase, target in lines if target in targets]
+    rows = np.stack([embed(phrase) for phrase, _ in retired])
+    named = np.array([k for _, k in retired])
+    return {"task": task_name, "scene": scene, "training_phrasings": len(own),
+            "left_out_named_right": left_out, "retired_phrasings": len(retired),
+            "retired_named_right": {
+                "prototypes": int((nearest(rows, everyone) == named).sum()),
+                "linear probe": int((probe(vectors, own).predict(rows) == named).sum())}}
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path,
@@ -116,9 +165,17 @@ def main() -> int:
         print(f"{choice['task']} / {choice['scene']}: training phrasings left out, weight on "
               "their own target by temperature " + ", ".join(
                   f"{t}: {w:.3f}" for t, w in choice["mean_weight_on_own_target"].items()))
+    readers = [nearest_mean_and_probe(task, "yumi")
+               for task in ("selected-type-text", "selected-position-text")]
+    for reader in readers:
+        print(f"{reader['task']} / {reader['scene']}: named right, prototypes and linear probe: "
+              f"{reader['left_out_named_right']} of {reader['training_phrasings']} training "
+              f"phrasings left out; {reader['retired_named_right']} of "
+              f"{reader['retired_phrasings']} retired test phrasings")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({"nearest_prototype": results,
-                                    "temperature_leave_one_out": choices}, indent=2) + "\n")
+                                    "temperature_leave_one_out": choices,
+                                    "nearest_mean_and_probe": readers}, indent=2) + "\n")
     print(f"wrote {args.out}")
     return 0
 
