@@ -81,22 +81,6 @@ class KqvModel(TorchModel):
         if mirror is None:
             mirror = dataset.metadata.extra.get(MIRROR_FLAG) is True
         self._mirror = Mirror(self.spec, config.seed) if mirror else None
-        try:
-            pose = self._fit_pose(dataset, config, progress)
-        finally:
-            self.network.temperature = self.config.temperature
-        if self.network.type_head is None or not (dataset.target_type_indices() >= 0).any():
-            return pose
-        types = train(self.network, self.type_loss, self._named(dataset),
-                      replace(config, steps=self.config.type_steps), progress,
-                      description=f"{self.name} {self.spec.task} [object types]",
-                      parameters=self.network.type_head.parameters())
-        chained = TrainReport.chain([pose, types], ("targets", "object types"))
-        self.report = replace(chained, final_loss=pose.final_loss, config=config)
-        return self.report
-
-    def _fit_pose(self, dataset: Dataset, config: TrainConfig, progress: bool) -> TrainReport:
-        """The pose training of :meth:`fit`: the starts, then the rest of the steps."""
         fresh = self.scaler is None  # a first fit may try several starts; a later one not
         if fresh:
             self.spec.check_dataset(dataset)
@@ -105,12 +89,34 @@ class KqvModel(TorchModel):
             if self.network.prototypes is not None:  # what each target's sentences sound like
                 self._prototypes = torch.from_numpy(dataset.condition_prototypes())
                 self.network.prototypes.copy_(self._prototypes)
+        named = self._named(dataset)
+        try:
+            pose = self._fit_pose(dataset, named, fresh, config, progress)
+        finally:
+            self.network.temperature = self.config.temperature
+        if self.network.type_head is None or not (dataset.target_type_indices() >= 0).any():
+            return pose
+        types = train(self.network, self.type_loss, named,
+                      replace(config, steps=self.config.type_steps), progress,
+                      description=f"{self.name} {self.spec.task} [object types]",
+                      parameters=self.network.type_head.parameters())
+        chained = TrainReport.chain([pose, types], ("targets", "object types"))
+        self.report = replace(chained, final_loss=pose.final_loss, config=config)
+        return self.report
+
+    def _fit_pose(self, dataset: Dataset, named: Dataset, fresh: bool, config: TrainConfig,
+                  progress: bool) -> TrainReport:
+        """The pose training of :meth:`fit`: on a ``fresh`` model the starts, then the rest.
+
+        It trains on ``named`` (:meth:`_named` of ``dataset``); the starts are compared on
+        scenes of ``dataset`` held out with their own sentences.
+        """
         if not fresh or self.config.starts == 1 or config.steps <= self.config.start_steps:
             self._steps_taken = 0
-            return super().fit(self._named(dataset), config, progress)
+            return super().fit(named, config, progress)
         start, spent_s = self._best_start(dataset, config, progress)
-        rest = super().fit(self._named(dataset), replace(
-            config, steps=config.steps - start.steps), progress)  # warm-up goes on from there
+        rest = super().fit(named, replace(config, steps=config.steps - start.steps),
+                           progress)  # the warm-up goes on from the step the start reached
         chained = TrainReport.chain([start, rest])
         self.report = replace(chained, config=config, wall_time_s=chained.wall_time_s + spent_s)
         return self.report
