@@ -101,16 +101,16 @@ def leave_one_out(task_name: str, scene: str) -> dict:
                if int(np.argmax(cosines(vector, None))) != own]
     return {"task": task_name, "scene": scene, "phrasings": len(rows),
             "read_as_another_target": misread, "mean_weight_on_own_target": weights,
-            "best_temperature": float(max(weights, key=weights.__getitem__))}
+            "best_temperature": float(max(weights, key=weights.__getitem__)),
+            "left_out_named_right": int((left_out.argmax(axis=1) == own).sum())}
 
 
-def probe(vectors: np.ndarray, targets: np.ndarray) -> LogisticRegression:
-    """The linear probe fitted on embeddings (n, C) of the given targets (n,)."""
-    return LogisticRegression(C=PROBE_C, fit_intercept=False, max_iter=5000).fit(vectors, targets)
+def probe_scores(task_name: str, scene: str) -> dict:
+    """How many phrasings the linear probe names right: training ones left out, retired ones.
 
-
-def nearest_mean_and_probe(task_name: str, scene: str) -> dict:
-    """How many phrasings the prototypes and the linear probe name right, two ways."""
+    The prototypes' counts of the same are in :func:`leave_one_out` and :func:`prototype_scores`
+    (with the retired file).
+    """
     spec = get_scene_spec(scene)
     task = load_task(task_name)
     assert task.phrasings is not None
@@ -118,28 +118,19 @@ def nearest_mean_and_probe(task_name: str, scene: str) -> dict:
     own = np.array([k for k, t in enumerate(targets) for _ in task.phrasings.of("train", t)])
     vectors = np.stack([embed(p) for t in targets for p in task.phrasings.of("train", t)])
 
-    def nearest(rows: np.ndarray, keep: np.ndarray) -> np.ndarray:
-        means = np.stack([vectors[keep & (own == k)].mean(axis=0) for k in range(len(targets))])
-        return (rows @ (means / np.linalg.norm(means, axis=1, keepdims=True)).T).argmax(axis=1)
+    def fitted(keep: np.ndarray) -> LogisticRegression:
+        return LogisticRegression(C=PROBE_C, fit_intercept=False, max_iter=5000).fit(
+            vectors[keep], own[keep])
 
-    everyone = np.ones(len(own), dtype=bool)
-    left_out = {"prototypes": 0, "linear probe": 0}
-    for n in range(len(own)):
-        keep = everyone.copy()
-        keep[n] = False
-        left_out["prototypes"] += int(nearest(vectors[n:n + 1], keep)[0] == own[n])
-        left_out["linear probe"] += int(probe(vectors[keep], own[keep])
-                                        .predict(vectors[n:n + 1])[0] == own[n])
-    lines = [line.rstrip("\n").split("\t") for line in RETIRED.read_text().splitlines()
-             if line.strip() and not line.startswith("#")]
-    retired = [(phrase, targets.index(target)) for phrase, target in lines if target in targets]
-    rows = np.stack([embed(phrase) for phrase, _ in retired])
-    named = np.array([k for _, k in retired])
+    left_out = sum(int(fitted(np.arange(len(own)) != n).predict(vectors[n:n + 1])[0] == own[n])
+                   for n in range(len(own)))
+    retired = with_test_phrases(task, RETIRED, targets, spec.object_types + SIDES).phrasings
+    assert retired is not None
+    pairs = [(embed(p), k) for k, t in enumerate(targets) for p in retired.of("test", t)]
+    read = fitted(np.ones(len(own), dtype=bool)).predict(np.stack([v for v, _ in pairs]))
     return {"task": task_name, "scene": scene, "training_phrasings": len(own),
-            "left_out_named_right": left_out, "retired_phrasings": len(retired),
-            "retired_named_right": {
-                "prototypes": int((nearest(rows, everyone) == named).sum()),
-                "linear probe": int((probe(vectors, own).predict(rows) == named).sum())}}
+            "left_out_named_right": left_out, "retired_phrasings": len(pairs),
+            "retired_named_right": int((read == np.array([k for _, k in pairs])).sum())}
 
 
 def main() -> int:
@@ -151,7 +142,9 @@ def main() -> int:
                prototype_scores("selected-type-text", "paper-sim"),
                prototype_scores("selected-position-text", "yumi"),
                prototype_scores("selected-type-text", "yumi", NEW_WORDINGS),
-               prototype_scores("selected-position-text", "yumi", NEW_WORDINGS)]
+               prototype_scores("selected-position-text", "yumi", NEW_WORDINGS),
+               prototype_scores("selected-type-text", "yumi", RETIRED),
+               prototype_scores("selected-position-text", "yumi", RETIRED)]
     for result in results:
         print(f"{result['task']} / {result['scene']} ({result['phrases']}): "
               f"{result['named_right']} of {result['phrasings']} test phrasings nearest their "
@@ -164,18 +157,19 @@ def main() -> int:
               f"target: {choice['read_as_another_target'] or 'none'}")
         print(f"{choice['task']} / {choice['scene']}: training phrasings left out, weight on "
               "their own target by temperature " + ", ".join(
-                  f"{t}: {w:.3f}" for t, w in choice["mean_weight_on_own_target"].items()))
-    readers = [nearest_mean_and_probe(task, "yumi")
-               for task in ("selected-type-text", "selected-position-text")]
-    for reader in readers:
-        print(f"{reader['task']} / {reader['scene']}: named right, prototypes and linear probe: "
-              f"{reader['left_out_named_right']} of {reader['training_phrasings']} training "
-              f"phrasings left out; {reader['retired_named_right']} of "
-              f"{reader['retired_phrasings']} retired test phrasings")
+                  f"{t}: {w:.3f}" for t, w in choice["mean_weight_on_own_target"].items())
+              + f"; named right: {choice['left_out_named_right']} of {choice['phrasings']}")
+    probes = [probe_scores(task, "yumi")
+              for task in ("selected-type-text", "selected-position-text")]
+    for scores in probes:
+        print(f"{scores['task']} / {scores['scene']}: the linear probe names right "
+              f"{scores['left_out_named_right']} of {scores['training_phrasings']} training "
+              f"phrasings left out, {scores['retired_named_right']} of "
+              f"{scores['retired_phrasings']} retired test phrasings")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({"nearest_prototype": results,
                                     "temperature_leave_one_out": choices,
-                                    "nearest_mean_and_probe": readers}, indent=2) + "\n")
+                                    "linear_probe": probes}, indent=2) + "\n")
     print(f"wrote {args.out}")
     return 0
 
