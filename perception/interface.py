@@ -204,17 +204,30 @@ class Target:
 class Prediction:
     """What a model saw and predicted for one image.
 
+    A model has p attention heads, each giving a point and, where it has them, a heatmap. p
+    need not be the number of targets: a key-point model's 16 points look at whatever helps
+    its MLP (:attr:`PerceptionModel.attention_per_target` says whether head k looks for
+    target k, as kqv's Queries do).
+
     Args:
         targets: One entry per target, in the task's target order.
-        attention_px: (q, 2) attention points (u right, v down) in image pixels; (0, 2) for a
+        attention_px: (p, 2) attention points (u right, v down) in image pixels; (0, 2) for a
             model without attention.
-        heatmaps: (q, h, w) attention heatmaps, each summing to 1, where the model has them.
+        heatmaps: (p', h, w) attention heatmaps, each summing to 1, where the model has them.
 
     """
 
     targets: tuple[Target, ...]
     attention_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     heatmaps: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if np.ndim(self.attention_px) != 2 or np.shape(self.attention_px)[1] != 2:
+            raise InvalidInputError("attention_px", np.shape(self.attention_px),
+                                    "shape (p, 2): a (u, v) point per attention head")
+        if self.heatmaps is not None and np.ndim(self.heatmaps) != 3:
+            raise InvalidInputError("heatmaps", np.shape(self.heatmaps),
+                                    "shape (p, h, w): a map per attention head, or None")
 
 
 class ModelInput(enum.Enum):
@@ -237,6 +250,10 @@ class PerceptionModel(abc.ABC):
     label_kind: LabelKind  # per instance where one class serves both kinds (kqv)
     inputs: ClassVar[frozenset[ModelInput]] = frozenset({ModelInput.RGB})
     """What the model reads; a run checks it can give them before the first prediction."""
+    attention_per_target: ClassVar[bool] = True
+    """Whether attention head k looks for target k (kqv's Queries; a detector's points), where
+    a prediction has as many heads as targets. False for heads tied to no target (a key-point
+    model's points): evaluation then reads its heatmaps as a whole, never as one target's."""
 
     def predict(self, image: np.ndarray, condition: Condition = NO_CONDITION) -> Prediction:
         """Predicts the targets in ``image`` (uint8 (H, W, 3) RGB, row 0 at the top)."""

@@ -57,13 +57,16 @@ class EvaluationResult:
             right (stating none is wrong); None where the model or the scene records name none.
         per_condition_mean_position_error_cm: Mean per condition value [cm], where a Query
             that memorised its demonstrations shows; None for a task without a condition.
-        median_heatmap_entropy_nats: Median entropy of the present targets' heatmaps [nats]:
-            near ``ln(h w)`` (6.9 for 32 x 32) where the Queries never found their objects;
-            None for a model without heatmaps.
+        median_heatmap_entropy_nats: Median entropy of the heatmaps [nats]: near ``ln(h w)``
+            (6.9 for 32 x 32) where the attention found nothing to look at. For a model whose
+            head k looks for target k (kqv), the present targets' heatmaps; for heads tied to
+            no target (keypoint-16's and dsae-16's 16 points, keypoint-min's q), every
+            heatmap of every image. None for a model without heatmaps.
         attention_on_named_fraction: Under a condition that names one target: the fraction of
             images whose attention point is nearer the named object than any other object (in
             pixels, each object's centre projected at the target's height); None where the
-            task has no such condition, the model no attention point or the dataset no camera.
+            task has no such condition, the dataset no camera, or the model not one attention
+            point for its one target (a key-point model's points look for no target).
         attention_switch_fraction: The same per scene, over the scenes asked under two or more
             conditions (``gva collect --every-condition``): the fraction whose attention lands
             on the named object under every one, i.e. moves when the condition changes.
@@ -181,24 +184,28 @@ def evaluate(model: PerceptionModel, dataset: Dataset, batch_size: int = 32) -> 
             ((stage == s)[:, None] & present for s in range(int(stage.max()) + 1))
             if scored.any()),
         per_condition_mean_position_error_cm=per_condition(position_cm, present, dataset),
-        median_heatmap_entropy_nats=heatmap_entropy(predictions, present),
-        **attention_on_named(predictions, dataset),
+        median_heatmap_entropy_nats=heatmap_entropy(predictions, present,
+                                                    model.attention_per_target),
+        **attention_on_named(predictions, dataset, model.attention_per_target),
     )
 
 
-def attention_on_named(predictions: list[Prediction], dataset: Dataset
-                       ) -> dict[str, float | None]:
+def attention_on_named(predictions: list[Prediction], dataset: Dataset,
+                       per_target: bool = True) -> dict[str, float | None]:
     """Whether each image's attention lands on the object its condition names (see the fields).
 
     The objects' centres come from the scene records (x, y) at the label's height; the nearest
-    one to the attention point in the image is the one attended to.
+    one to the attention point in the image is the one attended to. ``per_target``: whether
+    the model's attention head k looks for target k
+    (:attr:`~perception.interface.PerceptionModel.attention_per_target`); if not, or where a
+    prediction has other than one point, there is no attention to judge.
     """
     none: dict[str, float | None] = {"attention_on_named_fraction": None,
                                      "attention_switch_fraction": None}
     meta = dataset.metadata
     camera = PinholeCamera.from_record(meta.camera)
     if meta.condition_kind is ConditionKind.NONE or meta.targets != 1 or camera is None or \
-            any(p.attention_px.shape[0] < 1 for p in predictions):
+            not per_target or any(p.attention_px.shape[0] != 1 for p in predictions):
         return none
     height_m = split_label(dataset.labels.astype(np.float64)).position_m[:, 0, 2]  # (N,)
     on_named = []
@@ -214,12 +221,22 @@ def attention_on_named(predictions: list[Prediction], dataset: Dataset
             "attention_switch_fraction": float(np.mean(switched)) if switched else None}
 
 
-def heatmap_entropy(predictions: list[Prediction], present: np.ndarray) -> float | None:
-    """The median entropy [nats] of the present targets' heatmaps; None without heatmaps."""
-    entropies = [float(-(m * np.log(np.clip(m, 1e-12, None))).sum())
-                 for p, shown in zip(predictions, present, strict=True)
-                 if p.heatmaps is not None
-                 for m, seen in zip(p.heatmaps, shown, strict=True) if seen]
+def heatmap_entropy(predictions: list[Prediction], present: np.ndarray,
+                    per_target: bool = True) -> float | None:
+    """The median entropy [nats] of the heatmaps; None without heatmaps.
+
+    ``present`` (N, q) marks the targets in each image. Where ``per_target`` and an image has
+    a heatmap per target, heatmap k is target k's and counts only while that target is
+    present; otherwise (16 key points for 1-3 targets) each of the image's heatmaps counts.
+    """
+    entropies = []
+    for prediction, shown in zip(predictions, present, strict=True):
+        if prediction.heatmaps is None:
+            continue
+        maps = prediction.heatmaps  # (p, h, w)
+        if per_target and len(maps) == len(shown):
+            maps = maps[shown]  # the present targets' own maps
+        entropies += [float(-(m * np.log(np.clip(m, 1e-12, None))).sum()) for m in maps]
     return float(np.median(entropies)) if entropies else None
 
 

@@ -97,6 +97,7 @@ class KeypointModel(BaselineModel):
     """The Key Point comparison model behind the :class:`PerceptionModel` interface."""
 
     name = "keypoint"
+    attention_per_target = False  # the MLP reads all K points at once; none is a target's
     config_class = KeypointConfig
     config: KeypointConfig
 

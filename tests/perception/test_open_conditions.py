@@ -334,6 +334,8 @@ def test_attention_on_the_named_object_is_scored_per_image_and_per_scene():
     result = evaluate(_PointsAt(points), dataset)
     assert result.attention_on_named_fraction == pytest.approx(5 / 6)
     assert result.attention_switch_fraction == pytest.approx(1 / 2)
+    untied = type("KeyPointsAt", (_PointsAt,), {"attention_per_target": False})  # keypoint-min
+    assert evaluate(untied(points), dataset).attention_on_named_fraction is None
     unconditioned = evaluate(trained_scaler(KqvModel.for_dataset(synthetic_dataset(size=2))),
                              synthetic_dataset(size=2))
     assert unconditioned.attention_on_named_fraction is None

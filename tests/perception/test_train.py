@@ -147,6 +147,35 @@ class Spread(Truth):
         return dataclasses.replace(prediction, heatmaps=np.stack([heatmap] * 2))
 
 
+class KeyPoints(Truth):
+    """The truth, with 16 heatmaps tied to no target: 15 on one cell, one uniform."""
+
+    attention_per_target = False
+
+    def predict(self, image, condition=NO_CONDITION):
+        sharp = np.zeros((15, 4, 4))
+        sharp[:, 0, 0] = 1.0
+        maps = np.concatenate([sharp, np.full((1, 4, 4), 1 / 16)])  # (16, 4, 4)
+        return dataclasses.replace(super().predict(image, condition), heatmaps=maps,
+                                   attention_px=np.zeros((16, 2)))
+
+
+def test_the_entropy_of_heatmaps_tied_to_no_target_counts_every_one():
+    """16 key points for 1 or 2 targets: every map of every image, never zipped to a target."""
+    for targets in (1, 2):
+        dataset = synthetic_dataset(size=3, targets=targets, kind=LabelKind.GRASP_POSE)
+        result = evaluate(KeyPoints(dataset), dataset)
+        assert result.median_heatmap_entropy_nats == pytest.approx(0.0, abs=1e-9)  # 15 of 16
+
+
+def test_a_prediction_names_the_shape_of_bad_attention():
+    target = (Target(np.zeros(3)),)
+    with pytest.raises(InvalidInputError, match=r"attention_px = \(4,\) is not allowed: shape"):
+        Prediction(target, np.zeros(4))
+    with pytest.raises(InvalidInputError, match=r"heatmaps = \(4, 4\) is not allowed"):
+        Prediction(target, heatmaps=np.zeros((4, 4)))
+
+
 def test_evaluate_reports_the_heatmaps_entropy_and_each_condition():
     dataset = synthetic_dataset(size=5, targets=2, kind=LabelKind.GRASP_POSE, seed=4)
     assert evaluate(Spread(dataset, True), dataset).median_heatmap_entropy_nats == \
