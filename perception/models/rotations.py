@@ -87,8 +87,11 @@ def rotation_from_axis_line(code: Tensor) -> Tensor:
     """
     z = code[..., :, 0]  # (..., 3), unit
     normal = torch.eye(3, dtype=code.dtype, device=code.device) - z[..., :, None] * z[..., None, :]
-    line = normal @ code[..., :, 1:].detach() @ normal  # (..., 3, 3), symmetric
-    _, vectors = torch.linalg.eigh(line)  # ascending eigenvalues
+    line = normal @ code[..., :, 1:].detach() @ normal  # (..., 3, 3), symmetric; z: null
+    # The plane's eigenvalues lifted above z's 0: a line tensor that is negative in the plane
+    # (an untrained head's) must still give a closing axis in it, never z itself.
+    lift = torch.linalg.matrix_norm(line)[..., None, None] + 1.0  # (..., 1, 1)
+    _, vectors = torch.linalg.eigh(line + lift * normal)  # ascending eigenvalues
     x = vectors[..., :, -1]  # (..., 3)
     x = torch.nn.functional.normalize(x - (x * z).sum(-1, keepdim=True) * z, dim=-1)
     reference = torch.tensor(CLOSING_REFERENCE, dtype=code.dtype, device=code.device)

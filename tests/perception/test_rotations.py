@@ -15,6 +15,7 @@ from perception.models.rotations import (
     axis_line_of,
     decode_rotation,
     rotation_from_6d,
+    rotation_from_axis_line,
     rotation_size,
     symmetric_angle_rad,
     symmetric_chordal_loss,
@@ -121,3 +122,20 @@ def test_only_the_axis_line_head_learns_a_look_that_repeats_after_a_half_turn(co
 def test_an_unknown_rotation_code_is_named():
     with pytest.raises(InvalidInputError, match=r"rotation = 'quaternion' .*'6d', 'axis-line'"):
         rotation_size("quaternion")
+
+
+def test_a_line_tensor_negative_in_the_plane_still_decodes_to_a_rotation():
+    """An untrained head's six line numbers may be any symmetric matrix, negative ones too."""
+    raw = torch.randn(256, 9, generator=torch.Generator().manual_seed(3))
+    raw[:, 3:6] = -raw[:, 3:6].abs() - 1.0  # a negative diagonal: negative definite, mostly
+    rotation = rotation_from_axis_line(axis_line_from_raw(raw)).double()
+    eye = torch.eye(3, dtype=torch.float64).expand(256, 3, 3)
+    torch.testing.assert_close(rotation @ rotation.transpose(-1, -2), eye, atol=1e-5, rtol=0)
+    torch.testing.assert_close(torch.linalg.det(rotation), torch.ones(256, dtype=torch.float64),
+                               atol=1e-5, rtol=0)
+    code = axis_line_from_raw(raw).double()
+    torch.testing.assert_close(rotation[:, :, 2], code[:, :, 0])  # z as given
+    x, y = rotation[:, :, 0], rotation[:, :, 1]  # x: the plane's principal axis, y the other
+    along = torch.einsum("bi,bij,bj->b", x, code[:, :, 1:], x)
+    across = torch.einsum("bi,bij,bj->b", y, code[:, :, 1:], y)
+    assert bool((along >= across - 1e-4).all())
