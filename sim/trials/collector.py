@@ -198,7 +198,7 @@ class _PickImages:
         self.stages: list[tuple[np.ndarray, np.ndarray, list[int]]] = []
         self.first: dict[int, np.ndarray] = {}  # every object's label in the first image
 
-    def saw(self, image: np.ndarray, prediction: Prediction) -> None:
+    def saw(self, image: np.ndarray, prediction: Prediction | None) -> None:
         """Keeps ``image`` with every target's label and the targets already taken."""
         on_table = {body: label_vector(*self.runner.truth(body))
                     for body in self.runner.world.objects}

@@ -103,10 +103,15 @@ class TrialRecorder:
         self.inset = inset
         self._next_frame_s = 0.0
 
-    def saw(self, image: np.ndarray, prediction: Prediction) -> None:
-        """Takes the image a prediction was made from; draws its attention points on it."""
+    def saw(self, image: np.ndarray, prediction: Prediction | None) -> None:
+        """Takes the image a prediction was made from; draws its attention points on it.
+
+        A prediction the robot could not act on (None) leaves the image without points, so a
+        trial that failed in perception still shows what the model saw.
+        """
         panel = np.array(image, dtype=np.uint8, copy=True)
-        points = np.asarray(prediction.attention_px, dtype=float).reshape(-1, 2)  # (q, 2)
+        points = np.zeros((0, 2)) if prediction is None else np.asarray(
+            prediction.attention_px, dtype=float).reshape(-1, 2)  # (p, 2)
         for head, point in enumerate(points):
             # Smaller than perception.drawing's dots at scale 1: legible on a 128 px panel.
             draw_dot(panel, tuple(point), 2.5, head_colour(head), outline_px=1.0)

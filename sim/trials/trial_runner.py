@@ -80,8 +80,12 @@ class TrialObserver(Protocol):
     Watching must not change what happens: an observer reads the world, never moves it.
     """
 
-    def saw(self, image: np.ndarray, prediction: Prediction) -> None:
-        """The image (H, W, 3) a pick's prediction was made from, and the prediction."""
+    def saw(self, image: np.ndarray, prediction: Prediction | None) -> None:
+        """The image (H, W, 3) a pick's prediction was made from, and the prediction.
+
+        None: the model gave nothing the robot can act on (it raised, or its prediction was
+        refused); the pick ends ``perception_failed``, and the image is still what it saw.
+        """
 
     def stepped(self, world: World) -> None:
         """Called after every physics step of the runner's world."""
@@ -248,14 +252,16 @@ class TrialRunner:
         try:
             prediction = self.model.predict_frame(frame, scene.given)
         except Exception as error:  # the model's failure, recorded with its traceback
+            if self.observer is not None:
+                self.observer.saw(frame.rgb, None)
             failed = PlannedPick(TrialOutcome.PERCEPTION_FAILED, f"{self.model.name}'s predict "
                                  f"raised {type(error).__name__}: {error}",
                                  traceback=traceback.format_exc())
             return PickAttempt(target, truth, failed, TrialOutcome.PERCEPTION_FAILED,
                                failed.reason)
         planned = self.plan_pick(frame, prediction, number, total)
-        if self.observer is not None and planned.predicted is not None:  # a checked Prediction
-            self.observer.saw(frame.rgb, prediction)
+        if self.observer is not None:  # the Prediction once checked, else None
+            self.observer.saw(frame.rgb, prediction if planned.predicted is not None else None)
         if planned.plan is None or planned.grip is None:
             assert planned.outcome is not None  # a plan phase that ends a pick says how
             return PickAttempt(target, truth, planned, planned.outcome, planned.reason)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from PIL import Image
+from user_models import NotARotation, Raises
 
 from perception.interface import LabelKind, PerceptionModel, Prediction, Target
 from sim.errors import InvalidInputError
@@ -85,6 +86,21 @@ def test_a_trial_refused_before_the_robot_moves_still_gets_a_frame():
         record = runner.run(scene, 0, 0, "far")
         frames = recorder.finish(record.outcome.value)
     assert record.outcome.value == "ik_unreachable"
+    assert len(frames) == 1 and frames[0].shape == (CAPTION_PX + 128, 256, 3)
+
+
+@pytest.mark.parametrize("model", [Raises(), NotARotation()], ids=["raises", "refused"])
+def test_a_trial_that_fails_in_perception_still_shows_what_the_model_saw(model):
+    """An untrained model's first prediction may be refused: its GIF still gets its frame."""
+    task = load_task("single")
+    scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 0)
+    recorder = CountingRecorder()
+    with TrialRunner(task, lambda world, camera: model, observer=recorder) as runner:
+        recorder.start("misbehaving / single, trial 0")
+        record = runner.run(scene, 0, 0, "misbehaving")
+        frames = recorder.finish(record.outcome.value)
+    assert record.outcome.value == "perception_failed"
+    assert recorder.predictions == 1
     assert len(frames) == 1 and frames[0].shape == (CAPTION_PX + 128, 256, 3)
 
 
