@@ -1,0 +1,227 @@
+"""Every command the README shows, for every registered model, every built-in task, each scene.
+
+The chain a user runs (``gva collect`` -> ``gva train`` -> ``gva evaluate`` -> ``gva show
+attention`` -> ``gva trials --n 1``) on tiny datasets and a few steps, in both scenes (``yumi``:
+the robot's demonstrations and pick trials; ``paper-sim``: Table II's images, offline only),
+and ``gva reproduce sim`` / ``gva reproduce real`` with every model at tiny sizes. A command a
+model cannot serve (attention pictures of a model without attention, pick trials of a
+position model) must be refused in one line before it writes anything, never crash half-way.
+
+A model joins by being registered (:data:`perception.registry.MODELS` or a preset); a task by
+shipping in ``sim/tasks/task_files/``: :func:`test_the_matrix_covers_every_model_and_task`
+fails until it has its class here. One class per task, so ``make test``'s workers (a class
+each, ``--dist loadscope``) share the load and each collects its datasets once.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+import pytest
+from gva_cli import gva
+
+from experiments import tables
+from perception.learning.dataset_file import load_dataset
+from perception.registry import MODELS, PRESETS, load_model
+from sim.tasks.scene_specs import SCENE_NAMES
+from sim.tasks.task_toml import builtin_tasks, load_task
+from sim.trials.records import TrialOutcome
+
+pytestmark = pytest.mark.slow
+
+
+def registered_models() -> tuple[str, ...]:
+    """Every model by the name ``gva train`` takes: each preset, and each registered model
+    no preset stands for (``keypoint`` is ``keypoint-16``'s, ``dsae`` is ``dsae-16``'s)."""
+    bases = {base for base, _ in PRESETS.values()}
+    return (*(name for name in MODELS if name not in bases), *PRESETS)
+
+
+MATRIX_MODELS = registered_models()
+TRAIN = ["--steps", "2", "--batch-size", "2", "--threads", "1", "--holdout", "0",
+         "--no-progress"]
+"""Two optimiser steps: the matrix proves that every path runs, not that a model learns."""
+PICKS = "yumi"
+"""The scene pick trials run in; a checkpoint of the other predicts positions, not grasps."""
+
+
+def one_line(text: str) -> str:
+    """``text``'s only line; fails unless it is exactly one."""
+    lines = text.strip().splitlines()
+    assert len(lines) == 1, text
+    return lines[0]
+
+
+@pytest.fixture(scope="class")
+def datasets(request: pytest.FixtureRequest,
+             tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """``gva collect``: one training and one test scene of the class's task in each scene."""
+    task = request.cls.task
+    root = tmp_path_factory.mktemp(f"matrix-{task}")
+    paths = {}
+    for scene in SCENE_NAMES:
+        for stream in ("train", "test"):
+            path = root / f"{scene}-{stream}.gva"
+            status, out, err = gva("collect", "--scene", scene, "--task", task, "--size", 1,
+                                   "--stream", stream, "--out", path, "--no-progress")
+            assert status == 0, err
+            assert out.splitlines()[-1] == f"dataset: {path}"
+            meta = load_dataset(path).metadata
+            assert (meta.scene, meta.task) == (scene, task)
+            paths[f"{scene}-{stream}"] = path
+    return paths
+
+
+class Chain:
+    """The README's chain of commands on one task (``task``), for every model and scene."""
+
+    task: ClassVar[str]
+
+    @pytest.mark.parametrize("scene", SCENE_NAMES)
+    @pytest.mark.parametrize("model", MATRIX_MODELS)
+    def test_every_command_runs(self, model: str, scene: str, datasets: dict[str, Path],
+                                tmp_path: Path) -> None:
+        train, test = datasets[f"{scene}-train"], datasets[f"{scene}-test"]
+        checkpoint = tmp_path / "checkpoint"
+        status, out, err = gva("train", "--model", model, "--data", train, "--out", checkpoint,
+                               *TRAIN)
+        assert status == 0, err
+        trained = load_model(checkpoint)
+        assert (trained.spec.scene, trained.spec.task) == (scene, self.task)
+        test_set = load_dataset(test)
+        seen = trained.predict_batch(test_set.images[:1], test_set.conditions[:1])[0]
+
+        evaluation = tmp_path / "evaluation.json"
+        status, out, err = gva("evaluate", "--model", checkpoint, "--data", test,
+                               "--out", evaluation)
+        assert status == 0, err
+        assert out.startswith(f"{trained.name} on {scene} / {self.task} ({len(test_set)} "
+                              "images): position error mean ")
+        result = json.loads(evaluation.read_text())
+        assert np.isfinite(result["mean_position_error_cm"])
+        assert (result["median_heatmap_entropy_nats"] is None) == (seen.heatmaps is None)
+        if not trained.attention_per_target:
+            assert result["attention_on_named_fraction"] is None
+
+        pictures = tmp_path / "attention"
+        status, out, err = gva("show", "attention", "--model", checkpoint, "--data", test,
+                               "--out", pictures, "--count", 1, "--scale", 1)
+        if len(seen.attention_px):
+            assert status == 0, err
+            assert (pictures / "attention-000.png").read_bytes()[:4] == b"\x89PNG"
+        else:  # conv-ae, fcn: nothing to draw, said in one line, nothing written
+            assert status == 2
+            assert "predicts no attention points" in one_line(err)
+            assert not pictures.exists()
+
+        trials = tmp_path / "trials"
+        status, out, err = gva("trials", "--model", checkpoint, "--task", self.task,
+                               "--n", 1, "--out", trials, "--no-progress")
+        if scene == PICKS:
+            assert status == 0, err
+            records = (trials / "trials.jsonl").read_text().splitlines()
+            assert len(records) == 1
+            outcome = TrialOutcome(json.loads(records[0])["outcome"])
+            assert outcome is not TrialOutcome.ERROR, records[0]
+        else:  # a position model cannot pick: refused before any trial
+            assert status == 2
+            assert "label_kind = 'position' is not allowed" in one_line(err)
+            assert not (trials / "trials.jsonl").exists()
+
+
+class TestSingle(Chain):
+    task = "single"
+
+
+class TestMultiple(Chain):
+    task = "multiple"
+
+
+class TestSelectedType(Chain):
+    task = "selected-type"
+
+
+class TestSelectedPosition(Chain):
+    task = "selected-position"
+
+
+class TestSelectedTypeText(Chain):
+    task = "selected-type-text"
+
+
+class TestSelectedPositionText(Chain):
+    task = "selected-position-text"
+
+
+class TestSelectedTypeImage(Chain):
+    task = "selected-type-image"
+
+
+def test_the_matrix_covers_every_model_and_task() -> None:
+    assert {chain.task for chain in Chain.__subclasses__()} == set(builtin_tasks())
+    assert set(tables.MODELS) <= set(MATRIX_MODELS)  # the paper's models, and any other
+    for name in MODELS:  # every registered model is trained, itself or through its preset
+        assert name in MATRIX_MODELS or any(base == name for base, _ in PRESETS.values())
+    assert set(tables.ALL_TASKS) <= set(builtin_tasks())
+    assert {t for real in ReproduceReal.__subclasses__() for t in real.tasks} == \
+        set(tables.ALL_TASKS)
+    for task in builtin_tasks():
+        load_task(task)
+
+
+class TestReproduceSim:
+    """``gva reproduce sim`` with every model it takes, on every task, at the smallest size."""
+
+    def test_reproduce_sim_computes_every_cell_of_every_model_and_task(
+            self, tmp_path: Path) -> None:
+        out = tmp_path / "table2"
+        status, stdout, err = gva(
+            "reproduce", "sim", "--out", out, "--models", ",".join(tables.MODELS),
+            "--tasks", ",".join(tables.ALL_TASKS), "--sizes", 4, "--seeds", 1, "--steps", 2,
+            "--test-scenes", 2, "--workers", 1, "--no-progress")
+        cells = len(tables.MODELS) * len(tables.ALL_TASKS)
+        assert status == 0, stdout + err
+        assert f"{cells} cell(s) computed (0 failed)" in stdout
+        table = json.loads((out / "table2.json").read_text())
+        assert table["failed"] == []
+        assert {(c["model"], c["task"]) for c in table["cells"]} == {
+            (m, t) for m in tables.MODELS for t in tables.ALL_TASKS}
+        markdown = (out / "table2.md").read_text()
+        for model in tables.MODELS:
+            assert f"| {tables.MODEL_TITLES[model]} |" in markdown
+
+
+class ReproduceReal:
+    """``gva reproduce real`` with every model it takes on ``tasks``, one pick each."""
+
+    tasks: ClassVar[tuple[str, ...]]
+
+    def test_reproduce_real_picks_with_every_model(self, tmp_path: Path) -> None:
+        out = tmp_path / "table3"
+        status, stdout, err = gva(
+            "reproduce", "real", "--out", out, "--models", ",".join(tables.MODELS),
+            "--tasks", ",".join(self.tasks), "--demos", 1, "--n", 1, "--steps", 2,
+            "--no-robustness", "--workers", 1, "--no-progress")
+        assert status == 0, stdout + err
+        assert "(0 failed)" in stdout
+        table = json.loads((out / "table3.json").read_text())
+        for model in tables.MODELS:
+            for task in self.tasks:
+                counted = table["models"][model][task]
+                assert counted["n"] == 1 and counted["outcomes"]["error"] == 0, counted
+                gif = out / "s0" / "gifs" / f"{model}-{task}.gif"
+                assert gif.read_bytes()[:6] == b"GIF89a"
+        markdown = (out / "table3.md").read_text()
+        for model in tables.MODELS:
+            assert f"| {tables.MODEL_TITLES[model]} |" in markdown
+
+
+class TestReproduceRealPaperTasks(ReproduceReal):
+    tasks = tables.TASKS
+
+
+class TestReproduceRealBeyondTasks(ReproduceReal):
+    tasks = tables.BEYOND_TASKS
