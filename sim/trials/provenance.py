@@ -4,7 +4,9 @@ A run folder's ``run.json`` keeps one entry per session that worked on it (a res
 one), and every summary carries the entry of the session that wrote it, so a number can be
 traced to the code revision, the library versions and the exact checkpoint and task file that
 produced it. Reading a version goes through package metadata: nothing here imports torch or
-PyBullet.
+PyBullet. Where torch is loaded, the instruction set its CPU kernels use is kept too: two
+machines that differ in it train to other weights from the same seed
+(``docs/reproducing.md#what-is-bit-for-bit``).
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ def provenance(inputs: dict[str, Path | None] | None = None) -> dict[str, Any]:
                    for name, path in (inputs or {}).items()},
         "command": list(sys.argv),
         "platform": platform.platform(),
+        "torch_cpu_capability": _torch_cpu_capability(),
         "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
     }
 
@@ -60,6 +63,16 @@ def git_revision() -> dict[str, Any] | None:
         return None
     changed = git("status", "--porcelain", "--untracked-files=no")
     return {"commit": commit, "modified": bool(changed)}
+
+
+def _torch_cpu_capability() -> str | None:
+    """The instruction set of torch's CPU kernels (``AVX512``, ``AVX2``...); None: not loaded.
+
+    Read only where the run loaded torch already (training, a checkpoint in the loop), so that
+    an oracle run stays free of it.
+    """
+    torch = sys.modules.get("torch")
+    return None if torch is None else str(torch.backends.cpu.get_cpu_capability())
 
 
 def _version(name: str) -> str | None:

@@ -38,3 +38,9 @@ def test_a_checkpoints_files_are_hashed(tmp_path):
         "checkpoint_weights": "50e721e49c013f00c62cf59f2163542a9d8df02464efeb615d31051b0fddc326",
         "checkpoint_config": "44136fa355b3678a1146ad16f7e8649e94fb4fc21fe77e8310c060f61caaff8a",
         "task_file": None}
+
+
+def test_the_cpu_kernels_of_torch_are_recorded_where_torch_is_loaded():
+    import torch
+
+    assert provenance()["torch_cpu_capability"] == torch.backends.cpu.get_cpu_capability()
