@@ -3,8 +3,12 @@
 ::
 
     with JobPool(workers=2) as pool:
-        pool.run(collect_one, collections, on_done=lambda result: bar.update())
-        pool.run(train_one, cells, on_done=keep)
+        pool.run(collect_one, collections, on_done=count)       # count returns None
+        pool.run(train_one, cells, on_done=trials_of_the_cell)  # returns the jobs it releases
+
+A run's jobs are a graph (a training needs its dataset, trials their checkpoint): ``on_done``
+returns the jobs a result releases, and they run in the same call, as soon as a worker is free.
+So a worker never waits for the slowest job of a phase while another job could start.
 
 Torch and ``fork`` do not mix (a forked child inherits the parent's thread pools and locks), so
 the pool spawns its workers; each runs torch on one thread, and one worker runs the jobs in this
@@ -17,16 +21,18 @@ which runs the same functions on the same jobs as Ray tasks.
 
 from __future__ import annotations
 
+import heapq
+import itertools
 import multiprocessing
 import os
 import signal
 import threading
 import time
-from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from enum import Enum
-from typing import Protocol, TypeVar
+from typing import Generic, Protocol, TypeVar
 
 from tqdm import tqdm
 
@@ -98,6 +104,10 @@ ONE_CPU = JobResources()
 """What most jobs hold: one core (a trial, a collection, a training on one thread)."""
 
 
+Released = Callable[[Result], Iterable[Job] | None]
+"""What a pool calls with each result: returns the jobs that result releases, or None."""
+
+
 class Pool(Protocol):
     """What every executor's pool offers: run a function on each job, results here.
 
@@ -109,9 +119,38 @@ class Pool(Protocol):
     def __exit__(self, kind: type[BaseException] | None, *_: object) -> None: ...
 
     def run(self, function: Callable[[Job], Result], jobs: Sequence[Job],
-            on_done: Callable[[Result], None],
-            resources: Callable[[Job], JobResources] | None = None) -> None:
-        """Runs ``function`` on every job; ``on_done`` in this process, once per job."""
+            on_done: Released[Result, Job],
+            resources: Callable[[Job], JobResources] | None = None,
+            order: Callable[[Job], float] | None = None) -> None:
+        """Runs ``function`` on every job; ``on_done`` in this process, once per job.
+
+        ``on_done`` returns the jobs its result releases (None: none), run in this call too;
+        ``order`` ranks ready jobs, the smallest first (None: as given, then as released).
+        """
+
+
+
+class ReadyJobs(Generic[Job]):
+    """The jobs ready to start, smallest ``order`` first, ties (and no order) as they came."""
+
+    def __init__(self, jobs: Iterable[Job], order: Callable[[Job], float] | None) -> None:
+        self._order = order
+        self._count = itertools.count()
+        self._heap: list[tuple[float, int, Job]] = []
+        self.add(jobs)
+
+    def add(self, jobs: Iterable[Job] | None) -> None:
+        """Makes ``jobs`` ready (None: nothing)."""
+        for job in jobs or ():
+            rank = 0.0 if self._order is None else self._order(job)
+            heapq.heappush(self._heap, (rank, next(self._count), job))
+
+    def pop(self) -> Job:
+        """Takes the first-ranked ready job."""
+        return heapq.heappop(self._heap)[2]
+
+    def __len__(self) -> int:
+        return len(self._heap)
 
 
 ORPHAN_CHECK_S = 1.0
@@ -146,8 +185,8 @@ class JobPool:
 
     One worker runs the jobs here, in order. More run in a process pool started at the first
     batch that needs it (a spawned worker imports torch once, then serves every later job),
-    jobs handed out in order. On any exception, Ctrl-C included, the pool's processes are
-    stopped, so no job outlives the run, and the exception goes on.
+    jobs handed out by rank as workers free up. On any exception, Ctrl-C included, the pool's
+    processes are stopped, so no job outlives the run, and the exception goes on.
     """
 
     def __init__(self, workers: int) -> None:
@@ -167,21 +206,36 @@ class JobPool:
         self._executor.shutdown(wait=True, cancel_futures=True)
 
     def run(self, function: Callable[[Job], Result], jobs: Sequence[Job],
-            on_done: Callable[[Result], None],
-            resources: Callable[[Job], JobResources] | None = None) -> None:
-        """Runs ``function`` on every job; ``on_done`` here, as each finishes.
+            on_done: Released[Result, Job],
+            resources: Callable[[Job], JobResources] | None = None,
+            order: Callable[[Job], float] | None = None) -> None:
+        """Runs ``function`` on every job and on every job a result releases; ``on_done`` here.
 
-        ``resources`` is Ray's business: here each worker runs one job at a time, whatever the
-        job asks, as ``workers`` was chosen for this machine.
+        At most ``workers`` jobs are handed out at a time, so a job released later still
+        starts before a lower-ranked one that was ready earlier. ``resources`` is Ray's
+        business: here each worker runs one job at a time, whatever the job asks, as
+        ``workers`` was chosen for this machine.
         """
-        if self.workers == 1 or (len(jobs) <= 1 and self._executor is None):
-            for job in jobs:
-                on_done(function(job))
-            return
+        ready = ReadyJobs(jobs, order)
+        running: dict[Future[Result], Job] = {}
+        while ready or running:
+            while ready and len(running) < self.workers:
+                job = ready.pop()
+                if self.workers == 1 or (not ready and not running and self._executor is None):
+                    # No second job to run beside it: here, without starting processes.
+                    ready.add(on_done(function(job)))
+                    continue
+                running[self._processes().submit(function, job)] = job
+            if running:
+                finished, _ = wait(running, return_when=FIRST_COMPLETED)
+                for future in finished:
+                    del running[future]
+                    ready.add(on_done(future.result()))
+
+    def _processes(self) -> ProcessPoolExecutor:
+        """The pool's spawned processes, started at the first job that needs them."""
         if self._executor is None:
             self._executor = ProcessPoolExecutor(
                 max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"),
                 initializer=_start_worker)
-        futures = [self._executor.submit(function, job) for job in jobs]
-        for future in as_completed(futures):
-            on_done(future.result())
+        return self._executor

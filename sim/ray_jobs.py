@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from sim.errors import InvalidInputError
-from sim.jobs import ONE_CPU, Job, JobResources, Result
+from sim.jobs import ONE_CPU, Job, JobResources, ReadyJobs, Released, Result
 from sim.trials.provenance import git_revision
 
 try:
@@ -96,30 +96,34 @@ class RayPool:
         self._connected = True
 
     def run(self, function: Callable[[Job], Result], jobs: Sequence[Job],
-            on_done: Callable[[Result], None],
-            resources: Callable[[Job], JobResources] | None = None) -> None:
-        """Runs ``function`` on every job as a Ray task; ``on_done`` here, once per job.
+            on_done: Released[Result, Job],
+            resources: Callable[[Job], JobResources] | None = None,
+            order: Callable[[Job], float] | None = None) -> None:
+        """Runs ``function`` on every job, and every job a result releases, as Ray tasks.
 
-        A job's exception is raised here (after its pool's tasks are cancelled); a job lost with
-        its worker or node is run again, up to :data:`JOB_RETRIES` times.
+        Every ready job is submitted at once, by rank (Ray's scheduler places them); a job's
+        exception is raised here (after its pool's tasks are cancelled); a job lost with its
+        worker or node is run again, up to :data:`JOB_RETRIES` times.
         """
-        if not jobs:
+        ready = ReadyJobs(jobs, order)
+        if not ready:
             return
         self._connect()
         task = ray.remote(function)
-        for job in jobs:
-            need = resources(job) if resources is not None else ONE_CPU
-            ref = task.options(num_cpus=need.cpus, num_gpus=need.gpus, max_retries=JOB_RETRIES,
-                               retry_exceptions=False, name=getattr(job, "name", None)
-                               ).remote(job)
-            self._pending.add(ref)
-        while self._pending:
+        while ready or self._pending:
+            while ready:
+                job = ready.pop()
+                need = resources(job) if resources is not None else ONE_CPU
+                ref = task.options(num_cpus=need.cpus, num_gpus=need.gpus,
+                                   max_retries=JOB_RETRIES, retry_exceptions=False,
+                                   name=getattr(job, "name", None)).remote(job)
+                self._pending.add(ref)
             # A bounded wait returns to Python each time, where a pending Ctrl-C is raised.
-            ready, _ = ray.wait(list(self._pending), num_returns=1, timeout=WAIT_S)
-            for ref in ready:
+            finished, _ = ray.wait(list(self._pending), num_returns=1, timeout=WAIT_S)
+            for ref in finished:
                 result = ray.get(ref)
                 self._pending.remove(ref)
-                on_done(result)
+                ready.add(on_done(result))
 
 
 def start_local_ray(cpus: int) -> None:

@@ -58,7 +58,10 @@ def run_reproduce_sim(settings: ReproduceSimSettings, out: str | Path,
             with open_pool(settings.executor, workers, out) as pool:
                 with tqdm(total=len(collections), disable=not progress or not collections,
                           desc="collect datasets", unit="set") as bar:
-                    pool.run(collect_datasets, collections, lambda job: bar.update())
+                    def collected(_: object) -> None:
+                        bar.update()
+
+                    pool.run(collect_datasets, collections, collected)
                 _run_cells(settings, out, todo, len(done), pool, progress, computed)
         except KeyboardInterrupt:
             finished = len(list((out / "cells").glob("*[0-9].json")))

@@ -6,7 +6,7 @@ a distractor), and GIFs of the first trials; a re-run skips what is finished. Th
 its options and the run folder's layout: ``docs/reproducing.md``.
 
 - :mod:`.settings`: what a run does, and where its files go;
-- :mod:`.jobs`: the jobs (collect, train, trials, GIF) and the three phases that run them;
+- :mod:`.jobs`: the jobs (collect, train, trials, GIF) and the job graph that runs them;
 - :mod:`.gifs`: a model's first trials recorded again;
 - :mod:`.run`: a run, start to end; :mod:`.folder` and :mod:`.report`: its tables.
 """

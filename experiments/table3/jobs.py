@@ -1,17 +1,20 @@
-"""The jobs of ``gva reproduce real`` and the three phases that run them (collect, train, try).
+"""The jobs of ``gva reproduce real`` and the job graph that runs them (collect, train, try).
 
 Each job is a small frozen dataclass handed to a function that runs in a worker process
 (:mod:`sim.jobs`, or Ray: :mod:`sim.ray_jobs`); it writes its files itself and returns a
 :class:`JobOutcome`. A job that raises is recorded in ``OUT/errors/<job>.json`` (message and
 traceback) and the run goes on; the jobs that needed its output are left out and named.
-Finished work is found on disk before each phase, so a re-run skips it.
+Finished work is found on disk before the run starts, so a re-run skips it; a job starts
+as soon as what it needs is there (a training its task's demonstrations, trials their
+checkpoint), so both cores stay busy across tasks and seeds.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -238,10 +241,12 @@ def gif_done(job: GifJob) -> bool:
 
 def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
              ) -> tuple[list[JobOutcome], list[str]]:
-    """Runs every unfinished job of every seed in three phases: (outcomes run, names skipped).
+    """Runs every unfinished job of every seed as a job graph: (outcomes run, names skipped).
 
-    Each phase runs the jobs of all seeds side by side, so a run of several seeds keeps every
-    worker busy until its last trials.
+    A collection releases its task's trainings and a training its trial sets and GIF, so a
+    worker starts the next job as soon as one is ready (trials of one task while the next
+    task trains) rather than wait for the slowest job of a phase. Ready jobs start by the
+    longest chain of work they lead to, so the slowest chain never starts last.
     """
     runs = [(settings.for_seed(seed), seed_folder(out, seed))
             for seed in settings.training_seeds]
@@ -264,39 +269,71 @@ def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
     trains_todo = [j for j in trains if not trained_file(j.out, j.unit).exists()]
     skipped = [j.name for j in collects if j not in collects_todo]
     skipped += [j.name for j in trains if j not in trains_todo]
+    waiting = {j.name for j in collects_todo}
+    trains_after: dict[str, list[TrainJob]] = {}  # a collection's name: the trainings it feeds
+    ready: list[Job] = list(collects_todo)
+    for job in trains_todo:
+        collect_name = f"collect-{job.unit.task}-s{job.settings.seed}"
+        if collect_name in waiting:
+            trains_after.setdefault(collect_name, []).append(job)
+        elif dataset_file(job.out, job.unit.task, job.settings).exists():
+            ready.append(job)
+    by_seed = dict(zip([s.seed for s, _ in runs], runs, strict=True))
+    training = {(j.settings.seed, j.unit) for j in trains_todo}
+    for run_settings, folder in runs:  # trials of checkpoints that are there already
+        seed = run_settings.seed
+        todo, skipped_now = _trial_jobs(run_settings, folder,
+                                        partial(_not_in, training, seed))
+        ready += todo
+        skipped += skipped_now
     # Trials are not known to be finished before their checkpoint exists: estimate them as
-    # to do unless their summary is there, and take finished ones off the bar later.
-    later = [_trials_estimate(s, folder, trial_set) for s, folder in runs
-             for trial_set in s.trial_sets()]
-    first: list[Job] = [*collects_todo, *trains_todo]
-    total = sum(cost(job) for job in first) + sum(later)
+    # to do unless their summary is there, and make the bar exact as they are released.
+    later = {j.name: sum(_trials_estimate(j.settings, j.out, t)
+                         for t in j.settings.trial_sets() if t.unit == j.unit)
+             for j in trains_todo}
+    total = sum(map(cost, ready)) + sum(cost(j) for jobs in trains_after.values()
+                                        for j in jobs) + sum(later.values())
     computed: list[JobOutcome] = []
+    by_name: dict[str, Job] = {job.name: job for job in ready}
+    by_name |= {j.name: j for jobs in trains_after.values() for j in jobs}
+
+    def chain(job: Job) -> float:
+        """The estimated seconds of the longest chain of jobs that starts with ``job``."""
+        if isinstance(job, CollectJob):
+            return cost(job) + max((chain(j) for j in trains_after.get(job.name, ())),
+                                   default=0.0)
+        return cost(job) + (later.get(job.name, 0.0) if isinstance(job, TrainJob) else 0.0)
+
     with open_pool(settings.executor, settings.worker_count(), out) as pool, \
             cost_bar(total, "reproduce real", progress) as bar:
-        def run(jobs: Sequence[Job]) -> None:
-            by_name = {job.name: job for job in jobs}
+        def done(outcome: JobOutcome) -> list[Job]:
+            computed.append(outcome)
+            shown = "FAILED" if outcome.failure else outcome.result
+            bar.set_postfix_str(f"{len(computed)} job(s) done; last {outcome.name}: "
+                                f"{shown}", refresh=False)
+            job = by_name[outcome.name]
+            bar.update(cost(job))
+            released: list[Job] = []
+            if outcome.failure is not None:  # what needed it is left out; its error names it
+                return released
+            if isinstance(job, CollectJob):
+                released += trains_after.get(job.name, [])
+            elif isinstance(job, TrainJob):
+                seed_settings, folder = by_seed[job.settings.seed]
+                released, skipped_now = _trial_jobs(seed_settings, folder,
+                                                    lambda unit: unit == job.unit)
+                skipped.extend(skipped_now)
+                bar.total += sum(map(cost, released)) - later[job.name]  # the estimate, exact
+                bar.refresh()
+            by_name.update((j.name, j) for j in released)
+            return released
 
-            def done(outcome: JobOutcome) -> None:
-                computed.append(outcome)
-                shown = "FAILED" if outcome.failure else outcome.result
-                bar.set_postfix_str(f"{len(computed)} job(s) done; last {outcome.name}: "
-                                    f"{shown}", refresh=False)
-                bar.update(cost(by_name[outcome.name]))
-
-            ordered = sorted(jobs, key=lambda job: -cost(job))  # longest first
-            pool.run(run_job, ordered, done, job_resources)
-
-        run(collects_todo)
-        run([j for j in trains_todo if dataset_file(j.out, j.unit.task, j.settings).exists()])
-        trying: list[Job] = []
-        for run_settings, folder in runs:
-            todo, skipped_now = _trial_jobs(run_settings, folder)
-            trying += todo
-            skipped += skipped_now
-        bar.total = bar.n + sum(map(cost, trying))  # the estimate, made exact
-        bar.refresh()
-        run(trying)
+        pool.run(run_job, ready, done, job_resources, order=lambda job: -chain(job))
     return computed, skipped
+
+
+def _not_in(training: set[tuple[int, Unit]], seed: int, unit: Unit) -> bool:
+    return (seed, unit) not in training
 
 
 def _trials_estimate(settings: ReproduceRealSettings, out: Path, trial_set: TrialSet) -> float:
@@ -309,12 +346,16 @@ def _trials_estimate(settings: ReproduceRealSettings, out: Path, trial_set: Tria
     return estimate
 
 
-def _trial_jobs(settings: ReproduceRealSettings, out: Path) -> tuple[list[Job], list[str]]:
-    """(trial and GIF jobs to run, names of those finished), of units with a checkpoint."""
+def _trial_jobs(settings: ReproduceRealSettings, out: Path, of: Callable[[Unit], bool]
+                ) -> tuple[list[Job], list[str]]:
+    """(trial and GIF jobs to run, names of those finished) of units with a checkpoint.
+
+    ``of`` says which units to look at (a training just finished: its own).
+    """
     todo: list[Job] = []
     skipped: list[str] = []
     for trial_set in settings.trial_sets():
-        if not trained_file(out, trial_set.unit).exists():
+        if not of(trial_set.unit) or not trained_file(out, trial_set.unit).exists():
             continue  # its training failed: its error file names it
         trials = settings.trial_settings(out, trial_set)
         job = TrialsJob(f"trials-{trial_set.name}-s{settings.seed}", trial_set, trials, out)

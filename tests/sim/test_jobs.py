@@ -27,6 +27,37 @@ def test_jobs_run_side_by_side_and_every_result_comes_back():
     assert sorted(results) == [1, 4, 9, 16]
 
 
+def _echo(value: int) -> int:
+    return value
+
+
+@pytest.mark.parametrize("order", [None, lambda job: job], ids=["as-given", "ranked"])
+def test_a_result_releases_jobs_that_run_in_the_same_call_by_rank(order):
+    """A job graph: each job below 10 releases ten times itself once it is done."""
+    seen: list[int] = []
+
+    def done(job: int) -> list[int] | None:
+        seen.append(job)
+        return [job * 10] if job < 10 else None
+
+    with JobPool(1) as pool:
+        pool.run(_echo, [5, 1, 3], done, order=order)
+    assert seen == ([5, 1, 3, 50, 10, 30] if order is None else [1, 3, 5, 10, 30, 50])
+
+
+def test_released_jobs_run_on_the_workers_after_the_job_that_released_them():
+    seen: list[int] = []
+
+    def done(job: int) -> list[int] | None:
+        seen.append(job)
+        return [job * 10, job * 10 + 1] if job < 10 else None
+
+    with JobPool(2) as pool:
+        pool.run(_echo, [1, 2, 3], done)
+    assert sorted(seen) == [1, 2, 3, 10, 11, 20, 21, 30, 31]
+    assert all(seen.index(job) < seen.index(job * 10) for job in (1, 2, 3))
+
+
 def _alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)

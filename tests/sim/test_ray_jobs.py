@@ -40,6 +40,19 @@ def test_every_result_comes_back_once(local_ray, tmp_path):
     assert not list(tmp_path.glob(".gva-shared-check-*"))  # the folder check cleans up
 
 
+def test_a_result_releases_jobs_that_run_as_ray_tasks_too(local_ray, tmp_path):
+    """The local pool's job graph, on Ray: released jobs run in the same call."""
+    seen: list[int] = []
+
+    def done(square: int) -> list[int] | None:
+        seen.append(square)
+        return [square] if square < 10 else None  # 2 -> 4 -> 16, 3 -> 9 -> 81
+
+    with open_pool(RAY, 2, tmp_path) as pool:
+        pool.run(_square, [2, 3], done)
+    assert sorted(seen) == [4, 9, 16, 81]
+
+
 def _die_once(job: tuple[int, str]) -> tuple[int, int]:
     """Kills its own worker process the first time it runs, as a lost node would."""
     value, marks = job
