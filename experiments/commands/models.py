@@ -109,7 +109,7 @@ def run_train(args: argparse.Namespace) -> int:
     print(f"{model.name} on {meta.scene} / {meta.task}: {report.samples} samples, "
           f"{report.steps} steps, final loss {report.final_loss:.4g}, "
           f"{report.wall_time_s:.1f} s on {report.threads} thread(s)")
-    if report.phases:
+    if len(report.phases) > 1:
         print("phases: " + "; ".join(f"{phase.name} {phase.steps} steps, final loss "
                                      f"{phase.final_loss:.4g}" for phase in report.phases))
     print(f"checkpoint: {out}" + (" (replaced)" if held else ""))

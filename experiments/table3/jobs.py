@@ -11,6 +11,7 @@ checkpoint), so both cores stay busy across tasks and seeds.
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -66,12 +67,26 @@ GIF_S_PER_PICK = 4.0
 
 @dataclass(frozen=True)
 class JobOutcome:
-    """A finished job: its name, how long it took [s], and its failure or a one-line result."""
+    """A finished job: its name, how long it took, and its failure or a one-line result.
+
+    ``started_at`` (Unix time [s]), ``cpu_s`` (the worker's CPU time over the job, every
+    thread) and ``worker`` (its process id) place it on the run's timeline, so a profile can
+    tell where the time went and how long a worker waited (``history.jsonl`` keeps them).
+    """
 
     name: str
     seconds: float
     result: str = ""
     failure: str | None = None
+    started_at: float = 0.0
+    cpu_s: float = 0.0
+    worker: int = 0
+
+    def timeline(self) -> dict[str, Any]:
+        """The job on the run's timeline, as ``history.jsonl`` keeps it."""
+        return {"name": self.name, "started_at": round(self.started_at, 3),
+                "seconds": round(self.seconds, 3), "cpu_s": round(self.cpu_s, 3),
+                "worker": self.worker, "failed": self.failure is not None}
 
 
 @dataclass(frozen=True)
@@ -145,11 +160,12 @@ def cost(job: Job) -> float:
 
 def run_job(job: Job) -> JobOutcome:
     """Runs one job in a worker; an exception becomes its error file and a failed outcome."""
-    started = time.perf_counter()
+    started_at, started, cpu = time.time(), time.perf_counter(), time.process_time()
     result = guarded(lambda: _work(job), error_file(job.out, job.name), {"job": job.name})
-    if isinstance(result, Failed):
-        return JobOutcome(job.name, time.perf_counter() - started, failure=result.message)
-    return JobOutcome(job.name, time.perf_counter() - started, result)
+    failure = result.message if isinstance(result, Failed) else None
+    return JobOutcome(job.name, time.perf_counter() - started,
+                      "" if failure is not None else str(result), failure, started_at,
+                      time.process_time() - cpu, os.getpid())
 
 
 def _work(job: Job) -> str:
@@ -191,7 +207,9 @@ def _train(job: TrainJob) -> str:
     write_json(trained_file(job.out, unit), {  # last: it marks the checkpoint finished
         "identity": job.identity, "train_s": report.wall_time_s, "steps": report.steps,
         "final_loss": report.final_loss, "samples": report.samples,
-        "attempts": len(fit.checks), "check": None if check is None else check.to_json()})
+        "phases": [phase._asdict() for phase in report.phases],
+        "attempts": len(fit.checks), "attempt_times": [t._asdict() for t in fit.times],
+        "check": None if check is None else check.to_json()})
     shown = "" if check is None else "; " + check.headline()
     return f"final loss {report.final_loss:.4g} in {report.wall_time_s:.0f} s{shown}"
 

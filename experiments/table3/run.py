@@ -57,6 +57,7 @@ def run_reproduce_real(settings: ReproduceRealSettings, out: str | Path,
         wall_time_s = time.perf_counter() - started
         append_history(out, {"command": settings.command(out), "wall_time_s": round(wall_time_s, 1),
                              "computed": [o.name for o in computed], "skipped": len(skipped),
+                             "jobs": [o.timeline() for o in computed],
                              "workers": settings.worker_count(), "finished_at": time.time()})
         reports = write_reports(settings, out, wall_time_s, session)
         return RunReport(tuple(computed), tuple(skipped), tuple(reports.failed), wall_time_s,

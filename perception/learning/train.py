@@ -116,11 +116,12 @@ class Batch(NamedTuple):
 
 
 class PhaseSummary(NamedTuple):
-    """One named phase of a training that ran in several: its length and where its loss ended."""
+    """One named phase of a training: its length, where its loss ended, and its wall time [s]."""
 
     name: str
     steps: int
     final_loss: float
+    wall_time_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -164,7 +165,8 @@ class TrainReport:
 
         The loss curve runs on across phases (a later phase's steps follow the earlier ones');
         its losses are each phase's own, so the curve jumps where a phase changes its loss.
-        ``names``, one per report, name the phases in :attr:`phases`; () records none.
+        ``names``, one per report, name the phases in :attr:`phases` (a report that has
+        phases of its own brings those instead); () records none.
         """
         if not reports:
             raise InvalidInputError("reports", "none", "at least one training report")
@@ -175,10 +177,12 @@ class TrainReport:
             losses += [(offset + step, loss) for step, loss in report.losses]
             offset += report.steps
         last = reports[-1]
-        phases = tuple(PhaseSummary(name, report.steps, report.final_loss)
-                       for name, report in zip(names, reports, strict=True)) if names else ()
+        phases: list[PhaseSummary] = []
+        for name, report in zip(names, reports, strict=True) if names else ():
+            phases += report.phases or [PhaseSummary(name, report.steps, report.final_loss,
+                                                     report.wall_time_s)]
         return cls(offset, last.samples, last.final_loss, tuple(losses),
-                   sum(r.wall_time_s for r in reports), last.threads, last.config, phases)
+                   sum(r.wall_time_s for r in reports), last.threads, last.config, tuple(phases))
 
 
 def available_threads() -> int:

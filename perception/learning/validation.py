@@ -16,10 +16,11 @@ from __future__ import annotations
 
 import json
 import math
+import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -122,6 +123,13 @@ class HeldOutCheck:
                                  tuple(data["per_target_mean_position_error_cm"])})
 
 
+class AttemptTime(NamedTuple):
+    """Where one attempt of :func:`fit_checked` spent its time [s]: training, then checking."""
+
+    train_s: float
+    check_s: float
+
+
 @dataclass(frozen=True)
 class CheckedFit:
     """What :func:`fit_checked` returns: the model it kept, its report, and every check."""
@@ -129,6 +137,7 @@ class CheckedFit:
     model: LearnableModel
     report: TrainReport
     checks: tuple[HeldOutCheck, ...]  # one per attempt; the last is the kept model's
+    times: tuple[AttemptTime, ...] = ()  # one per attempt: what a retry cost
 
     @property
     def check(self) -> HeldOutCheck | None:
@@ -226,18 +235,22 @@ def fit_checked(build: Callable[[int], LearnableModel], dataset: Dataset, config
     check = check or CheckConfig()
     kept, held_out = split_scenes(dataset, check.holdout, config.seed)
     checks: list[HeldOutCheck] = []
+    times: list[AttemptTime] = []
     for attempt in range(1, check.attempts + 1):
         seed = attempt_seed(config.seed, attempt)
+        started = time.perf_counter()
         model = build(seed)
         report = model.fit(kept, replace(config, seed=seed), progress=progress)
+        trained = time.perf_counter()
         if held_out is None:
-            return CheckedFit(model, report, ())
+            return CheckedFit(model, report, (), (AttemptTime(trained - started, 0.0),))
         checks.append(check_model(model, held_out, check.limit_cm, attempt, seed))
+        times.append(AttemptTime(trained - started, time.perf_counter() - trained))
         if log is not None:
             log(checks[-1].headline())
         if checks[-1].passed:
             break
-    return CheckedFit(model, report, tuple(checks))
+    return CheckedFit(model, report, tuple(checks), tuple(times))
 
 
 def write_check(folder: str | Path, fit: CheckedFit) -> Path | None:

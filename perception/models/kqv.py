@@ -8,6 +8,7 @@ from outside. Its settings are :class:`KqvConfig`; where they depart from the pa
 
 from __future__ import annotations
 
+import time
 from dataclasses import replace
 from typing import Any
 
@@ -72,9 +73,10 @@ class KqvModel(TorchModel):
         each and the best goes on; ``config.steps`` counts its steps, and the report's wall
         time includes the dropped starts'.
 
-        With a type head, :attr:`KqvConfig.type_steps` more steps then train it alone; the
-        report chains the two phases (``"targets"``, ``"object types"``) and its ``final_loss``
-        stays the targets'. A dataset that names no target's type trains no type phase.
+        With a type head, :attr:`KqvConfig.type_steps` more steps then train it alone. The
+        report names its phases (``"starts"`` where several were tried, ``"targets"``,
+        ``"object types"``), each with its wall time, and its ``final_loss`` stays the
+        targets'. A dataset that names no target's type trains no type phase.
         """
         config = config or TrainConfig()
         mirror = self.config.mirror
@@ -114,11 +116,11 @@ class KqvModel(TorchModel):
         if not fresh or self.config.starts == 1 or config.steps <= self.config.start_steps:
             self._steps_taken = 0
             return super().fit(named, config, progress)
-        start, spent_s = self._best_start(dataset, config, progress)
+        start = self._best_start(dataset, config, progress)
         rest = super().fit(named, replace(config, steps=config.steps - start.steps),
                            progress)  # the warm-up goes on from the step the start reached
-        chained = TrainReport.chain([start, rest])
-        self.report = replace(chained, config=config, wall_time_s=chained.wall_time_s + spent_s)
+        self.report = replace(TrainReport.chain([start, rest], ("starts", "targets")),
+                              config=config)
         return self.report
 
     def _named(self, dataset: Dataset) -> Dataset:
@@ -151,14 +153,15 @@ class KqvModel(TorchModel):
         return [p for p in self.network.parameters() if id(p) not in skipped]
 
     def _best_start(self, dataset: Dataset, config: TrainConfig, progress: bool
-                    ) -> tuple[TrainReport, float]:
+                    ) -> TrainReport:
         """Trains :attr:`KqvConfig.starts` fresh networks briefly and keeps the best one.
 
         The starts train on the scenes :attr:`KqvConfig.start_holdout` leaves and are compared
         by their mean position error on the held-out ones (by training loss where nothing is
         held out), which keep their own sentences (:meth:`_named` is for training only).
-        Returns the kept start's report and the wall time the dropped ones took [s].
+        Returns the kept start's report, its wall time that of every start and comparison.
         """
+        started = time.perf_counter()
         short = replace(config, steps=self.config.start_steps)
         kept, held = split_scenes(dataset, self.config.start_holdout, config.seed)
         kept = self._named(kept)
@@ -178,8 +181,7 @@ class KqvModel(TorchModel):
             tried.append((held_cm, report.final_loss, number, self.network, report))
         _, _, _, self.network, kept_report = min(tried, key=lambda t: (t[0], t[1], t[2]))
         self._steps_taken = self.config.start_steps
-        spent_s = sum(t[4].wall_time_s for t in tried) - kept_report.wall_time_s
-        return kept_report, spent_s
+        return replace(kept_report, wall_time_s=time.perf_counter() - started)
 
     def batch_loss(self, batch: Batch) -> Tensor:
         """The target loss, at the temperature the warm-up has reached by this step.

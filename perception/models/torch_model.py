@@ -133,8 +133,8 @@ class TorchModel(LearnableModel):
             progress: bool = True) -> TrainReport:
         """Trains on ``dataset``; the label scaler comes from its labels on the first fit.
 
-        Each :meth:`phases` stage runs ``config.steps`` steps; the report chains them (and
-        names them in its ``phases`` where there are several).
+        Each :meth:`phases` stage runs ``config.steps`` steps; the report chains them and
+        names each in its ``phases``, with its wall time.
         """
         self.spec.check_dataset(dataset)
         if self.scaler is None:
@@ -145,8 +145,7 @@ class TorchModel(LearnableModel):
                          description=f"{self.name} {self.spec.task}" +
                          (f" [{phase.name}]" if len(phases) > 1 else ""),
                          parameters=phase.parameters) for phase in phases]
-        self.report = TrainReport.chain(reports, [phase.name for phase in phases]
-                                        if len(phases) > 1 else ())
+        self.report = TrainReport.chain(reports, [phase.name for phase in phases])
         return self.report
 
     def batch_loss(self, batch: Batch) -> Tensor:

@@ -57,7 +57,11 @@ def test_the_type_head_leaves_the_pose_weights_as_they_would_be_without_it():
         assert torch.equal(with_head[key], value), key  # bitwise
     assert not all(torch.equal(with_head[k], initial[None][k]) for k in head_keys)  # trained
     assert reports[None].final_loss == reports[False].final_loss  # the start choice saw the same
-    assert reports[False].phases == () and reports[None].steps == 5 + 4
+    assert [p.name for p in reports[False].phases] == ["starts", "targets"]
+    assert [p.name for p in reports[None].phases] == ["starts", "targets", "object types"]
+    assert reports[None].steps == 5 + 4 and reports[None].phases[0].steps == 2
+    assert sum(p.wall_time_s for p in reports[None].phases) == pytest.approx(
+        reports[None].wall_time_s)
 
 
 def test_the_type_head_is_built_for_grasp_specs_that_name_their_types():

@@ -293,11 +293,14 @@ def test_a_chained_report_names_its_phases():
     first = TrainReport(2, 4, 0.5, ((1, 0.6), (2, 0.5)), 1.0, 1, config)
     second = TrainReport(3, 4, 0.2, ((3, 0.2),), 2.0, 1, config)
     chained = TrainReport.chain([first, second], ("targets", "object types"))
-    assert chained.phases == (("targets", 2, 0.5), ("object types", 3, 0.2))
+    assert chained.phases == (("targets", 2, 0.5, 1.0), ("object types", 3, 0.2, 2.0))
     assert chained.steps == 5 and chained.losses == ((1, 0.6), (2, 0.5), (5, 0.2))
     assert json.loads(json.dumps(chained.to_json()))["phases"][1] == {
-        "name": "object types", "steps": 3, "final_loss": 0.2}
+        "name": "object types", "steps": 3, "final_loss": 0.2, "wall_time_s": 2.0}
     assert TrainReport.chain([first, second]).phases == ()
+    third = TrainReport(1, 4, 0.1, ((1, 0.1),), 0.5, 1, config)  # a chained report's phases
+    assert [p.name for p in TrainReport.chain([chained, third], ("pose", "more")).phases] == [
+        "targets", "object types", "more"]  # come with it
     with pytest.raises(InvalidInputError, match=r"names = \['targets'\] is not allowed: one per"):
         TrainReport.chain([first, second], ("targets",))
 
