@@ -14,7 +14,11 @@ heatmap):
 - the Key normalisation of the cosine similarity, as ``F.normalize`` against the reciprocal
   square root kqv uses (:func:`perception.models.base.unit`), forward and backward;
 - a step of the type head's phase (forward through the frozen network, the small head's
-  backward).
+  backward);
+- the work of a pose step (``torch.utils.flop_counter``: forward and backward), the rate it
+  reaches, and that rate against a 1024 x 1024 float32 matmul's on the same thread (the
+  core's practical peak): how far a faster step could come from faster kernels, and how far
+  it must come from doing less work.
 
 Medians of ``--repeats`` runs of ``--steps`` steps each, after a warm-up; the training's step
 count (:class:`~perception.learning.train.TrainConfig`, :class:`~perception.models.kqv.KqvConfig`'s
@@ -36,6 +40,7 @@ from typing import Any
 
 import numpy as np
 import torch
+from torch.utils.flop_counter import FlopCounterMode
 
 from perception.learning.data import Dataset
 from perception.learning.train import Batch, TrainConfig, batch_indices, photometric_augment
@@ -55,6 +60,12 @@ def median_ms(run: Callable[[], Any], steps: int, repeats: int) -> float:
             run()
         times.append((time.perf_counter() - started) / steps)
     return statistics.median(times) * 1e3
+
+
+def matmul_gflop_per_s(size: int = 1024, repeats: int = 20) -> float:
+    """A ``size`` x ``size`` float32 matmul's rate on this thread [GFLOP/s], median."""
+    a, b = torch.randn(size, size), torch.randn(size, size)
+    return 2 * size**3 / (median_ms(lambda: a @ b, 5, repeats) * 1e-3) / 1e9
 
 
 def step_parts(dataset: Dataset, steps: int, repeats: int) -> dict[str, float]:
@@ -100,6 +111,10 @@ def step_parts(dataset: Dataset, steps: int, repeats: int) -> dict[str, float]:
                                       repeats),
               "forward_ms": median_ms(forward, steps, repeats)}
     result["backward_ms"] = median_ms(backward, steps, repeats) - result["forward_ms"]
+    with FlopCounterMode(display=False) as counter:
+        whole()
+    result["step_gflop"] = counter.get_total_flops() / 1e9
+    result["step_gflop_per_s"] = result["step_gflop"] / (result["step_ms"] * 1e-3)
     result["normalise_f_normalize_ms"] = median_ms(normalise(
         lambda k: torch.nn.functional.normalize(k, dim=1)), steps, repeats)
     result["normalise_rsqrt_ms"] = median_ms(normalise(lambda k: unit(k, dim=1)), steps,
@@ -128,14 +143,21 @@ def main() -> None:
     torch.set_num_threads(1)
     rows = {}
     with tempfile.TemporaryDirectory() as folder:
-        for scene, task, size in (("yumi", "multiple", 6), ("paper-sim", "single", 20)):
+        for scene, task, size in (("yumi", "multiple", 6), ("yumi", "single", 16),
+                                  ("paper-sim", "single", 20)):
             dataset = collect(CollectSettings(scene, task, size, seed=0),
                               Path(folder) / f"{scene}-{task}.gva", progress=False)
             rows[f"{scene}/{task}"] = step_parts(dataset, args.steps, args.repeats)
             print(scene, task, {k: round(v, 1) for k, v in rows[f"{scene}/{task}"].items()},
                   flush=True)
+    matmul = matmul_gflop_per_s()
+    for row in rows.values():
+        row["fraction_of_matmul_rate"] = row["step_gflop_per_s"] / matmul
+    print(f"1024 x 1024 float32 matmul: {matmul:.1f} GFLOP/s on one thread; a step reaches "
+          + ", ".join(f"{name} {row['fraction_of_matmul_rate']:.0%}"
+                      for name, row in rows.items()))
     data = {"benchmark": "train", "threads": 1, "batch_size": 16, "steps": args.steps,
-            "repeats": args.repeats, "rows": rows,
+            "repeats": args.repeats, "matmul_1024_gflop_per_s": matmul, "rows": rows,
             "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
                         "torch": torch.__version__, "platform": platform.platform(),
                         "load_average_1min": os.getloadavg()[0]}}
