@@ -129,6 +129,9 @@ def step_parts(dataset: Dataset, steps: int, repeats: int) -> dict[str, float]:
             head_optimiser.step()
 
         result["type_step_ms"] = median_ms(type_step, steps, repeats)
+        with FlopCounterMode(display=False) as counter:
+            type_step()
+        result["type_step_gflop"] = counter.get_total_flops() / 1e9
     return result
 
 
