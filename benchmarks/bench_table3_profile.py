@@ -8,8 +8,8 @@ Every argument but ``--from`` and ``--result`` goes to ``gva reproduce real``. R
 folder: ``history.jsonl`` (the last run's jobs: start, wall and CPU time, worker) and each
 checkpoint's ``trained.json`` (the training's phases: kqv's starts, the main phase, the type
 head; the held-out check and any retry). The record (``benchmarks/results/table3_profile.json``)
-holds per kind of job and task the wall and CPU seconds, per training its phases, the workers'
-idle time (a worker that waits while a job could run is time lost), and, where
+holds per kind of job and task the wall and CPU seconds, per training its phases, the cores'
+idle time (a core that waits while a job could run is time lost), and, where
 ``benchmarks/results/train.json`` exists (``bench_train.py``), the work of a training in GFLOP
 and the rate a step reaches against the core's matmul rate.
 """
@@ -49,16 +49,21 @@ def job_kinds(jobs: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
             for key, group in sorted(groups.items())}
 
 
-def workers(jobs: list[dict[str, Any]], count: int) -> dict[str, Any]:
-    """The span from the first job's start to the last one's end, and the workers' idle time."""
+def workers(jobs: list[dict[str, Any]], cores: int) -> dict[str, Any]:
+    """The span from the first job's start to the last one's end, and the cores' idle time.
+
+    A job holds its ``cpus`` (a training on two threads two cores) for its wall time; the
+    cores are the run's workers.
+    """
     if not jobs:
-        return {"span_s": 0.0, "busy_s": 0.0, "idle_s": 0.0, "idle_fraction": None}
+        return {"cores": cores, "span_s": 0.0, "core_s_held": 0.0, "idle_core_s": 0.0,
+                "idle_fraction": None}
     start = min(j["started_at"] for j in jobs)
     span = max(j["started_at"] + j["seconds"] for j in jobs) - start
-    busy = sum(j["seconds"] for j in jobs)
-    idle = max(0.0, count * span - busy)
-    return {"workers": count, "span_s": round(span, 1), "busy_s": round(busy, 1),
-            "idle_s": round(idle, 1), "idle_fraction": round(idle / (count * span), 3)}
+    held = sum(j["seconds"] * j.get("cpus", 1.0) for j in jobs)
+    idle = max(0.0, cores * span - held)
+    return {"cores": cores, "span_s": round(span, 1), "core_s_held": round(held, 1),
+            "idle_core_s": round(idle, 1), "idle_fraction": round(idle / (cores * span), 3)}
 
 
 def trainings(folder: Path, seeds: list[int]) -> dict[str, dict[str, Any]]:
@@ -118,7 +123,7 @@ def record(folder: Path, measured_s: float | None) -> dict[str, Any]:
         "measured_wall_time_s": None if measured_s is None else round(measured_s, 1),
         "jobs_in_last_run": len(jobs),
         "wall_s_by_kind": {k: round(v, 1) for k, v in sorted(by_kind.items())},
-        "jobs": kinds, "workers": workers(jobs, run["workers"]), "trainings": rows,
+        "jobs": kinds, "cores": workers(jobs, run["workers"]), "trainings": rows,
         "work": work(rows), "machine": machine(),
     }
 
@@ -127,7 +132,7 @@ def main_bench() -> int:
     """Runs ``gva reproduce real`` (or reads ``--from``) and writes the profile."""
     status, result = run_or_read("real", Path("benchmarks/results/table3_profile.json"), record)
     if result is not None:
-        print(json.dumps({k: result[k] for k in ("wall_time_s", "wall_s_by_kind", "workers",
+        print(json.dumps({k: result[k] for k in ("wall_time_s", "wall_s_by_kind", "cores",
                                                  "work")}, indent=2))
     return status
 

@@ -70,8 +70,9 @@ class JobOutcome:
     """A finished job: its name, how long it took, and its failure or a one-line result.
 
     ``started_at`` (Unix time [s]), ``cpu_s`` (the worker's CPU time over the job, every
-    thread) and ``worker`` (its process id) place it on the run's timeline, so a profile can
-    tell where the time went and how long a worker waited (``history.jsonl`` keeps them).
+    thread), ``worker`` (its process id) and ``cpus`` (the cores it holds: a training its
+    threads) place it on the run's timeline, so a profile can tell where the time went and
+    how long a core waited (``history.jsonl`` keeps them).
     """
 
     name: str
@@ -81,12 +82,13 @@ class JobOutcome:
     started_at: float = 0.0
     cpu_s: float = 0.0
     worker: int = 0
+    cpus: float = 1.0
 
     def timeline(self) -> dict[str, Any]:
         """The job on the run's timeline, as ``history.jsonl`` keeps it."""
         return {"name": self.name, "started_at": round(self.started_at, 3),
                 "seconds": round(self.seconds, 3), "cpu_s": round(self.cpu_s, 3),
-                "worker": self.worker, "failed": self.failure is not None}
+                "worker": self.worker, "cpus": self.cpus, "failed": self.failure is not None}
 
 
 @dataclass(frozen=True)
@@ -165,7 +167,7 @@ def run_job(job: Job) -> JobOutcome:
     failure = result.message if isinstance(result, Failed) else None
     return JobOutcome(job.name, time.perf_counter() - started,
                       "" if failure is not None else str(result), failure, started_at,
-                      time.process_time() - cpu, os.getpid())
+                      time.process_time() - cpu, os.getpid(), job_resources(job).cpus)
 
 
 def _work(job: Job) -> str:

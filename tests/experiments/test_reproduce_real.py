@@ -116,6 +116,26 @@ def test_a_rerun_skips_everything(tiny_run):
     assert json.loads(history[-1])["computed"] == []
 
 
+def test_the_history_places_each_job_after_what_it_needs(tiny_run):
+    """The job graph: a training starts after its collection, trials after their training."""
+    first = json.loads((tiny_run / "history.jsonl").read_text().splitlines()[0])
+    jobs = {job["name"]: job for job in first["jobs"]}
+    assert set(jobs) == set(first["computed"])
+
+    def end(name: str) -> float:
+        return jobs[name]["started_at"] + jobs[name]["seconds"]
+
+    assert jobs["train-kqv-single-s0"]["started_at"] >= end("collect-single-s0") - 0.05
+    for name in jobs:
+        if name.startswith(("trials-", "gif-")):
+            assert jobs[name]["started_at"] >= end("train-kqv-single-s0") - 0.05, name
+    assert all(job["cpu_s"] >= 0 and job["worker"] > 0 and job["cpus"] >= 1
+               for job in jobs.values())
+    trained = json.loads(trained_file(tiny_run / "s0", UNIT).read_text())
+    assert trained["phases"][0]["name"] == "targets"  # two demonstrations: nothing held out
+    assert trained["attempts"] == 0 and len(trained["attempt_times"]) == 1
+
+
 def test_a_run_with_other_steps_is_refused(tiny_run):
     other = ["4" if before == "--steps" else value for before, value in
              zip(["", *TINY], TINY, strict=False)]
