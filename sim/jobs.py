@@ -129,7 +129,6 @@ class Pool(Protocol):
         """
 
 
-
 class ReadyJobs(Generic[Job]):
     """The jobs ready to start, smallest ``order`` first, ties (and no order) as they came."""
 
@@ -217,7 +216,7 @@ class JobPool:
         ``workers`` was chosen for this machine.
         """
         ready = ReadyJobs(jobs, order)
-        running: dict[Future[Result], Job] = {}
+        running: set[Future[Result]] = set()
         while ready or running:
             while ready and len(running) < self.workers:
                 job = ready.pop()
@@ -225,11 +224,11 @@ class JobPool:
                     # No second job to run beside it: here, without starting processes.
                     ready.add(on_done(function(job)))
                     continue
-                running[self._processes().submit(function, job)] = job
+                running.add(self._processes().submit(function, job))
             if running:
                 finished, _ = wait(running, return_when=FIRST_COMPLETED)
                 for future in finished:
-                    del running[future]
+                    running.remove(future)
                     ready.add(on_done(future.result()))
 
     def _processes(self) -> ProcessPoolExecutor:
