@@ -13,9 +13,7 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
-from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -298,12 +296,8 @@ def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
             trains_after.setdefault(collect_name, []).append(job)
         elif dataset_file(job.out, job.unit.task, job.settings).exists():
             ready.append(job)
-    by_seed = dict(zip([s.seed for s, _ in runs], runs, strict=True))
-    training = {(j.settings.seed, j.unit) for j in trains_todo}
-    for run_settings, folder in runs:  # trials of checkpoints that are there already
-        seed = run_settings.seed
-        todo, skipped_now = _trial_jobs(run_settings, folder,
-                                        partial(_not_in, training, seed))
+    for run_settings, folder in runs:  # trials of the checkpoints that are there already
+        todo, skipped_now = _trial_jobs(run_settings, folder)
         ready += todo
         skipped += skipped_now
     # Trials are not known to be finished before their checkpoint exists: estimate them as
@@ -334,26 +328,22 @@ def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
             job = by_name[outcome.name]
             bar.update(cost(job))
             released: list[Job] = []
-            if outcome.failure is not None:  # what needed it is left out; its error names it
-                return released
             if isinstance(job, CollectJob):
                 released += trains_after.get(job.name, [])
+                if outcome.failure is not None:  # its trainings are left out, and their trials
+                    bar.total -= sum(chain(j) for j in released)
+                    released = []
             elif isinstance(job, TrainJob):
-                seed_settings, folder = by_seed[job.settings.seed]
-                released, skipped_now = _trial_jobs(seed_settings, folder,
-                                                    lambda unit: unit == job.unit)
-                skipped.extend(skipped_now)
+                if outcome.failure is None:
+                    released, skipped_now = _trial_jobs(job.settings, job.out, job.unit)
+                    skipped.extend(skipped_now)
                 bar.total += sum(map(cost, released)) - later[job.name]  # the estimate, exact
-                bar.refresh()
+            bar.refresh()
             by_name.update((j.name, j) for j in released)
-            return released
+            return released  # a failed job's error file names it; what needed it is left out
 
         pool.run(run_job, ready, done, job_resources, order=lambda job: -chain(job))
     return computed, skipped
-
-
-def _not_in(training: set[tuple[int, Unit]], seed: int, unit: Unit) -> bool:
-    return (seed, unit) not in training
 
 
 def _trials_estimate(settings: ReproduceRealSettings, out: Path, trial_set: TrialSet) -> float:
@@ -366,16 +356,16 @@ def _trials_estimate(settings: ReproduceRealSettings, out: Path, trial_set: Tria
     return estimate
 
 
-def _trial_jobs(settings: ReproduceRealSettings, out: Path, of: Callable[[Unit], bool]
+def _trial_jobs(settings: ReproduceRealSettings, out: Path, unit: Unit | None = None
                 ) -> tuple[list[Job], list[str]]:
     """(trial and GIF jobs to run, names of those finished) of units with a checkpoint.
 
-    ``of`` says which units to look at (a training just finished: its own).
+    ``unit``: only that unit's (its training just finished); None: every unit's.
     """
     todo: list[Job] = []
     skipped: list[str] = []
     for trial_set in settings.trial_sets():
-        if not of(trial_set.unit) or not trained_file(out, trial_set.unit).exists():
+        if unit not in (None, trial_set.unit) or not trained_file(out, trial_set.unit).exists():
             continue  # its training failed: its error file names it
         trials = settings.trial_settings(out, trial_set)
         job = TrialsJob(f"trials-{trial_set.name}-s{settings.seed}", trial_set, trials, out)

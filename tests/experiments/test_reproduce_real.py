@@ -175,6 +175,24 @@ def test_a_failing_training_is_recorded_and_the_run_goes_on(tiny_run, tmp_path, 
         copied / "table3.md").read_text()
 
 
+def test_a_failing_collection_leaves_out_the_trainings_that_need_it(tiny_run, tmp_path,
+                                                                   monkeypatch):
+    import experiments.table3.jobs
+
+    def broken(*_, **__):
+        raise RuntimeError("no demonstrations today")
+
+    copied = Path(shutil.copytree(tiny_run, tmp_path / "run"))
+    for dataset in (copied / "s0" / "datasets").glob("*.gva"):
+        dataset.unlink()
+    trained_file(copied / "s0", UNIT).unlink()
+    monkeypatch.setattr(experiments.table3.jobs, "collect", broken)
+    status, stdout, _ = gva("reproduce", "real", "--out", copied, *TINY)
+    assert status == 1
+    assert "1 job(s) run (1 failed)" in stdout  # the collection; no training, no trials
+    assert "FAILED collect-single-s0: RuntimeError: no demonstrations today" in stdout
+
+
 def test_more_seeds_add_seed_folders_and_the_table_reports_each(tiny_run, tmp_path):
     copied = Path(shutil.copytree(tiny_run, tmp_path / "run"))
     status, stdout, stderr = gva("reproduce", "real", "--out", copied, *TINY, "--seeds", "2")
