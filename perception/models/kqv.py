@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import torch
@@ -169,9 +169,7 @@ class KqvModel(TorchModel):
         for number in range(self.config.starts):
             seed = self.config.seed if number == 0 else int(
                 np.random.SeedSequence([self.config.seed, number]).generate_state(1)[0] >> 1)
-            with torch.random.fork_rng(devices=[]):
-                torch.manual_seed(seed)
-                self.network = self.build_network()
+            self.network = cast(KqvNet, self.seeded_network(seed))
             self._steps_taken = 0
             report = train(self.network, self.batch_loss, kept, short, progress,
                            description=f"{self.name} {self.spec.task} [start {number + 1}/"
