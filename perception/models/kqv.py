@@ -162,7 +162,8 @@ class KqvModel(TorchModel):
         Returns the kept start's report, its wall time that of every start and comparison.
         """
         started = time.perf_counter()
-        short = replace(config, steps=self.config.start_steps)
+        short = replace(config, steps=self.config.start_steps,
+                        batch_size=self.config.start_batch_size or config.batch_size)
         kept, held = split_scenes(dataset, self.config.start_holdout, config.seed)
         kept = self._named(kept)
         tried: list[tuple[float, float, int, KqvNet, TrainReport]] = []

@@ -49,6 +49,9 @@ class KqvConfig:
         start_holdout: Fraction of the training scenes the starts are compared on (held out of
             their ``start_steps``, trained on afterwards). 0: by training loss.
         start_steps: Steps each start trains before the choice (they count towards the total).
+        start_batch_size: Samples per step of the starts; None: the training's batch size. A
+            stalled start shows on fewer samples too, and the starts are most of a training's
+            steps.
         query_mode: ``"base"`` (learned vectors), ``"conditioned"`` (MLP of the one-hot
             condition), ``"conditioned+base"`` (their sum, the condition's MLP started at zero)
             or ``"auto"``: base without a condition, conditioned+base for an object type,
@@ -102,6 +105,7 @@ class KqvConfig:
     starts: int = 3
     start_steps: int = 300
     start_holdout: float = 0.2
+    start_batch_size: int | None = None
     query_mode: str = "auto"
     head_features: bool | None = None
     readout: str = "auto"
@@ -127,6 +131,11 @@ class KqvConfig:
             least = 0 if name == "warmup_steps" else 1
             if not isinstance(value, int) or isinstance(value, bool) or value < least:
                 raise InvalidInputError(name, value, f"an integer >= {least}")
+        if self.start_batch_size is not None and (
+                not isinstance(self.start_batch_size, int) or
+                isinstance(self.start_batch_size, bool) or self.start_batch_size < 1):
+            raise InvalidInputError("start_batch_size", self.start_batch_size,
+                                    "None or an integer >= 1")
         check_choices("stride", self.stride, (None, 1, 2, 4))
         check_choices("query_mode", self.query_mode, QUERY_MODES)
         check_choices("similarity", self.similarity, ("cosine", "dot"))

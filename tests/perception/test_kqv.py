@@ -128,6 +128,8 @@ def test_config_errors_name_field_value_and_allowed():
     with pytest.raises(InvalidInputError, match=r"warmup_steps = -1 is not allowed: an integer "
                                                  r">= 0"):
         KqvConfig(warmup_steps=-1)
+    with pytest.raises(InvalidInputError, match=r"start_batch_size = 0 is not allowed: None or "):
+        KqvConfig(start_batch_size=0)
     with pytest.raises(InvalidInputError, match=r"starts = 0 is not allowed: an integer >= 1"):
         KqvConfig(starts=0)
     with pytest.raises(InvalidInputError, match=r"warmup_temperature = nan is not allowed"):
@@ -212,8 +214,9 @@ def test_the_first_fit_keeps_the_start_best_on_held_out_scenes(monkeypatch, hold
 
     dataset = synthetic_dataset(size=4)
     model = KqvModel.for_dataset(dataset, KqvConfig(starts=3, start_steps=3, warmup_steps=4,
-                                                    start_holdout=holdout))
+                                                    start_holdout=holdout, start_batch_size=2))
     starts = []  # (network, temperature at its first step, final loss, steps, samples)
+    batch_sizes = []
     scored = {}  # network id -> its held-out error [cm]
     real_train, real_evaluate = kqv.train, kqv.evaluate
 
@@ -228,6 +231,7 @@ def test_the_first_fit_keeps_the_start_best_on_held_out_scenes(monkeypatch, hold
 
         report = real_train(network, noting, data, config, *args, **kwargs)
         starts.append((network, first[0], report.final_loss, config.steps, len(data)))
+        batch_sizes.append(config.batch_size)
         return report
 
     def recording_evaluate(scored_model, data):
@@ -239,6 +243,7 @@ def test_the_first_fit_keeps_the_start_best_on_held_out_scenes(monkeypatch, hold
     monkeypatch.setattr(kqv, "evaluate", recording_evaluate)
     report = model.fit(dataset, TrainConfig(steps=7, augment=False, threads=1), progress=False)
     assert [steps for *_, steps, _ in starts] == [3, 3, 3]
+    assert batch_sizes == [2, 2, 2]  # KqvConfig.start_batch_size, not the training's 16
     assert [samples for *_, samples in starts] == [3 if holdout else 4] * 3
     assert len({id(network) for network, *_ in starts}) == 3  # three initialisations
     assert all(temperature == pytest.approx(0.3 - 0.05) for _, temperature, *_ in starts)
