@@ -185,6 +185,7 @@ class TrialRunner:
         bodies = [world.add_object(get_object_spec(o.object_type), o.position_xy_m, o.yaw_rad)
                   for o in scene.objects]
         world.step(round(self.settle_s / world.config.time_step_s))
+        world.sleep_resting_objects()
         if isinstance(self.model, OraclePerception):  # distractors are never the oracle's targets
             self.model.candidates = tuple(b for b, o in zip(bodies, scene.objects, strict=True)
                                           if not o.distractor)
@@ -335,3 +336,4 @@ class TrialRunner:
         world.robot.track(yumi.ARM_JOINTS[plan.arm], retreat.positions, retreat.velocities)
         world.robot.close_gripper(plan.arm)
         world.step(round(0.25 / world.config.time_step_s))
+        world.sleep_resting_objects()  # what the pick brushed against has stopped again

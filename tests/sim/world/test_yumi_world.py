@@ -7,6 +7,7 @@ from collections.abc import Iterator
 
 import numpy as np
 import pinocchio as pin
+import pybullet
 import pytest
 
 from control.ik import ArmIk
@@ -43,6 +44,8 @@ def test_config_errors_name_field_value_and_allowed() -> None:
         WorldConfig(table_center_xy_m=(0.6, 0.0))
     with pytest.raises(SimError):  # the package's base catches it too
         WorldConfig(solver_iterations=0)
+    with pytest.raises(InvalidInputError, match=r"object_sleeping = 'yes' is not allowed: True "):
+        WorldConfig(object_sleeping="yes")  # type: ignore[arg-type]
 
 
 def test_a_step_call_runs_at_most_max_wait_s_of_physics(fresh: World) -> None:
@@ -169,6 +172,30 @@ def test_reset_scene_removes_objects_and_restores_home(fresh: World) -> None:
     assert max(abs(q[n] - yumi.HOME[n]) for n in q) < 1e-12
     with pytest.raises(InvalidInputError, match=r"position_xy_m = .* on the table"):
         fresh.add_object(get_object_spec("mug"), (2.0, 0.0), 0.0)
+
+
+def test_a_sleeping_object_stays_put_and_wakes_when_something_falls_on_it() -> None:
+    landed = {}
+    for sleeping in (True, False):
+        with World(WorldConfig(object_sleeping=sleeping)) as world:
+            below = world.add_object(get_object_spec("sponge"), (0.4, 0.0), 0.0)
+            above = world.add_object(get_object_spec("sponge"), (0.4, 0.3), 0.0)
+            world.step(_seconds(world, 0.25))
+            world.sleep_resting_objects()
+            rest = world.object_pose(below).position
+            world.step(_seconds(world, 0.5))
+            np.testing.assert_allclose(world.object_pose(below).position, rest, atol=1e-6)
+            top_m = world.client.getAABB(below)[1][2]
+            # the other sponge dropped from 2 cm above the resting one
+            world.client.resetBasePositionAndOrientation(
+                above, [0.4, 0.0, top_m + 0.02 + rest[2]], [0.0, 0.0, 0.0, 1.0])
+            world.client.changeDynamics(  # moved by hand: awake, as a falling body is
+                above, -1, activationState=pybullet.ACTIVATION_STATE_WAKE_UP)
+            world.step(_seconds(world, 1.0))
+            landed[sleeping] = world.object_bottom_z_m(above), world.object_pose(below).position
+    assert landed[True][0] > 0.02  # on the sleeping sponge, not through it
+    assert landed[True][0] == pytest.approx(landed[False][0], abs=2e-3)  # as on an awake one
+    np.testing.assert_allclose(landed[True][1], landed[False][1], atol=2e-3)
 
 
 def test_worlds_are_independent(fresh: World) -> None:
