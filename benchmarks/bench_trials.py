@@ -6,7 +6,9 @@ Runs ``gva trials --model oracle --task single`` for each seed in a fresh folder
 the median wall time per trial (the bar: <= 2 s on a 2-core machine), with the time spent
 planning and the simulated time per trial, plus successes per seed and per object type, and
 what starting each trial from a rebuilt world costs (``World.rebuild``, the median of
-``--rebuilds``, and its share of the median trial).
+``--rebuilds``, and its share of the median trial), and a physics step with three objects
+resting on the table, awake against asleep (:attr:`WorldConfig.object_sleeping`): the ratio of
+the two, measured side by side.
 """
 
 from __future__ import annotations
@@ -20,9 +22,26 @@ import time
 from collections import Counter
 from pathlib import Path
 
+from perception.catalog import get_object_spec
 from sim.trials.run_loop import run_trials
 from sim.trials.trial_settings import TrialSettings
-from sim.world.yumi_world import World
+from sim.world.yumi_world import World, WorldConfig
+
+
+def resting_step_ms(sleeping: bool, steps: int = 480, repeats: int = 5) -> float:
+    """Median over ``repeats`` of a step's wall time [ms], three objects at rest on the table."""
+    with World(WorldConfig(object_sleeping=sleeping)) as world:
+        for name, xy in (("sponge", (0.35, 0.1)), ("spray_bottle", (0.4, -0.1)),
+                         ("mug", (0.3, 0.0))):
+            world.add_object(get_object_spec(name), xy, 0.3)
+        world.step(60)
+        world.sleep_resting_objects()
+        times = []
+        for _ in range(repeats):
+            started = time.perf_counter()
+            world.step(steps)
+            times.append((time.perf_counter() - started) / steps * 1e3)
+    return statistics.median(times)
 
 
 def main() -> None:
@@ -56,6 +75,7 @@ def main() -> None:
             started = time.perf_counter()
             world.rebuild()
             rebuild_s.append(time.perf_counter() - started)
+    awake_ms, asleep_ms = resting_step_ms(False), resting_step_ms(True)
     result = {
         "machine": {"cpu_count": __import__("os").cpu_count(), "python": platform.python_version(),
                     "processor": platform.processor() or platform.machine()},
@@ -69,6 +89,8 @@ def main() -> None:
         "median_world_rebuild_s": round(statistics.median(rebuild_s), 4),
         "world_rebuild_share_of_median_trial": round(
             statistics.median(rebuild_s) / statistics.median(wall), 3),
+        "resting_objects_step_ms": {"awake": round(awake_ms, 4), "asleep": round(asleep_ms, 4),
+                                    "awake_over_asleep": round(awake_ms / asleep_ms, 1)},
         "load_average_1_5_15min": [round(v, 2) for v in __import__("os").getloadavg()],
     }
     print(f"median wall time per trial: {result['median_trial_wall_s']} s "
@@ -78,6 +100,7 @@ def main() -> None:
     print(f"a world rebuilt per trial: {result['median_world_rebuild_s']} s (median of "
           f"{args.rebuilds}), {100 * result['world_rebuild_share_of_median_trial']:.1f} % of the "
           "median trial")
+    print(f"a step, three objects resting: awake {awake_ms:.3f} ms, asleep {asleep_ms:.3f} ms")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(result, indent=2) + "\n")
     print(f"wrote {args.out}")
