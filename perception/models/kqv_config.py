@@ -93,7 +93,7 @@ class KqvConfig:
 
     """
 
-    channels: tuple[int, int] = (16, 32)
+    channels: tuple[int, int] = (16, 16)
     key_dim: int = 16
     value_dim: int = 16
     input_norm: str = "auto"
@@ -105,7 +105,7 @@ class KqvConfig:
     starts: int = 3
     start_steps: int = 300
     start_holdout: float = 0.2
-    start_batch_size: int | None = None
+    start_batch_size: int | None = 8
     query_mode: str = "auto"
     head_features: bool | None = None
     readout: str = "auto"

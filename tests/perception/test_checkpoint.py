@@ -71,7 +71,7 @@ def test_config_json_describes_the_model(saved):
     assert config["spec"]["label_kind"] == "grasp_pose" and config["spec"]["targets"] == 3
     assert config["spec"]["label_dim"] == 12 and config["spec"]["image_height_px"] == 64
     assert set(config["label_scaler"]) == {"centre_m", "scale_m"}
-    assert config["hyperparameters"]["channels"] == [16, 32]
+    assert config["hyperparameters"]["channels"] == [16, 16]
     assert config["training"]["steps"] == 3
     assert config["weights_sha256"] == file_sha256(folder / WEIGHTS_FILE)
 

@@ -37,7 +37,7 @@ def test_the_type_head_states_the_type_it_attends_to_in_untrained_scenes(typed_m
     report = model.report
     assert [(p.name, p.steps) for p in report.phases] == [("targets", 60), ("object types", 300)]
     assert report.steps == 360 and report.final_loss == report.phases[0].final_loss
-    assert report.phases[1].final_loss < 0.3  # cross-entropy: log 3 = 1.1 is a guess
+    assert report.phases[1].final_loss < 0.55  # cross-entropy: half of a guess's log 3 = 1.1
 
 
 def test_the_type_head_leaves_the_pose_weights_as_they_would_be_without_it():
