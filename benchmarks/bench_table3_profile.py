@@ -72,9 +72,14 @@ def trainings(folder: Path, seeds: list[int]) -> dict[str, dict[str, Any]]:
     for seed in seeds:
         for path in sorted((folder / f"s{seed}" / "checkpoints").glob("*/*/trained.json")):
             trained = json.loads(path.read_text())
+            config = json.loads((path.parent / "config.json").read_text())
+            settings = config.get("hyperparameters", {})
             times = trained.get("attempt_times", [])
             rows[f"{path.parent.parent.name}-{path.parent.name}-s{seed}"] = {
                 "train_s": round(trained["train_s"], 1), "steps": trained["steps"],
+                "batch_size": config["training"]["config"]["batch_size"],
+                "starts": {key: settings[key] for key in ("starts", "start_steps",
+                                                          "start_batch_size") if key in settings},
                 "phases": {p["name"]: {"steps": p["steps"], "wall_s": round(p["wall_time_s"], 1)}
                            for p in trained.get("phases", [])},
                 "attempts": trained["attempts"],
@@ -84,7 +89,11 @@ def trainings(folder: Path, seeds: list[int]) -> dict[str, dict[str, Any]]:
 
 
 def work(rows: dict[str, dict[str, Any]]) -> dict[str, Any] | None:
-    """A kqv training's GFLOP from ``bench_train.py``'s per-step work, and its steps' rate."""
+    """A kqv training's GFLOP from ``bench_train.py``'s per-step work, and its steps' rate.
+
+    A step's work is taken as proportional to its batch: the starts' steps on smaller batches
+    (``start_batch_size``) count as that fraction of a step, and every start counts.
+    """
     if not TRAIN_STEP_FILE.exists():
         return None
     steps = json.loads(TRAIN_STEP_FILE.read_text())
@@ -97,6 +106,10 @@ def work(rows: dict[str, dict[str, Any]]) -> dict[str, Any] | None:
             continue
         phases = row["phases"]
         pose = sum(p["steps"] for key, p in phases.items() if key != "object types")
+        if "starts" in phases:  # every start's steps, not the kept one's alone
+            starts, batch = row["starts"], row["batch_size"]
+            fraction = (starts.get("start_batch_size") or batch) / batch  # work ~ batch
+            pose += starts["start_steps"] * (starts["starts"] * fraction - 1)
         types = phases.get("object types", {}).get("steps", 0)
         per_training[name] = round(pose * step["step_gflop"]
                                    + types * step.get("type_step_gflop", 0.0), 1)
