@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
+from safetensors.torch import load_file
 from user_models import TYPES, given_as, synthetic_dataset
 
 from experiments.cli import main
@@ -66,7 +68,17 @@ def test_train_writes_a_checkpoint_that_loads(files: dict[str, Path]) -> None:
     assert out[1] == f"checkpoint: {files['kqv-two']}"
     model = load_model(files["kqv-two"])
     assert model.name == "kqv" and model.spec.targets == 2
-    assert model.report is None or model.report.steps == 5
+    # What the training did is stored with the weights: its steps, samples and final loss.
+    training = read_config(files["kqv-two"])["training"]
+    assert training is not None and (training["steps"], training["samples"]) == (5, 6)
+    assert f"final loss {training['final_loss']:.4g}," in out[0]
+    # The loaded network holds the file's weights, and those are not a fresh start's.
+    stored = load_file(files["kqv-two"] / "weights.safetensors")
+    loaded = model.network.state_dict()
+    assert set(loaded) == set(stored) and len(stored) > 0
+    assert all(torch.equal(loaded[name], stored[name]) for name in stored)
+    fresh = type(model)(model.spec, model.config).network.state_dict()
+    assert any(not torch.equal(fresh[name], stored[name]) for name in stored)
 
 
 def test_train_refuses_a_checkpoint_folder_unless_told_to_overwrite(

@@ -7,6 +7,7 @@ import json
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 from gva_cli import gva
 
@@ -206,14 +207,27 @@ def test_cells_twice_off_the_paper_are_listed_beside_the_no_image_reference():
 
 
 def test_the_no_image_reference_is_scored_on_the_runs_own_datasets(tiny_run):
+    """The reference is the run's own training-label mean, scored on the run's own test scenes.
+
+    Worked out here from the two dataset files themselves: the mean training position per
+    head, and its mean distance to each test label.
+    """
     settings = dataclasses.replace(TINY_SETTINGS, seed=0)
     records = no_image_reference(settings, tiny_run, [_cell("fcn", "single", 4, 0, 1.0)])
     assert [(r["model"], r["task"], r["size"], r["seed"]) for r in records] == [
         ("no-image", "single", 4, 0)]
-    assert 1.0 < records[0]["error_cm"] < 40.0  # within the table's extent
+    train = load_dataset(tiny_run / "datasets" / "single-train-4-s0.gva").labels[..., :3]
+    test = load_dataset(tiny_run / "datasets" / "single-test-5-s0.gva").labels[..., :3]
+    assert train.shape == (4, 1, 3) and test.shape == (5, 1, 3)
+    mean = train.astype(np.float64).mean(axis=0)  # (1, 3): the one head's mean position
+    expected_cm = 100 * np.linalg.norm(test - mean, axis=-1).mean()
+    on_training_cm = 100 * np.linalg.norm(train - mean, axis=-1).mean()
+    assert abs(expected_cm - on_training_cm) > 0.5  # the scenes scored make a difference
+    assert records[0]["error_cm"] == pytest.approx(expected_cm, abs=1e-4)
     table = json.loads((tiny_run / "table2.json").read_text())
-    assert table["no_image_reference"][0]["error_cm"] == pytest.approx(records[0]["error_cm"])
-    assert "No image (training-label mean)" in (tiny_run / "table2.md").read_text()
+    assert table["no_image_reference"][0]["error_cm"] == pytest.approx(expected_cm, abs=1e-4)
+    assert f"| No image (training-label mean) | {expected_cm:.2f} |" in \
+        (tiny_run / "table2.md").read_text()
 
 
 def test_the_papers_table_is_complete():

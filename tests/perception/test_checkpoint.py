@@ -1,4 +1,6 @@
 import json
+import os
+import pickle
 
 import numpy as np
 import pytest
@@ -153,10 +155,42 @@ def test_missing_tensor(saved, tmp_path):
         KqvModel.load(folder)
 
 
-def test_load_checkpoint_reads_tensors_without_pickle(saved):
-    checkpoint = load_checkpoint(saved[2], "kqv")
-    assert all(isinstance(t, torch.Tensor) for t in checkpoint.tensors.values())
-    assert checkpoint.config["model"] == "kqv"
+class _RunsOnUnpickling:
+    """Pickled, it calls ``os.mkdir(path)`` when unpickled: the proof that a loader used pickle."""
+
+    def __init__(self, path):
+        self.path = str(path)
+
+    def __reduce__(self):
+        return os.mkdir, (self.path,)
+
+
+def test_load_checkpoint_reads_tensors_without_pickle(saved, tmp_path, monkeypatch):
+    """Weights load with every unpickler refused, and a pickle in their place never runs.
+
+    A checkpoint is shared like a dataset: loading one must run no code it holds.
+    """
+    model, _, folder = saved
+
+    def refused(*args, **kwargs):
+        raise AssertionError("loading a checkpoint used pickle")
+
+    with monkeypatch.context() as patch:
+        for module, name in ((pickle, "load"), (pickle, "loads"), (pickle, "Unpickler"),
+                             (torch, "load")):
+            patch.setattr(module, name, refused)
+        checkpoint = load_checkpoint(folder, "kqv")
+    state = model.network.state_dict()
+    assert checkpoint.config["model"] == "kqv" and set(checkpoint.tensors) == set(state)
+    assert all(torch.equal(checkpoint.tensors[name], state[name]) for name in state)
+
+    ran = tmp_path / "pickle-ran"
+    planted = copy_of(folder, tmp_path)
+    torch.save({name: _RunsOnUnpickling(ran) for name in state}, planted / WEIGHTS_FILE)
+    edit_config(planted, lambda c: c.update(weights_sha256=file_sha256(planted / WEIGHTS_FILE)))
+    with pytest.raises(CheckpointError, match=WEIGHTS_FILE):
+        load_checkpoint(planted, "kqv")
+    assert not ran.exists()
 
 
 def test_a_checkpoint_from_before_object_types_loads_and_predicts_as_before(saved, tmp_path):

@@ -94,8 +94,15 @@ def test_a_name_nothing_registers_lists_what_is_installed():
 
 
 def test_a_class_path_builds_with_no_arguments():
+    """``build_plugin`` returns a built model, not the class: its name alone would pass both."""
+    import numpy as np
+    import user_models
+
     model = build_plugin("user_models:FixedGrasp")
+    assert not isinstance(model, type) and type(model) is user_models.FixedGrasp
     assert model.name == "fixed-grasp"
+    (target,) = model.predict(np.zeros((64, 64, 3), np.uint8)).targets
+    np.testing.assert_array_equal(target.position_m, [0.47, 0.0, 0.03])
 
 
 def test_a_module_that_raises_on_import_is_one_clear_error(tmp_path, monkeypatch):

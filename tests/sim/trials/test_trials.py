@@ -10,7 +10,6 @@ from user_models import synthetic_dataset
 
 from experiments.cli import main
 from perception.catalog import OBJECT_TYPES, get_object_spec
-from perception.grasps import grasp_pose
 from perception.interface import (
     NO_CONDITION,
     Condition,
@@ -46,17 +45,44 @@ def world():
 
 
 def test_oracle_returns_the_canonical_grasp(world):
+    """The oracle's grasp is the catalog's, worked out by hand, on the object it was asked for.
+
+    Among a sponge, a bottle, a mug and a sponge-shaped block (a distractor, never a target),
+    the type, the side and the catalog order each single out the sponge. Its yaw points the
+    object's +y to the robot's right, so the canonical grasp is the half-turned one.
+    """
     world.reset_scene()
-    body = world.add_object(get_object_spec("sponge"), (0.42, -0.1), 0.4)
+    yaw = 2.74
+    bottle = world.add_object(get_object_spec("spray_bottle"), (0.38, 0.1), 0.3)
+    mug = world.add_object(get_object_spec("mug"), (0.52, 0.14), 1.0)
+    sponge = world.add_object(get_object_spec("sponge"), (0.42, -0.1), yaw)  # added third
+    world.add_object(get_object_spec("block"), (0.52, -0.2), 0.2)  # rightmost of all
+    # The sponge's TCP: the footprint's centre, 2.8 cm up; approach straight down; the fingers
+    # close along the object's -y, (sin yaw, -cos yaw) = (0.39, 0.92): to the robot's left.
+    closing = np.array([np.sin(yaw), -np.cos(yaw), 0.0])
+    down = np.array([0.0, 0.0, -1.0])
+    hand = np.column_stack([closing, np.cross(down, closing), down])
+    assert closing[1] > 0.9 and np.allclose(hand[:, 1], [0.92044, -0.39088, 0.0], atol=1e-4)
     oracle = OraclePerception(world, HeadCamera())
+    oracle.candidates = (sponge, bottle, mug)  # as a trial sets them: the block is no target
     image = np.zeros((128, 128, 3), np.uint8)
-    prediction = oracle.predict(image)
-    truth = grasp_pose(world.object_spec(body), world.object_pose(body))
-    (target,) = prediction.targets
-    assert np.allclose(target.position_m, truth.position)
-    assert np.allclose(target.rotation, truth.rotation)
-    assert target.object_type == "sponge"
-    assert prediction.attention_px.shape == (1, 2)
+    asked = {
+        "type": oracle.predict(image, Condition(ConditionKind.OBJECT_TYPE, "sponge",
+                                                OBJECT_TYPES)),
+        "side": oracle.predict(image, Condition(ConditionKind.SIDE, "right", ("left", "right"))),
+    }
+    for how, prediction in asked.items():
+        (target,) = prediction.targets
+        assert target.object_type == "sponge", how
+        np.testing.assert_allclose(target.position_m, [0.42, -0.1, 0.028], atol=1e-6)
+        np.testing.assert_allclose(target.rotation, hand, atol=1e-6)
+        assert prediction.attention_px.shape == (1, 2)
+    every = oracle.predict(image)  # no condition: every target, in catalog order
+    assert [t.object_type for t in every.targets] == ["sponge", "spray_bottle", "mug"]
+    np.testing.assert_allclose(every.targets[0].position_m, [0.42, -0.1, 0.028], atol=1e-6)
+    np.testing.assert_allclose(every.targets[0].rotation, hand, atol=1e-6)
+    np.testing.assert_allclose(every.targets[1].position_m[2], 0.07, atol=1e-6)  # bottle: side
+    assert every.attention_px.shape == (3, 2)
 
 
 def test_oracle_names_a_missing_object(world):
