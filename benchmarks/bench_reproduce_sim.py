@@ -52,8 +52,40 @@ def record(folder: Path, measured_s: float | None) -> dict[str, Any]:
         "median_train_s": {m: round(statistics.median(train_s[m]), 1)
                            for m in MODELS if m in train_s},
         "total_train_s": {m: round(sum(train_s[m]), 1) for m in MODELS if m in train_s},
+        "judged": judged(table["cells"]),
         "machine": machine(),
     }
+
+
+def judged(cells: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """Per model and task, the grasp judge's predicted success: per seed, pooled, per object.
+
+    Pooled over the seeds' targets (each seed scores the same number of test scenes); None
+    where no cell was judged (position labels, or cells made before the judge).
+    """
+    found: dict[str, dict[str, Any]] = {}
+    for cell in cells:
+        result = cell.get("judged")
+        if not result:
+            continue
+        entry = found.setdefault(cell["model"], {}).setdefault(
+            f"{cell['task']} ({cell['size']})", {"per_seed": {}, "targets": 0, "picked": 0.0,
+                                                 "per_object": {}})
+        rate = result["all"]["predicted_success_rate"]
+        entry["per_seed"][str(cell["seed"])] = round(rate, 4)
+        entry["targets"] += result["all"]["targets"]
+        entry["picked"] += rate * result["all"]["targets"]
+        for name, group in result["per_object"].items():
+            counts = entry["per_object"].setdefault(name, [0.0, 0])
+            counts[0] += group["predicted_success_rate"] * group["targets"]
+            counts[1] += group["targets"]
+    for tasks in found.values():
+        for entry in tasks.values():
+            entry["pooled"] = round(entry.pop("picked") / entry["targets"], 4)
+            entry["worst_seed"] = min(entry["per_seed"].values())
+            entry["per_object"] = {name: round(picked / n, 4)
+                                   for name, (picked, n) in sorted(entry["per_object"].items())}
+    return found or None
 
 
 def machine() -> dict[str, Any]:

@@ -7,6 +7,7 @@
     gva trials --model oracle --task single --n 30 --seed 0 --out runs/oracle-single
     gva trials --model runs/kqv-multiple --task multiple --n 30 --out runs/kqv-multiple-trials
     gva compare runs/oracle-single runs/kqv-single-trials --out runs/kqv-vs-oracle.json
+    gva judge runs/table3 --json runs/table3-judged.json
     gva show scene --scene paper-sim --task multiple --out runs/scene.png
     gva show attention --model runs/kqv-multiple --data runs/yumi-multiple-20.gva --out runs/att
     gva reproduce sim --out runs/table2 --seeds 3 --models kqv,fcn --tasks single --sizes 4,20
@@ -84,6 +85,12 @@ def _compare(parser: argparse.ArgumentParser) -> None:
     add_options(parser)
 
 
+def _judge(parser: argparse.ArgumentParser) -> None:
+    from experiments.commands.judge import add_options  # numpy only: no torch, no physics
+
+    add_options(parser)
+
+
 def _collect(parser: argparse.ArgumentParser) -> None:
     from experiments.commands.collect import add_options  # torch: not for `gva trials`
 
@@ -133,6 +140,15 @@ def build_parser() -> argparse.ArgumentParser:
         "n) by index: the pairs of outcomes, the exact McNemar test, the difference in success "
         "rate B - A with its interval (Newcombe's, for paired data), overall and per "
         "object type. Exit status 1 when B is significantly worse than A, else 0.",
+    )
+    commands.add_parser(
+        "judge", options=_judge,
+        help="a run's picks replayed through the grasp judge, beside the physics",
+        description="Judges every pick of a run folder (gva trials or gva reproduce real, "
+        "also one made before the judge existed) without physics: its error in the grasp's "
+        "frame against each object's measured tolerance. Prints per task and seed the real and "
+        "the predicted count, and over all picks the misses, those it flagged, those it did "
+        "not and its false alarms.",
     )
     commands.add_parser(
         "collect", options=_collect,

@@ -77,6 +77,10 @@ def _train_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--check-limit-cm", type=float, default=CheckConfig.limit_cm,
                         help="largest held-out mean error, of the whole, each condition and "
                         "each head [cm] (%(default)s)")
+    parser.add_argument("--check-min-judged", type=float, default=CheckConfig.min_judged_success,
+                        help="least share of held-out targets the grasp judge must predict "
+                        "picked, of the whole, each condition and each head (grasp labels; "
+                        "%(default)s)")
     parser.add_argument("--attempts", type=integer(1), default=CheckConfig.attempts,
                         help="trainings tried from other starts before the checkpoint is "
                         "marked failed (%(default)s)")
@@ -99,7 +103,7 @@ def run_train(args: argparse.Namespace) -> int:
     config = TrainConfig(steps=args.steps, batch_size=args.batch_size, seed=args.seed,
                          threads=args.threads)
     check = CheckConfig(holdout=args.holdout, limit_cm=args.check_limit_cm,
-                        attempts=args.attempts)
+                        min_judged_success=args.check_min_judged, attempts=args.attempts)
     fit = fit_checked(lambda seed: new_model(args.model, dataset, seed=seed, **hyperparameters),
                       dataset, config, check, progress=not args.no_progress, log=print)
     model, report = fit.model, fit.report
@@ -142,6 +146,14 @@ def run_evaluate(args: argparse.Namespace) -> int:
         print("per condition, mean position error: " + ", ".join(
             f"{value} {e:.2f} cm" for value, e in
             result.per_condition_mean_position_error_cm.items()))
+    if result.judged is not None:
+        print("judged as a trial judges a pick (errors: mean/p95/worst):")
+        judged = result.judged
+        for title, groups in (("all", {"all": judged.all}), ("per object", judged.per_object),
+                              ("per condition", judged.per_condition or {}),
+                              ("per head", judged.per_head or {})):
+            for name, group in groups.items():
+                print(f"  {title + ' ' + name if title != 'all' else 'all':<28} {group.line()}")
     if result.median_heatmap_entropy_nats is not None:
         print(f"median heatmap entropy: {result.median_heatmap_entropy_nats:.2f} nats")
     if result.type_accuracy is not None:

@@ -78,5 +78,8 @@ def print_summary(summary: TrialSummary, out: Path) -> None:
     picked = ", ".join(f"{name} {c['picked']}/{c['attempted']}"
                        for name, c in summary.per_object.items())
     print(f"picks by object: {picked}")
+    if summary.judge is not None:
+        print(f"grasp judge (error in the grasp frame vs each object's tolerance): "
+              f"{summary.judge.line()}")
     print(f"median wall time per trial: {summary.median_wall_time_s:.2f} s")
     print(f"trials: {out / 'trials.jsonl'}   summary: {out / 'summary.json'}")

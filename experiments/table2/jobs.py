@@ -176,6 +176,7 @@ def compute_cell(job: CellJob) -> CellOutcome:
         "per_condition_error_cm": result.per_condition_mean_position_error_cm,
         "per_stage_error_cm": list(result.per_stage_mean_position_error_cm),
         "median_heatmap_entropy_nats": result.median_heatmap_entropy_nats,
+        "judged": None if result.judged is None else result.judged.to_json(),
         "train_s": report.wall_time_s, "cell_s": time.perf_counter() - started,
         "steps": report.steps, "final_loss": report.final_loss,
         "test_scenes": test.metadata.extra.get("scenes", len(test)),

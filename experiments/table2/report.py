@@ -209,6 +209,13 @@ def table2_markdown(cells: Sequence[Mapping[str, Any]], failed: Sequence[Mapping
                   "Each cell's worst training by its worst condition or head: a Query that "
                   "memorised its images shows here, where the cell's mean hides it.", "",
                   *worst_conditions_markdown(cells), ""]
+    if any(c.get("judged") for c in cells):
+        lines += ["## Judged as the trials judge a pick", "",
+                  "The grasp judge (docs/decisions/grasp-judge.md) on every test target: the "
+                  "share it predicts picked, per training seed, then pooled over the seeds and "
+                  "per object type, and the 95th percentile of the turn about the approach "
+                  "axis [deg] and of the offset along the closing axis [mm], the worst seed's.",
+                  "", *judged_markdown(cells), ""]
     if paper_scene:
         lines += ["## The paper's Table II", "",
                   "As published, in the same columns and with the same bold rule.", "",
@@ -227,6 +234,34 @@ def table2_markdown(cells: Sequence[Mapping[str, Any]], failed: Sequence[Mapping
         lines += [f"- {Cell(r['model'], r['task'], r['size'], r['seed']).name}: {r['error']}"
                   for r in failed]
     return "\n".join(lines) + "\n"
+
+
+def judged_markdown(cells: Sequence[Mapping[str, Any]]) -> list[str]:
+    """Per (model, task, size): the judge's predicted success per seed, pooled, per object."""
+    lines = ["| Model | Task | Size | Per seed [%] | Pooled [%] | Per object [%] | Yaw p95 | "
+             "Closing p95 |", "|---|---|---:|---|---:|---|---:|---:|"]
+    groups: dict[Key, list[Mapping[str, Any]]] = defaultdict(list)
+    for cell in cells:
+        if cell.get("judged"):
+            groups[(cell["model"], cell["task"], cell["size"])].append(cell)
+    for (model, task, size), group in groups.items():
+        group = sorted(group, key=lambda c: c["seed"])
+        alls = [c["judged"]["all"] for c in group]
+        pooled = sum(a["predicted_success_rate"] * a["targets"] for a in alls) / sum(
+            a["targets"] for a in alls)
+        objects: dict[str, list[float]] = defaultdict(lambda: [0.0, 0.0])
+        for cell in group:
+            for name, g in cell["judged"]["per_object"].items():
+                objects[name][0] += g["predicted_success_rate"] * g["targets"]
+                objects[name][1] += g["targets"]
+        per_seed = ", ".join(f"{100 * a['predicted_success_rate']:.0f}" for a in alls)
+        per_object = ", ".join(f"{name} {100 * picked / n:.1f}"
+                               for name, (picked, n) in sorted(objects.items()))
+        yaw = max(a["errors"]["yaw_deg"]["p95"] for a in alls)
+        closing = max(a["errors"]["closing_mm"]["p95"] for a in alls)
+        lines.append(f"| {MODEL_TITLES[model]} | {TASK_TITLES[task]} | {size} | {per_seed} | "
+                     f"{100 * pooled:.1f} | {per_object} | {yaw:.0f} | {closing:.1f} |")
+    return lines
 
 
 def worst_conditions_markdown(cells: Sequence[Mapping[str, Any]]) -> list[str]:
@@ -270,7 +305,8 @@ def write_reports(settings: ReproduceSimSettings, out: Path, wall_time_s: float,
     table = {
         "cells": [{k: c.get(k) for k in ("model", "task", "size", "seed", "error_cm",
                                          "per_condition_error_cm", "per_target_error_cm",
-                                         "per_stage_error_cm", "train_s")} for c in cells],
+                                         "per_stage_error_cm", "judged", "train_s")}
+                  for c in cells],
         "means": [{"model": m, "task": t, "size": s, "error_cm": mean, "std_cm": std,
                    "seeds": n, "above_5cm": above[(m, t, s)][0],
                    "worst_cm": above[(m, t, s)][1]}

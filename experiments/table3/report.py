@@ -269,6 +269,8 @@ def _reasons(result: TrialSetResult) -> list[str]:
     if result.variant is Variant.DISTRACTOR:
         shared = sum(shared_target_type(result.task, r) for r in result.records)
         line += f"; the distractor has a target's type in {shared} of {summary.n} trials"
+    if summary.judge is not None:
+        line += f"; the grasp judge: {summary.judge.line()}"
     lines = [line]
     seeds = len(result.per_seed) > 1
     failures = [r for r in result.records if r.outcome is not TrialOutcome.SUCCESS]

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import statistics
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -74,7 +74,8 @@ class TrialSetResult:
                 "wilson95": list(summary.wilson95), "outcomes": summary.outcomes,
                 "per_object": summary.per_object, "unfinished": self.unfinished,
                 "median_position_error_cm": statistics.median(errors) if errors else None,
-                "median_wall_time_s": summary.median_wall_time_s}
+                "median_wall_time_s": summary.median_wall_time_s,
+                "judge": None if summary.judge is None else asdict(summary.judge)}
 
 
 def first_pick_errors_cm(records: Sequence[TrialRecord]) -> list[float]:

@@ -27,6 +27,7 @@ from perception.interface import (
     Prediction,
 )
 from perception.learning.data import Dataset
+from perception.learning.judged_errors import JudgedErrors, judge_predictions
 from perception.learning.labels import split_label
 from perception.learning.learnable import LearnableModel
 from perception.models.rotations import symmetric_angle_rad
@@ -70,6 +71,9 @@ class EvaluationResult:
         attention_switch_fraction: The same per scene, over the scenes asked under two or more
             conditions (``gva collect --every-condition``): the fraction whose attention lands
             on the named object under every one, i.e. moves when the condition changes.
+        judged: Grasp-pose labels: every target through the grasp judge, as the trials judge
+            a pick (errors in the grasp's frame, each object's tolerance), over all and per
+            object type, condition value and head; None for position labels.
 
     """
 
@@ -92,6 +96,7 @@ class EvaluationResult:
     median_heatmap_entropy_nats: float | None = None
     attention_on_named_fraction: float | None = None
     attention_switch_fraction: float | None = None
+    judged: JudgedErrors | None = None
 
     def to_json(self) -> dict[str, Any]:
         """The result as JSON-able data (tuples become lists)."""
@@ -105,6 +110,9 @@ class EvaluationResult:
         if self.mean_angle_error_deg is not None:
             line += (f"; angle error mean {self.mean_angle_error_deg:.1f}°, median "
                      f"{self.median_angle_error_deg:.1f}°")
+        if self.judged is not None:
+            line += (f"; judged picked {100 * self.judged.all.predicted_success_rate:.1f} % of "
+                     f"{self.judged.all.targets}")
         return line
 
 
@@ -187,6 +195,7 @@ def evaluate(model: PerceptionModel, dataset: Dataset, batch_size: int = 32) -> 
         median_heatmap_entropy_nats=heatmap_entropy(predictions, present,
                                                     model.attention_per_target),
         **attention_on_named(predictions, dataset, model.attention_per_target),
+        judged=None if angle_deg is None else judge_predictions(predictions, dataset),
     )
 
 

@@ -46,12 +46,18 @@ class CheckConfig:
         limit_cm: The largest mean held-out position error allowed, of the whole, of each
             condition value and of each head [cm]. 2 cm: a grasp further off misses the
             spray bottle and the mug (``docs/decisions/every-condition.md``).
+        min_judged_success: For grasp-pose labels, the least share of the held-out targets
+            the grasp judge must predict picked, of the whole, of each condition value and of
+            each head (:mod:`perception.learning.judged_errors`): a position check passes a
+            sponge turned 40 degrees, which the trial misses. 0.75: with the four scenes a
+            20-demonstration check holds out, one predicted miss in four passes, two fail.
         attempts: Trainings tried, each from another start, before the model is marked failed.
 
     """
 
     holdout: float = 0.2
     limit_cm: float = 2.0
+    min_judged_success: float = 0.75
     attempts: int = 2
 
     def __post_init__(self) -> None:
@@ -59,6 +65,9 @@ class CheckConfig:
             raise InvalidInputError("holdout", self.holdout, "a fraction in [0, 1)")
         if not (math.isfinite(self.limit_cm) and self.limit_cm > 0):
             raise InvalidInputError("limit_cm", self.limit_cm, "a finite length > 0 [cm]")
+        if not (math.isfinite(self.min_judged_success) and 0 <= self.min_judged_success <= 1):
+            raise InvalidInputError("min_judged_success", self.min_judged_success,
+                                    "a fraction in [0, 1]")
         if not isinstance(self.attempts, int) or isinstance(self.attempts, bool) or \
                 self.attempts < 1:
             raise InvalidInputError("attempts", self.attempts, "an integer >= 1")
@@ -79,6 +88,11 @@ class HeldOutCheck:
         limit_cm: The limit checked against [cm].
         attempt: Which attempt this is, from 1.
         model_seed: The seed of the attempt's weights and batches.
+        judged_success_rate: The share of held-out targets the grasp judge predicts picked;
+            None for position labels (and checks written before the judge).
+        per_condition_judged_success_rate: The same per condition value; None: no condition.
+        per_target_judged_success_rate: The same per head; None: one head.
+        min_judged_success: The least share checked against.
 
     """
 
@@ -92,6 +106,10 @@ class HeldOutCheck:
     limit_cm: float
     attempt: int
     model_seed: int
+    judged_success_rate: float | None = None
+    per_condition_judged_success_rate: dict[str, float] | None = None
+    per_target_judged_success_rate: dict[str, float] | None = None
+    min_judged_success: float | None = None
 
     def headline(self) -> str:
         """One line: passed or FAILED, and the held-out errors."""
@@ -103,6 +121,8 @@ class HeldOutCheck:
         if len(self.per_target_mean_position_error_cm) > 1:
             parts.append("per head " + ", ".join(
                 f"{e:.2f}" for e in self.per_target_mean_position_error_cm))
+        if self.judged_success_rate is not None:
+            parts.append(f"judged picked {100 * self.judged_success_rate:.0f} %")
         where = (f"{len(self.held_out_scenes)} held-out scene(s), attempt {self.attempt}: "
                  + "; ".join(parts))
         if self.passed:
@@ -192,8 +212,13 @@ def split_scenes(dataset: Dataset, holdout: float, seed: int) -> tuple[Dataset, 
 
 
 def check_model(model: LearnableModel, held_out: Dataset, limit_cm: float, attempt: int,
-                model_seed: int) -> HeldOutCheck:
-    """Scores ``model`` on ``held_out`` against ``limit_cm``: whole, each condition, each head."""
+                model_seed: int, min_judged_success: float | None = None) -> HeldOutCheck:
+    """Scores ``model`` on ``held_out``: whole, each condition, each head.
+
+    Against ``limit_cm`` of mean position error, and for grasp-pose labels, where
+    ``min_judged_success`` is given, against that share of targets the grasp judge predicts
+    picked.
+    """
     from perception.learning.evaluate import evaluate  # torch, once a model is trained
 
     result = evaluate(model, held_out)
@@ -205,13 +230,28 @@ def check_model(model: LearnableModel, held_out: Dataset, limit_cm: float, attem
                   enumerate(result.per_target_mean_position_error_cm)]
     over = [f"{name}: {e:.2f} cm > {limit_cm:.2f} cm" for name, e in means
             if not e <= limit_cm]
+    judged = result.judged
+    rates: dict[str, Any] = {}
+    if judged is not None and min_judged_success is not None:
+        per_condition = {name: g.predicted_success_rate
+                         for name, g in (judged.per_condition or {}).items()}
+        per_head = {name: g.predicted_success_rate for name, g in (judged.per_head or {}).items()}
+        shares = [("judged picked", judged.all.predicted_success_rate)]
+        shares += [(f"condition {name!r} judged picked", r) for name, r in per_condition.items()]
+        shares += [(f"{name} judged picked", r) for name, r in per_head.items()]
+        over += [f"{name}: {100 * r:.0f} % < {100 * min_judged_success:.0f} %"
+                 for name, r in shares if not r >= min_judged_success]
+        rates = {"judged_success_rate": judged.all.predicted_success_rate,
+                 "per_condition_judged_success_rate": per_condition or None,
+                 "per_target_judged_success_rate": per_head or None,
+                 "min_judged_success": min_judged_success}
     return HeldOutCheck(
         passed=not over, reason="; ".join(over),
         held_out_scenes=tuple(sorted(set(held_out.scene_keys()))), samples=len(held_out),
         mean_position_error_cm=result.mean_position_error_cm,
         per_condition_mean_position_error_cm=result.per_condition_mean_position_error_cm,
         per_target_mean_position_error_cm=result.per_target_mean_position_error_cm,
-        limit_cm=limit_cm, attempt=attempt, model_seed=model_seed)
+        limit_cm=limit_cm, attempt=attempt, model_seed=model_seed, **rates)
 
 
 def attempt_seed(seed: int, attempt: int) -> int:
@@ -244,7 +284,8 @@ def fit_checked(build: Callable[[int], LearnableModel], dataset: Dataset, config
         trained = time.perf_counter()
         if held_out is None:
             return CheckedFit(model, report, (), (AttemptTime(trained - started, 0.0),))
-        checks.append(check_model(model, held_out, check.limit_cm, attempt, seed))
+        checks.append(check_model(model, held_out, check.limit_cm, attempt, seed,
+                                  check.min_judged_success))
         times.append(AttemptTime(trained - started, time.perf_counter() - trained))
         if log is not None:
             log(checks[-1].headline())

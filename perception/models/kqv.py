@@ -157,8 +157,11 @@ class KqvModel(TorchModel):
         """Trains :attr:`KqvConfig.starts` fresh networks briefly and keeps the best one.
 
         The starts train on the scenes :attr:`KqvConfig.start_holdout` leaves and are compared
-        by their mean position error on the held-out ones (by training loss where nothing is
-        held out), which keep their own sentences (:meth:`_named` is for training only).
+        on the held-out ones as the trials judge a pick: by the grasp judge's expected success
+        (:mod:`perception.learning.judged_errors`; rotation and each object's tolerance
+        included), then by mean position error (all a position label has), then by training
+        loss (where nothing is held out). The held-out scenes keep their own sentences
+        (:meth:`_named` is for training only).
         Returns the kept start's report, its wall time that of every start and comparison.
         """
         started = time.perf_counter()
@@ -166,7 +169,7 @@ class KqvModel(TorchModel):
                         batch_size=self.config.start_batch_size or config.batch_size)
         kept, held = split_scenes(dataset, self.config.start_holdout, config.seed)
         kept = self._named(kept)
-        tried: list[tuple[float, float, int, KqvNet, TrainReport]] = []
+        tried: list[tuple[float, float, float, int, KqvNet, TrainReport]] = []
         for number in range(self.config.starts):
             seed = self.config.seed if number == 0 else int(
                 np.random.SeedSequence([self.config.seed, number]).generate_state(1)[0] >> 1)
@@ -176,9 +179,12 @@ class KqvModel(TorchModel):
                            description=f"{self.name} {self.spec.task} [start {number + 1}/"
                            f"{self.config.starts}]", parameters=self._pose_parameters())
             self.network.temperature = self.config.temperature
-            held_cm = 0.0 if held is None else evaluate(self, held).mean_position_error_cm
-            tried.append((held_cm, report.final_loss, number, self.network, report))
-        _, _, _, self.network, kept_report = min(tried, key=lambda t: (t[0], t[1], t[2]))
+            scored = None if held is None else evaluate(self, held)
+            judged = 0.0 if scored is None or scored.judged is None else \
+                -scored.judged.all.expected_success_rate
+            held_cm = 0.0 if scored is None else scored.mean_position_error_cm
+            tried.append((judged, held_cm, report.final_loss, number, self.network, report))
+        *_, self.network, kept_report = min(tried, key=lambda t: t[:4])
         self._steps_taken = self.config.start_steps
         return replace(kept_report, wall_time_s=time.perf_counter() - started)
 

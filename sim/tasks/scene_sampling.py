@@ -35,6 +35,8 @@ MAX_PLACEMENT_CANDIDATES = 20_000
 The built-in tasks draw at most 214 (1,800 scenes of each task in each scene): none nears it."""
 DISTRACTOR_STREAM = 1
 """The distractors' own seed stream, beside the scene's (see the module docstring)."""
+BALANCE_STREAM = 2
+"""The seed stream of a balanced task's shuffled type blocks (``TaskSpec.balance_types``)."""
 
 
 class SeedStream(enum.IntEnum):
@@ -238,6 +240,8 @@ def sample_scene(
         types = [str(rng.choice(spec.object_types))] * task.count
     else:
         types = [str(t) for t in rng.choice(spec.object_types, size=task.count)]
+    if task.balance_types and stream is SeedStream.TRAIN:  # drawn above all the same, so the
+        types = [balanced_type(spec, seed, index)] * len(types)  # rest of the scene is as before
     positions = _place(task, spec, len(types), rng)
     objects = tuple(PlacedObject(t, p, float(rng.uniform(*task.yaw_range_rad)))
                     for t, p in zip(types, positions, strict=True))
@@ -248,6 +252,17 @@ def sample_scene(
         objects += _place_distractors(task, spec, objects, distractor_rng)
     return Scene(task.name, spec.name, seed, stream, index, objects, targets, condition,
                  query_for(task, spec.name, condition, seed, stream, index))
+
+
+def balanced_type(spec: SceneSpec, seed: int, index: int) -> str:
+    """The type of training scene ``index`` of a balanced task (``TaskSpec.balance_types``).
+
+    Block ``index // k`` of ``k`` scenes is a seeded shuffle of the scene's ``k`` types.
+    """
+    count = len(spec.object_types)
+    block = np.random.default_rng(np.random.SeedSequence(
+        [seed, int(SeedStream.TRAIN), index // count, BALANCE_STREAM])).permutation(count)
+    return spec.object_types[int(block[index % count])]
 
 
 def _place_distractors(task: TaskSpec, spec: SceneSpec, objects: tuple[PlacedObject, ...],

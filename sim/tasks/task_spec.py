@@ -105,6 +105,10 @@ class TaskSpec:
         description: One sentence for people.
         objects: How object types are drawn.
         count: How many objects are presented (``one_of_each``: the scene's type count).
+        balance_types: Training scenes take the types in turn, each block of as many scenes
+            as there are types a seeded shuffle of them, so 20 demonstrations of three types
+            hold 6 or 7 of each, as a person recording them would; test scenes stay random.
+            For a scene of one drawn type (``random`` with one object, or ``same_type``).
         targets: Which objects are targets.
         condition: What the top-down condition names.
         given_as: How the model is given it (``[condition] given_as``).
@@ -125,6 +129,7 @@ class TaskSpec:
     description: str = ""
     objects: ObjectChoice = ObjectChoice.RANDOM
     count: int = 1
+    balance_types: bool = False
     targets: TargetSelection = TargetSelection.ALL
     condition: ConditionKind = ConditionKind.NONE
     given_as: ConditionForm = ConditionForm.ONE_HOT
@@ -158,6 +163,11 @@ class TaskSpec:
             raise bad("distractors.types", list(self.distractors),
                       f"at most {MAX_OBJECTS - self.count} types (objects.count + distractors "
                       f"<= {MAX_OBJECTS})")
+        one_drawn_type = self.objects is ObjectChoice.SAME_TYPE or (
+            self.objects is ObjectChoice.RANDOM and self.count == 1)
+        if self.balance_types and not one_drawn_type:
+            raise bad("objects.balance_types", True, "false unless objects.choose = 'same_type', "
+                      "or 'random' with objects.count = 1 (one drawn type a scene)")
         if self.targets is TargetSelection.CONDITION and self.condition is ConditionKind.NONE:
             raise bad("condition.kind", "none", "object_type or side when targets.select = "
                       "'condition' (the condition must name the target)")

@@ -41,7 +41,7 @@ def _key(key: str) -> str:
 _SECTIONS: dict[str, set[str]] = {
     "": {"name", "description", "objects", "targets", "condition", "placement", "lighting",
          "distractors"},
-    "objects": {"choose", "count"},
+    "objects": {"choose", "count", "balance_types"},
     "targets": {"select"},
     "condition": {"kind", "given_as", "phrases"},
     "placement": {"sides", "yaw_deg", "min_spacing_m", "x_m", "y_m"},
@@ -137,6 +137,7 @@ def task_from_toml(text: str, source: str = "<string>") -> TaskSpec:
         description=reader.get("", "description", str, ""),
         objects=reader.choice("objects", "choose", ObjectChoice, ObjectChoice.RANDOM),
         count=reader.get("objects", "count", int, 1, f"an integer in [1, {MAX_OBJECTS}]"),
+        balance_types=reader.get("objects", "balance_types", bool, False, "true or false"),
         targets=reader.choice("targets", "select", TargetSelection, TargetSelection.ALL),
         condition=reader.choice("condition", "kind", ConditionKind, ConditionKind.NONE),
         given_as=reader.choice("condition", "given_as", ConditionForm, ConditionForm.ONE_HOT),
@@ -236,7 +237,8 @@ def task_to_toml(task: TaskSpec) -> str:
     if task.workspace_y_m is not None:
         placement["y_m"] = list(task.workspace_y_m)
     tables: dict[str, dict[str, Any]] = {
-        "objects": {"choose": task.objects.value, "count": task.count},
+        "objects": {"choose": task.objects.value, "count": task.count,
+                    "balance_types": task.balance_types},
         "targets": {"select": task.targets.value},
         "condition": {"kind": task.condition.value, "given_as": task.given_as.value},
         "placement": placement,

@@ -15,6 +15,7 @@ import pinocchio as pin
 
 from control.pick import PickPlan, PlanStatus
 from perception.catalog import Pose
+from perception.grasp_judge import GraspVerdict
 from sim.trials.records import TrialOutcome
 from sim.world.grip import Grip
 
@@ -85,6 +86,8 @@ class PickAttempt:
         outcome: How the pick ended.
         reason: Why, in words.
         lift_m: How far the target rose [m]; None if no plan ran.
+        verdict: The grasp judge's prediction of the pick from its error alone
+            (:mod:`perception.grasp_judge`); None where the model gave no grasp.
 
     """
 
@@ -94,6 +97,7 @@ class PickAttempt:
     outcome: TrialOutcome
     reason: str
     lift_m: float | None = None
+    verdict: GraspVerdict | None = None
 
     @property
     def position_error_m(self) -> float | None:
@@ -133,6 +137,8 @@ class PickAttempt:
             data["plan_status"] = planned.plan_status.value
         if planned.plan is not None:
             data["arm"] = planned.plan.arm
+        if self.verdict is not None:
+            data["judge"] = self.verdict.to_record()
         data |= {"outcome": self.outcome.value, "reason": self.reason}
         if planned.traceback is not None:
             data["traceback"] = planned.traceback

@@ -18,7 +18,7 @@ import statistics
 import sys
 import time
 from collections import Counter
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -63,9 +63,10 @@ class TrialRecord:
     given: the grip the model's prediction asked for (:meth:`sim.world.grip.Grip.to_record`) and
     the obstacles' source with their size (points, occupied cells). The top-level pick fields
     describe the last pick tried; ``picks`` lists every pick of a multi-target trial.
-    ``asked`` is what the model was given for a condition, where it is no one-hot name (the
-    scene record's ``query``): ``{"kind": "text", "value": <the sentence>}``, or ``{"kind":
-    "image", "value": "picture <sha256[:12]>"}``.
+    ``judge`` is the grasp judge's verdict on the pick (:mod:`perception.grasp_judge`), absent
+    in records made before it. ``asked`` is what the model was given for a condition, where
+    it is no one-hot name (the scene record's ``query``): ``{"kind": "text", "value": <the
+    sentence>}``, or ``{"kind": "image", "value": "picture <sha256[:12]>"}``.
     """
 
     index: int
@@ -90,6 +91,7 @@ class TrialRecord:
     sim_time_s: float = 0.0
     wall_time_s: float = 0.0
     asked: dict[str, Any] | None = None
+    judge: dict[str, Any] | None = None
 
     @property
     def success(self) -> bool:
@@ -119,6 +121,66 @@ class TrialRecord:
         return cls(**data)
 
 
+@dataclass(frozen=True)
+class PickCounts:
+    """The grasp judge against the physics over some picks (:mod:`sim.trials.judging`).
+
+    Attributes:
+        picks: Picks judged.
+        misses: Picks the physics says failed.
+        flagged_misses: Of those, the ones the judge predicted to fail.
+        unflagged_misses: The ones it predicted to hold.
+        false_alarms: Picks that held which the judge predicted to fail.
+
+    """
+
+    picks: int = 0
+    misses: int = 0
+    flagged_misses: int = 0
+    unflagged_misses: int = 0
+    false_alarms: int = 0
+
+    @classmethod
+    def of(cls, picks: Iterable[tuple[bool, bool]]) -> PickCounts:
+        """The counts of ``(picked, predicted_success)`` pairs, one per pick."""
+        counts: Counter[str] = Counter()
+        for picked, predicted in picks:
+            counts["picks"] += 1
+            if not picked:
+                counts["misses"] += 1
+                counts["unflagged_misses" if predicted else "flagged_misses"] += 1
+            elif not predicted:
+                counts["false_alarms"] += 1
+        return cls(**counts)
+
+    @property
+    def flagged_fraction(self) -> float:
+        """The fraction of the misses the judge flagged (1 where there were none)."""
+        return self.flagged_misses / self.misses if self.misses else 1.0
+
+    def line(self) -> str:
+        """``12 misses: 10 flagged (83 %), 2 not; 3 false alarms (of 150 picks)``."""
+        return (f"{self.misses} misses: {self.flagged_misses} flagged "
+                f"({100 * self.flagged_fraction:.0f} %), {self.unflagged_misses} not; "
+                f"{self.false_alarms} false alarms (of {self.picks} picks)")
+
+
+def judged_pairs(records: Iterable[TrialRecord]) -> list[tuple[bool, bool]]:
+    """``(picked, predicted_success)`` of every pick whose record holds the judge's verdict.
+
+    A pick without a grasp (the model gave none) is one the judge predicts to fail.
+    """
+    pairs = []
+    for record in records:
+        for pick in record.picks:
+            picked = pick.get("outcome") == TrialOutcome.SUCCESS.value
+            if "judge" in pick:
+                pairs.append((picked, bool(pick["judge"]["predicted_success"])))
+            elif "predicted" not in pick and pick.get("target") is not None:
+                pairs.append((picked, False))
+    return pairs
+
+
 def wilson_interval(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
     """Wilson score interval of a success rate (95 % for the default ``z``)."""
     if n <= 0:
@@ -132,7 +194,11 @@ def wilson_interval(successes: int, n: int, z: float = 1.959964) -> tuple[float,
 
 @dataclass(frozen=True)
 class TrialSummary:
-    """Successes out of n, their 95 % Wilson interval, and the count of every outcome."""
+    """Successes out of n, their 95 % Wilson interval, and the count of every outcome.
+
+    ``judge``: the grasp judge's verdicts against the physics, over the picks whose records
+    hold one (None for records made before the judge: ``gva judge`` replays those).
+    """
 
     successes: int
     n: int
@@ -140,6 +206,7 @@ class TrialSummary:
     outcomes: dict[str, int]
     median_wall_time_s: float
     per_object: dict[str, dict[str, int]]
+    judge: PickCounts | None = None
 
     @classmethod
     def of(cls, records: list[TrialRecord]) -> TrialSummary:
@@ -154,9 +221,10 @@ class TrialSummary:
                 counts_of["picked"] += pick.picked
         times = [r.wall_time_s for r in records]
         median = statistics.median(times) if times else 0.0
+        judged = judged_pairs(records)
         return cls(successes, len(records), wilson_interval(successes, len(records)),
                    {o.value: counts.get(o.value, 0) for o in TrialOutcome}, median,
-                   dict(sorted(per_object.items())))
+                   dict(sorted(per_object.items())), PickCounts.of(judged) if judged else None)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form, as written to ``summary.json``."""

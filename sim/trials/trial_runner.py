@@ -13,7 +13,9 @@ fixed, known fixture) and the model's prediction: the grip comes from the type o
 model stated (:mod:`sim.world.grip`), the obstacles from the depth image
 (:mod:`control.depth_obstacles`). The simulator's truth judges: the referee notes the target's
 true grasp when the image is taken, as a dataset labels its images, and the physics decides
-the outcome; neither is handed to the plan phase.
+the outcome; neither is handed to the plan phase. Beside the physics, the grasp judge
+(:mod:`perception.grasp_judge`) predicts each pick from its error alone, and the record keeps
+its verdict, so a run tells the misses its perception explains from the rest.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from perception.camera import RgbdFrame
 from perception.catalog import Pose, clear_of_table, get_object_spec
 from perception.checks import check_inputs, check_prediction
 from perception.errors import InvalidPredictionError
+from perception.grasp_judge import judge_grasp, yaw_of
 from perception.grasps import grasp_pose
 from perception.interface import (
     LabelKind,
@@ -53,7 +56,7 @@ from sim.tasks.scene_sampling import Scene
 from sim.tasks.task_spec import TaskSpec
 from sim.trials.execution import ExecutionSettings, execute_pick
 from sim.trials.oracle import OraclePerception
-from sim.trials.pick_results import PickAttempt, PlannedPick, TrialResult
+from sim.trials.pick_results import PickAttempt, PlannedPick, TrialResult, as_recorded
 from sim.trials.planner_setup import (
     ObstacleSource,
     make_yumi_planner,
@@ -250,6 +253,7 @@ class TrialRunner:
         frame = self.sense()
         truth = self.truth(body)  # the referee's label of this image, kept from the plan phase
         target = self.world.object_spec(body).name
+        object_yaw_rad = yaw_of(self.world.object_pose(body).rotation)
         try:
             prediction = self.model.predict_frame(frame, scene.given)
         except Exception as error:  # the model's failure, recorded with its traceback
@@ -263,13 +267,16 @@ class TrialRunner:
         planned = self.plan_pick(frame, prediction, number, total)
         if self.observer is not None:  # the Prediction once checked, else None
             self.observer.saw(frame.rgb, prediction if planned.predicted is not None else None)
+        verdict = None if planned.predicted is None else judge_grasp(
+            self.world.object_spec(body), truth, as_recorded(planned.predicted), object_yaw_rad)
         if planned.plan is None or planned.grip is None:
             assert planned.outcome is not None  # a plan phase that ends a pick says how
-            return PickAttempt(target, truth, planned, planned.outcome, planned.reason)
+            return PickAttempt(target, truth, planned, planned.outcome, planned.reason,
+                               verdict=verdict)
         executed = execute_pick(self.world, planned.plan, body, planned.grip.opening_m,
                                 self.execution)
         return PickAttempt(target, truth, planned, executed.outcome, executed.reason,
-                           executed.lift_m)
+                           executed.lift_m, verdict)
 
     def plan_pick(self, frame: RgbdFrame, prediction: Prediction, number: int, total: int
                   ) -> PlannedPick:

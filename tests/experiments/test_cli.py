@@ -46,6 +46,7 @@ def _loaded_after(argv: list[str]) -> set[str]:
     (["reproduce", "--help"], set()),
     (["trials", "--out", "runs/x"], {"pinocchio"}),
     (["compare", "runs/a", "runs/b"], set()),
+    (["judge", "runs/a"], set()),
     (["reproduce", "real", "--out", "runs/x"], {"pinocchio", "torch"}),
 ])
 def test_a_command_imports_only_what_it_needs(argv, allowed):
@@ -79,6 +80,7 @@ def test_the_defaults_are_the_settings_dataclasses_defaults():
     assert TrainConfig(steps=train["steps"], batch_size=train["batch_size"],
                        seed=train["seed"], threads=train["threads"]) == TrainConfig()
     assert CheckConfig(holdout=train["holdout"], limit_cm=train["check_limit_cm"],
+                       min_judged_success=train["check_min_judged"],
                        attempts=train["attempts"]) == CheckConfig()
 
 

@@ -196,3 +196,26 @@ def test_a_value_a_scene_cannot_be_asked_is_named():
     assert single.askable() == ()
     with pytest.raises(InvalidInputError, match="nothing: the scene's task has no condition"):
         single.asking("left", load_task("single"))
+
+
+@pytest.mark.parametrize("task_name", ["single", "selected-position"])
+def test_balanced_training_scenes_take_the_types_in_turn_and_the_test_stream_stays_random(
+        task_name):
+    plain = load_task(task_name)
+    task = dataclasses.replace(plain, balance_types=True)
+    for seed in (0, 10):
+        train = [sample_scene(task, YUMI_SCENE, seed, SeedStream.TRAIN, i) for i in range(20)]
+        before = [sample_scene(plain, YUMI_SCENE, seed, SeedStream.TRAIN, i) for i in range(20)]
+        counts = [sum(s.objects[s.targets[0]].object_type == t for s in train)
+                  for t in YUMI_SCENE.object_types]
+        assert sorted(counts) == [6, 7, 7]  # 20 scenes, three types: 6 or 7 of each
+        for block in range(6):  # each block of three scenes holds each type once
+            assert {s.objects[0].object_type for s in train[3 * block:3 * block + 3]} == set(
+                YUMI_SCENE.object_types)
+        # only the types change: the positions, yaws and conditions are the plain task's
+        assert [[o.position_xy_m for o in s.objects] for s in train] == \
+            [[o.position_xy_m for o in s.objects] for s in before]
+        assert [s.condition for s in train] == [s.condition for s in before]
+        test = [sample_scene(task, YUMI_SCENE, seed, SeedStream.TEST, i) for i in range(20)]
+        assert test == [sample_scene(plain, YUMI_SCENE, seed, SeedStream.TEST, i)
+                        for i in range(20)]

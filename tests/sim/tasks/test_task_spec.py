@@ -108,6 +108,10 @@ def test_a_users_task_file_loads_from_its_path(tmp_path):
     ('name = "x"\n[placement]\n"a\\nb" = 1', r'placement\."a\\nb" = 1 is not allowed: a known key'),
     ('name = "x"\n[placement]\nsides = "yes"', r"placement\.sides = 'yes' is not allowed: true or "
      r"false"),
+    ('name = "x"\n[objects]\nchoose = "one_of_each"\nbalance_types = true',
+     r"objects\.balance_types = True is not allowed: false unless objects\.choose = 'same_type'"),
+    ('name = "x"\n[objects]\ncount = 2\nbalance_types = true',
+     r"objects\.balance_types = True is not allowed: .*'random' with objects\.count = 1"),
     ('a = ' + "[" * 5000 + "]" * 5000, r"task file t\.toml = 'arrays or tables nested too deeply' "
      r"is not allowed"),
     ('a = ' + "[" * 300 + "]" * 300, r"task file t\.toml: a = \[\[\[.*\.\.\. \(\d+ characters\) is "

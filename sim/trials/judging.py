@@ -1,0 +1,212 @@
+"""Replays trial records through the grasp judge: which misses the perception explains.
+
+Every record keeps the scene's objects and, per pick, the true and the predicted grasps, so any
+run, also one made before the judge existed, can be judged again (``gva judge RUN``). A pick's
+verdict is set beside how the physics ended it: a miss the judge predicted is *flagged*, a
+success it predicted to fail is a *false alarm*. Agreement alone would say little: with 95 % of
+picks succeeding, "always success" agrees 95 %; so the counts are reported by what they are.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from perception.catalog import Pose, get_object_spec
+from perception.grasp_judge import GraspVerdict, judge_grasp
+from perception.grasp_tolerance import ToleranceMap, default_tolerance_map
+from sim.errors import InvalidInputError
+from sim.trials.records import PickCounts, TrialOutcome, TrialRecord
+
+
+def pose_of(data: dict[str, Any]) -> Pose:
+    """A pose as a record keeps it (``position_m``, ``rotation``)."""
+    return Pose(np.asarray(data["position_m"], dtype=float),
+                np.asarray(data["rotation"], dtype=float))
+
+
+def object_yaw_rad(objects: Sequence[dict[str, Any]], object_type: str, truth: Pose
+                   ) -> float | None:
+    """The placed yaw of the scene's ``object_type`` nearest the true grasp; None if none.
+
+    Objects settle a fraction of a millimetre after they are placed; the yaw a scene placed
+    them at is what the mug's allowed rim turns are measured from.
+    """
+    spec = get_object_spec(object_type)
+    T_object_grasp = spec.grasp.T_object_grasp
+    inverse = Pose(-T_object_grasp.rotation.T @ T_object_grasp.position, T_object_grasp.rotation.T)
+    centre = truth.compose(inverse).position[:2]
+    candidates = [o for o in objects if o.get("type") == object_type and not o.get("distractor")]
+    if not candidates:
+        return None
+    nearest = min(candidates, key=lambda o: float(np.linalg.norm(
+        np.asarray(o["position_xy_m"]) - centre)))
+    return float(nearest["yaw_rad"])
+
+
+def judge_pick(pick: dict[str, Any], objects: Sequence[dict[str, Any]],
+               tolerance: ToleranceMap | None = None) -> GraspVerdict | None:
+    """The judge's verdict on one pick of a record; None where the model gave no grasp."""
+    if pick.get("predicted") is None or pick.get("truth") is None:
+        return None
+    predicted = pose_of(pick["predicted"])
+    if "rotation" not in pick["predicted"]:
+        return None
+    truth = pose_of(pick["truth"])
+    spec = get_object_spec(pick["target"])
+    return judge_grasp(spec, truth, predicted, object_yaw_rad(objects, spec.name, truth),
+                       tolerance)
+
+
+@dataclass(frozen=True)
+class JudgedPick:
+    """One pick: how the physics ended it and what the judge predicted.
+
+    ``verdict`` is None where the model gave no grasp (the judge predicts a miss).
+    """
+
+    trial: int
+    number: int
+    target: str
+    outcome: TrialOutcome
+    reason: str
+    verdict: GraspVerdict | None
+
+    @property
+    def picked(self) -> bool:
+        """Whether the physics says the pick held."""
+        return self.outcome is TrialOutcome.SUCCESS
+
+    @property
+    def predicted_success(self) -> bool:
+        """Whether the judge says it would."""
+        return self.verdict is not None and self.verdict.predicted_success
+
+
+def judged_picks(record: TrialRecord, tolerance: ToleranceMap | None = None
+                 ) -> tuple[JudgedPick, ...]:
+    """Every pick of a record, judged."""
+    picks = record.picks or ([] if record.target is None else [{
+        "target": record.target, "truth": record.truth, "predicted": record.predicted,
+        "outcome": record.outcome.value, "reason": record.reason}])
+    return tuple(JudgedPick(record.index, number, pick["target"], TrialOutcome(pick["outcome"]),
+                            pick.get("reason", ""), judge_pick(pick, record.objects, tolerance))
+                 for number, pick in enumerate(picks))
+
+
+def pick_counts(picks: Iterable[JudgedPick]) -> PickCounts:
+    """The judge against the physics over ``picks``."""
+    return PickCounts.of((pick.picked, pick.predicted_success) for pick in picks)
+
+
+@dataclass(frozen=True)
+class TrialSetJudgement:
+    """One folder of trials (a task, a seed, a model, a world): real and predicted counts."""
+
+    folder: str
+    task: str
+    seed: int
+    model: str
+    n: int
+    successes: int
+    predicted_successes: int
+    picks: PickCounts
+    per_object: dict[str, PickCounts] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class RunJudgement:
+    """A run folder judged: each trial set, all their picks together, each pick missed."""
+
+    sets: tuple[TrialSetJudgement, ...]
+    picks: PickCounts
+    per_object: dict[str, PickCounts]
+    misses: tuple[dict[str, Any], ...]
+    false_alarms: tuple[dict[str, Any], ...]
+    tolerance_map: dict[str, Any]
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready, as ``gva judge --json`` writes it."""
+        return asdict(self)
+
+
+def _pick_row(folder: str, record: TrialRecord, pick: JudgedPick) -> dict[str, Any]:
+    """One pick as the report lists it: where, how it ended, what the judge saw."""
+    row: dict[str, Any] = {"folder": folder, "seed": record.seed, "trial": pick.trial,
+                           "pick": pick.number, "target": pick.target,
+                           "outcome": pick.outcome.value, "reason": pick.reason}
+    if pick.verdict is not None:
+        row["judge"] = pick.verdict.to_record()
+    return row
+
+
+def trial_folders(run: Path) -> list[Path]:
+    """Every folder under ``run`` (itself included) that holds a ``trials.jsonl``."""
+    if not run.is_dir():
+        raise InvalidInputError("run folder", str(run), "an existing folder")
+    found = sorted(path.parent for path in run.rglob("trials.jsonl"))
+    if not found:
+        raise InvalidInputError("run folder", str(run),
+                                "a folder of gva trials or gva reproduce real (no trials.jsonl "
+                                "under it)")
+    return found
+
+
+def read_records(folder: Path) -> list[TrialRecord]:
+    """The complete records of a ``trials.jsonl`` (a half-written last line is left out)."""
+    records = []
+    for line in (folder / "trials.jsonl").read_text().splitlines():
+        try:
+            records.append(TrialRecord.from_json(line))
+        except ValueError:  # a crash mid-write: the run resumes from it, the judge skips it
+            continue
+    return records
+
+
+def judge_run(run: Path, tolerance: ToleranceMap | None = None) -> RunJudgement:
+    """Judges every trial under ``run``: per trial set and over all picks."""
+    tolerance = tolerance or default_tolerance_map()
+    sets, every, misses, alarms = [], [], [], []
+    for folder in trial_folders(run):
+        name = str(folder.relative_to(run)) if folder != run else "."
+        records = read_records(folder)
+        if not records:
+            continue
+        judged = [(record, judged_picks(record, tolerance)) for record in records]
+        picks = [pick for _, these in judged for pick in these]
+        every.extend(picks)
+        for record, these in judged:
+            for pick in these:
+                if not pick.picked:
+                    misses.append(_pick_row(name, record, pick))
+                elif not pick.predicted_success:
+                    alarms.append(_pick_row(name, record, pick))
+        first = records[0]
+        sets.append(TrialSetJudgement(
+            folder=name, task=first.task, seed=first.seed, model=first.model, n=len(records),
+            successes=sum(r.success for r in records),
+            predicted_successes=sum(bool(these) and all(p.predicted_success for p in these)
+                                    for _, these in judged),
+            picks=pick_counts(picks), per_object=_per_object(picks)))
+    return RunJudgement(tuple(sets), pick_counts(every), _per_object(every), tuple(misses),
+                        tuple(alarms), dict(tolerance.provenance))
+
+
+def _per_object(picks: Sequence[JudgedPick]) -> dict[str, PickCounts]:
+    types = sorted({pick.target for pick in picks})
+    return {t: pick_counts(p for p in picks if p.target == t) for t in types}
+
+
+def describe_error(row: dict[str, Any]) -> str:
+    """A missed or alarmed pick's errors in one line."""
+    judge = row.get("judge")
+    if judge is None:
+        return "no grasp"
+    return (f"closing {judge['closing_mm']:+.1f} mm, across {judge['across_mm']:+.1f} mm, "
+            f"approach {judge['approach_mm']:+.1f} mm, yaw {judge['yaw_deg']:.0f}°, "
+            f"tilt {judge['tilt_deg']:.0f}°, p = {judge['success_rate']:.2f}")
+
