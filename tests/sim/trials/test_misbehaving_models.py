@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 import user_models
 
@@ -83,6 +84,20 @@ def test_system_exit_and_ctrl_c_stop_the_run_with_the_summary_of_what_finished(
 
 
 def test_a_model_reads_the_depth_and_calibration_it_declares(tmp_path, capsys):
+    """The trial hands a frame model the depth and the camera that took it: the only test that does.
+
+    ``DepthReader`` grasps the highest point its frame's depth puts in the world; the scene's
+    one object is a spray bottle, whose top is its trigger head's (catalog: a 26 mm box centred
+    160 mm up and 10 mm forward of the axis). Without depth the model falls back on
+    ``FixedGrasp``'s (0.47, 0, 0.03); with a wrong calibration the point lands elsewhere.
+    """
     status, (record,), _, err = _trials(tmp_path, "DepthReader", capsys)
     assert status == 0, err
-    assert record["predicted"]["position_m"][2] > 0.02  # the top of an object, seen in depth
+    assert record["predicted"] is not None, record["reason"]
+    (bottle,) = record["objects"]
+    assert bottle["type"] == "spray_bottle"
+    yaw = bottle["yaw_rad"]
+    head_xy = np.array(bottle["position_xy_m"]) + 0.010 * np.array([np.cos(yaw), np.sin(yaw)])
+    seen = np.array(record["predicted"]["position_m"])
+    assert seen[2] == pytest.approx(0.160 + 0.013, abs=0.004)  # the head's top, 0.173 m
+    assert np.linalg.norm(seen[:2] - head_xy) < 0.028  # on the head's 50 x 26 mm top
