@@ -1,7 +1,7 @@
 """How far off may a grasp be and still hold? The tolerance map the grasp judge reads.
 
     python benchmarks/bench_grasp_tolerance.py [--n 5] [--workers 2]
-        [--out perception/grasp_tolerance.json]
+        [--out perception/grasp_tolerance.json] [--extend perception/grasp_tolerance.json]
 
 Oracle pick trials of the ``single`` task (yumi scene, test scenes of seed :data:`MAP_SEED`,
 which no training or Table III run draws), each with the true grasp moved along one axis of
@@ -11,6 +11,11 @@ degrees, ``--n`` picks per cell, each on its own scene, a random sign for the of
 the approach, where too deep and too shallow differ) and for the turn. The physics judges,
 exactly as in ``gva trials`` (the same runner, planner and depth obstacles). The record is what
 :mod:`perception.grasp_tolerance` reads; it keeps how it was made under ``how``.
+
+The grid was measured in two passes (:data:`FIRST_PASS`, then the rows and columns the second
+added where the first went from every pick held to none within one step); each cell's scenes
+and signs follow from its place in its pass, so a run from scratch measures the same picks.
+``--extend FILE`` keeps the cells FILE holds and measures the rest.
 """
 
 from __future__ import annotations
@@ -46,11 +51,22 @@ MAP_SEED = 4242
 """The seed of the map's scenes: the single task's test stream at this seed."""
 SCENES_PER_TYPE = 60
 """Scenes drawn per object type; cell c's picks take scenes c n, c n + 1, ... (wrapping)."""
-YAW_DEG = (0.0, 10.0, 20.0, 30.0, 45.0, 60.0, 90.0)
-OFFSETS_MM = {
+FIRST_PASS_YAW_DEG = (0.0, 10.0, 20.0, 30.0, 45.0, 60.0, 90.0)
+FIRST_PASS_OFFSETS_MM = {
     "closing": (0.0, 3.0, 6.0, 9.0, 12.0, 16.0, 20.0, 25.0),
     "across": (0.0, 5.0, 10.0, 20.0, 30.0, 40.0),
     "approach": (-20.0, -10.0, -5.0, 0.0, 5.0, 10.0, 20.0),
+}
+FIRST_PASS = (FIRST_PASS_YAW_DEG, FIRST_PASS_OFFSETS_MM)
+"""The first grid. The second adds turns of 25, 35 and 40 degrees (the sponge and the bottle
+went from 5 of 5 to none between 20 and 45), closing offsets of 7 and 8 mm (the bottle: 5 of 5
+at 6 mm, none at 9) and of 30 and 40 mm (the mug still held 3 of 5 at 25), across offsets of
+15 and 50 mm, and an approach 15 mm deeper (the bottle: all at 10, none at 20)."""
+YAW_DEG = (0.0, 10.0, 20.0, 25.0, 30.0, 35.0, 40.0, 45.0, 60.0, 90.0)
+OFFSETS_MM = {
+    "closing": (0.0, 3.0, 6.0, 7.0, 8.0, 9.0, 12.0, 16.0, 20.0, 25.0, 30.0, 40.0),
+    "across": (0.0, 5.0, 10.0, 15.0, 20.0, 30.0, 40.0, 50.0),
+    "approach": (-20.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0, 20.0),
 }
 THRESHOLD = 0.5
 """The estimated chance at or above which the judge predicts a pick holds (fixed a priori)."""
@@ -140,19 +156,46 @@ def scenes_by_type(count: int) -> dict[str, list[int]]:
     return found
 
 
+def _grid(yaws: tuple[float, ...], offsets: dict[str, tuple[float, ...]]
+          ) -> list[tuple[str, float, float]]:
+    """(axis, offset, turn) of a grid, the zero offset once per turn (as "closing")."""
+    return [(axis, offset, yaw) for axis in AXES for offset in offsets[axis] for yaw in yaws
+            if offset != 0.0 or axis == "closing"]
+
+
 def cells(n: int) -> list[Cell]:
-    """Every cell of the map, the zero offset measured once per type and turn (as "closing")."""
+    """Every cell of the map: the first pass's, then the second's (see :data:`FIRST_PASS`)."""
     pools = scenes_by_type(SCENES_PER_TYPE)
+    first = _grid(*FIRST_PASS)
+    second = [key for key in _grid(YAW_DEG, OFFSETS_MM) if key not in set(first)]
     made: list[Cell] = []
     for object_type in OBJECT_TYPES:
         pool = pools[object_type]
-        grid = [(axis, offset, yaw) for axis in AXES for offset in OFFSETS_MM[axis]
-                for yaw in YAW_DEG if offset != 0.0 or axis == "closing"]
-        for number, (axis, offset, yaw) in enumerate(grid):
+        kind = OBJECT_TYPES.index(object_type)
+        numbered = [*((k, MAP_SEED + 1000 * kind + k, key) for k, key in enumerate(first)),
+                    *((1000 + k, MAP_SEED + 100_000 + 1000 * kind + k, key)
+                      for k, key in enumerate(second))]
+        for number, seed, (axis, offset, yaw) in numbered:
             scenes = tuple(pool[(number * n + j) % len(pool)] for j in range(n))
-            seed = MAP_SEED + 1000 * OBJECT_TYPES.index(object_type) + number
             made.append(Cell(object_type, axis, offset, yaw, scenes, seed))
     return made
+
+
+def kept_results(path: Path, n: int) -> dict[tuple[str, str, float, float], CellResult]:
+    """The cells a map file already holds, measured with ``n`` picks each."""
+    data = json.loads(path.read_text())
+    kept = {}
+    for object_type, entry in data["types"].items():
+        for axis, table in entry["axes"].items():
+            for i, offset in enumerate(table["offsets_mm"]):
+                for j, yaw in enumerate(entry["yaw_deg"]):
+                    if table["trials"][i][j] != n:
+                        continue
+                    key = (object_type, "closing" if offset == 0.0 else axis, offset, yaw)
+                    cell = Cell(object_type, key[1], offset, yaw, (), 0)
+                    kept[key] = CellResult(cell, table["picked"][i][j],
+                                           table["outcomes"][i][j])
+    return kept
 
 
 def tolerance_record(results: list[CellResult], n: int, command: str, wall_time_s: float
@@ -198,9 +241,13 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=5, help="picks per cell (5)")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=Path("perception/grasp_tolerance.json"))
+    parser.add_argument("--extend", type=Path, metavar="FILE",
+                        help="keep the cells FILE holds (same --n) and measure the rest")
     args = parser.parse_args()
-    todo = cells(args.n)
-    results: list[CellResult] = []
+    kept = {} if args.extend is None else kept_results(args.extend, args.n)
+    todo = [c for c in cells(args.n)
+            if (c.object_type, c.axis, c.offset_mm, c.yaw_deg) not in kept]
+    results: list[CellResult] = list(kept.values())
     started = time.perf_counter()
     with JobPool(args.workers) as pool, tqdm(total=len(todo), unit="cell") as bar:
         def done(result: CellResult) -> None:
@@ -211,11 +258,15 @@ def main() -> None:
     wall = time.perf_counter() - started
     command = "python benchmarks/bench_grasp_tolerance.py " + " ".join(sys.argv[1:])
     record = tolerance_record(results, args.n, command.strip(), wall)
+    if args.extend is not None:  # the passes before this one, as their record says
+        earlier = json.loads(args.extend.read_text())["how"]
+        record["how"]["earlier_passes"] = [*earlier.pop("earlier_passes", []), earlier]
     args.out.write_text(json.dumps(record, indent=1) + "\n")
     for object_type, entry in record["types"].items():
         zero = dict(zip(YAW_DEG, entry["axes"]["closing"]["picked"][0], strict=True))
         print(f"{object_type}: no offset, picked per turn {zero} of {args.n}")
-    print(f"{len(todo)} cells, {len(todo) * args.n} picks in {wall:.0f} s; wrote {args.out}")
+    print(f"{len(todo)} cells measured ({len(kept)} kept), {len(todo) * args.n} picks in "
+          f"{wall:.0f} s; wrote {args.out}")
 
 
 if __name__ == "__main__":

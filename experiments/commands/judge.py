@@ -34,10 +34,12 @@ def run(args: argparse.Namespace) -> int:
     """Judges the run, prints the report, writes the JSON; the exit status (0)."""
     tolerance = default_tolerance_map() if args.map is None else ToleranceMap.load(args.map)
     judgement = judge_run(args.folder, tolerance)
+    if args.json is not None:  # before the report: a reader that stops early (| head) loses none
+        text = json.dumps(judgement.to_json(), indent=1) + "\n"
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(args.json, lambda path: path.write_text(text))
     print_report(judgement)
     if args.json is not None:
-        text = json.dumps(judgement.to_json(), indent=1) + "\n"
-        atomic_write(args.json, lambda path: path.write_text(text))
         print(f"wrote {args.json}")
     return 0
 
