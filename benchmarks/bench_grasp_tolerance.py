@@ -16,6 +16,12 @@ The grid was measured in two passes (:data:`FIRST_PASS`, then the rows and colum
 added where the first went from every pick held to none within one step); each cell's scenes
 and signs follow from its place in its pass, so a run from scratch measures the same picks.
 ``--extend FILE`` keeps the cells FILE holds and measures the rest.
+
+``--joint N`` adds, per object type, N picks with every error at once, each drawn uniformly
+in a box read off the grid (per axis 1.5 times the largest offset, per turn 1.5 times the
+largest turn, that held 3 of 5 or more alone): the grid sees one error at a time, the trials
+see several, and a finger 10 mm off on a sponge that also comes 10 mm lower misses where either
+alone holds. The judge fits its reading to every pick of both.
 """
 
 from __future__ import annotations
@@ -35,7 +41,7 @@ import numpy as np
 from tqdm import tqdm
 
 from perception.catalog import OBJECT_TYPES, rot_z
-from perception.grasp_tolerance import AXES, SIGNED_AXES, TOLERANCE_FORMAT
+from perception.grasp_tolerance import AXES, READINGS, SIGNED_AXES, TOLERANCE_FORMAT
 from perception.interface import NO_CONDITION, Condition, Prediction, Target
 from sim.jobs import JobPool
 from sim.tasks.scene_sampling import Scene, SeedStream, sample_scene
@@ -112,6 +118,24 @@ class PerturbedOracle(OraclePerception):
         return Prediction(tuple(targets), truth.attention_px, truth.heatmaps)
 
 
+@dataclass(frozen=True)
+class JointPick:
+    """One pick with several errors at once: offsets in the grasp frame [mm] and a turn [deg]."""
+
+    object_type: str
+    scene: int  # test-stream index at MAP_SEED
+    offset_mm: tuple[float, float, float]  # closing, across, approach
+    yaw_deg: float
+
+
+@dataclass(frozen=True)
+class JointResult:
+    """How a joint pick ended."""
+
+    pick: JointPick
+    outcome: str
+
+
 _RUNNER: TrialRunner | None = None
 
 
@@ -140,6 +164,46 @@ def run_cell(cell: Cell) -> CellResult:
         picked += record.success
         outcomes[record.outcome.value] += 1
     return CellResult(cell, picked, {k: v for k, v in outcomes.items() if v})
+
+
+def run_joint(pick: JointPick) -> JointResult:
+    """One joint pick, in the worker's runner."""
+    global _RUNNER
+    if _RUNNER is None:
+        _RUNNER = TrialRunner(load_task(TASK), _perturbed)
+    model = _RUNNER.model
+    assert isinstance(model, PerturbedOracle)
+    model.offset_tcp_m = np.asarray(pick.offset_mm) / 1000
+    model.yaw_rad = math.radians(pick.yaw_deg)
+    scene = sample_scene(_RUNNER.task, YUMI_SCENE, MAP_SEED, SeedStream.TEST, pick.scene)
+    return JointResult(pick, _RUNNER.run(scene, pick.scene, MAP_SEED, "joint").outcome.value)
+
+
+def joint_box(entry: dict[str, Any]) -> tuple[tuple[float, float, float], float]:
+    """Half-widths of a type's joint box: per axis [mm] and the turn [deg] (see ``--joint``)."""
+    def held(axis: str) -> float:
+        table = entry["axes"][axis]
+        return max(abs(o) for o, row in zip(table["offsets_mm"], table["picked"], strict=True)
+                   if row[0] >= 3)
+
+    zero = entry["axes"]["closing"]["picked"][0]
+    turn = max(y for y, count in zip(entry["yaw_deg"], zero, strict=True) if count >= 3)
+    return (1.5 * held("closing"), 1.5 * held("across"), 1.5 * held("approach")), 1.5 * turn
+
+
+def joint_picks(record: dict[str, Any], n: int) -> list[JointPick]:
+    """``n`` joint picks per type, drawn in each type's box, each on the next scene of its pool."""
+    pools = scenes_by_type(SCENES_PER_TYPE)
+    picks = []
+    for kind, object_type in enumerate(OBJECT_TYPES):
+        rng = np.random.default_rng(MAP_SEED + 300_000 + kind)
+        widths, turn = joint_box(record["types"][object_type])
+        for k in range(n):
+            offset = tuple(float(rng.uniform(-w, w)) for w in widths)
+            picks.append(JointPick(object_type, pools[object_type][k % SCENES_PER_TYPE],
+                                   (offset[0], offset[1], offset[2]),
+                                   float(rng.uniform(-turn, turn))))
+    return picks
 
 
 def scenes_by_type(count: int) -> dict[str, list[int]]:
@@ -243,6 +307,12 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("perception/grasp_tolerance.json"))
     parser.add_argument("--extend", type=Path, metavar="FILE",
                         help="keep the cells FILE holds (same --n) and measure the rest")
+    parser.add_argument("--joint", type=int, default=0, metavar="N",
+                        help="also N picks per type with every error at once (0: none)")
+    parser.add_argument("--reading", choices=READINGS, default="product",
+                        help="how the judge reads the map (product: the grid alone; logistic: "
+                        "fitted to every pick, which needs --joint); see "
+                        "benchmarks/check_tolerance_reading.py")
     args = parser.parse_args()
     kept = {} if args.extend is None else kept_results(args.extend, args.n)
     todo = [c for c in cells(args.n)
@@ -250,14 +320,34 @@ def main() -> None:
     results: list[CellResult] = list(kept.values())
     started = time.perf_counter()
     with JobPool(args.workers) as pool, tqdm(total=len(todo), unit="cell") as bar:
-        def done(result: CellResult) -> None:
+        def measured(result: CellResult) -> None:
             results.append(result)
             bar.update()
 
-        pool.run(run_cell, todo, on_done=done)
-    wall = time.perf_counter() - started
+        pool.run(run_cell, todo, on_done=measured)
     command = "python benchmarks/bench_grasp_tolerance.py " + " ".join(sys.argv[1:])
-    record = tolerance_record(results, args.n, command.strip(), wall)
+    record = tolerance_record(results, args.n, command.strip(), 0.0)
+    joint = joint_picks(record, args.joint)
+    done: list[JointResult] = []
+    with JobPool(args.workers) as pool, tqdm(total=len(joint), unit="pick") as bar:
+        def finished(result: JointResult) -> None:
+            done.append(result)
+            bar.update()
+
+        pool.run(run_joint, joint, on_done=finished)
+    wall = time.perf_counter() - started
+    record["how"]["wall_time_s"] = round(wall, 1)
+    record["reading"] = args.reading
+    for object_type in OBJECT_TYPES:
+        these = sorted((r for r in done if r.pick.object_type == object_type),
+                       key=lambda r: joint.index(r.pick))
+        if these:
+            record["types"][object_type]["joint"] = {
+                "errors": [[round(v, 3) for v in (*r.pick.offset_mm, r.pick.yaw_deg)]
+                           for r in these],
+                "columns": ["closing_mm", "across_mm", "approach_mm", "yaw_deg"],
+                "picked": [int(r.outcome == TrialOutcome.SUCCESS.value) for r in these],
+                "outcomes": [r.outcome for r in these]}
     if args.extend is not None:  # the passes before this one, as their record says
         earlier = json.loads(args.extend.read_text())["how"]
         record["how"]["earlier_passes"] = [*earlier.pop("earlier_passes", []), earlier]

@@ -12,8 +12,11 @@ a grasp with a given error holds:
   with ``r0`` the fraction at no offset and that turn, each ratio at most 1;
 * a pick predicted to hold when that chance is at least the map's ``threshold`` (0.5).
 
-The combination and the threshold were fixed before the map was validated against real trials
-(``gva judge``): docs/decisions/grasp-judge.md.
+That is the ``"product"`` reading. A map that also holds picks with every error at once
+(``joint``) may be read ``"logistic"``: a logistic model, quadratic in the errors, fitted to
+every pick of the type (the grid's cells and the joint picks), which sees what the product
+cannot: two errors that each hold alone and miss together. Which reading a map takes is the
+map's ``reading``; why: docs/decisions/grasp-judge.md.
 """
 
 from __future__ import annotations
@@ -38,6 +41,12 @@ AXES = ("closing", "across", "approach")
 """The grasp frame's axes a map measures, in the order of :class:`GraspError`'s fields."""
 SIGNED_AXES = frozenset({"approach"})
 """Axes whose sign matters (too deep differs from too shallow); the others are symmetric."""
+READINGS = ("product", "logistic")
+"""How a map turns its picks into a chance (see the module docstring)."""
+FEATURE_SCALE = (10.0, 10.0, 10.0, 30.0)
+"""Units of the logistic reading's errors: closing, across, approach [mm], turn [deg]."""
+L2_PENALTY = 1e-2
+"""The logistic fit's ridge on every weight but the constant (keeps a clean grid finite)."""
 
 
 class ToleranceFileError(FileError):
@@ -95,12 +104,17 @@ class ToleranceMap:
         axes: ``{object_type: {axis: AxisTolerance}}`` for each axis of :data:`AXES`.
         threshold: The estimated chance at or above which a pick is predicted to hold.
         provenance: How the map was made (command, commit, trials per cell, scenes).
+        reading: ``"product"`` or ``"logistic"`` (the module docstring).
+        fitted: The logistic reading per type, fitted when the map is built; None for the
+            product reading.
 
     """
 
     axes: MappingProxyType[str, MappingProxyType[str, AxisTolerance]]
     threshold: float
     provenance: MappingProxyType[str, Any]
+    reading: str = "product"
+    fitted: MappingProxyType[str, LogisticTolerance] | None = None
 
     @property
     def object_types(self) -> tuple[str, ...]:
@@ -114,6 +128,10 @@ class ToleranceMap:
             raise InvalidInputError("object type", object_type,
                                     f"one the tolerance map measured: {', '.join(self.axes)}")
         yaw_rad = abs(math.remainder(yaw_rad, math.pi))
+        if self.fitted is not None:
+            error = np.array([[1000 * closing_m, 1000 * across_m, 1000 * approach_m,
+                               math.degrees(yaw_rad)]])
+            return float(self.fitted[object_type].rate(error)[0])
         offsets = {"closing": closing_m, "across": across_m, "approach": approach_m}
         axes = self.axes[object_type]
         base = min(axes[axis].rate(0.0, yaw_rad) for axis in AXES)
@@ -151,7 +169,15 @@ class ToleranceMap:
         threshold = float(data["threshold"])
         if not 0.0 < threshold < 1.0:
             raise InvalidInputError("threshold", threshold, "in (0, 1)")
-        return cls(MappingProxyType(types), threshold, MappingProxyType(data.get("how", {})))
+        reading = data.get("reading", "product")
+        if reading not in READINGS:
+            raise InvalidInputError("reading", reading, " or ".join(READINGS))
+        fitted = None
+        if reading == "logistic":
+            fitted = MappingProxyType({t: LogisticTolerance.fit(*type_picks(entry))
+                                       for t, entry in data["types"].items()})
+        return cls(MappingProxyType(types), threshold, MappingProxyType(data.get("how", {})),
+                   reading, fitted)
 
     @classmethod
     def load(cls, path: Path) -> ToleranceMap:
@@ -163,6 +189,79 @@ class ToleranceMap:
                                      "benchmarks/bench_grasp_tolerance.py)") from None
         except (ValueError, KeyError, TypeError) as error:
             raise ToleranceFileError(path, f"not a tolerance map: {error}") from None
+
+
+def quadratic_features(errors: np.ndarray) -> np.ndarray:
+    """(n, 4) errors (closing, across, approach [mm], turn [deg]) -> (n, 15) features.
+
+    The offsets across the fingers and along the closing axis count by their size (the
+    gripper and the objects are symmetric about them), the approach by its sign, the turn
+    folded into [0, 90]; then every square and product of two, and a constant.
+    """
+    closing, across, approach, yaw = np.asarray(errors, dtype=float).T
+    yaw = np.abs((yaw + 90.0) % 180.0 - 90.0)
+    base = np.stack([np.abs(closing), np.abs(across), approach, yaw], axis=1) / FEATURE_SCALE
+    pairs = [base[:, i] * base[:, j] for i in range(4) for j in range(i, 4)]
+    return np.column_stack([np.ones(len(base)), base, *pairs])  # (n, 15)
+
+
+@dataclass(frozen=True)
+class LogisticTolerance:
+    """The logistic reading of one object type: ``P(held) = σ(w · features(error))``."""
+
+    weights: np.ndarray  # (15,)
+
+    def rate(self, errors: np.ndarray) -> np.ndarray:
+        """The chance each of ``errors`` (n, 4) holds, (n,)."""
+        return 1.0 / (1.0 + np.exp(-quadratic_features(errors) @ self.weights))
+
+    @classmethod
+    def fit(cls, errors: np.ndarray, held: np.ndarray, weight: np.ndarray) -> LogisticTolerance:
+        """Newton's method on the weighted log-likelihood, ridge :data:`L2_PENALTY`.
+
+        ``held`` (n,) is the fraction held at each error, ``weight`` (n,) its picks.
+        """
+        x = quadratic_features(errors)  # (n, 15)
+        ridge = L2_PENALTY * np.eye(x.shape[1])
+        ridge[0, 0] = 0.0
+        w = np.zeros(x.shape[1])
+        for _ in range(100):
+            p = 1.0 / (1.0 + np.exp(-x @ w))
+            gradient = x.T @ (weight * (held - p)) - ridge @ w
+            hessian = (x * (weight * p * (1 - p))[:, None]).T @ x + ridge
+            step = np.linalg.solve(hessian, gradient)
+            w += step
+            if float(np.abs(step).max()) < 1e-9:
+                break
+        return cls(w)
+
+
+def type_picks(entry: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every pick of a type's record: (errors (n, 4), fraction held (n,), picks (n,)).
+
+    A grid cell is one row (its offset on its axis, the others 0; its picks as the weight);
+    each joint pick is a row of its own.
+    """
+    rows, held, weight = [], [], []
+    for axis, table in entry["axes"].items():
+        column = AXES.index(axis)
+        for offset, picked_row, trials_row in zip(table["offsets_mm"], table["picked"],
+                                                  table["trials"], strict=True):
+            if offset == 0.0 and axis != "closing":
+                continue  # the zero offset is one set of picks, kept under every axis
+            for yaw, picked, trials in zip(entry["yaw_deg"], picked_row, trials_row,
+                                           strict=True):
+                error = [0.0, 0.0, 0.0, yaw]
+                error[column] = offset
+                rows.append(error)
+                held.append(picked / max(trials, 1))
+                weight.append(trials)
+    joint = entry.get("joint")
+    if joint:
+        rows += joint["errors"]
+        held += [float(p) for p in joint["picked"]]
+        weight += [1] * len(joint["picked"])
+    return np.asarray(rows, float), np.asarray(held, float), np.asarray(weight, float)
 
 
 DEFAULT_MAP_NAME = "grasp_tolerance.json"

@@ -158,3 +158,28 @@ def test_the_shipped_map_holds_every_target_type_and_passes_a_perfect_grasp():
         # a sponge's or bottle's grasp 3 cm off along its closing axis never holds
         if object_type != "mug":
             assert tolerance.success_rate(object_type, 0.03, 0.0, 0.0, 0.0) < 0.5
+
+
+def test_the_logistic_reading_sees_two_errors_that_miss_together():
+    """Alone, 8 mm along the closing axis and 8 mm along the approach each hold; together not.
+
+    The product of the axes cannot know; the logistic reading, fitted to picks with both
+    errors at once, does.
+    """
+    data = _map_data(closing_ok_mm=12.0, yaw_ok_deg=90.0)
+    rng = np.random.default_rng(0)
+    errors = np.column_stack([rng.uniform(-12, 12, 400), np.zeros(400),
+                              rng.uniform(-10, 10, 400), np.zeros(400)])
+    held = ((np.abs(errors[:, 0]) < 5) | (np.abs(errors[:, 2]) < 5)).astype(int)
+    for entry in data["types"].values():
+        entry["joint"] = {"errors": errors.tolist(), "picked": held.tolist()}
+    product = ToleranceMap.from_json(data)
+    logistic = ToleranceMap.from_json(data | {"reading": "logistic"})
+    assert product.reading == "product" and product.fitted is None
+    both = ("sponge", 0.008, 0.0, 0.008, 0.0)
+    assert product.success_rate(*both) == 1.0
+    assert logistic.success_rate(*both) < 0.5
+    assert logistic.success_rate("sponge", 0.008, 0.0, 0.0, 0.0) > 0.5
+    assert logistic.success_rate("sponge", 0.0, 0.0, 0.0, 0.0) > 0.9
+    with pytest.raises(InvalidInputError, match="reading = 'neural'"):
+        ToleranceMap.from_json(data | {"reading": "neural"})
