@@ -205,6 +205,11 @@ def quadratic_features(errors: np.ndarray) -> np.ndarray:
     return np.column_stack([np.ones(len(base)), base, *pairs])  # (n, 15)
 
 
+def sigmoid(z: np.ndarray) -> np.ndarray:
+    """``1 / (1 + exp(-z))``, without overflow far from the boundary."""
+    return np.exp(-np.logaddexp(0.0, -z))
+
+
 @dataclass(frozen=True)
 class LogisticTolerance:
     """The logistic reading of one object type: ``P(held) = σ(w · features(error))``."""
@@ -213,7 +218,7 @@ class LogisticTolerance:
 
     def rate(self, errors: np.ndarray) -> np.ndarray:
         """The chance each of ``errors`` (n, 4) holds, (n,)."""
-        return 1.0 / (1.0 + np.exp(-quadratic_features(errors) @ self.weights))
+        return sigmoid(quadratic_features(errors) @ self.weights)
 
     @classmethod
     def fit(cls, errors: np.ndarray, held: np.ndarray, weight: np.ndarray) -> LogisticTolerance:
@@ -226,7 +231,7 @@ class LogisticTolerance:
         ridge[0, 0] = 0.0
         w = np.zeros(x.shape[1])
         for _ in range(100):
-            p = 1.0 / (1.0 + np.exp(-x @ w))
+            p = sigmoid(x @ w)
             gradient = x.T @ (weight * (held - p)) - ridge @ w
             hessian = (x * (weight * p * (1 - p))[:, None]).T @ x + ridge
             step = np.linalg.solve(hessian, gradient)

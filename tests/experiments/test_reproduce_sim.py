@@ -51,7 +51,8 @@ def test_a_tiny_run_writes_every_output(tiny_run):
     for cell in table["cells"]:
         assert set(cell) == {"model", "task", "size", "seed", "error_cm", "train_s",
                              "per_condition_error_cm", "per_target_error_cm",
-                             "per_stage_error_cm"}
+                             "per_stage_error_cm", "judged"}
+        assert cell["judged"] is None  # paper-sim labels are positions: nothing to judge
         assert cell["per_condition_error_cm"] is None  # single: no condition
         assert 0 < cell["error_cm"] < 100 and cell["train_s"] > 0
     assert table["failed"] == [] and table["wall_time_s"] > 0
