@@ -58,6 +58,10 @@ class KqvConfig:
             conditioned for a side.
         head_features: Whether the head MLP reads ``a_feat`` besides ``a_coord``. None: for
             grasp labels and the ray readout; coordinates only for positions read by the MLP.
+        head_coords: Whether the ray readout's head reads ``a_coord`` too (the MLP readout
+            always does): where in the image the point lies, from which the head may tell a
+            sponge seen end-on from one seen side-on (docs/decisions/grasp-judge.md). False:
+            the attended feature alone.
         readout: ``"mlp"``: the paper's MLP maps ``a_coord`` (and ``a_feat``) to the target.
             ``"ray"``: the target is read off the ray through ``a_coord`` of the dataset's
             calibrated camera, at a height, offset and rotation the MLP gives from ``a_feat``.
@@ -108,6 +112,7 @@ class KqvConfig:
     start_batch_size: int | None = 8
     query_mode: str = "auto"
     head_features: bool | None = None
+    head_coords: bool = False
     readout: str = "auto"
     point_loss_weight: float = 10.0
     rotation: str = "axis-line"
@@ -156,5 +161,7 @@ class KqvConfig:
         for name in ("head_features", "type_head"):
             if getattr(self, name) not in (None, True, False):
                 raise InvalidInputError(name, getattr(self, name), "None, True or False")
+        if self.head_coords not in (True, False):
+            raise InvalidInputError("head_coords", self.head_coords, "True or False")
         if not isinstance(self.seed, int) or self.seed < 0:
             raise InvalidInputError("seed", self.seed, "an integer >= 0")

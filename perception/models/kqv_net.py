@@ -137,8 +137,10 @@ class KqvNet(nn.Module):
         self.scaler: LabelScaler | None = None  # the ray readout's metres <-> network units
         # One MLP shared by every head: the image-to-world mapping is one camera's geometry, so
         # each head learns it from q times the samples; a one-hot head index tells them apart.
-        # The ray readout's head reads no coordinates: the camera places the point.
-        head_in = (2 if self.rays is None else 0) + (value if reads_features else 0) + \
+        # The ray readout's head reads no coordinates unless asked (head_coords): the camera
+        # places the point.
+        self.head_coords = self.rays is None or c.head_coords
+        head_in = (2 if self.head_coords else 0) + (value if reads_features else 0) + \
             (spec.targets if spec.targets > 1 else 0)
         self.rotation = c.rotation if spec.label_kind is LabelKind.GRASP_POSE else None
         self.place_size = 3 if self.rays is None else 4  # position | height and offset
@@ -222,7 +224,7 @@ class KqvNet(nn.Module):
         """Targets for images (B, 3, H, W) in [0, 1] under conditions (B, C) (or given Queries)."""
         attention = self.attend(images, self.queries(conditions) if queries is None else queries)
         batch, heads = attention.coords.shape[:2]
-        parts = [attention.coords] if self.rays is None else []  # (B, q, 2)
+        parts = [attention.coords] if self.head_coords else []  # (B, q, 2)
         if self.head_features:
             parts.append(attention.features)  # (B, q, Cv)
         if self.targets > 1:

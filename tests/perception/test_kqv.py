@@ -369,3 +369,21 @@ def test_the_ray_readout_learns_positions_at_untrained_places_and_survives_a_che
     reloaded = np.array([p.targets[0].position_m for p in
                          again.predict_batch(test.images, test.conditions)])
     np.testing.assert_allclose(reloaded, predicted, atol=1e-6)
+
+
+def test_the_ray_readouts_head_reads_where_the_point_is_only_when_asked():
+    dataset = synthetic_dataset(4, kind=LabelKind.GRASP_POSE, seed=6, camera=CAMERA)
+    plain = KqvModel.for_dataset(dataset, KqvConfig(seed=1))
+    coords = KqvModel.for_dataset(dataset, KqvConfig(seed=1, head_coords=True, starts=1))
+
+    def head_inputs(model: KqvModel) -> int:
+        return next(m for m in model.network.head.modules()
+                    if isinstance(m, torch.nn.Linear)).in_features
+
+    assert head_inputs(coords) == head_inputs(plain) + 2  # a_coord's (x, y)
+    assert not plain.network.head_coords and coords.network.head_coords
+    coords.fit(dataset, TrainConfig(steps=2, batch_size=2, threads=1), progress=False)
+    (target,) = coords.predict(dataset.images[0]).targets  # trains and predicts with them
+    check_rotations("predicted rotation", target.rotation[None])
+    with pytest.raises(InvalidInputError, match="head_coords = 'yes'"):
+        KqvConfig(head_coords="yes")
