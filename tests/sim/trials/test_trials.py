@@ -1,12 +1,7 @@
 import json
-import re
-import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest
-import torch
-from user_models import synthetic_dataset
 
 from experiments.cli import main
 from perception.catalog import OBJECT_TYPES, get_object_spec
@@ -14,26 +9,18 @@ from perception.interface import (
     NO_CONDITION,
     Condition,
     ConditionKind,
-    LabelKind,
     Prediction,
     Target,
 )
-from perception.learning.checkpoint import read_config
-from perception.learning.learnable import ModelSpec
-from perception.learning.train import TrainConfig
-from perception.learning.validation import CHECK_FILE, HeldOutCheck
-from perception.models.base import LabelScaler
-from perception.models.kqv import KqvModel
-from sim.errors import InvalidInputError, RunFolderError, TargetNotFoundError
+from sim.errors import InvalidInputError, TargetNotFoundError
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_toml import load_task
 from sim.trials.oracle import OraclePerception
 from sim.trials.planner_setup import ObstacleSource
-from sim.trials.records import TrialLog
 from sim.trials.run_loop import run_trials
 from sim.trials.trial_runner import TrialRunner
-from sim.trials.trial_settings import TrialSettings, load_trial_model
+from sim.trials.trial_settings import TrialSettings
 from sim.world.head_camera import HeadCamera
 from sim.world.yumi_world import World
 
@@ -307,108 +294,3 @@ def test_a_users_task_file_runs_without_code(tmp_path):
     records = [json.loads(x) for x in (tmp_path / "run" / "trials.jsonl").read_text().splitlines()]
     assert [r["outcome"] for r in records] == ["success", "success"]
     assert all(len(r["objects"]) == 2 and r["objects"][1]["distractor"] for r in records)
-
-
-def _checkpoint(folder, dataset=None, spec=None, seed=0):
-    """A kqv checkpoint: trained 1 step on ``dataset``, or untrained for ``spec``."""
-    if dataset is not None:
-        model = KqvModel.for_dataset(dataset)
-        model.fit(dataset, TrainConfig(steps=1, threads=1), progress=False)
-    else:
-        model = KqvModel(spec, KqvModel.config_class(seed=seed),
-                         LabelScaler((0.47, 0.0, 0.05), 0.1))
-    return model.save(folder)
-
-
-YUMI_SINGLE = ModelSpec("yumi", "single", LabelKind.GRASP_POSE, 1, ConditionKind.NONE, (), 128,
-                        128)
-
-
-def test_a_position_checkpoint_is_refused_for_trials(tmp_path, capsys):
-    folder = _checkpoint(tmp_path / "ckpt", synthetic_dataset(size=2))
-    assert main(["trials", "--model", str(folder), "--n", "1", "--out",
-                 str(tmp_path / "run"), "--no-progress"]) == 2
-    err = capsys.readouterr().err
-    assert f"error: model {folder}: label_kind = 'position' is not allowed: 'grasp_pose': pick " \
-           "trials need a grasp pose (TCP position and rotation) per target" in err
-    assert not (tmp_path / "run").exists()  # refused before the run folder is made
-
-
-def test_a_checkpoint_for_another_task_is_refused_naming_both(tmp_path):
-    dataset = synthetic_dataset(size=2, conditioned=True, kind=LabelKind.GRASP_POSE)
-    folder = _checkpoint(tmp_path / "ckpt", dataset)
-    with pytest.raises(InvalidInputError, match=(
-            f"model {re.escape(str(folder))} = 'trained for task selected-type on scene synthetic "
-            r"\(object_type condition over red, green, blue; 1 target; 64x64 px images\)' is "
-            r"not allowed: a checkpoint for trial task single on scene yumi \(no condition; 1 "
-            r"target; 128x128 px images\)")):
-        load_trial_model(TrialSettings(str(folder), "single"))
-    wrong_task = _checkpoint(tmp_path / "yumi-single", spec=YUMI_SINGLE)
-    with pytest.raises(InvalidInputError, match=r"trained for task single on scene yumi \(no "
-                       r"condition; .* a checkpoint for trial task multiple on scene yumi \(no "
-                       r"condition; 3 targets;"):
-        load_trial_model(TrialSettings(str(wrong_task), "multiple"))
-
-
-def test_a_checkpoint_run_is_identified_by_its_weights(tmp_path):
-    folder = _checkpoint(tmp_path / "ckpt", spec=YUMI_SINGLE)
-    identity = TrialSettings(str(folder), "single").identity()
-    assert identity["model"] == "checkpoint"
-    assert identity["weights_sha256"] == read_config(folder)["weights_sha256"]
-    TrialLog(tmp_path / "run", identity)
-    moved = Path(shutil.copytree(folder, tmp_path / "elsewhere"))  # the same weights, moved
-    TrialLog(tmp_path / "run", TrialSettings(str(moved), "single").identity())
-    _checkpoint(folder, spec=YUMI_SINGLE, seed=1)  # other weights in the same folder
-    with pytest.raises(RunFolderError, match="holds a different run"):
-        TrialLog(tmp_path / "run", TrialSettings(str(folder), "single").identity())
-    with pytest.raises(InvalidInputError, match="model_class = 'user_models:MyKqv' is not "
-                       "allowed: None unless model is a checkpoint folder"):
-        TrialSettings("oracle", "single", model_class="user_models:MyKqv")
-    with pytest.raises(InvalidInputError, match="model = 'user_models:MyKqv' is not allowed: "
-                       "a model without weights; a learnable one loads from its checkpoint "
-                       "folder: --model FOLDER --model-class user_models:MyKqv"):
-        load_trial_model(TrialSettings("user_models:MyKqv", "single"))
-
-
-def test_trials_run_a_checkpoint_on_one_torch_thread(tmp_path, monkeypatch):
-    folder = _checkpoint(tmp_path / "ckpt", spec=YUMI_SINGLE)
-    threads, seen = torch.get_num_threads(), []
-    original = KqvModel.predict_batch
-
-    def spy(self, images, conditions):
-        seen.append(torch.get_num_threads())
-        return original(self, images, conditions)
-
-    monkeypatch.setattr(KqvModel, "predict_batch", spy)
-    summary = run_trials(TrialSettings(str(folder), "single", n=1), tmp_path / "run",
-                         progress=False)
-    assert seen == [1] and torch.get_num_threads() == threads
-    (line,) = (tmp_path / "run" / "trials.jsonl").read_text().splitlines()
-    record = json.loads(line)
-    assert summary.n == 1 and record["model"] == str(folder)
-    assert record["predicted"]["rotation"] is not None
-
-
-def test_a_users_model_class_without_weights_runs_trials(tmp_path):
-    assert main(["trials", "--model", "user_models:FixedGrasp", "--n", "1", "--out",
-                 str(tmp_path), "--no-progress"]) == 0
-    (line,) = (tmp_path / "trials.jsonl").read_text().splitlines()
-    record = json.loads(line)
-    assert record["model"] == "user_models:FixedGrasp"
-    assert record["predicted"]["position_m"] == [0.47, 0.0, 0.03]
-
-
-def test_trials_of_a_checkpoint_that_failed_its_held_out_check_say_so(tmp_path, capsys):
-    folder = _checkpoint(tmp_path / "ckpt", spec=YUMI_SINGLE)
-    failed = HeldOutCheck(passed=False, reason="held-out mean: 3.07 cm > 2.00 cm",
-                          held_out_scenes=(3,), samples=1, mean_position_error_cm=3.07,
-                          per_condition_mean_position_error_cm=None,
-                          per_target_mean_position_error_cm=(3.07,), limit_cm=2.0, attempt=2,
-                          model_seed=7)
-    (folder / CHECK_FILE).write_text(json.dumps(failed.to_json()))
-    assert main(["trials", "--model", str(folder), "--n", "1", "--out", str(tmp_path / "run"),
-                 "--no-progress"]) == 0
-    assert "WARNING: checkpoint " in capsys.readouterr().err
-    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
-    assert HeldOutCheck.from_json(summary["held_out_check"]) == failed
-
