@@ -143,12 +143,18 @@ def _perturbed(world: World, camera: HeadCamera) -> PerturbedOracle:
     return PerturbedOracle(world, camera)
 
 
-def run_cell(cell: Cell) -> CellResult:
-    """The cell's picks, in a runner kept for the worker's life."""
+def _runner() -> TrialRunner:
+    """The worker's runner, made at its first pick and kept for its life."""
     global _RUNNER
     if _RUNNER is None:
         _RUNNER = TrialRunner(load_task(TASK), _perturbed)
-    runner, task = _RUNNER, _RUNNER.task
+    return _RUNNER
+
+
+def run_cell(cell: Cell) -> CellResult:
+    """The cell's picks, in the worker's runner."""
+    runner = _runner()
+    task = runner.task
     model = runner.model
     assert isinstance(model, PerturbedOracle)
     rng = np.random.default_rng(cell.seed)
@@ -168,15 +174,13 @@ def run_cell(cell: Cell) -> CellResult:
 
 def run_joint(pick: JointPick) -> JointResult:
     """One joint pick, in the worker's runner."""
-    global _RUNNER
-    if _RUNNER is None:
-        _RUNNER = TrialRunner(load_task(TASK), _perturbed)
-    model = _RUNNER.model
+    runner = _runner()
+    model = runner.model
     assert isinstance(model, PerturbedOracle)
     model.offset_tcp_m = np.asarray(pick.offset_mm) / 1000
     model.yaw_rad = math.radians(pick.yaw_deg)
-    scene = sample_scene(_RUNNER.task, YUMI_SCENE, MAP_SEED, SeedStream.TEST, pick.scene)
-    return JointResult(pick, _RUNNER.run(scene, pick.scene, MAP_SEED, "joint").outcome.value)
+    scene = sample_scene(runner.task, YUMI_SCENE, MAP_SEED, SeedStream.TEST, pick.scene)
+    return JointResult(pick, runner.run(scene, pick.scene, MAP_SEED, "joint").outcome.value)
 
 
 def joint_box(entry: dict[str, Any]) -> tuple[tuple[float, float, float], float]:

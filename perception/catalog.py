@@ -62,6 +62,10 @@ class Pose(NamedTuple):
         """Return ``self · other``, e.g. ``T_world_object.compose(T_object_grasp)``."""
         return Pose(self.position + self.rotation @ other.position, self.rotation @ other.rotation)
 
+    def inverse(self) -> Pose:
+        """Return ``self⁻¹``, e.g. ``T_grasp_object`` from ``T_object_grasp``."""
+        return Pose(-self.rotation.T @ self.position, self.rotation.T)
+
 
 def rot_z(angle_rad: float) -> np.ndarray:
     """Rotation about z by ``angle_rad``, (3, 3)."""
@@ -184,6 +188,13 @@ class GraspSpec:
         z, x = np.array(self.approach_axis), np.array(self.closing_axis)
         rotation = np.column_stack([x, np.cross(z, x), z])  # columns: TCP x, y, z
         return Pose(np.array(self.tcp_position_m, dtype=float), rotation)
+
+    def object_frame(self, T_world_grasp: Pose) -> Pose:
+        """The object frame a grasp ``T_world_grasp`` of this spec takes it in.
+
+        Turned as the grasp is: for a symmetric object, the frame of the equivalent turn.
+        """
+        return T_world_grasp.compose(self.T_object_grasp.inverse())
 
     def lowest_finger_point_z_m(self) -> float:
         """Height of the lowest fingertip corner above the table at the grasp [m]."""

@@ -116,9 +116,7 @@ def equivalent_truths(spec: ObjectSpec, truth: Pose, predicted: Pose,
         grasp.symmetry is Symmetry.NONE and grasp.max_turn_rad > 0.0 and object_yaw_rad is not None)
     if not turns:
         return (truth,)
-    T_object_grasp = grasp.T_object_grasp
-    inverse = Pose(-T_object_grasp.rotation.T @ T_object_grasp.position, T_object_grasp.rotation.T)
-    T_world_turned_object = truth.compose(inverse)  # the object frame turned to the true grasp
+    T_world_turned_object = grasp.object_frame(truth)  # turned to the true grasp
     axis_xy = T_world_turned_object.position[:2]
     if grasp.symmetry is Symmetry.CONTINUOUS:
         def heading(pose: Pose) -> float:

@@ -67,8 +67,6 @@ def symmetric_alternatives(
     """
     if spec.grasp.symmetry is not Symmetry.CONTINUOUS:
         return ()
-    T_object_grasp = spec.grasp.T_object_grasp
-    inverse = Pose(-T_object_grasp.rotation.T @ T_object_grasp.position, T_object_grasp.rotation.T)
-    T_world_object = T_world_grasp.compose(inverse)
-    return tuple(T_world_object.compose(Pose(np.zeros(3), rot_z(turn))).compose(T_object_grasp)
-                 for turn in turns_rad)
+    T_world_object = spec.grasp.object_frame(T_world_grasp)
+    return tuple(T_world_object.compose(Pose(np.zeros(3), rot_z(turn)))
+                 .compose(spec.grasp.T_object_grasp) for turn in turns_rad)

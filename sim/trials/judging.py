@@ -20,7 +20,7 @@ from perception.catalog import Pose, get_object_spec
 from perception.grasp_judge import GraspVerdict, judge_grasp
 from perception.grasp_tolerance import ToleranceMap, default_tolerance_map
 from sim.errors import InvalidInputError
-from sim.trials.records import PickCounts, TrialOutcome, TrialRecord
+from sim.trials.records import PickCounts, TrialOutcome, TrialRecord, read_trial_records
 
 
 def pose_of(data: dict[str, Any]) -> Pose:
@@ -36,10 +36,7 @@ def object_yaw_rad(objects: Sequence[dict[str, Any]], object_type: str, truth: P
     Objects settle a fraction of a millimetre after they are placed; the yaw a scene placed
     them at is what the mug's allowed rim turns are measured from.
     """
-    spec = get_object_spec(object_type)
-    T_object_grasp = spec.grasp.T_object_grasp
-    inverse = Pose(-T_object_grasp.rotation.T @ T_object_grasp.position, T_object_grasp.rotation.T)
-    centre = truth.compose(inverse).position[:2]
+    centre = get_object_spec(object_type).grasp.object_frame(truth).position[:2]
     candidates = [o for o in objects if o.get("type") == object_type and not o.get("distractor")]
     if not candidates:
         return None
@@ -51,12 +48,10 @@ def object_yaw_rad(objects: Sequence[dict[str, Any]], object_type: str, truth: P
 def judge_pick(pick: dict[str, Any], objects: Sequence[dict[str, Any]],
                tolerance: ToleranceMap | None = None) -> GraspVerdict | None:
     """The judge's verdict on one pick of a record; None where the model gave no grasp."""
-    if pick.get("predicted") is None or pick.get("truth") is None:
+    if pick.get("predicted") is None or pick.get("truth") is None or \
+            "rotation" not in pick["predicted"]:
         return None
-    predicted = pose_of(pick["predicted"])
-    if "rotation" not in pick["predicted"]:
-        return None
-    truth = pose_of(pick["truth"])
+    predicted, truth = pose_of(pick["predicted"]), pose_of(pick["truth"])
     spec = get_object_spec(pick["target"])
     return judge_grasp(spec, truth, predicted, object_yaw_rad(objects, spec.name, truth),
                        tolerance)
@@ -156,24 +151,13 @@ def trial_folders(run: Path) -> list[Path]:
     return found
 
 
-def read_records(folder: Path) -> list[TrialRecord]:
-    """The complete records of a ``trials.jsonl`` (a half-written last line is left out)."""
-    records = []
-    for line in (folder / "trials.jsonl").read_text().splitlines():
-        try:
-            records.append(TrialRecord.from_json(line))
-        except ValueError:  # a crash mid-write: the run resumes from it, the judge skips it
-            continue
-    return records
-
-
 def judge_run(run: Path, tolerance: ToleranceMap | None = None) -> RunJudgement:
     """Judges every trial under ``run``: per trial set and over all picks."""
     tolerance = tolerance or default_tolerance_map()
     sets, every, misses, alarms = [], [], [], []
     for folder in trial_folders(run):
         name = str(folder.relative_to(run)) if folder != run else "."
-        records = read_records(folder)
+        records = read_trial_records(folder / "trials.jsonl")
         if not records:
             continue
         judged = [(record, judged_picks(record, tolerance)) for record in records]

@@ -181,6 +181,23 @@ def judged_pairs(records: Iterable[TrialRecord]) -> list[tuple[bool, bool]]:
     return pairs
 
 
+def read_trial_records(path: Path) -> list[TrialRecord]:
+    """The records of a ``trials.jsonl``, read only: a half-written last line is left out.
+
+    A damaged line before the last is no crash's doing: it is refused, naming the line.
+    """
+    lines = Path(path).read_text().splitlines()
+    records = []
+    for number, line in enumerate(lines, start=1):
+        try:
+            records.append(TrialRecord.from_json(line))
+        except (json.JSONDecodeError, TypeError, ValueError, KeyError) as error:
+            if number == len(lines):  # a crash mid-write; a resumed run drops it too
+                break
+            raise RunFolderError(f"{path} line {number} is damaged: {error}") from None
+    return records
+
+
 def wilson_interval(successes: int, n: int, z: float = 1.959964) -> tuple[float, float]:
     """Wilson score interval of a success rate (95 % for the default ``z``)."""
     if n <= 0:

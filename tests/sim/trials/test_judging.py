@@ -126,3 +126,13 @@ def test_gva_judge_refuses_a_folder_without_trials(tmp_path):
     assert "no trials.jsonl under it" in err
     status, _, err = gva("judge", tmp_path / "missing")
     assert status == 2 and "an existing folder" in err
+
+
+def test_a_half_written_last_line_is_left_out_and_a_damaged_one_before_it_refused(old_run):
+    log = old_run / "s3" / "trials" / "kqv" / "single" / "trials.jsonl"
+    lines = log.read_text().splitlines()
+    log.write_text("\n".join(lines) + '\n{"index": 4, "se')  # a crash mid-write
+    assert judge_run(old_run).picks.picks == 4
+    log.write_text("\n".join([lines[0], "{damaged", *lines[1:]]) + "\n")
+    status, _, err = gva("judge", old_run)
+    assert status == 2 and "trials.jsonl line 2 is damaged" in err
