@@ -212,13 +212,21 @@ def sigmoid(z: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class LogisticTolerance:
-    """The logistic reading of one object type: ``P(held) = σ(w · features(error))``."""
+    """The logistic reading of one object type: ``P(held) = σ(w · features(error))``.
+
+    Only within what was measured: a quadratic logit may turn up again far from its picks (a
+    grasp 10 cm off read as likely to hold), so an error beyond the largest of its kind among
+    the fitted picks (``reach``) is read as a miss: the map vouches for nothing it did not try.
+    """
 
     weights: np.ndarray  # (15,)
+    reach: np.ndarray  # (4,) the largest |closing|, |across|, |approach| [mm], turn [deg] fitted
 
     def rate(self, errors: np.ndarray) -> np.ndarray:
         """The chance each of ``errors`` (n, 4) holds, (n,)."""
-        return sigmoid(quadratic_features(errors) @ self.weights)
+        errors = np.asarray(errors, dtype=float)
+        inside = (np.abs(errors) <= self.reach + 1e-9).all(axis=1)
+        return np.where(inside, sigmoid(quadratic_features(errors) @ self.weights), 0.0)
 
     @classmethod
     def fit(cls, errors: np.ndarray, held: np.ndarray, weight: np.ndarray) -> LogisticTolerance:
@@ -238,7 +246,9 @@ class LogisticTolerance:
             w += step
             if float(np.abs(step).max()) < 1e-9:
                 break
-        return cls(w)
+        reach = np.abs(np.asarray(errors, dtype=float)).max(axis=0)
+        reach[3] = 90.0  # every turn folds into [0, 90]: none lies beyond
+        return cls(w, reach)
 
 
 def type_picks(entry: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

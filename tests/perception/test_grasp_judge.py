@@ -181,5 +181,8 @@ def test_the_logistic_reading_sees_two_errors_that_miss_together():
     assert logistic.success_rate(*both) < 0.5
     assert logistic.success_rate("sponge", 0.008, 0.0, 0.0, 0.0) > 0.5
     assert logistic.success_rate("sponge", 0.0, 0.0, 0.0, 0.0) > 0.9
+    # beyond every fitted pick (12 mm along the closing axis at most) it vouches for nothing
+    assert logistic.success_rate("sponge", 0.013, 0.0, 0.0, 0.0) == 0.0
+    assert logistic.success_rate("sponge", 0.0, 0.0, 0.0, math.radians(90.0)) > 0.0
     with pytest.raises(InvalidInputError, match="reading = 'neural'"):
         ToleranceMap.from_json(data | {"reading": "neural"})
