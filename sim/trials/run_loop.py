@@ -91,7 +91,7 @@ def run_trials(
     # Every scene is drawn first (a millisecond each): a task that random placement cannot fill
     # is refused, naming its packing, before a model loads, a run folder is made or a trial runs.
     task = settings.task_spec  # read once: the property parses the task file
-    scenes = [_scene(task, settings.seed, index) for index in range(settings.n)]
+    scenes = [trial_scene(task, settings.seed, index) for index in range(settings.n)]
     model = load_trial_model(settings)  # a refused model leaves no run folder behind
     with run_folder_lock(out):
         session = provenance(settings.inputs())
@@ -158,11 +158,11 @@ def run_trial_job(job: TrialJob) -> TrialRecord:
             settings.task_spec, model.factory, settings.settle_s, settings.execution,
             obstacles=settings.obstacles))]
     runner = _WORKER_RUNNER[0][1]
-    scene = _scene(runner.task, settings.seed, job.index)
+    scene = trial_scene(runner.task, settings.seed, job.index)
     return runner.run(scene, job.index, settings.seed, settings.model)
 
 
-def _scene(task: TaskSpec, seed: int, index: int) -> Scene:
+def trial_scene(task: TaskSpec, seed: int, index: int) -> Scene:
     """Trial ``index``'s scene: test scene ``index`` of the run's seed."""
     return sample_scene(task, YUMI_SCENE, seed, SeedStream.TEST, index)
 

@@ -118,6 +118,37 @@ class PickObstacles:
     record: dict[str, Any]
 
 
+@dataclass(frozen=True)
+class Sighting:
+    """What a pick starts from: the frame the robot sees, and the referee's note of the target.
+
+    Args:
+        frame: The head camera's RGB-D frame, all the robot acts on.
+        body: The target's body id (the referee's, never the plan's).
+        target: The target's catalog type.
+        truth: Its canonical grasp when the frame was taken: the label the pick is judged by.
+        object_yaw_rad: Its yaw then, which the judge needs for the mug's rim.
+
+    """
+
+    frame: RgbdFrame
+    body: int
+    target: str
+    truth: Pose
+    object_yaw_rad: float
+
+
+def trial_result(picks: list[PickAttempt], total: int) -> TrialResult:
+    """How a trial of ``total`` targets went, from the picks it tried (one at least)."""
+    last = picks[-1]
+    if total == 1:
+        return TrialResult(last.outcome, last.reason, tuple(picks))
+    if last.outcome is TrialOutcome.SUCCESS:  # the last of all the targets
+        return TrialResult(TrialOutcome.SUCCESS, f"picked all {total} targets", tuple(picks))
+    return TrialResult(last.outcome, f"pick {len(picks)} of {total} ({last.target}): "
+                       f"{last.reason}", tuple(picks))
+
+
 class TrialRunner:
     """One world, camera, model and planner, reused across the trials of a run.
 
@@ -231,18 +262,22 @@ class TrialRunner:
         for number, body in enumerate(targets):
             attempt = self.pick(scene, number, len(targets), body)
             picks.append(attempt)
-            if attempt.outcome is not TrialOutcome.SUCCESS:
+            if not self.next_pick(attempt, body, number, len(targets)):
                 break
-            if number + 1 < len(targets) and attempt.planned.plan is not None:
-                self._set_aside(body, attempt.planned.plan)
-        last = picks[-1]
-        if len(targets) == 1:
-            return TrialResult(last.outcome, last.reason, tuple(picks))
-        if last.outcome is TrialOutcome.SUCCESS:  # the last of all the targets
-            return TrialResult(TrialOutcome.SUCCESS, f"picked all {len(targets)} targets",
-                               tuple(picks))
-        return TrialResult(last.outcome, f"pick {len(picks)} of {len(targets)} ({last.target}): "
-                           f"{last.reason}", tuple(picks))
+        return trial_result(picks, len(targets))
+
+    def next_pick(self, attempt: PickAttempt, body: int, number: int, total: int) -> bool:
+        """Whether another pick follows ``attempt``; if so, the picked object is set aside first."""
+        if attempt.outcome is not TrialOutcome.SUCCESS or number + 1 >= total:
+            return False
+        if attempt.planned.plan is not None:
+            self._set_aside(body, attempt.planned.plan)
+        return True
+
+    def sight(self, body: int) -> Sighting:
+        """The head camera's frame now, and the referee's note of ``body``, the pick's target."""
+        return Sighting(self.sense(), body, self.world.object_spec(body).name, self.truth(body),
+                        yaw_of(self.world.object_pose(body).rotation))
 
     def pick(self, scene: Scene, number: int, total: int, body: int) -> PickAttempt:
         """Pick ``number`` of ``total``: sense, predict, plan from that alone, run, judge.
@@ -250,33 +285,42 @@ class TrialRunner:
         ``body`` is the task's target for this pick: the referee's to judge by, never the
         plan's to act on.
         """
-        frame = self.sense()
-        truth = self.truth(body)  # the referee's label of this image, kept from the plan phase
-        target = self.world.object_spec(body).name
-        object_yaw_rad = yaw_of(self.world.object_pose(body).rotation)
+        sighting = self.sight(body)
         try:
-            prediction = self.model.predict_frame(frame, scene.given)
+            prediction = self.model.predict_frame(sighting.frame, scene.given)
         except Exception as error:  # the model's failure, recorded with its traceback
             if self.observer is not None:
-                self.observer.saw(frame.rgb, None)
+                self.observer.saw(sighting.frame.rgb, None)
             failed = PlannedPick(TrialOutcome.PERCEPTION_FAILED, f"{self.model.name}'s predict "
                                  f"raised {type(error).__name__}: {error}",
                                  traceback=traceback.format_exc())
-            return PickAttempt(target, truth, failed, TrialOutcome.PERCEPTION_FAILED,
-                               failed.reason)
-        planned = self.plan_pick(frame, prediction, number, total)
+            return PickAttempt(sighting.target, sighting.truth, failed,
+                               TrialOutcome.PERCEPTION_FAILED, failed.reason)
+        return self.attempt(sighting, prediction, number, total)
+
+    def attempt(self, sighting: Sighting, prediction: Prediction, number: int, total: int
+                ) -> PickAttempt:
+        """Acts on ``prediction`` of the frame in ``sighting``: plan, run, judge.
+
+        What a trial does with its model's prediction, and what the Gymnasium environment
+        (:mod:`sim.envs`) does with an agent's grasp: one code path, so both get the same
+        outcome for the same grasp.
+        """
+        planned = self.plan_pick(sighting.frame, prediction, number, total)
         if self.observer is not None:  # the Prediction once checked, else None
-            self.observer.saw(frame.rgb, prediction if planned.predicted is not None else None)
+            self.observer.saw(sighting.frame.rgb,
+                              prediction if planned.predicted is not None else None)
+        spec = self.world.object_spec(sighting.body)
         verdict = None if planned.predicted is None else judge_grasp(
-            self.world.object_spec(body), truth, as_recorded(planned.predicted), object_yaw_rad)
+            spec, sighting.truth, as_recorded(planned.predicted), sighting.object_yaw_rad)
         if planned.plan is None or planned.grip is None:
             assert planned.outcome is not None  # a plan phase that ends a pick says how
-            return PickAttempt(target, truth, planned, planned.outcome, planned.reason,
-                               verdict=verdict)
-        executed = execute_pick(self.world, planned.plan, body, planned.grip.opening_m,
+            return PickAttempt(sighting.target, sighting.truth, planned, planned.outcome,
+                               planned.reason, verdict=verdict)
+        executed = execute_pick(self.world, planned.plan, sighting.body, planned.grip.opening_m,
                                 self.execution)
-        return PickAttempt(target, truth, planned, executed.outcome, executed.reason,
-                           executed.lift_m, verdict)
+        return PickAttempt(sighting.target, sighting.truth, planned, executed.outcome,
+                           executed.reason, executed.lift_m, verdict)
 
     def plan_pick(self, frame: RgbdFrame, prediction: Prediction, number: int, total: int
                   ) -> PlannedPick:

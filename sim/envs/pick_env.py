@@ -1,0 +1,265 @@
+"""``gva/Pick-v0``: a gva task as a Gymnasium environment, one ``step`` per pick.
+
+For labs whose policy code, RL library or ``lerobot-eval`` drives simulators through Gymnasium:
+an episode is one trial of a task, the observation is what a gva model is given (the head
+camera's RGB-D frame and calibration, the robot's joints, the condition), the action is a grasp,
+and the environment plans and runs it through the same code path as ``gva trials``
+(:meth:`sim.trials.trial_runner.TrialRunner.attempt`), so a grasp gets the outcome it gets in a
+trial.
+
+Episodes are paired, whatever ran before: ``reset(seed=s, options={"index": i})`` puts test
+scene ``i`` of seed ``s`` on the table, the scene of trial ``i`` of a ``gva trials --seed s``
+run, and the physics starts afresh for each. Without ``options`` a reset takes the next index
+(``first_index``, then every ``index_step``-th): give the envs of a vector env disjoint indices
+(``first_index=k, index_step=N``) and the same seed (``reset(seed=[s] * N)``).
+"""
+
+from __future__ import annotations
+
+import math
+import string
+from pathlib import Path
+from typing import Any
+
+import gymnasium
+import numpy as np
+from gymnasium import spaces
+
+from perception.catalog import MAX_OPENING_M
+from perception.interface import (
+    MAX_SENTENCE_CHARS,
+    PICTURE_PX,
+    ConditionKind,
+    Prediction,
+    Target,
+    condition_size,
+)
+from sim.errors import InvalidInputError
+from sim.tasks.scene_sampling import condition_choices
+from sim.tasks.scene_specs import YUMI_SCENE
+from sim.tasks.task_spec import TaskSpec
+from sim.tasks.task_toml import load_task
+from sim.trials.execution import ExecutionSettings
+from sim.trials.pick_results import PickAttempt
+from sim.trials.records import TrialOutcome
+from sim.trials.run_loop import trial_scene
+from sim.trials.trial_runner import Sighting, TrialRunner, trial_result
+
+WORKSPACE_BOUND_M = 1.0
+"""Grasp positions the action space holds: within this of the robot base on each axis [m]."""
+
+_KINDS = tuple(ConditionKind)
+_ACTION_KEYS = ("position_m", "rotation_6d", "object_type", "opening_m")
+
+
+class PickEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
+    """A gva task's trials, one pick per ``step``.
+
+    Args:
+        task: A built-in task's name or a task file's path (what ``gva trials --task`` takes),
+            or a :class:`~sim.tasks.task_spec.TaskSpec`.
+        render_mode: ``"rgb_array"`` (the head camera's image) or None.
+        first_index: The test-scene index of the first episode after a seeded reset.
+        index_step: How far each unseeded reset moves the index (N in a vector env of N).
+        execution: How picks are executed and judged; the trials' default when None.
+
+    Observation (a dict): ``rgb`` (H, W, 3) uint8; ``depth_m`` (H, W) float32, depth along the
+    optical axis [m], 0 or inf where none; ``K`` (3, 3) intrinsics (OpenCV's convention);
+    ``T_world_camera`` (4, 4) the camera's optical frame in the world; ``joints`` the robot's
+    joint positions [rad, m] in :attr:`joint_names` order; ``condition``: ``kind`` (index into
+    :class:`~perception.interface.ConditionKind`), and where the task has them ``vector`` (the
+    one-hot, sentence embedding or picture a learned Query reads), ``sentence``, ``picture``.
+
+    Action (a dict): ``position_m`` (3,), the TCP at the grasp in the world [m];
+    ``rotation_6d`` (6,), the TCP's x (closing) and y axes in the world, one after the other
+    (Zhou et al.'s 6-D rotation, made orthonormal by Gram-Schmidt); optional ``object_type``
+    (0: not stated, k: :attr:`object_types` [k - 1]), which sets the grip as a model's stated
+    type does, and ``opening_m`` (1,) (0: not stated), the finger gap to approach with [m].
+
+    Reward 1 for each target picked; ``terminated`` once every target is picked or a pick
+    failed; ``info`` says the outcome, its reason, the grasp's errors and the grasp judge's
+    verdict, and at the end the trial's outcome as ``gva trials`` records it.
+
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 1}  # noqa: RUF012 (Gymnasium's)
+
+    def __init__(self, task: str | Path | TaskSpec = "single", render_mode: str | None = None,
+                 first_index: int = 0, index_step: int = 1,
+                 execution: ExecutionSettings | None = None) -> None:
+        if render_mode not in (None, *self.metadata["render_modes"]):
+            raise InvalidInputError("render_mode", render_mode, "None or 'rgb_array'")
+        for name, value, least in (("first_index", first_index, 0), ("index_step", index_step, 1)):
+            if isinstance(value, bool) or not isinstance(value, int) or value < least:
+                raise InvalidInputError(name, value, f"an integer >= {least}")
+        self.task = task if isinstance(task, TaskSpec) else load_task(task)
+        self.render_mode = render_mode
+        self.first_index, self.index_step = first_index, index_step
+        self._runner = TrialRunner(self.task, execution=execution)  # its model: the oracle
+        self.object_types: tuple[str, ...] = YUMI_SCENE.object_types
+        self.joint_names: tuple[str, ...] = tuple(self._runner.world.robot.joint_names)
+        self.observation_space = self._observation_space()
+        self.action_space = spaces.Dict({
+            "position_m": spaces.Box(-WORKSPACE_BOUND_M, WORKSPACE_BOUND_M, (3,), np.float64),
+            "rotation_6d": spaces.Box(-1.0, 1.0, (6,), np.float64),
+            "object_type": spaces.Discrete(len(self.object_types) + 1),
+            "opening_m": spaces.Box(0.0, MAX_OPENING_M, (1,), np.float64),
+        })
+        self._seed, self._next_index = 0, first_index
+        self._scene: Any = None
+        self._targets: list[int] = []
+        self._picks: list[PickAttempt] = []
+        self._sighting: Sighting | None = None
+
+    def _observation_space(self) -> spaces.Dict:
+        camera = self._runner.camera.config
+        h, w = camera.height_px, camera.width_px
+        kind = self.task.model_condition
+        condition: dict[str, spaces.Space[Any]] = {"kind": spaces.Discrete(len(_KINDS))}
+        size = condition_size(kind, condition_choices(self.task, YUMI_SCENE))
+        if size:
+            condition["vector"] = spaces.Box(-1.0, 1.0, (size,), np.float32)  # unit-norm or [0, 1]
+        if kind is ConditionKind.TEXT:
+            phrases = self.task.phrasings
+            seen = "" if phrases is None else "".join(
+                p for table in (phrases.train, phrases.test) for _, ps in table for p in ps)
+            charset = "".join(sorted(set(string.printable) | set(seen)))
+            condition["sentence"] = spaces.Text(MAX_SENTENCE_CHARS, min_length=1, charset=charset)
+        if kind is ConditionKind.IMAGE:
+            condition["picture"] = spaces.Box(0, 255, (PICTURE_PX, PICTURE_PX, 3), np.uint8)
+        self._condition_keys = frozenset(condition)
+        return spaces.Dict({
+            "rgb": spaces.Box(0, 255, (h, w, 3), np.uint8),
+            "depth_m": spaces.Box(0.0, np.inf, (h, w), np.float32),
+            "K": spaces.Box(0.0, 1e3 * max(h, w), (3, 3), np.float64),  # fields of view >= 0.1°
+            "T_world_camera": spaces.Box(-WORKSPACE_BOUND_M * 10, WORKSPACE_BOUND_M * 10, (4, 4),
+                                         np.float64),
+            "joints": spaces.Box(-2 * np.pi, 2 * np.pi, (len(self.joint_names),), np.float64),
+            "condition": spaces.Dict(condition),
+        })
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None
+              ) -> tuple[dict[str, Any], dict[str, Any]]:
+        """Puts test scene ``options["index"]`` (else the next index) of ``seed`` on the table.
+
+        Before any seed is given the scenes are seed 0's, as ``gva trials``' default.
+        """
+        super().reset(seed=seed)
+        options = dict(options or {})
+        unknown = sorted(set(options) - {"index"})
+        if unknown:
+            raise InvalidInputError("options", unknown, "only 'index' (a test-scene index)")
+        if seed is not None:
+            self._seed, self._next_index = int(seed), self.first_index
+        index = options.get("index", self._next_index)
+        if isinstance(index, bool) or not isinstance(index, (int, np.integer)) or index < 0:
+            raise InvalidInputError("options['index']", index, "an integer >= 0")
+        self._next_index = int(index) + self.index_step
+        self._scene = trial_scene(self.task, self._seed, int(index))
+        bodies = self._runner.setup(self._scene)
+        self._targets = [bodies[i] for i in self._scene.targets]
+        self._picks = []
+        self._sighting = self._runner.sight(self._targets[0])
+        return self._observation(), {"seed": self._seed, "index": int(index),
+                                     "targets": len(self._targets)}
+
+    def step(self, action: dict[str, Any]
+             ) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
+        """Plans and runs the grasp ``action`` on the current target, as a trial would."""
+        if self._sighting is None:
+            raise gymnasium.error.ResetNeeded("call reset() before step(), and again after an "
+                                              "episode ends")
+        sighting, number, total = self._sighting, len(self._picks), len(self._targets)
+        attempt = self._runner.attempt(sighting, Prediction((self._target(action),)), 0, 1)
+        self._picks.append(attempt)
+        more = self._runner.next_pick(attempt, sighting.body, number, total)
+        info = {"seed": self._seed, "index": self._scene.index, "pick": number,
+                "target": attempt.target, "outcome": attempt.outcome.value,
+                "reason": attempt.reason, "position_error_m": attempt.position_error_m,
+                "rotation_error_rad": attempt.rotation_error_rad,
+                "judge": None if attempt.verdict is None else attempt.verdict.to_record()}
+        if more:
+            self._sighting = self._runner.sight(self._targets[number + 1])
+        else:
+            result = trial_result(self._picks, total)
+            info |= {"trial_outcome": result.outcome.value, "trial_reason": result.reason}
+            self._sighting = None
+        reward = float(attempt.outcome is TrialOutcome.SUCCESS)
+        return self._observation(), reward, not more, False, info
+
+    def oracle_action(self) -> dict[str, Any]:
+        """The oracle's grasp for the current pick, as an action.
+
+        It reads the simulator's truth, as ``gva trials --model oracle`` does: a baseline and a
+        check of the environment, never part of an observation.
+        """
+        if self._sighting is None:
+            raise gymnasium.error.ResetNeeded("call reset() before oracle_action()")
+        predicted = self._runner.model.predict_frame(self._sighting.frame, self._scene.given)
+        total, number = len(self._targets), len(self._picks)
+        target = predicted.targets[number - (total - len(predicted.targets))]
+        assert target.rotation is not None  # the oracle gives grasp poses
+        stated = 0 if target.object_type is None else self.object_types.index(
+            target.object_type) + 1
+        return {"position_m": np.asarray(target.position_m, dtype=np.float64),
+                "rotation_6d": np.concatenate([target.rotation[:, 0], target.rotation[:, 1]]),
+                "object_type": stated,
+                "opening_m": np.array([target.opening_m or 0.0])}
+
+    def render(self) -> np.ndarray | None:
+        """The head camera's image now, for ``render_mode="rgb_array"``."""
+        return self._runner.render() if self.render_mode == "rgb_array" else None
+
+    def close(self) -> None:
+        """Releases the simulator."""
+        self._runner.close()
+
+    def _observation(self) -> dict[str, Any]:
+        frame = self._runner.sense() if self._sighting is None else self._sighting.frame
+        given = self._scene.given
+        condition: dict[str, Any] = {"kind": _KINDS.index(given.kind)}
+        keys = self._condition_keys
+        if "vector" in keys:
+            condition["vector"] = given.vector()
+        if "sentence" in keys:
+            condition["sentence"] = given.value
+        if "picture" in keys:
+            condition["picture"] = np.array(given.picture)  # a fresh array per call
+        joints = self._runner.world.robot.joint_positions(self.joint_names)
+        return {"rgb": frame.rgb, "depth_m": frame.depth_m, "K": frame.camera.K,
+                "T_world_camera": frame.camera.T_world_camera,
+                "joints": np.array([joints[n] for n in self.joint_names]),
+                "condition": condition}
+
+    def _target(self, action: dict[str, Any]) -> Target:
+        """The grasp an action names, or a clear error naming the field."""
+        if not isinstance(action, dict):
+            raise InvalidInputError("action", type(action).__name__, "a dict of the action space")
+        unknown = sorted(set(action) - set(_ACTION_KEYS))
+        missing = sorted({"position_m", "rotation_6d"} - set(action))
+        if unknown or missing:
+            raise InvalidInputError("action", sorted(action),
+                                    "position_m and rotation_6d, optionally object_type and "
+                                    "opening_m")
+        position = np.asarray(action["position_m"], dtype=np.float64)
+        six = np.asarray(action["rotation_6d"], dtype=np.float64)
+        if six.shape != (6,) or not np.all(np.isfinite(six)):
+            raise InvalidInputError("action['rotation_6d']", six.tolist(), "6 finite numbers")
+        length = float(np.linalg.norm(six[:3]))
+        x = six[:3] / length if length > 1e-9 else six[:3]
+        y = six[3:] - float(x @ six[3:]) * x
+        if length <= 1e-9 or float(np.linalg.norm(y)) <= 1e-9:
+            raise InvalidInputError("action['rotation_6d']", six.tolist(),
+                                    "two non-parallel 3-vectors: the TCP's x and y axes")
+        y = y / np.linalg.norm(y)
+        rotation = np.column_stack([x, y, np.cross(x, y)])
+        kind = int(action.get("object_type", 0))
+        if not 0 <= kind <= len(self.object_types):
+            raise InvalidInputError("action['object_type']", kind,
+                                    f"0 (not stated) to {len(self.object_types)}")
+        opening = float(np.asarray(action.get("opening_m", 0.0)).reshape(-1)[0])
+        if not (math.isfinite(opening) and 0.0 <= opening <= MAX_OPENING_M):
+            raise InvalidInputError("action['opening_m']", opening,
+                                    f"0 (not stated) or a gap in (0, {MAX_OPENING_M}] m")
+        return Target(position, rotation, self.object_types[kind - 1] if kind else None,
+                      opening or None)

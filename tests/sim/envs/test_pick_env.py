@@ -1,0 +1,126 @@
+"""``gva/Pick-v0``: Gymnasium's checks, and a grasp gets in the env what it gets in a trial."""
+
+from __future__ import annotations
+
+import functools
+import warnings
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+from gymnasium.vector import AsyncVectorEnv, AutoresetMode
+
+from sim.envs.episodes import oracle_policy, run_episode
+from sim.errors import InvalidInputError
+from sim.tasks.task_toml import builtin_tasks, load_task
+from sim.trials.run_loop import trial_scene
+from sim.trials.trial_runner import TrialRunner
+
+ENV_ID = "sim.envs:gva/Pick-v0"  # the module prefix: no import of ours needed first
+
+
+def make(**kwargs):
+    return gymnasium.make(ENV_ID, **kwargs)
+
+
+def trial_outcomes(task: str, n: int) -> dict[int, tuple[str, str]]:
+    """What ``gva trials --model oracle --seed 0`` records for test scenes 0..n-1."""
+    spec = load_task(task)
+    with TrialRunner(spec) as runner:
+        records = [runner.run(trial_scene(spec, 0, i), i, 0, "oracle") for i in range(n)]
+    return {r.index: (r.outcome.value, r.reason) for r in records}
+
+
+def env_outcomes(task: str, n: int) -> dict[int, tuple[str, str]]:
+    """The same scenes as episodes of one env driven by the oracle's grasps."""
+    env, outcomes = make(task=task), {}
+    for index in range(n):
+        episode = run_episode(env, oracle_policy(env), 0, index)
+        assert episode.reward == episode.picks.count("success")  # 1 for each target picked
+        assert (episode.reward == episode.targets) == (episode.outcome == "success")
+        outcomes[index] = (episode.outcome, episode.reason)
+    env.close()
+    return outcomes
+
+
+@pytest.fixture(scope="module")
+def single_trials() -> dict[int, tuple[str, str]]:
+    return trial_outcomes("single", 30)
+
+
+@pytest.mark.parametrize("task", builtin_tasks())
+def test_gymnasiums_env_checker_passes(task: str) -> None:
+    env = make(task=task, render_mode="rgb_array")
+    with warnings.catch_warnings():  # depth is inf where a ray meets nothing: an honest bound
+        warnings.filterwarnings("ignore", message=".*maximum value is infinity.*")
+        check_env(env.unwrapped)
+    env.close()
+
+
+@pytest.mark.slow
+def test_the_oracles_grasps_in_the_env_get_the_trials_outcomes(single_trials) -> None:
+    # all 30 scenes of single and selected-type: benchmarks/check_gym_env.py
+    assert env_outcomes("single", 8) == {i: single_trials[i] for i in range(8)}
+    for task, n in (("selected-type", 4), ("multiple", 1)):  # one-hot; three picks a trial
+        assert env_outcomes(task, n) == trial_outcomes(task, n), task
+
+
+@pytest.mark.slow
+def test_a_vector_env_of_two_gets_the_outcomes_of_one(single_trials) -> None:
+    envs = AsyncVectorEnv([functools.partial(make, task="single", first_index=k, index_step=2)
+                           for k in range(2)], autoreset_mode=AutoresetMode.SAME_STEP)
+    envs.reset(seed=[0, 0])
+    outcomes: dict[int, tuple[str, str]] = {}
+    while len(outcomes) < 30:
+        _, _, terminated, _, info = envs.step(
+            {key: np.stack([a[key] for a in envs.call("oracle_action")])
+             for key in ("position_m", "rotation_6d", "object_type", "opening_m")})
+        final = info["final_info"]
+        for k in np.flatnonzero(terminated):
+            outcomes[int(final["index"][k])] = (str(final["trial_outcome"][k]),
+                                                str(final["trial_reason"][k]))
+    envs.close()
+    assert {i: outcomes[i] for i in range(30)} == single_trials
+
+
+def test_a_scene_is_the_same_whatever_ran_before() -> None:
+    env = make(task="selected-type")
+    first, _ = env.reset(seed=3, options={"index": 5})
+    env.step(env.unwrapped.oracle_action())
+    env.reset(seed=0)
+    again, info = env.reset(seed=3, options={"index": 5})
+    assert info["index"] == 5
+    np.testing.assert_array_equal(first["rgb"], again["rgb"])
+    np.testing.assert_array_equal(first["condition"]["vector"], again["condition"]["vector"])
+    _, info = env.reset()  # no options: the next index
+    assert (info["seed"], info["index"]) == (3, 6)
+    env.close()
+
+
+def test_bad_input_names_the_field() -> None:
+    env = make(task="single")
+    with pytest.raises(gymnasium.error.ResetNeeded):
+        env.unwrapped.step({"position_m": np.zeros(3), "rotation_6d": np.eye(3)[:, :2].T.ravel()})
+    env.reset(seed=0)
+    good = env.unwrapped.oracle_action()
+    with pytest.raises(InvalidInputError, match=r"action\['rotation_6d'\].*non-parallel"):
+        env.step(good | {"rotation_6d": np.array([1.0, 0, 0, 2.0, 0, 0])})
+    with pytest.raises(InvalidInputError, match=r"action = \['position_m'\]"):
+        env.step({"position_m": good["position_m"]})
+    with pytest.raises(InvalidInputError, match=r"options = \['idx'\]"):
+        env.reset(options={"idx": 1})
+    with pytest.raises(InvalidInputError, match="first_index = -1"):
+        make(task="single", first_index=-1)
+    env.close()
+
+
+def test_a_grasp_far_off_is_a_recorded_failure_not_a_crash() -> None:
+    env = make(task="single")
+    env.reset(seed=0, options={"index": 0})
+    action = env.unwrapped.oracle_action() | {"position_m": np.array([0.9, 0.9, 0.5])}
+    _, reward, terminated, _, info = env.step(action)
+    assert (reward, terminated) == (0.0, True)
+    assert info["outcome"] != "success" and info["reason"] and info["trial_outcome"]
+    assert info["judge"]["predicted_success"] is False
+    env.close()
