@@ -19,7 +19,7 @@ from sim.envs.episodes import oracle_policy, run_episode
 
 def main() -> None:
     env = gymnasium.make("sim.envs:gva/Pick-v0", task="selected-type")  # imports sim.envs
-    observation, info = env.reset(seed=0, options={"index": 0})
+    observation, _ = env.reset(seed=0, options={"index": 0})
     print("observation:", {key: getattr(value, "shape", value) for key, value in
                            observation.items()})
     print("the condition, one-hot over", env.unwrapped.object_types, "->",

@@ -8,6 +8,8 @@
     gva trials --model runs/kqv-multiple --task multiple --n 30 --out runs/kqv-multiple-trials
     gva compare runs/oracle-single runs/kqv-single-trials --out runs/kqv-vs-oracle.json
     gva judge runs/table3 --json runs/table3-judged.json
+    gva export --format lerobot runs/yumi-multiple-20.gva runs/yumi-multiple-20-lerobot
+    gva import runs/yumi-multiple-20-lerobot runs/yumi-multiple-20-again.gva
     gva show scene --scene paper-sim --task multiple --out runs/scene.png
     gva show attention --model runs/kqv-multiple --data runs/yumi-multiple-20.gva --out runs/att
     gva reproduce sim --out runs/table2 --seeds 3 --models kqv,fcn --tasks single --sizes 4,20
@@ -97,6 +99,18 @@ def _collect(parser: argparse.ArgumentParser) -> None:
     add_options(parser)
 
 
+def _export(parser: argparse.ArgumentParser) -> None:
+    from experiments.commands.export import add_export_options  # pyarrow: only here
+
+    add_export_options(parser)
+
+
+def _import(parser: argparse.ArgumentParser) -> None:
+    from experiments.commands.export import add_import_options  # pyarrow: only here
+
+    add_import_options(parser)
+
+
 def _scene(parser: argparse.ArgumentParser) -> None:
     from experiments.commands.scene import add_options  # pinocchio: not for `gva --help`
 
@@ -155,6 +169,19 @@ def build_parser() -> argparse.ArgumentParser:
         help="collect a training dataset (yumi: oracle demonstrations kept when they succeed)",
         description="Collects SIZE scenes of a task into one dataset file: training scenes, "
         "or untrained test scenes with --stream test.",
+    )
+    commands.add_parser(
+        "export", options=_export,
+        help="a dataset file as a LeRobotDataset v3.0 folder (--format lerobot)",
+        description="Writes a .gva dataset as a LeRobotDataset v3.0 folder: one episode per "
+        "scene, PNG images in parquet, the grasp labels as action; what LeRobot has no column "
+        "for in meta/gva.json, so that gva import gives back the same dataset.",
+    )
+    commands.add_parser(
+        "import", options=_import,
+        help="a LeRobot folder gva export wrote, back into a dataset file",
+        description="Reads a folder of gva export --format lerobot back into a .gva dataset "
+        "file, checked byte for byte against the checksum the export recorded.",
     )
     commands.add_parser(
         "train", options=partial(_model_command, "train"),
