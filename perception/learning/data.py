@@ -27,6 +27,9 @@ from perception.learning.labels import LABEL_DIMS, check_rotations, split_label
 
 FORMAT_VERSION = 1
 TENSORS = ("images", "conditions", "labels")  # a dataset's arrays, in its file's order
+OPTIONAL_TENSORS = ("depths_m", "joint_positions")  # kept where the collector had them
+JOINT_NAMES_KEY = "joint_names"
+"""``metadata.extra`` key: the robot's joints in ``joint_positions`` column order."""
 
 
 @dataclass(frozen=True)
@@ -118,6 +121,12 @@ class Dataset:
         labels: (N, q, D) float32 in the :func:`label_vector` layout.
         scenes: One JSON-able record per sample (object types and poses, targets, condition),
             kept in JSON form like ``metadata.camera``.
+        depths_m: (N, H, W) float32 depth along the optical axis [m] of each image, as the
+            RGB-D camera gave it (inf where none); None where the collector had no depth (the
+            paper-sim scene, datasets made before depth was kept). Models read the colour; the
+            depth is there for exports (LeRobot) and for models that want it.
+        joint_positions: (N, J) float32 robot joint positions [rad, m] when each image was
+            taken, columns in ``metadata.extra["joint_names"]`` order; None where unknown.
 
     """
 
@@ -126,11 +135,14 @@ class Dataset:
     conditions: np.ndarray  # (N, C) float32
     labels: np.ndarray  # (N, q, D) float32
     scenes: tuple[dict[str, Any], ...]
+    depths_m: np.ndarray | None = None  # (N, H, W) float32
+    joint_positions: np.ndarray | None = None  # (N, J) float32
 
     def __post_init__(self) -> None:
         if not isinstance(self.metadata, DatasetMetadata):
             raise InvalidInputError("metadata", type(self.metadata).__name__, "a DatasetMetadata")
-        for name, (dtype, shape, layout) in expected_arrays(self.metadata).items():
+        present = tuple(n for n in OPTIONAL_TENSORS if getattr(self, n) is not None)
+        for name, (dtype, shape, layout) in expected_arrays(self.metadata, present).items():
             array = getattr(self, name)
             found = f"{getattr(array, 'dtype', type(array).__name__)} {np.shape(array)}"
             if not isinstance(array, np.ndarray) or array.dtype != dtype or array.shape != shape:
@@ -155,8 +167,16 @@ class Dataset:
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, Dataset):
             return NotImplemented
+        def same(name: str) -> bool:
+            a, b = getattr(self, name), getattr(other, name)
+            return (a is None) == (b is None) and (a is None or np.array_equal(a, b))
+
         return (self.metadata == other.metadata and self.scenes == other.scenes
-                and all(np.array_equal(getattr(self, n), getattr(other, n)) for n in TENSORS))
+                and all(same(n) for n in TENSORS + OPTIONAL_TENSORS))
+
+    def tensors(self) -> dict[str, np.ndarray]:
+        """Every array the dataset holds, by name: :data:`TENSORS`, then the optional present."""
+        return {n: a for n in TENSORS + OPTIONAL_TENSORS if (a := getattr(self, n)) is not None}
 
     def subset(self, indices: Sequence[int] | np.ndarray) -> Dataset:
         """The samples at ``indices``, in that order (e.g. the first 4 of 100); size follows."""
@@ -169,9 +189,9 @@ class Dataset:
             raise InvalidInputError("indices", wrong.tolist(), f"integers in [0, {len(self)})")
         if np.unique(index).size != index.size:
             raise InvalidInputError("indices", index.tolist(), "distinct sample indices")
-        return Dataset(replace(self.metadata, size=int(index.size)), self.images[index],
-                       self.conditions[index], self.labels[index],
-                       tuple(self.scenes[i] for i in index))
+        return Dataset(replace(self.metadata, size=int(index.size)),
+                       scenes=tuple(self.scenes[i] for i in index),
+                       **{name: array[index] for name, array in self.tensors().items()})
 
     def scene_keys(self) -> list[int]:
         """Each sample's scene: its record's ``"index"`` (a record without one is its own)."""
@@ -192,7 +212,7 @@ class Dataset:
         wanted = set(kept)
         part = self.subset([n for n, key in enumerate(keys) if key in wanted])
         meta = replace(part.metadata, extra=part.metadata.extra | {"scenes": count})
-        return Dataset(meta, part.images, part.conditions, part.labels, part.scenes)
+        return replace(part, metadata=meta)
 
     def condition_names(self) -> tuple[str | None, ...]:
         """(N,) what each sample's condition names, one of ``condition_choices``; None: none.
@@ -311,15 +331,26 @@ def _target_type(record: Mapping[str, Any], k: int) -> str | None:
     return name if isinstance(name, str) else None
 
 
-def expected_arrays(metadata: DatasetMetadata) -> dict[str, tuple[np.dtype, tuple, str]]:
-    """Per tensor: the dtype, the shape and its symbolic layout the metadata implies."""
+def expected_arrays(metadata: DatasetMetadata, optional: Sequence[str] = ()
+                    ) -> dict[str, tuple[np.dtype, tuple, str]]:
+    """Per tensor: the dtype, the shape and its symbolic layout the metadata implies.
+
+    The :data:`TENSORS`, then those of ``optional`` (names in :data:`OPTIONAL_TENSORS`).
+    """
     n, h, w, q = metadata.size, metadata.image_height_px, metadata.image_width_px, metadata.targets
-    return {
+    arrays: dict[str, tuple[np.dtype, tuple, str]] = {
         "images": (np.dtype(np.uint8), (n, h, w, 3), "(N, H, W, 3)"),
         "conditions": (np.dtype(np.float32), (n, condition_size(
             metadata.condition_kind, metadata.condition_choices)), "(N, C)"),
         "labels": (np.dtype(np.float32), (n, q, metadata.label_dim), "(N, q, D)"),
     }
+    if "depths_m" in optional:
+        arrays["depths_m"] = (np.dtype(np.float32), (n, h, w), "(N, H, W)")
+    if "joint_positions" in optional:
+        joints = len(metadata.extra.get(JOINT_NAMES_KEY, ()))
+        arrays["joint_positions"] = (np.dtype(np.float32), (n, joints),
+                                     f"(N, J) with J = len(extra[{JOINT_NAMES_KEY!r}])")
+    return arrays
 
 
 def _json_form(name: str, value: Any) -> dict[str, Any]:

@@ -35,6 +35,7 @@ from perception.files import FileError, atomic_write, read_safetensors_header
 from perception.interface import ConditionKind, InvalidInputError, LabelKind
 from perception.learning.data import (
     FORMAT_VERSION,
+    OPTIONAL_TENSORS,
     TENSORS,
     Dataset,
     DatasetMetadata,
@@ -63,14 +64,28 @@ def save_dataset(dataset: Dataset, path: str | Path) -> Path:
     if not isinstance(dataset, Dataset):
         raise InvalidInputError("dataset", type(dataset).__name__, "a Dataset")
     path = Path(path)
-    tensors = {name: np.ascontiguousarray(getattr(dataset, name)) for name in TENSORS}
-    metadata = {f.name: _plain(getattr(dataset.metadata, f.name)) for f in fields(DatasetMetadata)}
-    record: dict[str, Any] = {"metadata": metadata, "scenes": list(dataset.scenes)}
+    tensors = {name: np.ascontiguousarray(array) for name, array in dataset.tensors().items()}
+    record = _record(dataset)
     record["contents_sha256"] = _contents_sha256(record, tensors)
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write(path, lambda temporary: save_file(
         tensors, str(temporary), metadata={HEADER_KEY: canonical_json(record)}))
     return path
+
+
+def contents_sha256(dataset: Dataset) -> str:
+    """The checksum a dataset file keeps of ``dataset`` (its metadata, records and arrays).
+
+    Another container of the same data (a LeRobot folder) keeps it too, so a reader can tell
+    it got back exactly what was written.
+    """
+    return _contents_sha256(_record(dataset), dataset.tensors())
+
+
+def _record(dataset: Dataset) -> dict[str, Any]:
+    """The file's record of ``dataset`` in JSON form, before its checksum."""
+    metadata = {f.name: _plain(getattr(dataset.metadata, f.name)) for f in fields(DatasetMetadata)}
+    return {"metadata": metadata, "scenes": list(dataset.scenes)}
 
 
 def read_metadata(path: str | Path) -> DatasetMetadata:
@@ -101,16 +116,18 @@ def load_dataset(path: str | Path, expect: Mapping[str, Any] | None = None) -> D
     entries = {name: entry for name, entry in header.items() if name != "__metadata__"}
     if missing := sorted(set(TENSORS) - set(entries)):
         raise DatasetError(path, f"lacks tensors {', '.join(missing)}; it needs {_NAMES}")
-    if extra := sorted(set(entries) - set(TENSORS)):
-        raise DatasetError(path, f"has unexpected tensors {', '.join(extra)}; it holds {_NAMES}")
-    for name, (dtype, shape, layout) in expected_arrays(metadata).items():
+    if extra := sorted(set(entries) - set(TENSORS) - set(OPTIONAL_TENSORS)):
+        raise DatasetError(path, f"has unexpected tensors {', '.join(extra)}; it holds {_NAMES}"
+                           f", and may hold {', '.join(OPTIONAL_TENSORS)}")
+    present = tuple(name for name in OPTIONAL_TENSORS if name in entries)
+    for name, (dtype, shape, layout) in expected_arrays(metadata, present).items():
         found = (entries[name].get("dtype"), tuple(entries[name].get("shape", ())))
         if found != (_CODES[dtype], shape):
             raise DatasetError(path, f"tensor {name} is {found[0]} of shape {found[1]}; the "
                                f"metadata says {_CODES[dtype]} {layout} = {shape}")
     try:
         with safe_open(str(path), framework="numpy") as file:
-            tensors = {name: file.get_tensor(name) for name in TENSORS}
+            tensors = {name: file.get_tensor(name) for name in TENSORS + present}
     except (SafetensorError, OSError) as error:
         raise DatasetError(path, f"safetensors cannot read it: {error}") from error
     if _contents_sha256(record, tensors) != record["contents_sha256"]:
@@ -184,7 +201,7 @@ def _plain(value: Any) -> Any:
 def _contents_sha256(record: Mapping[str, Any], tensors: Mapping[str, np.ndarray]) -> str:
     """SHA-256 over the metadata, the scene records and each tensor's dtype, shape and bytes."""
     digest = hashlib.sha256(canonical_json([record["metadata"], record["scenes"]]).encode())
-    for name in TENSORS:
+    for name in [n for n in TENSORS + OPTIONAL_TENSORS if n in tensors]:  # old files: TENSORS
         array = np.ascontiguousarray(tensors[name])
         digest.update(f"\n{name} {array.dtype.str} {array.shape}\n".encode())
         digest.update(array.reshape(-1).view(np.uint8).data)

@@ -20,7 +20,6 @@ are PNG bytes in the parquet file (LeRobot's ``"image"`` dtype): lossless, no vi
 from __future__ import annotations
 
 import enum
-import hashlib
 import io
 import json
 import os
@@ -37,8 +36,8 @@ from tqdm import tqdm
 
 from perception.files import FileError
 from perception.interface import ConditionKind, InvalidInputError, LabelKind
-from perception.learning.data import TENSORS, Dataset, DatasetMetadata, canonical_json
-from perception.learning.dataset_file import load_dataset
+from perception.learning.data import JOINT_NAMES_KEY, Dataset, DatasetMetadata
+from perception.learning.dataset_file import contents_sha256, load_dataset
 
 try:
     import pyarrow as pa
@@ -53,6 +52,8 @@ DATA_FILES_SIZE_IN_MB = 100
 VIDEO_FILES_SIZE_IN_MB = 200
 IMAGE_KEY = "observation.images.head"
 CONDITION_KEY = "observation.condition"
+STATE_KEY = "observation.state"  # the robot's joint positions [rad, m] when the image was taken
+DEPTH_KEY = "observation.depth.head"  # float32 depth along the optical axis [m], per pixel
 PRESENT_KEY = "action.target_present"  # not observation.* nor "action": policies skip it
 GVA_PATH = "meta/gva.json"
 GVA_FORMAT = "gva-lerobot/1"
@@ -136,6 +137,7 @@ def import_lerobot(folder: str | Path) -> Dataset:
         raise LeRobotFolderError(root, "has no data/chunk-*/file-*.parquet")
     table = pa.concat_tables([pq.read_table(path) for path in paths])
     columns = [IMAGE_KEY, "action", "index"] + ([CONDITION_KEY] if gva["condition_size"] else [])
+    columns += [key for key in (gva.get("depth"), gva.get("state")) if key]
     if missing := [name for name in columns if name not in table.column_names]:
         raise LeRobotFolderError(root, f"data lacks columns {', '.join(missing)}")
     order = np.argsort(table.column("index").to_numpy(), kind="stable")
@@ -147,25 +149,19 @@ def import_lerobot(folder: str | Path) -> Dataset:
     labels = _vectors(table, "action").reshape(n, metadata.targets, metadata.label_dim)
     conditions = (_vectors(table, CONDITION_KEY) if gva["condition_size"]
                   else np.zeros((n, 0), dtype=np.float32))
+    h, w = metadata.image_height_px, metadata.image_width_px
+    depths = (_vectors(table, DEPTH_KEY, nested=True).reshape(n, h, w)
+              if gva.get("depth") else None)
+    joints = _vectors(table, STATE_KEY) if gva.get("state") else None
     try:
-        result = Dataset(metadata, images, conditions, labels, tuple(gva["scenes"]))
+        result = Dataset(metadata, images, conditions, labels, tuple(gva["scenes"]),
+                         depths_m=depths, joint_positions=joints)
     except InvalidInputError as error:
         raise LeRobotFolderError(root, f"holds data a dataset cannot have: {error}") from error
     if contents_sha256(result) != gva["contents_sha256"]:
         raise LeRobotFolderError(root, "contents do not match the checksum in meta/gva.json: "
                                  "changed after export")
     return result
-
-
-def contents_sha256(dataset: Dataset) -> str:
-    """SHA-256 over a dataset's metadata, scene records and each array's dtype, shape, bytes."""
-    digest = hashlib.sha256(canonical_json([_plain_metadata(dataset.metadata),
-                                            list(dataset.scenes)]).encode())
-    for name in TENSORS:
-        array = np.ascontiguousarray(getattr(dataset, name))
-        digest.update(f"\n{name} {array.dtype.str} {array.shape}\n".encode())
-        digest.update(array.reshape(-1).view(np.uint8).data)
-    return digest.hexdigest()
 
 
 def episode_bounds(dataset: Dataset) -> list[tuple[int, int]]:
@@ -200,11 +196,14 @@ def _write_folder(data: Dataset, root: Path, progress: bool) -> int:
     }
     if data.conditions.shape[1]:
         columns[CONDITION_KEY] = data.conditions  # (N, C) float32
-    features = _features(meta, data.conditions.shape[1])
+    if data.joint_positions is not None:
+        columns[STATE_KEY] = data.joint_positions  # (N, J) float32
+    features = _features(data)
     pngs = [_png_bytes(image) for image in tqdm(data.images, desc="export lerobot: images",
                                                 unit="image", disable=not progress)]
-    files, episodes = _write_data(root, columns, pngs, bounds)
-    stats_rows = [_all_stats(columns, data.images[start:stop]) for start, stop in bounds]
+    files, episodes = _write_data(root, columns, pngs, bounds, data.depths_m)
+    stats_rows = [_all_stats(columns, data.images[start:stop], _part(data.depths_m, start, stop))
+                  for start, stop in bounds]
     for e, (start, stop) in enumerate(bounds):
         episodes[e] |= {"episode_index": e, "length": stop - start,
                         "tasks": list(dict.fromkeys(tasks[start:stop])),
@@ -228,19 +227,22 @@ def _write_folder(data: Dataset, root: Path, progress: bool) -> int:
             "data_path": _DATA_PATH, "video_path": None,
             "features": features}
     _write_json(root / "meta/info.json", info)
-    _write_json(root / "meta/stats.json", _all_stats(columns, data.images))
+    _write_json(root / "meta/stats.json", _all_stats(columns, data.images, data.depths_m))
     _write_json(root / GVA_PATH, {
         "format": GVA_FORMAT, "metadata": _plain_metadata(meta), "scenes": list(data.scenes),
         "condition_size": int(data.conditions.shape[1]), "contents_sha256": contents_sha256(data),
-        "data_files": files, "depth": None, "state": None})
+        "data_files": files, "depth": DEPTH_KEY if data.depths_m is not None else None,
+        "state": STATE_KEY if data.joint_positions is not None else None})
     return len(bounds)
 
 
 def _write_data(root: Path, columns: dict[str, np.ndarray], pngs: list[bytes],
-                bounds: list[tuple[int, int]]) -> tuple[list[str], list[dict[str, Any]]]:
+                bounds: list[tuple[int, int]], depths_m: np.ndarray | None
+                ) -> tuple[list[str], list[dict[str, Any]]]:
     """Data files of whole episodes, each up to DATA_FILES_SIZE_IN_MB; their paths, rows."""
     limit_bytes = DATA_FILES_SIZE_IN_MB * 2**20
     frame_bytes = sum(column[0].nbytes for column in columns.values())  # besides its PNG
+    frame_bytes += 0 if depths_m is None else depths_m[0].nbytes
     groups: list[list[int]] = [[]]
     size_bytes = 0
     for e, (start, stop) in enumerate(bounds):
@@ -262,6 +264,10 @@ def _write_data(root: Path, columns: dict[str, np.ndarray], pngs: list[bytes],
             table[key] = (pa.array(part[:, 0]) if part.shape[1] == 1 else
                           pa.FixedSizeListArray.from_arrays(pa.array(part.reshape(-1)),
                                                             part.shape[1]))
+        if depths_m is not None:  # (n, H, W): rows of rows, as LeRobot's 2-D features read
+            depth = depths_m[start:stop]
+            rows = pa.FixedSizeListArray.from_arrays(pa.array(depth.reshape(-1)), depth.shape[2])
+            table[DEPTH_KEY] = pa.FixedSizeListArray.from_arrays(rows, depth.shape[1])
         path = _DATA_PATH.format(chunk_index=chunk, file_index=file)
         (root / path).parent.mkdir(parents=True, exist_ok=True)
         pq.write_table(pa.table(table), root / path)
@@ -270,8 +276,9 @@ def _write_data(root: Path, columns: dict[str, np.ndarray], pngs: list[bytes],
     return files, episodes
 
 
-def _features(meta: DatasetMetadata, condition_size: int) -> dict[str, dict[str, Any]]:
+def _features(data: Dataset) -> dict[str, dict[str, Any]]:
     """info.json's features: dtype, shape and names of every column."""
+    meta, condition_size = data.metadata, data.conditions.shape[1]
     h, w = meta.image_height_px, meta.image_width_px
     features: dict[str, dict[str, Any]] = {
         IMAGE_KEY: {"dtype": "image", "shape": [h, w, 3], "names": ["height", "width", "channels"]},
@@ -285,6 +292,11 @@ def _features(meta: DatasetMetadata, condition_size: int) -> dict[str, dict[str,
         names = (list(meta.condition_choices) if meta.condition_kind.one_hot
                  else [f"c{i}" for i in range(condition_size)])
         features[CONDITION_KEY] = {"dtype": "float32", "shape": [condition_size], "names": names}
+    if data.joint_positions is not None:
+        joints = list(meta.extra[JOINT_NAMES_KEY])
+        features[STATE_KEY] = {"dtype": "float32", "shape": [len(joints)], "names": joints}
+    if data.depths_m is not None:
+        features[DEPTH_KEY] = {"dtype": "float32", "shape": [h, w], "names": ["height", "width"]}
     features["timestamp"] = {"dtype": "float32", "shape": [1], "names": None}
     features |= {key: {"dtype": "int64", "shape": [1], "names": None} for key in _INDEX_KEYS}
     for feature in features.values():
@@ -292,9 +304,17 @@ def _features(meta: DatasetMetadata, condition_size: int) -> dict[str, dict[str,
     return features
 
 
-def _all_stats(columns: dict[str, np.ndarray], images: np.ndarray) -> dict[str, dict]:
-    """LeRobot's stats per feature: images per channel in [0, 1] as (3, 1, 1), vectors per entry."""
+def _all_stats(columns: dict[str, np.ndarray], images: np.ndarray,
+               depths_m: np.ndarray | None) -> dict[str, dict]:
+    """LeRobot's stats per feature: images per channel in [0, 1] as (3, 1, 1), vectors per entry.
+
+    Depth gets one set over all its finite pixels, shape (1,) (it broadcasts over the image;
+    a pixel that sees nothing holds inf, which JSON cannot).
+    """
     stats = {IMAGE_KEY: _stats(images.reshape(-1, 3) / 255.0, len(images), (3, 1, 1))}
+    if depths_m is not None:
+        finite = depths_m[np.isfinite(depths_m)].astype(np.float64).reshape(-1, 1)
+        stats[DEPTH_KEY] = _stats(finite, len(depths_m), (1,))
     for key, column in columns.items():
         values = column.astype(np.float64).reshape(len(column), -1)
         stats[key] = _stats(values, len(column), (values.shape[1],))
@@ -311,6 +331,10 @@ def _stats(values: np.ndarray, count: int, shape: tuple[int, ...]) -> dict[str, 
     return out
 
 
+def _part(array: np.ndarray | None, start: int, stop: int) -> np.ndarray | None:
+    return None if array is None else array[start:stop]
+
+
 def _png_bytes(image: np.ndarray) -> bytes:
     """(H, W, 3) uint8 as PNG bytes: lossless, the same bytes for the same pixels."""
     buffer = io.BytesIO()
@@ -324,10 +348,12 @@ def _png_pixels(data: bytes) -> np.ndarray:
         return np.asarray(image.convert("RGB"), dtype=np.uint8)
 
 
-def _vectors(table: pa.Table, key: str) -> np.ndarray:
-    """(N, D) float32 of a fixed-size list column, or (N, 1) of a scalar one."""
+def _vectors(table: pa.Table, key: str, nested: bool = False) -> np.ndarray:
+    """(N, D) float32 of a fixed-size list column (of lists, ``nested``), or (N, 1) of a scalar."""
     column = table.column(key).combine_chunks()
     values = column.flatten() if pa.types.is_fixed_size_list(column.type) else column
+    if nested:
+        values = values.flatten()
     return np.asarray(values.to_numpy(), dtype=np.float32).reshape(len(column), -1)
 
 

@@ -26,8 +26,9 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from perception.camera import RgbdFrame
 from perception.interface import Prediction
-from perception.learning.data import Dataset, DatasetMetadata
+from perception.learning.data import JOINT_NAMES_KEY, Dataset, DatasetMetadata
 from perception.learning.dataset_file import save_dataset
 from perception.learning.labels import label_vector
 from perception.learning.mirror import MIRROR_FLAG
@@ -125,23 +126,52 @@ def collect(settings: CollectSettings, out_path: str | Path, progress: bool = Tr
             samples, camera, extra = _collect_paper(task, spec, settings, bar)
         else:
             samples, camera, extra = _collect_yumi(task, spec, settings, bar)
-    images, conditions, labels, scenes = zip(*samples, strict=True)
-    first = images[0]
+    first = samples[0]
     metadata = DatasetMetadata(
-        scene=spec.name, task=task.name, size=len(images), seed=settings.seed,
-        image_height_px=first.shape[0], image_width_px=first.shape[1],
-        label_kind=spec.label_kind, targets=labels[0].shape[0],
+        scene=spec.name, task=task.name, size=len(samples), seed=settings.seed,
+        image_height_px=first.image.shape[0], image_width_px=first.image.shape[1],
+        label_kind=spec.label_kind, targets=first.labels.shape[0],
         condition_kind=task.model_condition, condition_choices=condition_choices(task, spec),
         camera=camera,
         extra=extra | {"task": _task_json(task), "object_types": list(spec.object_types)},
     )
-    dataset = Dataset(metadata, np.stack(images), np.stack(conditions).astype(np.float32),
-                      np.stack(labels).astype(np.float32), tuple(scenes))
+    def stacked(name: str) -> np.ndarray | None:  # None where the scene gives none
+        arrays = [getattr(s, name) for s in samples]
+        return None if arrays[0] is None else np.stack(arrays).astype(np.float32)
+
+    dataset = Dataset(metadata, np.stack([s.image for s in samples]),
+                      np.stack([s.condition for s in samples]).astype(np.float32),
+                      np.stack([s.labels for s in samples]).astype(np.float32),
+                      tuple(s.scene for s in samples), depths_m=stacked("depth_m"),
+                      joint_positions=stacked("joint_positions"))
     save_dataset(dataset, out_path)
     return dataset
 
 
-Sample = tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]
+@dataclass(frozen=True)
+class Sample:
+    """One sample as collected: the image, what the model is asked, the labels, the record.
+
+    ``depth_m`` and ``joint_positions`` are the RGB-D frame's depth and the robot's joints when
+    the image was taken (the yumi scene; the paper's scene has neither).
+    """
+
+    image: np.ndarray  # (H, W, 3) uint8
+    condition: np.ndarray  # (C,)
+    labels: np.ndarray  # (q, D)
+    scene: dict[str, Any]
+    depth_m: np.ndarray | None = None  # (H, W)
+    joint_positions: np.ndarray | None = None  # (J,)
+
+
+@dataclass(frozen=True)
+class Stage:
+    """A demonstration's image before one pick: the frame, the joints, every target's label."""
+
+    frame: RgbdFrame
+    joint_positions: np.ndarray  # (J,) in the robot's joint order
+    labels: np.ndarray  # (q, 12)
+    taken: list[int]  # the targets already picked
 
 
 def _task_json(task: TaskSpec) -> dict[str, Any]:
@@ -171,8 +201,8 @@ def _collect_paper(
             for question in asked(task, scene, settings.asks_every_condition):
                 labels = np.stack([label_vector(world.object_position_m(bodies[t]))
                                    for t in question.targets])
-                samples.append((image, question.given.vector(), labels,
-                                question.to_record()))
+                samples.append(Sample(image, question.given.vector(), labels,
+                                      question.to_record()))
             bar.update()
         camera = _camera_json(world.camera)
     return samples, camera, {"stream": settings.stream.name.lower(), "scenes": settings.size,
@@ -189,17 +219,18 @@ class _PickImages:
 
     def __init__(self, runner: TrialRunner) -> None:
         self.runner = runner
+        self.joint_names = tuple(runner.world.robot.joint_names)
         self.start([])
 
     def start(self, targets: list[int]) -> None:
         """Watches a new demonstration whose targets are these bodies, in target order."""
         self.targets = targets
         self.labels: dict[int, np.ndarray] = {}
-        self.stages: list[tuple[np.ndarray, np.ndarray, list[int]]] = []
+        self.stages: list[Stage] = []
         self.first: dict[int, np.ndarray] = {}  # every object's label in the first image
 
-    def saw(self, image: np.ndarray, prediction: Prediction | None) -> None:
-        """Keeps ``image`` with every target's label and the targets already taken."""
+    def saw(self, frame: RgbdFrame, prediction: Prediction | None) -> None:
+        """Keeps the frame and the joints with every target's label and the targets taken."""
         on_table = {body: label_vector(*self.runner.truth(body))
                     for body in self.runner.world.objects}
         if not self.stages:
@@ -208,7 +239,9 @@ class _PickImages:
                         if body in on_table}
         taken = [k for k, body in enumerate(self.targets) if body not in on_table]
         labels = np.stack([self.labels[k] for k in range(len(self.targets))])  # (q, 12)
-        self.stages.append((image, labels, taken))
+        joints = self.runner.world.robot.joint_positions(self.joint_names)
+        self.stages.append(Stage(frame, np.array([joints[n] for n in self.joint_names]), labels,
+                                 taken))
 
     def stepped(self, world: World) -> None:
         """Nothing to watch between images."""
@@ -239,19 +272,21 @@ def _collect_yumi(
                 bar.set_postfix_str(f"{len(redrawn)} redrawn")
                 continue
             record = scene.to_record()
-            samples += [(image, scene.given.vector(), labels,
-                         record | {"taken": taken} if taken else record)
-                        for image, labels, taken in images.stages]
-            first = images.stages[0][0]
-            samples += [(first, question.given.vector(),
-                         np.stack([images.first[bodies[t]] for t in question.targets]),
-                         question.to_record())
+            samples += [Sample(stage.frame.rgb, scene.given.vector(), stage.labels,
+                               record | {"taken": stage.taken} if stage.taken else record,
+                               stage.frame.depth_m, stage.joint_positions)
+                        for stage in images.stages]
+            first = images.stages[0]
+            samples += [Sample(first.frame.rgb, question.given.vector(),
+                               np.stack([images.first[bodies[t]] for t in question.targets]),
+                               question.to_record(), first.frame.depth_m, first.joint_positions)
                         for question in asked(task, scene, settings.asks_every_condition)[1:]]
             kept += 1
             bar.update()
         camera = _camera_json(runner.camera)
     extra = {"stream": settings.stream.name.lower(), "scenes": settings.size,
              "every_condition": settings.asks_every_condition,
+             JOINT_NAMES_KEY: list(images.joint_names),
              "demonstrations_redrawn": len(redrawn), "redrawn": redrawn,
              MIRROR_FLAG: mirror_symmetric(task, spec, runner.camera.config)}
     return samples, camera, extra

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from perception.camera import RgbdFrame
 from perception.drawing import (
     CAPTION_LINE_PX,
     draw_dot,
@@ -103,13 +104,13 @@ class TrialRecorder:
         self.inset = inset
         self._next_frame_s = 0.0
 
-    def saw(self, image: np.ndarray, prediction: Prediction | None) -> None:
+    def saw(self, frame: RgbdFrame, prediction: Prediction | None) -> None:
         """Takes the image a prediction was made from; draws its attention points on it.
 
         A prediction the robot could not act on (None) leaves the image without points, so a
         trial that failed in perception still shows what the model saw.
         """
-        panel = np.array(image, dtype=np.uint8, copy=True)
+        panel = np.array(frame.rgb, dtype=np.uint8, copy=True)
         points = np.zeros((0, 2)) if prediction is None else np.asarray(
             prediction.attention_px, dtype=float).reshape(-1, 2)  # (p, 2)
         for head, point in enumerate(points):

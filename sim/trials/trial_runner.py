@@ -83,8 +83,8 @@ class TrialObserver(Protocol):
     Watching must not change what happens: an observer reads the world, never moves it.
     """
 
-    def saw(self, image: np.ndarray, prediction: Prediction | None) -> None:
-        """The image (H, W, 3) a pick's prediction was made from, and the prediction.
+    def saw(self, frame: RgbdFrame, prediction: Prediction | None) -> None:
+        """The RGB-D frame a pick's prediction was made from, and the prediction.
 
         None: the model gave nothing the robot can act on (it raised, or its prediction was
         refused); the pick ends ``perception_failed``, and the image is still what it saw.
@@ -290,7 +290,7 @@ class TrialRunner:
             prediction = self.model.predict_frame(sighting.frame, scene.given)
         except Exception as error:  # the model's failure, recorded with its traceback
             if self.observer is not None:
-                self.observer.saw(sighting.frame.rgb, None)
+                self.observer.saw(sighting.frame, None)
             failed = PlannedPick(TrialOutcome.PERCEPTION_FAILED, f"{self.model.name}'s predict "
                                  f"raised {type(error).__name__}: {error}",
                                  traceback=traceback.format_exc())
@@ -308,8 +308,7 @@ class TrialRunner:
         """
         planned = self.plan_pick(sighting.frame, prediction, number, total)
         if self.observer is not None:  # the Prediction once checked, else None
-            self.observer.saw(sighting.frame.rgb,
-                              prediction if planned.predicted is not None else None)
+            self.observer.saw(sighting.frame, prediction if planned.predicted is not None else None)
         spec = self.world.object_spec(sighting.body)
         verdict = None if planned.predicted is None else judge_grasp(
             spec, sighting.truth, as_recorded(planned.predicted), sighting.object_yaw_rad)

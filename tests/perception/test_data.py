@@ -1,6 +1,7 @@
 import dataclasses
 import json
 import re
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -77,6 +78,28 @@ def test_round_trip_gives_the_same_dataset(tmp_path, kind, choices, size):
     assert read_metadata(path) == dataset.metadata
     assert loaded.metadata.camera["position_m"] == [0.0, 0.1, 1.2]  # the JSON form, as saved
     assert [p.name for p in path.parent.iterdir()] == ["train.safetensors"]  # no temporary left
+
+
+def test_depth_and_joints_are_kept_where_given_and_old_files_stay_as_they_were(tmp_path):
+    plain = make(kind=LabelKind.GRASP_POSE, size=4)
+    save_dataset(plain, tmp_path / "plain.gva")
+    before = (tmp_path / "plain.gva").read_bytes()
+    rng = np.random.default_rng(1)
+    meta = replace(plain.metadata, extra=plain.metadata.extra | {"joint_names": ["a", "b"]})
+    rich = replace(plain, metadata=meta, depths_m=rng.uniform(0.3, 1.0, (4, 8, 6)).astype(
+        np.float32), joint_positions=rng.normal(size=(4, 2)).astype(np.float32))
+    save_dataset(rich, tmp_path / "rich.gva")
+    loaded = load_dataset(tmp_path / "rich.gva")
+    assert loaded == rich and loaded != replace(rich, depths_m=None)
+    assert loaded.subset([2, 0]).joint_positions.tolist() == rich.joint_positions[[2, 0]].tolist()
+    save_dataset(load_dataset(tmp_path / "plain.gva"), tmp_path / "plain.gva")
+    assert (tmp_path / "plain.gva").read_bytes() == before  # no optional tensor: the same file
+    with pytest.raises(InvalidInputError, match=r"joint_positions = 'float32 \(4, 3\)'"):
+        replace(rich, joint_positions=np.zeros((4, 3), np.float32))  # 2 names, 3 columns
+    with pytest.raises(InvalidInputError, match=r"depths_m = 'float64"):
+        replace(rich, depths_m=rich.depths_m.astype(np.float64))
+    rewrite(tmp_path / "rich.gva", tensors={"depths_m": np.zeros((4, 8, 6), np.float32)})
+    fails(tmp_path / "rich.gva", "contents do not match their checksum")
 
 
 def test_same_dataset_same_bytes_and_another_seed_other_bytes(tmp_path):

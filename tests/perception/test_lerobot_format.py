@@ -37,7 +37,7 @@ def rotations(rng: np.random.Generator, n: int) -> np.ndarray:
 
 
 def make(kind=LabelKind.GRASP_POSE, condition=ConditionKind.OBJECT_TYPE, keys=(0, 0, 0, 1, 1, 1),
-         q=3, seed=0) -> Dataset:
+         q=3, seed=0, depth_and_joints=False) -> Dataset:
     """A yumi-like dataset: samples of scene ``keys[n]``, later pick stages with targets taken."""
     rng = np.random.default_rng(seed)
     size, choices = len(keys), ("sponge", "mug") if condition is not ConditionKind.NONE else ()
@@ -45,7 +45,8 @@ def make(kind=LabelKind.GRASP_POSE, condition=ConditionKind.OBJECT_TYPE, keys=(0
         scene="yumi", task="selected-type", size=size, seed=seed, image_height_px=12,
         image_width_px=10, label_kind=kind, targets=q, condition_kind=condition,
         condition_choices=choices, camera={"position_m": [0.09, 0.0, 0.52], "fov_deg": 58.0},
-        extra={"task": {"name": "selected-type"}, "redrawn": [{"scene_index": 2}]})
+        extra={"task": {"name": "selected-type"}, "redrawn": [{"scene_index": 2}]}
+        | ({"joint_names": ["j1", "j2", "gripper"]} if depth_and_joints else {}))
     named = rng.integers(len(choices), size=size) if choices else np.zeros(size, int)
     if condition is ConditionKind.OBJECT_TYPE:
         conditions = np.eye(len(choices), dtype=np.float32)[named]
@@ -61,7 +62,11 @@ def make(kind=LabelKind.GRASP_POSE, condition=ConditionKind.OBJECT_TYPE, keys=(0
     rotation = rotations(rng, size * q).reshape(size, q, 3, 3) \
         if kind is LabelKind.GRASP_POSE else None
     images = rng.integers(0, 256, (size, 12, 10, 3), dtype=np.uint8)
-    return Dataset(metadata, images, conditions, label_vector(position, rotation), scenes)
+    depths = rng.uniform(0.3, 1.0, (size, 12, 10)).astype(np.float32)
+    depths[:, 0, 0] = np.inf  # a pixel that sees nothing
+    joints = rng.normal(size=(size, 3)).astype(np.float32)
+    return Dataset(metadata, images, conditions, label_vector(position, rotation), scenes,
+                   *((depths, joints) if depth_and_joints else ()))
 
 
 CASES: dict[str, dict[str, Any]] = {
@@ -70,6 +75,7 @@ CASES: dict[str, dict[str, Any]] = {
                               "keys": (0, 1, 2), "q": 1},
     "picture-condition": {"condition": ConditionKind.IMAGE, "keys": (0, 0, 1), "q": 1},
     "scenes-out-of-order": {"keys": (0, 1, 0, 2, 2)},
+    "depth-and-joints": {"depth_and_joints": True},
 }
 
 
@@ -80,8 +86,8 @@ def test_round_trip_is_byte_identical(tmp_path, case):
     back = import_lerobot(tmp_path / "out")
     assert back == original
     assert back.metadata == original.metadata and back.scenes == original.scenes
-    for name in ("images", "conditions", "labels"):
-        a, b = getattr(original, name), getattr(back, name)
+    for name, a in original.tensors().items():
+        b = getattr(back, name)
         assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
     first = save_dataset(original, tmp_path / "a.gva").read_bytes()
     assert save_dataset(back, tmp_path / "b.gva").read_bytes() == first
@@ -117,6 +123,10 @@ def test_the_folder_obeys_the_v3_layout(tmp_path, case):
             assert feature["shape"] == [12, 10, 3]
         elif feature["shape"] == [1]:
             assert kind == pa.from_numpy_dtype(np.dtype(feature["dtype"]))
+        elif len(feature["shape"]) == 2:  # depth: rows of rows, as LeRobot's 2-D arrays
+            assert pa.types.is_fixed_size_list(kind) and kind.list_size == feature["shape"][0]
+            assert kind.value_type == pa.list_(pa.float32(), feature["shape"][1])
+            assert feature["names"] == ["height", "width"]
         else:
             assert pa.types.is_fixed_size_list(kind)
             assert kind.list_size == feature["shape"][0] == len(feature["names"])
@@ -144,6 +154,12 @@ def test_the_folder_obeys_the_v3_layout(tmp_path, case):
     assert all(set(s) == STATS for s in stats.values())
     assert np.shape(stats[IMAGE_KEY]["mean"]) == (3, 1, 1)
     assert np.allclose(stats["action"]["mean"], original.labels.reshape(len(original), -1).mean(0))
+    has = {lerobot_format.DEPTH_KEY, lerobot_format.STATE_KEY} <= set(info["features"])
+    assert has == (original.depths_m is not None)
+    if has:  # depth's stats over its finite pixels: JSON holds no inf
+        assert np.isclose(stats[lerobot_format.DEPTH_KEY]["max"][0],
+                          original.depths_m[np.isfinite(original.depths_m)].max())
+        assert info["features"][lerobot_format.STATE_KEY]["names"] == ["j1", "j2", "gripper"]
 
 
 def test_one_episode_per_demonstration_holds_its_pick_stages(tmp_path):

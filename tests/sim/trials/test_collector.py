@@ -39,6 +39,12 @@ def test_a_demonstration_of_several_picks_keeps_the_image_before_each(tmp_path):
     assert all(len(record["objects"]) == 3 for record in data.scenes)  # the scene, as drawn
     for before, after in ((0, 1), (1, 2)):  # the picked object is gone from the next image
         assert np.any(data.images[before] != data.images[after], axis=-1).sum() > 100
+    # the RGB-D frame's depth and the robot's joints of each image are kept, and read back
+    assert data.depths_m is not None and data.joint_positions is not None
+    assert data.depths_m.shape == (3, 128, 128) and 0.3 < float(np.median(data.depths_m)) < 1.0
+    names = data.metadata.extra["joint_names"]
+    assert data.joint_positions.shape == (3, len(names)) and len(names) == 18
+    assert load_dataset(tmp_path / "m.gva") == data
 
 
 @pytest.mark.slow

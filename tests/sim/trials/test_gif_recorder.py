@@ -30,9 +30,9 @@ class CountingRecorder(TrialRecorder):
         self.steps = 0
         self.predictions = 0
 
-    def saw(self, image, prediction) -> None:
+    def saw(self, frame, prediction) -> None:
         self.predictions += 1
-        super().saw(image, prediction)
+        super().saw(frame, prediction)
 
     def stepped(self, world) -> None:
         self.steps += 1
