@@ -41,6 +41,9 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--phrases", type=Path, metavar="FILE",
                         help="a text task's test sentences from FILE: lines of "
                         "phrase<TAB>target, target an object type or a side")
+    parser.add_argument("--allow-sensor-change", action="store_true",
+                        help="run a checkpoint under the task's camera sensor even when its "
+                        "datasets were rendered by another (refused by default, naming both)")
     add_executor_options(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(run=run)
@@ -51,7 +54,8 @@ def run(args: argparse.Namespace) -> int:
     settings = TrialSettings(model=args.model, task=args.task, n=args.n, seed=args.seed,
                              model_class=args.model_class,
                              obstacles=ObstacleSource(args.obstacles),
-                             phrases=None if args.phrases is None else str(args.phrases))
+                             phrases=None if args.phrases is None else str(args.phrases),
+                             allow_sensor_change=args.allow_sensor_change)
     check = held_out_check(settings)
     if check is not None and not check.passed:
         print(f"WARNING: checkpoint {args.model} failed its training's held-out check "

@@ -61,6 +61,9 @@ class ModelSpec:
         object_types: The scene's object types in a fixed order, the vocabulary a model may
             state a target's type in (from ``metadata.extra["object_types"]``); (): unknown (a
             dataset or checkpoint from before gva recorded it).
+        sensor: The sensor that rendered the training images, as the dataset's camera record
+            names it (``{"sensor": "d435", ...}``); None: the ideal camera (every checkpoint
+            from before sensors were recorded). Trials under another sensor are refused.
 
     """
 
@@ -74,6 +77,7 @@ class ModelSpec:
     image_width_px: int
     camera: PinholeCamera | None = None
     object_types: tuple[str, ...] = ()
+    sensor: dict[str, Any] | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.label_kind, LabelKind):
@@ -107,9 +111,11 @@ class ModelSpec:
     def from_metadata(cls, metadata: DatasetMetadata) -> ModelSpec:
         """The spec of a model trained on a dataset with ``metadata``."""
         values = {f.name: getattr(metadata, f.name) for f in fields(cls)
-                  if f.name not in ("camera", "object_types")}
+                  if f.name not in _RECORDED}
+        sensor = metadata.camera.get("sensor")
         return cls(**values, camera=PinholeCamera.from_record(metadata.camera),
-                   object_types=tuple(metadata.extra.get("object_types", ())))
+                   object_types=tuple(metadata.extra.get("object_types", ())),
+                   sensor=None if sensor in (None, IDEAL_SENSOR) else sensor)
 
     def check_dataset(self, dataset: Dataset) -> None:
         """An error naming every field in which ``dataset`` differs from this spec.
@@ -133,13 +139,15 @@ class ModelSpec:
                  "label_kind": self.label_kind.value, "condition_kind": self.condition_kind.value,
                  "condition_choices": list(self.condition_choices), "label_dim": self.label_dim,
                  "object_types": list(self.object_types)}
+        if self.sensor is None:  # the ideal camera: a checkpoint as before sensors were kept
+            del data["sensor"]
         return data
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> ModelSpec:
         """The spec :meth:`to_json` wrote."""
-        values = {f.name: data[f.name] for f in fields(cls)
-                  if f.name not in ("camera", "object_types")}
+        values = {f.name: data[f.name] for f in fields(cls) if f.name not in _RECORDED}
+        values["sensor"] = data.get("sensor")  # absent: the ideal camera
         camera = data.get("camera")  # absent from checkpoints older than the field
         values["camera"] = None if camera is None else PinholeCamera.from_json(camera)
         values["object_types"] = tuple(data.get("object_types", ()))  # absent: older, too
@@ -147,6 +155,11 @@ class ModelSpec:
         values["condition_kind"] = ConditionKind(values["condition_kind"])
         values["condition_choices"] = tuple(values["condition_choices"])
         return cls(**values)
+
+
+_RECORDED = ("camera", "object_types", "sensor")  # what a spec reads from records, not fields
+IDEAL_SENSOR = {"sensor": "ideal"}
+"""A dataset camera record's ``sensor`` for the ideal camera; a spec keeps it as None."""
 
 
 class LearnableModel(PerceptionModel):

@@ -30,6 +30,9 @@ a user writes a new one as a TOML file and passes its path wherever a task name 
     [distractors]
     types = []                # extra objects that are never targets (yumi: also "block")
 
+    [camera]
+    sensor = "ideal"          # ideal | d435 (then any D435Config field by name)
+
 A task is valid in both scenes: the object types come from the scene (``paper-sim``: duck,
 soccer ball, mug; ``yumi``: sponge, spray bottle, mug, plus a wooden block as a distractor
 only), and so does the workspace unless the task narrows it with ``[placement] x_m = [lo, hi]``
@@ -42,14 +45,18 @@ what is allowed. The ranges (and why each bound) are tabulated in ``docs/tasks.m
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from perception.interface import ConditionKind
+from perception.interface import InvalidInputError as PerceptionInputError
 from sim.errors import InvalidInputError
 from sim.tasks.phrasings import Phrasings
+from sim.world.head_camera import CameraConfig
+from sim.world.sensor import SensorConfig
 
 SIDES = ("left", "right")
 """Side condition values: ``left`` is +y (the robot's left, the image's left)."""
@@ -121,6 +128,7 @@ class TaskSpec:
             keeps the scene's.
         brightness: Light level, 1 = the scene's normal light.
         distractors: Types of extra objects that are presented but never targets.
+        camera: The head camera's sensor (``[camera]``): the ideal pinhole, or a D435's.
         source: The file the task came from.
 
     """
@@ -141,6 +149,7 @@ class TaskSpec:
     workspace_y_m: tuple[float, float] | None = None
     brightness: float = 1.0
     distractors: tuple[str, ...] = ()
+    camera: SensorConfig = dataclasses.field(default_factory=SensorConfig)
     source: str = "<code>"
 
     def __post_init__(self) -> None:
@@ -210,7 +219,14 @@ class TaskSpec:
         if not (_finite(self.brightness) and 0.0 < self.brightness <= MAX_BRIGHTNESS):
             raise bad("lighting.brightness", self.brightness,
                       f"a number in (0, {MAX_BRIGHTNESS:g}]")
-
+        if not isinstance(self.camera, SensorConfig):
+            raise bad("camera", self.camera, "a SensorConfig")
+        lens = self.camera.d435.colour_distortion_k1_k2_p1_p2_k3
+        try:  # one-to-one over the head camera's image (and beyond): PinholeCamera checks it
+            replace(CameraConfig().pinhole, distortion_k1_k2_p1_p2_k3=lens)
+        except PerceptionInputError as error:
+            raise bad("camera.colour_distortion_k1_k2_p1_p2_k3", list(lens),
+                      error.allowed) from None
 
     @property
     def model_condition(self) -> ConditionKind:

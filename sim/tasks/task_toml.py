@@ -28,6 +28,8 @@ from sim.tasks.task_spec import (
     brief,
     finite_number,
 )
+from sim.world.d435 import D435Config
+from sim.world.sensor import SensorConfig, sensor_from_table
 
 MAX_TASK_FILE_BYTES = 64 * 1024
 """A task file is a few hundred bytes; a bigger file is refused unread (an image, a dataset)."""
@@ -40,13 +42,14 @@ def _key(key: str) -> str:
 
 _SECTIONS: dict[str, set[str]] = {
     "": {"name", "description", "objects", "targets", "condition", "placement", "lighting",
-         "distractors"},
+         "distractors", "camera"},
     "objects": {"choose", "count", "balance_types"},
     "targets": {"select"},
     "condition": {"kind", "given_as", "phrases"},
     "placement": {"sides", "yaw_deg", "min_spacing_m", "x_m", "y_m"},
     "lighting": {"brightness"},
     "distractors": {"types"},
+    "camera": {"sensor", *(f.name for f in dataclasses.fields(D435Config))},
 }
 
 
@@ -149,8 +152,20 @@ def task_from_toml(text: str, source: str = "<string>") -> TaskSpec:
         workspace_y_m=reader.pair("placement", "y_m"),
         brightness=reader.number("lighting", "brightness", 1.0),
         distractors=tuple(distractors),
+        camera=_camera(reader, source),
         source=source,
     )
+
+
+def _camera(reader: _Reader, source: str) -> SensorConfig:
+    """``[camera]``: ``sensor = "ideal"`` (the default) or ``"d435"``, and D435 fields by name."""
+    table = reader.get("", "camera", dict, None, 'a table such as { sensor = "d435" }')
+    if table is None:
+        return SensorConfig()
+    try:
+        return sensor_from_table(table, f"task file {source}: camera")
+    except InvalidInputError as error:  # a long value shortened: the message stays one line
+        raise InvalidInputError(error.field, brief(error.value), error.allowed) from None
 
 
 def _phrasings(reader: _Reader, source: str) -> Phrasings | None:
@@ -244,6 +259,7 @@ def task_to_toml(task: TaskSpec) -> str:
         "placement": placement,
         "lighting": {"brightness": task.brightness},
         "distractors": {"types": list(task.distractors)},
+        "camera": task.camera.to_json(),
     }
     if task.phrasings is not None:
         for split, phrases in task.phrasings.to_json().items():

@@ -46,6 +46,8 @@ from sim.tasks.task_spec import TaskSpec
 from sim.tasks.task_toml import load_task
 from sim.trials.records import TrialOutcome
 from sim.trials.trial_runner import TrialRunner
+from sim.world.head_camera import HeadCamera
+from sim.world.sensor import SensorKind
 from sim.world.yumi_world import World
 
 MAX_REDRAW_FACTOR = 3
@@ -175,13 +177,21 @@ class Stage:
 
 
 def _task_json(task: TaskSpec) -> dict[str, Any]:
+    """The task as a dataset's ``extra["task"]`` keeps it (the ideal sensor by omission).
+
+    As :func:`~sim.trials.trial_settings.task_identity` does, so a stored dataset is matched.
+    """
     data = dataclasses.asdict(task)
     data.pop("source")
+    data.pop("camera")
+    if task.camera.kind is not SensorKind.IDEAL:
+        data["camera"] = task.camera.to_json()
     return json.loads(json.dumps(data, default=lambda v: v.value))
 
 
-def _camera_json(camera: Any) -> dict[str, Any]:
-    return json.loads(json.dumps(dataclasses.asdict(camera.config)))
+def _camera_json(camera: HeadCamera) -> dict[str, Any]:
+    """The camera record: its config's fields and ``"sensor"``, the sensor it rendered through."""
+    return camera.record()
 
 
 def _collect_paper(

@@ -68,6 +68,7 @@ from sim.trials.planner_setup import (
 from sim.trials.records import TrialOutcome, TrialRecord
 from sim.world.grip import Grip, grip_of
 from sim.world.head_camera import HeadCamera
+from sim.world.sensor import SensorSeed
 from sim.world.yumi_world import World, check_wait_s
 
 _PLAN_OUTCOMES = {
@@ -187,7 +188,8 @@ class TrialRunner:
         self.obstacle_source = obstacles
         self.world = World()
         self.depth = depth or yumi_depth_config(self.world.config)
-        self.camera = HeadCamera()
+        self.camera = HeadCamera(sensor=task.camera)
+        self.frame_seed = SensorSeed()  # the next frame's; setup names the scene, sight counts
         self.lighting = dataclasses.replace(self.camera.config.lighting,
                                             brightness=task.brightness)
         self.model: PerceptionModel = model(self.world, self.camera)
@@ -211,9 +213,11 @@ class TrialRunner:
         """Puts the robot at HOME and the scene's objects on the table; their body ids.
 
         The physics starts afresh (:meth:`World.rebuild`): a trial's record depends only on
-        its task, model, seed and index, never on the trials run before it in this process.
+        its task, model, seed and index, never on the trials run before it in this process;
+        the sensor's noise, on the scene's seed, stream and index and the pick (:meth:`sight`).
         """
         world = self.world
+        self.frame_seed = SensorSeed(scene.seed, int(scene.stream), scene.index)
         world.rebuild()
         world.reset_scene(yumi.HOME)
         bodies = [world.add_object(get_object_spec(o.object_type), o.position_xy_m, o.yaw_rad)
@@ -228,7 +232,7 @@ class TrialRunner:
 
     def sense(self) -> RgbdFrame:
         """The head camera's RGB-D frame now, under the task's lighting, with its calibration."""
-        return self.camera.render_rgbd(self.world.client, self.lighting)
+        return self.camera.render_rgbd(self.world.client, self.lighting, self.frame_seed)
 
     def render(self) -> np.ndarray:
         """The head camera's colour image now, under the task's lighting."""
@@ -275,8 +279,13 @@ class TrialRunner:
         return True
 
     def sight(self, body: int) -> Sighting:
-        """The head camera's frame now, and the referee's note of ``body``, the pick's target."""
-        return Sighting(self.sense(), body, self.world.object_spec(body).name, self.truth(body),
+        """The head camera's frame now, and the referee's note of ``body``, the pick's target.
+
+        Each sighting since :meth:`setup` is the next pick's: its frame's noise is seeded by it.
+        """
+        frame, seed = self.sense(), self.frame_seed
+        self.frame_seed = dataclasses.replace(seed, frame=seed.frame + 1)
+        return Sighting(frame, body, self.world.object_spec(body).name, self.truth(body),
                         yaw_of(self.world.object_pose(body).rotation))
 
     def pick(self, scene: Scene, number: int, total: int, body: int) -> PickAttempt:

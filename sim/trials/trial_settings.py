@@ -37,6 +37,7 @@ from sim.trials.oracle import OraclePerception
 from sim.trials.planner_setup import ObstacleSource, yumi_depth_config
 from sim.trials.trial_runner import TRIAL_INPUTS, ModelFactory
 from sim.world.head_camera import CameraConfig
+from sim.world.sensor import SensorConfig, SensorKind, sensor_from_table
 from sim.world.yumi_world import check_wait_s
 
 MODELS: dict[str, ModelFactory] = {"oracle": OraclePerception}
@@ -71,9 +72,16 @@ def model_source(model: str) -> ModelSource:
 
 
 def task_identity(task: TaskSpec) -> dict[str, Any]:
-    """A task's settings as JSON-able data (a resumed run must use the same task)."""
+    """A task's settings as JSON-able data (a resumed run must use the same task).
+
+    The sensor is ``"camera"`` (:meth:`SensorConfig.to_json`), absent for the ideal camera:
+    run folders and datasets from before sensors existed (all ideal) keep their identity.
+    """
     data = asdict(task)
     data.pop("source")
+    data.pop("camera")
+    if task.camera.kind is not SensorKind.IDEAL:
+        data["camera"] = task.camera.to_json()
     data["phrasings"] = None if task.phrasings is None else task.phrasings.to_json()
     for key, value in data.items():
         if hasattr(value, "value"):
@@ -109,6 +117,8 @@ class TrialSettings:
             debug the planner (never for results: no real robot knows them).
         phrases: A phrase file (lines ``phrase<TAB>target``) that replaces a text task's test
             phrasings; None: the task's own.
+        allow_sensor_change: Run a checkpoint under another sensor than the one its datasets
+            were rendered by (``gva trials --allow-sensor-change``); refused otherwise.
 
     """
 
@@ -121,6 +131,7 @@ class TrialSettings:
     model_class: str | None = None
     obstacles: ObstacleSource = ObstacleSource.DEPTH
     phrases: str | None = None
+    allow_sensor_change: bool = False
 
     def __post_init__(self) -> None:
         if not isinstance(self.obstacles, ObstacleSource):
@@ -227,16 +238,20 @@ def load_trial_model(settings: TrialSettings) -> TrialModel:
         model = build_plugin(settings.model)
         label = model.name
     check_inputs(model, TRIAL_INPUTS, settings.model)
-    check_model_fits_task(model, settings.task_spec, settings.model)
+    check_model_fits_task(model, settings.task_spec, settings.model,
+                          settings.allow_sensor_change)
     return TrialModel(lambda world, camera: model, label, one_torch_thread="torch" in sys.modules)
 
 
-def check_model_fits_task(model: PerceptionModel, task: TaskSpec, where: str) -> None:
+def check_model_fits_task(model: PerceptionModel, task: TaskSpec, where: str,
+                          allow_sensor_change: bool = False) -> None:
     """Raises unless ``model`` predicts grasp poses for what ``task`` asks in the yumi scene.
 
     A model with a :class:`~perception.learning.learnable.ModelSpec` must have been trained on
     the yumi scene with the task's condition (kind and choices), target count and the head camera's
-    image size. Its task may have another name (e.g. the same task under dimmer light).
+    image size, and (unless ``allow_sensor_change``) under the task's sensor
+    (:func:`trained_sensor`). Its task may have another name (e.g. the same task under dimmer
+    light).
     """
     kind = getattr(model, "label_kind", None)
     if kind is not LabelKind.GRASP_POSE:
@@ -256,6 +271,24 @@ def check_model_fits_task(model: PerceptionModel, task: TaskSpec, where: str) ->
         raise InvalidInputError(f"model {where}", f"trained for task {spec.task} "
                                 f"{_describe(*trained)}", f"a checkpoint for trial task "
                                 f"{task.name} {_describe(*needed)}")
+    sensor = trained_sensor(spec, where)
+    if sensor != task.camera and not allow_sensor_change:
+        raise InvalidInputError(f"model {where}", f"trained on images of sensor "
+                                f"{sensor.describe()}", f"a checkpoint trained under trial task "
+                                f"{task.name}'s sensor {task.camera.describe()}, or "
+                                "--allow-sensor-change to try it under another")
+
+
+def trained_sensor(spec: ModelSpec, where: str) -> SensorConfig:
+    """The sensor a checkpoint's training images were rendered by, as its spec records it.
+
+    A spec's ``sensor`` record (:meth:`SensorConfig.to_json`, from its dataset's
+    ``metadata.camera["sensor"]``); a spec without one is the ideal camera's, the only sensor
+    datasets were rendered by before sensors were recorded.
+    """
+    record = spec.sensor
+    return SensorConfig() if record is None else sensor_from_table(record, f"model {where}: "
+                                                                   "sensor")
 
 
 def _describe(scene: str, condition: str, choices: tuple[str, ...], targets: int,

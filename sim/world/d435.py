@@ -6,10 +6,13 @@ Pure numpy, applied to images an ideal pinhole rendered: the colour lens's disto
 (:func:`depth_noise`), the stereo shadow at depth edges (:func:`invalid_depth_edges`), and a
 seeded hand-eye calibration error (:func:`calibration_error`, :func:`true_camera`). Invalid
 depth is 0.0, as the D435 reports it. Every default and its source: docs/decisions/d435-sensor.md.
+
+Which sensor the head camera renders through, and which frame: :mod:`sim.world.sensor`.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 
@@ -58,12 +61,21 @@ class D435Config:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0.0):
                 raise InvalidInputError(name, value, "a finite number > 0")
-        for name in ("left_imager_x_m", "hand_eye_translation_rms_m", "hand_eye_rotation_rms_rad"):
+        if not (isinstance(self.left_imager_x_m, int | float)
+                and math.isfinite(self.left_imager_x_m)):
+            raise InvalidInputError("left_imager_x_m", self.left_imager_x_m, "a finite number")
+        for name in ("hand_eye_translation_rms_m", "hand_eye_rotation_rms_rad"):
             value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value)):
-                raise InvalidInputError(name, value, "a finite number")
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0.0):
+                raise InvalidInputError(name, value, "a finite number >= 0 (0: exact calibration)")
         if not isinstance(self.depth_width_px, int) or self.depth_width_px < 1:
             raise InvalidInputError("depth_width_px", self.depth_width_px, "an integer >= 1")
+        lens = self.colour_distortion_k1_k2_p1_p2_k3
+        if not (isinstance(lens, tuple) and len(lens) == 5 and all(
+                isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+                for v in lens)):
+            raise InvalidInputError("colour_distortion_k1_k2_p1_p2_k3", lens,
+                                    "five finite numbers (k1, k2, p1, p2, k3)")
 
     @property
     def min_range_m(self) -> float:
@@ -122,8 +134,12 @@ def wide_camera_for(camera: PinholeCamera, margin_px: int = 2) -> PinholeCamera:
                                                                / height)))
 
 
+@functools.lru_cache(maxsize=16)  # one map per camera: a run renders every frame with one
 def _source_pixels(wide: PinholeCamera, camera: PinholeCamera) -> np.ndarray:
-    """For each pixel of ``camera``, where the wide ideal image shows what it sees, (H, W, 2)."""
+    """For each pixel of ``camera``, where the wide ideal image shows what it sees, (H, W, 2).
+
+    Read-only: it is cached, as the undistortion it needs costs more than the resampling.
+    """
     if (wide.position_m, wide.target_m, wide.up) != (camera.position_m, camera.target_m,
                                                      camera.up) or wide.is_distorted:
         raise InvalidInputError("wide_camera", wide, "an undistorted camera at the same pose")
@@ -135,7 +151,9 @@ def _source_pixels(wide: PinholeCamera, camera: PinholeCamera) -> np.ndarray:
             and (source[:, 1] <= wide.height_px - 1).all()):
         raise InvalidInputError("wide_camera", wide.image_size_px,
                                 "an image covering every distorted pixel (see wide_camera_for)")
-    return source.reshape(camera.height_px, camera.width_px, 2)
+    source = source.reshape(camera.height_px, camera.width_px, 2)
+    source.flags.writeable = False
+    return source
 
 
 def distort_image(rgb_wide: np.ndarray, wide_camera: PinholeCamera,
@@ -215,9 +233,7 @@ def depth_noise(depth_m: np.ndarray, camera: PinholeCamera, rng: np.random.Gener
     z = np.where(valid, depth, 1.0)
     noisy = z + config.depth_sigma_m(z) * rng.standard_normal(z.shape)
     quantised = np.rint(noisy / config.depth_unit_m) * config.depth_unit_m
-    u, v = np.meshgrid(np.arange(camera.width_px), np.arange(camera.height_px))
-    rays = camera.rays(np.stack([u.ravel(), v.ravel()], axis=1))  # (H W, 3)
-    x_over_z = (rays @ camera.T_world_camera[:3, 0]).reshape(z.shape)  # ray's z is 1
+    x_over_z = _x_over_z(camera)  # (H, W)
     tan_half = config.depth_tan_half_hfov
     in_view = np.ones(z.shape, dtype=bool)
     for offset_m in (config.left_imager_x_m, config.left_imager_x_m + config.baseline_m):
@@ -225,6 +241,16 @@ def depth_noise(depth_m: np.ndarray, camera: PinholeCamera, rng: np.random.Gener
         in_view &= (seen_x >= -tan_half) & (seen_x <= tan_half)
     keep = valid & in_view & (z >= config.min_range_m) & (quantised > 0.0)
     return np.where(keep, quantised, 0.0).astype(np.float32)
+
+
+@functools.lru_cache(maxsize=16)
+def _x_over_z(camera: PinholeCamera) -> np.ndarray:
+    """Each pixel's ray as x / z of the optical frame (undistorted), (H, W), read-only."""
+    u, v = np.meshgrid(np.arange(camera.width_px), np.arange(camera.height_px))
+    rays = camera.rays(np.stack([u.ravel(), v.ravel()], axis=1))  # (H W, 3)
+    x_over_z = (rays @ camera.T_world_camera[:3, 0]).reshape(camera.height_px, camera.width_px)
+    x_over_z.flags.writeable = False  # ray's z is 1
+    return x_over_z
 
 
 def colour_noise(rgb: np.ndarray, rng: np.random.Generator, config: D435Config) -> np.ndarray:

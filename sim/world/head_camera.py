@@ -1,13 +1,16 @@
 """The head camera: a RealSense D435 stand-in on top of the YuMi body, looking at the workspace.
 
 It renders colour and depth from one call (:meth:`HeadCamera.render_rgbd`), as the D435 gives
-both: the models read the colour, the planner the depth.
+both: the models read the colour, the planner the depth. Through its sensor
+(:mod:`sim.world.sensor`): an ideal pinhole, or the D435-like lens, noise, invalid depth and
+hand-eye error of :mod:`sim.world.d435`, while the frame carries the calibration a robot has.
 """
 
 from __future__ import annotations
 
+import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -16,6 +19,18 @@ import pybullet
 from perception.camera import PinholeCamera, RgbdFrame
 from perception.interface import InvalidInputError as PerceptionInputError
 from sim.errors import InvalidInputError
+from sim.world.d435 import (
+    CalibrationError,
+    calibration_error,
+    colour_noise,
+    depth_noise,
+    distort_depth,
+    distort_image,
+    invalid_depth_edges,
+    true_camera,
+    wide_camera_for,
+)
+from sim.world.sensor import SensorConfig, SensorKind, SensorSeed
 
 
 @dataclass(frozen=True)
@@ -112,10 +127,12 @@ class CameraConfig:
     def from_json(cls, data: dict[str, Any]) -> CameraConfig:
         """The config a dataset's metadata recorded (``asdict`` as JSON; lists back to tuples).
 
-        A camera recorded before ``horizontal_fov_deg`` existed had square pixels (None).
+        A camera recorded before ``horizontal_fov_deg`` existed had square pixels (None). The
+        record's ``sensor`` (:meth:`HeadCamera.record`) is the sensor's, not this config's.
         """
         def plain(fields: dict[str, Any]) -> dict[str, Any]:
-            return {k: tuple(v) if isinstance(v, list) else v for k, v in fields.items()}
+            return {k: tuple(v) if isinstance(v, list) else v for k, v in fields.items()
+                    if k != "sensor"}
 
         fields = {"horizontal_fov_deg": None} | plain(data)
         fields["lighting"] = Lighting(**plain(data.get("lighting", {})))
@@ -140,11 +157,22 @@ class HeadCamera:
     """Renders and projects with one :class:`CameraConfig` (PyBullet's CPU renderer: no GPU, no X).
 
     The view and projection matrices are PyBullet's own (OpenGL, column-major), so
-    :meth:`project` agrees with :meth:`render` to the pixel.
+    :meth:`project` agrees with an ideal :meth:`render` to the pixel. Through a D435 sensor the
+    image is rendered from the camera's true pose through its true lens (:meth:`true_camera`);
+    :meth:`project` and every frame keep the calibration (:attr:`pinhole`), as a robot does.
+
+    Args:
+        config: Intrinsics, placement and lighting; the head camera's when None.
+        sensor: What renders the frames; the ideal pinhole when None.
+
     """
 
-    def __init__(self, config: CameraConfig | None = None) -> None:
+    def __init__(self, config: CameraConfig | None = None,
+                 sensor: SensorConfig | None = None) -> None:
         self.config = CameraConfig() if config is None else config
+        self.sensor = SensorConfig() if sensor is None else sensor
+        if not isinstance(self.sensor, SensorConfig):
+            raise InvalidInputError("sensor", self.sensor, "a SensorConfig")
         c = self.config
         self.view_matrix = pybullet.computeViewMatrix(c.position_m, c.target_m, c.up)
         self.projection_matrix = pybullet.computeProjectionMatrixFOV(
@@ -155,26 +183,89 @@ class HeadCamera:
         projection = np.array(self.projection_matrix).reshape(4, 4).T
         self.clip_from_world = projection @ view  # (4, 4), PyBullet's own
         self.pinhole = c.pinhole
+        self._mounts: dict[int, CalibrationError] = {}  # the hand-eye error, per seed
+        self._wide: dict[int, PinholeCamera] = {}  # the wide ideal view, per seed
+        if self.sensor.kind is SensorKind.D435:
+            lens = self.sensor.d435.colour_distortion_k1_k2_p1_p2_k3
+            try:  # the lens must be one-to-one over this image (PinholeCamera checks it)
+                self._lens = replace(self.pinhole, distortion_k1_k2_p1_p2_k3=lens)
+            except PerceptionInputError as error:
+                raise InvalidInputError("camera.colour_distortion_k1_k2_p1_p2_k3", lens,
+                                        error.allowed) from None
 
-    def render(self, client: Any, lighting: Lighting | None = None) -> np.ndarray:
+    def record(self) -> dict[str, Any]:
+        """The camera as a dataset records it: the config's fields and the sensor's."""
+        return json.loads(json.dumps(asdict(self.config))) | {"sensor": self.sensor.to_json()}
+
+    def mount_error(self, seed: int) -> CalibrationError:
+        """How the camera's true pose differs from its calibration under run seed ``seed``."""
+        if seed not in self._mounts:
+            drawn = SensorSeed(seed).mount_rng()
+            self._mounts[seed] = calibration_error(drawn, self.sensor.d435)
+        return self._mounts[seed]
+
+    def true_camera(self, seed: int) -> PinholeCamera:
+        """The camera as it really is under run seed ``seed``: its pose and lens (the referee's).
+
+        The ideal sensor's is its calibration; a D435's stands off it by :meth:`mount_error`
+        and distorts by the sensor's lens, while its frames carry :attr:`pinhole`.
+        """
+        if self.sensor.kind is SensorKind.IDEAL:
+            return self.pinhole
+        return true_camera(self._lens, self.mount_error(seed))
+
+    def render(self, client: Any, lighting: Lighting | None = None,
+               seed: SensorSeed | None = None) -> np.ndarray:
         """Render an RGB image of the world on ``client``: uint8 (H, W, 3), row 0 at the top.
 
         Args:
             client: A ``BulletClient`` (e.g. ``World.client``).
             lighting: Overrides the config's light for this image (e.g. a darker room).
+            seed: Which frame this is (a D435's noise and mount are drawn from it; the ideal
+                sensor ignores it).
 
         """
-        return self.render_rgbd(client, lighting).rgb
+        return self.render_rgbd(client, lighting, seed).rgb
 
-    def render_rgbd(self, client: Any, lighting: Lighting | None = None) -> RgbdFrame:
-        """Render colour and depth together, with the camera's geometry (see :meth:`render`).
+    def render_rgbd(self, client: Any, lighting: Lighting | None = None,
+                    seed: SensorSeed | None = None) -> RgbdFrame:
+        """Render colour and depth together, with the camera's calibration (see :meth:`render`).
 
         Depth is along the optical axis [m], from PyBullet's depth buffer (OpenGL's non-linear
-        [0, 1]); pixels that see nothing within ``far_m`` hold inf.
+        [0, 1]). The ideal sensor: exact, inf where nothing is seen within ``far_m``. A D435:
+        rendered wider from :meth:`true_camera`'s pose, distorted by its lens (colour
+        bilinear, depth nearest), the stereo shadow and noise added, 0.0 where it has no depth;
+        ``seed`` is required (the noise is drawn per frame, never from a global generator).
         """
         c, light = self.config, self.config.lighting if lighting is None else lighting
+        if self.sensor.kind is SensorKind.IDEAL:
+            rgb, depth = self._render(client, c.width_px, c.height_px, self.view_matrix,
+                                      self.projection_matrix, light)
+            return RgbdFrame(rgb, depth, self.pinhole)
+        if not isinstance(seed, SensorSeed):
+            raise InvalidInputError("seed", seed, "a SensorSeed: a D435 draws its noise per "
+                                    "frame and its mount per run seed")
+        sensor, true = self.sensor.d435, self.true_camera(seed.seed)
+        if seed.seed not in self._wide:
+            self._wide[seed.seed] = wide_camera_for(true)
+        wide = self._wide[seed.seed]
+        tan_x, tan_y = wide.tan_half_fov
+        view = pybullet.computeViewMatrix(wide.position_m, wide.target_m, wide.up)
+        projection = pybullet.computeProjectionMatrixFOV(wide.vertical_fov_deg, tan_x / tan_y,
+                                                         c.near_m, c.far_m)
+        rgb_wide, depth_wide = self._render(client, wide.width_px, wide.height_px, view,
+                                            projection, light)
+        rng = seed.noise_rng()
+        rgb = colour_noise(distort_image(rgb_wide, wide, true), rng, sensor)
+        depth = invalid_depth_edges(distort_depth(depth_wide, wide, true), true, sensor)
+        return RgbdFrame(rgb, depth_noise(depth, true, rng, sensor), self.pinhole)
+
+    def _render(self, client: Any, width_px: int, height_px: int, view: Any, projection: Any,
+                light: Lighting) -> tuple[np.ndarray, np.ndarray]:
+        """PyBullet's image: RGB uint8 (H, W, 3) and depth float32 (H, W) [m], inf for none."""
+        c = self.config
         _, _, rgba, buffer, _ = client.getCameraImage(
-            c.width_px, c.height_px, self.view_matrix, self.projection_matrix,
+            width_px, height_px, view, projection,
             lightDirection=list(light.direction),
             lightColor=[light.brightness] * 3,
             lightAmbientCoeff=light.ambient_coeff * light.brightness,
@@ -183,13 +274,12 @@ class HeadCamera:
             shadow=int(light.shadows),
             renderer=pybullet.ER_TINY_RENDERER,
         )
-        image = np.asarray(rgba, dtype=np.uint8).reshape(c.height_px, c.width_px, 4)
+        image = np.asarray(rgba, dtype=np.uint8).reshape(height_px, width_px, 4)
         rgb = np.ascontiguousarray(image[:, :, :3])
-        buffer = np.asarray(buffer, dtype=np.float64).reshape(c.height_px, c.width_px)
+        buffer = np.asarray(buffer, dtype=np.float64).reshape(height_px, width_px)
         with np.errstate(divide="ignore"):
             depth = c.far_m * c.near_m / (c.far_m - (c.far_m - c.near_m) * buffer)
-        depth = np.where(buffer >= 1.0, np.inf, depth).astype(np.float32)  # (H, W)
-        return RgbdFrame(rgb, depth, self.pinhole)
+        return rgb, np.where(buffer >= 1.0, np.inf, depth).astype(np.float32)  # (H, W)
 
     def project(self, points_world: np.ndarray) -> np.ndarray:
         """Pixel coordinates (u right, v down) of world points, (N, 3) -> (N, 2).

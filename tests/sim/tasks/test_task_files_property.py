@@ -66,6 +66,11 @@ VALID: dict[tuple[str, str], st.SearchStrategy[Any]] = {
     ("lighting", "brightness"): st.floats(0.0, 2.0, exclude_min=True),
     ("distractors", "types"): st.lists(st.sampled_from(
         ["block", "mug", "sponge", "spray_bottle", "duck", "soccer_ball"]), max_size=4),
+    ("camera", "sensor"): st.sampled_from(["ideal", "d435"]),
+    ("camera", "subpixel_rms_px"): st.floats(0.01, 0.2),
+    ("camera", "depth_width_px"): st.integers(1, 2000),
+    ("camera", "colour_distortion_k1_k2_p1_p2_k3"): st.lists(st.floats(-0.05, 0.05), min_size=5,
+                                                             max_size=5),
 }
 EDGES: dict[tuple[str, str], list[Any]] = {
     ("", "name"): ["", "x" * 100, "x" * 101, "a\nb", "\x1b[31m"],
@@ -85,6 +90,13 @@ EDGES: dict[tuple[str, str], list[Any]] = {
                            [0, math.inf]],
     ("lighting", "brightness"): [0, 2, 2.000001, -1, *_NON_FINITE],
     ("distractors", "types"): [["block"] * 12, ["mug"] * 11, [3], "block", ["x"]],
+    ("camera", "sensor"): ["kinect", "", "D435", 1, None],
+    ("camera", "subpixel_rms_px"): [0, -0.0, -1, 1e-300, *_NON_FINITE, *_HUGE, 10**400, True,
+                                    "0.1"],
+    ("camera", "depth_width_px"): [0, -1, 1.0, 10**400, True],
+    ("camera", "colour_distortion_k1_k2_p1_p2_k3"): [[0] * 5, [-2, 0, 0, 0, 0], [0] * 4,
+                                                     [math.nan, 0, 0, 0, 0], [10**400, 0, 0, 0, 0],
+                                                     [0.9, 0, 0, 0, 0.9]],
 }
 BASES = [  # the four built-in tasks' shapes, which the mutations below start from
     {"objects": {"choose": "random", "count": 1}, "targets": {"select": "all"},
@@ -111,7 +123,7 @@ def task_documents(draw: st.DrawFn) -> dict[str, Any]:
     document: dict[str, Any] = json.loads(json.dumps(draw(st.sampled_from(BASES))))
     document["name"] = draw(VALID[("", "name")])
     for (section, key), values in VALID.items():
-        if section in ("placement", "lighting", "distractors") and draw(st.booleans()):
+        if section in ("placement", "lighting", "distractors", "camera") and draw(st.booleans()):
             document.setdefault(section, {}).setdefault(key, draw(values))
     for _ in range(draw(st.integers(0, 4))):
         section, key = draw(st.sampled_from(sorted(VALID)))

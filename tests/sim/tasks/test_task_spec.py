@@ -13,6 +13,8 @@ from sim.tasks.task_toml import (
     task_from_toml,
     task_to_toml,
 )
+from sim.world.d435 import D435Config
+from sim.world.sensor import SensorConfig, SensorKind
 
 GOOD = """
 name = "mine"
@@ -54,7 +56,29 @@ def test_a_users_task_file_loads_from_its_path(tmp_path):
     ("name = ", r"task file t\.toml = 'not valid TOML' is not allowed: TOML \(Invalid value"),
     ("[objects]\ncount = 1", r"task file t\.toml: name = None is not allowed: a non-empty string"),
     ('name = "x"\ncolour = "red"', r"task file t\.toml: colour = 'red' is not allowed: a known "
-     r"key: condition, description"),
+     r"key: camera, condition, description"),
+    # The camera table: the sensor's kind, then D435 parameters by their field names.
+    ('name = "x"\ncamera = { sensor = "kinect" }', r"task file t\.toml: camera\.sensor = "
+     r"'kinect' is not allowed: one of 'ideal', 'd435'"),
+    ('name = "x"\ncamera = { sensor = "d435", subpixel_rms_px = -0.1 }', r"task file t\.toml: "
+     r"camera\.subpixel_rms_px = -0\.1 is not allowed: a finite number > 0"),
+    ('name = "x"\ncamera = { sensor = "d435", depth_subpixel_px = 0.1 }', r"camera\."
+     r"depth_subpixel_px = 0\.1 is not allowed: a known key: baseline_m, "),
+    ('name = "x"\ncamera = { depth_unit_m = 0.002 }', r"camera\.depth_unit_m = 0\.002 is not "
+     r"allowed: absent unless sensor = 'd435'"),
+    ('name = "x"\ncamera = { sensor = "d435", depth_width_px = 848.5 }', r"camera\."
+     r"depth_width_px = 848\.5 is not allowed: an integer >= 1"),
+    ('name = "x"\ncamera = { sensor = "d435", baseline_m = true }', r"camera\.baseline_m = True "
+     r"is not allowed: a finite number"),
+    ('name = "x"\ncamera = { sensor = "d435", hand_eye_rotation_rms_rad = -0.01 }',
+     r"camera\.hand_eye_rotation_rms_rad = -0\.01 is not allowed: a finite number >= 0"),
+    ('name = "x"\ncamera = { sensor = "d435", colour_distortion_k1_k2_p1_p2_k3 = [0.1, 0] }',
+     r"camera\.colour_distortion_k1_k2_p1_p2_k3 = \[0\.1, 0\] is not allowed: a list of five"),
+    ('name = "x"\ncamera = { sensor = "d435", colour_distortion_k1_k2_p1_p2_k3 = [-2, 0, 0, 0, '
+     '0] }', r"task 'x' \(t\.toml\): camera\.colour_distortion_k1_k2_p1_p2_k3 = \[-2\.0, 0\.0, "
+     r"0\.0, 0\.0, 0\.0\] is not allowed: a distortion that is monotonic"),
+    ('name = "x"\ncamera = "d435"', r"task file t\.toml: camera = 'd435' is not allowed: a "
+     r"\[table\]"),
     ('name = "x"\n[objects]\ncount = "two"', r"task file t\.toml: objects\.count = 'two' is not "
      r"allowed: an integer in \[1, 12\]"),
     ('name = "x"\n[objects]\ncount = true', r"objects\.count = True is not allowed: an integer"),
@@ -161,3 +185,18 @@ def test_a_task_written_as_toml_reads_back_the_same(name):
     variant = dataclasses.replace(task, name=f"{name}-dim \"x\"", brightness=0.4,
                                   distractors=("sponge", "mug"), workspace_x_m=(0.4, 0.5))
     assert task_from_toml(task_to_toml(variant), task.source) == variant
+
+
+def test_the_camera_table_picks_the_sensor_and_overrides_d435_fields_by_name():
+    assert load_task("single").camera == SensorConfig()  # ideal until measured (issue 48)
+    task = task_from_toml('name = "x"\ncamera = { sensor = "d435", subpixel_rms_px = 0.1, '
+                          'depth_width_px = 640, colour_distortion_k1_k2_p1_p2_k3 = '
+                          '[-0.03, 0, 0, 0, 0] }', "t.toml")
+    assert task.camera == SensorConfig(SensorKind.D435, D435Config(
+        subpixel_rms_px=0.1, depth_width_px=640,
+        colour_distortion_k1_k2_p1_p2_k3=(-0.03, 0.0, 0.0, 0.0, 0.0)))
+    assert task_from_toml(task_to_toml(task), "t.toml") == task
+    assert task_from_toml('name = "x"\ncamera = { sensor = "d435" }', "t.toml").camera == \
+        SensorConfig(SensorKind.D435)
+    assert task_from_toml('name = "x"\n[camera]\nsensor = "ideal"', "t.toml").camera == \
+        SensorConfig()

@@ -1,3 +1,5 @@
+import dataclasses
+
 import numpy as np
 import pytest
 from user_models import synthetic_dataset
@@ -6,11 +8,14 @@ from experiments.cli import main
 from perception.interface import ConditionKind, LabelKind
 from perception.learning.dataset_file import DatasetError, load_dataset
 from perception.learning.labels import split_label
+from perception.learning.learnable import ModelSpec
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import get_scene_spec
-from sim.tasks.task_toml import load_task
+from sim.tasks.task_toml import load_task, task_to_toml
 from sim.trials.collector import CollectSettings, collect
+from sim.world.head_camera import CameraConfig
+from sim.world.sensor import SensorConfig, SensorKind
 
 
 @pytest.fixture(scope="module")
@@ -68,6 +73,7 @@ def test_yumi_dataset_holds_grasp_labels_conditions_and_scene_records(yumi_files
         assert all(np.array_equal(data.images[n], data.images[shown[0]]) for n in shown)
     assert meta.extra["stream"] == "train" and meta.extra["demonstrations_redrawn"] >= 0
     assert meta.extra["object_types"] == list(meta.condition_choices)  # the scene's vocabulary
+    assert meta.camera["sensor"] == {"sensor": "ideal"} and "camera" not in meta.extra["task"]
     np.testing.assert_array_equal(data.target_type_indices()[:, 0], data.conditions.argmax(1))
     for condition, label, record in zip(data.conditions, data.labels, data.scenes, strict=True):
         named = meta.condition_choices[int(np.argmax(condition))]
@@ -196,3 +202,17 @@ def test_a_sentence_or_picture_dataset_keeps_what_each_sample_was_asked(tmp_path
         if phrasings is not None:  # a training scene says a training phrasing of its target
             assert given.value in phrasings.of("train", data.condition_names()[n])
         np.testing.assert_allclose(given.vector(), data.conditions[n], atol=1e-6)
+
+
+def test_a_d435_dataset_records_its_sensor_and_keeps_the_calibration(tmp_path):
+    path = tmp_path / "single-d435.toml"
+    path.write_text(task_to_toml(dataclasses.replace(
+        load_task("single"), name="single-d435", camera=SensorConfig(SensorKind.D435))))
+    data = collect(CollectSettings("yumi", str(path), size=1, seed=0), tmp_path / "d.gva",
+                   progress=False)
+    sensor = SensorConfig(SensorKind.D435).to_json()
+    meta = data.metadata
+    assert meta.camera["sensor"] == sensor and meta.extra["task"]["camera"] == sensor
+    assert CameraConfig.from_json(meta.camera) == CameraConfig()
+    assert ModelSpec.from_metadata(meta).camera == CameraConfig().pinhole  # the nominal one
+    assert data.depths_m is not None and (data.depths_m == 0.0).any()  # the sensor's holes

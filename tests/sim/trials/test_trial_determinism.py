@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
+
+import numpy as np
 
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
@@ -10,6 +13,7 @@ from sim.tasks.task_toml import load_task
 from sim.trials.run_loop import run_trials
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_settings import TrialSettings
+from sim.world.sensor import SensorConfig, SensorKind
 
 
 def test_a_trials_record_does_not_depend_on_the_trials_before_it():
@@ -39,3 +43,37 @@ def test_trials_side_by_side_write_the_records_of_one_process(tmp_path):
     run_trials(settings, tmp_path / "one", progress=False)
     summary = run_trials(settings, tmp_path / "two", progress=False, workers=2)
     assert records(tmp_path / "two") == records(tmp_path / "one") and summary.n == 3
+
+
+D435_SINGLE = dataclasses.replace(load_task("single"), camera=SensorConfig(SensorKind.D435))
+
+
+def test_a_d435_trials_record_does_not_depend_on_the_trials_before_it():
+    scenes = [sample_scene(D435_SINGLE, YUMI_SCENE, 0, SeedStream.TEST, i) for i in range(2)]
+
+    def record(runner, index):
+        fields = json.loads(runner.run(scenes[index], index, 0, "oracle").to_json())
+        fields.pop("wall_time_s")
+        return fields
+
+    with TrialRunner(D435_SINGLE) as runner:
+        after_another = [record(runner, i) for i in (0, 1)][1]
+    with TrialRunner(D435_SINGLE) as runner:
+        alone = record(runner, 1)
+    assert alone == after_another
+
+
+def test_a_d435_runner_seeds_each_frame_by_scene_and_pick():
+    scenes = [sample_scene(D435_SINGLE, YUMI_SCENE, 0, SeedStream.TEST, i) for i in range(2)]
+    with TrialRunner(D435_SINGLE) as runner:
+        def sights(scene):  # the frames of a scene's first two picks
+            body = runner.setup(scene)[scene.targets[0]]
+            return runner.sight(body).frame, runner.sight(body).frame
+
+        first, second = sights(scenes[1])
+        sights(scenes[0])
+        again, _ = sights(scenes[1])
+    assert np.array_equal(again.rgb, first.rgb) and np.array_equal(again.depth_m, first.depth_m)
+    assert not np.array_equal(second.rgb, first.rgb)  # the next pick: fresh noise, same world
+    assert first.camera == runner.camera.pinhole  # the calibration, not the true camera
+    assert runner.camera.true_camera(0) != first.camera

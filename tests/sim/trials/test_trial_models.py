@@ -1,5 +1,6 @@
 """Which model a run of trials loads: checkpoints refused or identified, user classes, threads."""
 
+import dataclasses
 import json
 import re
 import shutil
@@ -9,7 +10,7 @@ import pytest
 import torch
 from user_models import synthetic_dataset
 
-from experiments.cli import main
+from experiments.cli import build_parser, main
 from perception.interface import ConditionKind, LabelKind
 from perception.learning.checkpoint import read_config
 from perception.learning.learnable import ModelSpec
@@ -18,9 +19,12 @@ from perception.learning.validation import CHECK_FILE, HeldOutCheck
 from perception.models.base import LabelScaler
 from perception.models.kqv import KqvModel
 from sim.errors import InvalidInputError, RunFolderError
+from sim.tasks.task_toml import load_task, task_to_toml
 from sim.trials.records import TrialLog
 from sim.trials.run_loop import run_trials
 from sim.trials.trial_settings import TrialSettings, load_trial_model
+from sim.world.d435 import D435Config
+from sim.world.sensor import SensorConfig, SensorKind
 
 
 def _checkpoint(folder, dataset=None, spec=None, seed=0):
@@ -126,3 +130,48 @@ def test_trials_of_a_checkpoint_that_failed_its_held_out_check_say_so(tmp_path, 
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert HeldOutCheck.from_json(summary["held_out_check"]) == failed
 
+
+
+def _d435_task_file(tmp_path):
+    path = tmp_path / "single-d435.toml"
+    path.write_text(task_to_toml(dataclasses.replace(
+        load_task("single"), name="single-d435", camera=SensorConfig(SensorKind.D435))))
+    return path
+
+
+def test_a_checkpoint_refuses_trials_under_another_sensor_naming_both(tmp_path, capsys):
+    folder = _checkpoint(tmp_path / "ckpt", spec=YUMI_SINGLE)  # its spec: no sensor, so ideal
+    task = _d435_task_file(tmp_path)
+    with pytest.raises(InvalidInputError, match=(
+            f"model {re.escape(str(folder))} = 'trained on images of sensor ideal' is not "
+            r"allowed: a checkpoint trained under trial task single-d435's sensor d435, or "
+            r"--allow-sensor-change to try it under another")):
+        load_trial_model(TrialSettings(str(folder), str(task)))
+    load_trial_model(TrialSettings(str(folder), str(task), allow_sensor_change=True))
+    load_trial_model(TrialSettings(str(folder), "single"))  # ideal under ideal
+    assert main(["trials", "--model", str(folder), "--task", str(task), "--n", "1", "--out",
+                 str(tmp_path / "run"), "--no-progress"]) == 2
+    assert "or --allow-sensor-change" in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
+    assert build_parser().parse_args(["trials", "--out", "x", "--allow-sensor-change"]
+                                     ).allow_sensor_change
+
+
+def test_a_checkpoint_trained_under_the_d435_refuses_ideal_trials(tmp_path):
+    sensor = SensorConfig(SensorKind.D435).to_json()
+    spec = dataclasses.replace(YUMI_SINGLE, sensor=sensor)
+    assert ModelSpec.from_json(spec.to_json()) == spec  # the record survives a checkpoint
+    assert "sensor" not in YUMI_SINGLE.to_json()  # an ideal spec's JSON as before sensors
+    folder = _checkpoint(tmp_path / "ckpt", spec=spec)
+    with pytest.raises(InvalidInputError, match=r"trained on images of sensor d435.* trial task "
+                       r"single's sensor ideal"):
+        load_trial_model(TrialSettings(str(folder), "single"))
+    load_trial_model(TrialSettings(str(folder), str(_d435_task_file(tmp_path))))
+
+
+def test_run_json_names_a_d435_sensor_and_ideal_runs_keep_their_identity(tmp_path):
+    assert "camera" not in TrialSettings("oracle", "single").identity()["task"]  # as before
+    identity = TrialSettings("oracle", str(_d435_task_file(tmp_path))).identity()
+    assert identity["task"]["camera"] == {"sensor": "d435"} | {
+        k: list(v) if isinstance(v, tuple) else v
+        for k, v in dataclasses.asdict(D435Config()).items()}
