@@ -33,7 +33,8 @@ class OccludedSpace(enum.Enum):
     """How the planner treats space the camera's view of the scene hides."""
 
     FREE = "free"  # only what is seen (and the space below it) is occupied
-    OCCUPIED = "occupied"  # the space behind each seen surface, down to the table, is too
+    OCCUPIED = "occupied"  # the space behind each seen surface, down to the table, is too,
+    # and every ray without a measurement through the workspace, top to table
 
 
 @dataclass(frozen=True)
@@ -138,7 +139,9 @@ class DepthObstacles:
         obstacles: The height field of everything but the target (none if nothing is seen).
         target_obstacles: The target's clusters (none if the fingers close on no point).
         points: Depth points above the table inside the workspace.
-        hidden_points: Samples added along rays behind seen surfaces (``OCCUPIED`` only).
+        hidden_points: Samples added along rays behind seen surfaces and along rays without
+            a measurement (``OCCUPIED`` only).
+        unknown_rays: Rays without a measurement (pixels of depth 0) the caller gave.
         obstacle_cells: Grid vertices of ``obstacles`` above the table.
         target_cells: Grid vertices of ``target_obstacles`` above the table.
 
@@ -148,22 +151,28 @@ class DepthObstacles:
     target_obstacles: tuple[HeightField, ...]
     points: int
     hidden_points: int
+    unknown_rays: int
     obstacle_cells: int
     target_cells: int
 
     def to_record(self) -> dict[str, Any]:
         """The counts, for a trial record."""
         return {"points": self.points, "hidden_points": self.hidden_points,
+                "unknown_rays": self.unknown_rays,
                 "obstacle_cells": self.obstacle_cells, "target_cells": self.target_cells}
 
 
 def depth_obstacles(points_world: np.ndarray, camera_position_m: np.ndarray,
-                    config: DepthObstacleConfig, grasp: GraspRegion | None = None
-                    ) -> DepthObstacles:
+                    config: DepthObstacleConfig, grasp: GraspRegion | None = None,
+                    unknown_rays_world: np.ndarray | None = None) -> DepthObstacles:
     """Obstacles from a depth image's points (H, W, 3) in the world (NaN: no depth).
 
     With ``grasp``, the clusters its fingers close on are the target's; without, all is
     obstacle. ``camera_position_m`` is the optical centre the image was taken from.
+    ``unknown_rays_world`` (K, 3): directions of the pixels without a measurement (a stereo
+    shadow, too near): no point comes from them; with hidden space ``FREE`` they are free like
+    all unseen space, with ``OCCUPIED`` their stretch through the workspace is an obstacle
+    (never the target's: nothing says what is there).
     """
     points = np.asarray(points_world, dtype=float)
     if points.ndim != 3 or points.shape[2] != 3:
@@ -173,10 +182,18 @@ def depth_obstacles(points_world: np.ndarray, camera_position_m: np.ndarray,
         raise InvalidInputError("camera_position_m", camera_position_m, "three finite numbers")
     seen = points[_in_workspace(points, config)]  # (n, 3)
     labels = _clusters(seen, config.cluster_m)  # (n,)
+    unknown = np.zeros((0, 3)) if unknown_rays_world is None else np.asarray(
+        unknown_rays_world, dtype=float)
+    if unknown.ndim != 2 or unknown.shape[1] != 3 or not np.all(np.isfinite(unknown)):
+        raise InvalidInputError("unknown_rays_world", f"shape {unknown.shape}",
+                                "finite directions of shape (K, 3)")
     hidden, hidden_labels = np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
     if config.occluded is OccludedSpace.OCCUPIED:
         hidden, owners = _hidden_samples(seen, camera, config)
         hidden_labels = labels[owners]
+        dark = _unknown_samples(unknown, camera, config)
+        hidden = np.concatenate([hidden, dark])
+        hidden_labels = np.concatenate([hidden_labels, np.full(len(dark), -1)])
     solid = np.concatenate([seen, hidden])  # (n + m, 3)
     target = np.zeros(len(solid), dtype=bool)
     if grasp is not None:
@@ -188,7 +205,7 @@ def depth_obstacles(points_world: np.ndarray, camera_position_m: np.ndarray,
     return DepthObstacles(
         obstacles=() if others is None else (others,),
         target_obstacles=() if own is None else (own,),
-        points=len(seen), hidden_points=len(hidden),
+        points=len(seen), hidden_points=len(hidden), unknown_rays=len(unknown),
         obstacle_cells=_occupied(others), target_cells=_occupied(own),
     )
 
@@ -231,6 +248,24 @@ def _hidden_samples(points: np.ndarray, camera: np.ndarray, config: DepthObstacl
     samples = start + fraction[:, None] * (start - camera)  # (M, 3)
     keep = _in_workspace(samples, config)
     return samples[keep], source[owner][keep]
+
+
+def _unknown_samples(rays: np.ndarray, camera: np.ndarray, config: DepthObstacleConfig
+                     ) -> np.ndarray:
+    """Samples (M, 3) every half cell along each ray, from the workspace's top to the table."""
+    down = rays[:, 2] < -1e-9  # a ray that never falls to the table crosses no workspace
+    rays = rays[down]
+    top, bottom = (config.table_z_m + config.max_height_m - camera[2],
+                   config.table_z_m - camera[2])
+    start = np.clip(top / rays[:, 2], 0.0, None)  # ray parameters (K,): the top, the table
+    stop = bottom / rays[:, 2]
+    length_m = (stop - start) * np.linalg.norm(rays, axis=1)
+    counts = np.clip(np.ceil(length_m / (config.cell_m / 2)), 1, MAX_SHADOW_SAMPLES).astype(int)
+    owner = np.repeat(np.arange(len(rays)), counts)  # (M,)
+    step = np.arange(len(owner)) - np.repeat(np.cumsum(counts) - counts, counts)  # 0..k-1
+    fraction = start[owner] + (stop - start)[owner] * (step + 0.5) / counts[owner]
+    samples = camera + fraction[:, None] * rays[owner]  # (M, 3)
+    return samples[_in_workspace(samples, config)]
 
 
 def _height_field(name: str, points: np.ndarray, config: DepthObstacleConfig

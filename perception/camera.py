@@ -310,7 +310,10 @@ class RgbdFrame:
 
     Args:
         rgb: (H, W, 3) uint8 colour image, row 0 at the top.
-        depth_m: (H, W) float32 depth along the optical axis [m]; 0 or inf where none.
+        depth_m: (H, W) float32 depth along the optical axis [m]. Two kinds of "none": 0 is
+            no measurement (a RealSense's invalid pixel: a stereo shadow, too near; what lies
+            along that ray is unknown), inf is nothing within the camera's range (the ray is
+            free as far as it reaches).
         camera: The camera's geometry (intrinsics and pose in the world).
 
     """
@@ -333,3 +336,14 @@ class RgbdFrame:
     def points_world(self) -> np.ndarray:
         """The depth image's points in the world, (H, W, 3); NaN where no depth."""
         return self.camera.points_from_depth(self.depth_m)
+
+    def unknown_rays(self) -> np.ndarray:
+        """World directions (K, 3) of the rays of the pixels without a measurement (depth 0).
+
+        A planner that treats unseen space as occupied needs them: nothing is known along
+        them (:mod:`control.depth_obstacles`).
+        """
+        v_px, u_px = np.nonzero(np.asarray(self.depth_m) == 0.0)
+        if not len(u_px):
+            return np.zeros((0, 3))
+        return self.camera.rays(np.stack([u_px, v_px], axis=1).astype(float))

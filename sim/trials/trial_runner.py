@@ -376,7 +376,8 @@ class TrialRunner:
         """Obstacles and the target's own, and what the record keeps of them."""
         if self.obstacle_source is ObstacleSource.DEPTH:
             seen = depth_obstacles(frame.points_world(), np.asarray(frame.camera.position_m),
-                                   self.depth, GraspRegion(pin.SE3(grasp.matrix), grip.opening_m))
+                                   self.depth, GraspRegion(pin.SE3(grasp.matrix), grip.opening_m),
+                                   frame.unknown_rays())
             return PickObstacles(seen.obstacles, seen.target_obstacles,
                                  {"source": "depth"} | seen.to_record())
         world = self.world  # ObstacleSource.TRUTH: the debugging aid reads the true shapes

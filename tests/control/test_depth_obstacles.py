@@ -114,6 +114,26 @@ def test_occupied_hidden_space_fills_the_shadow_behind_a_tall_object():
     assert touches(hidden.obstacles[0], behind) and not touches(free.obstacles[0], behind)
 
 
+def test_a_pixel_without_a_measurement_is_free_space_or_an_obstacle_as_the_config_says():
+    block = block_surface((0.5, 0.2), (0.03, 0.03), 0.05)
+    # a stereo shadow: the camera at (0, 0, 0.6) looked at (0.5, 0.0, 0.02) and got no depth
+    dark = np.array([[0.5, 0.0, 0.02]]) - CAMERA
+    grasp = GraspRegion(pin.SE3(DOWN, np.array([0.5, 0.2, 0.028])), opening_m=0.05)
+    free = depth_obstacles(block, CAMERA, CONFIG, grasp, unknown_rays_world=dark)
+    occupied = depth_obstacles(block, CAMERA, DepthObstacleConfig(
+        FINGERS, CONFIG.x_range_m, CONFIG.y_range_m, occluded=OccludedSpace.OCCUPIED),
+        grasp, unknown_rays_world=dark)
+    assert free.unknown_rays == occupied.unknown_rays == 1 and free.obstacles == ()
+    assert free.to_record()["unknown_rays"] == 1
+    # unseen, so occupied along its whole stretch through the workspace, never the target's
+    on_ray = CAMERA + 0.9 * dark[0]  # 2 cm above the table on that ray
+    assert touches(occupied.obstacles[0], on_ray)
+    assert not any(touches(field, on_ray) for field in occupied.target_obstacles)
+    assert occupied.points == free.points  # no point comes from a pixel without depth
+    with pytest.raises(InvalidInputError, match="unknown_rays_world"):
+        depth_obstacles(block, CAMERA, CONFIG, unknown_rays_world=np.array([[0.0, np.nan, 1.0]]))
+
+
 def test_bad_input_names_the_field():
     with pytest.raises(InvalidInputError, match=r"points_world = 'shape \(5, 3\)' is not "
                        r"allowed: shape \(H, W, 3\)"):

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from perception.camera import PinholeCamera
+from perception.camera import PinholeCamera, RgbdFrame
 from perception.errors import InvalidInputError
 
 LENS = (-0.0237, 0.01, 0.0005, -0.0003, 0.002)
@@ -73,3 +73,15 @@ def test_record_round_trips_and_old_records_load() -> None:
 def test_bad_coefficients_name_the_field(coefficients: tuple[float, ...]) -> None:
     with pytest.raises(InvalidInputError, match="distortion_k1_k2_p1_p2_k3"):
         _camera(coefficients)
+
+
+def test_a_pixel_without_a_measurement_is_an_unknown_ray_and_one_seeing_nothing_is_not():
+    camera = _camera((-0.0237, 0.0, 0.0, 0.0, 0.0))
+    depth = np.full((camera.height_px, camera.width_px), 0.6, dtype=np.float32)
+    depth[5, 7] = 0.0  # no measurement: unknown
+    depth[9, 2] = np.inf  # nothing within range: free
+    frame = RgbdFrame(np.zeros((*depth.shape, 3), np.uint8), depth, camera)
+    rays = frame.unknown_rays()
+    assert rays.shape == (1, 3)
+    np.testing.assert_allclose(rays, camera.rays(np.array([[7.0, 5.0]])))
+    assert np.isnan(frame.points_world()[5, 7]).all() and np.isnan(frame.points_world()[9, 2]).all()
