@@ -160,9 +160,10 @@ class PickCounts:
 
     def line(self) -> str:
         """``12 misses: 10 flagged (83 %), 2 not; 3 false alarms (of 150 picks)``."""
-        return (f"{self.misses} misses: {self.flagged_misses} flagged "
-                f"({100 * self.flagged_fraction:.0f} %), {self.unflagged_misses} not; "
-                f"{self.false_alarms} false alarms (of {self.picks} picks)")
+        misses = (f"{self.misses} misses: {self.flagged_misses} flagged "
+                  f"({100 * self.flagged_fraction:.0f} %), {self.unflagged_misses} not"
+                  if self.misses else "no misses")
+        return f"{misses}; {self.false_alarms} false alarms (of {self.picks} picks)"
 
 
 def judged_pairs(records: Iterable[TrialRecord]) -> list[tuple[bool, bool]]:

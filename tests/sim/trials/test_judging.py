@@ -136,3 +136,8 @@ def test_a_half_written_last_line_is_left_out_and_a_damaged_one_before_it_refuse
     log.write_text("\n".join([lines[0], "{damaged", *lines[1:]]) + "\n")
     status, _, err = gva("judge", old_run)
     assert status == 2 and "trials.jsonl line 2 is damaged" in err
+
+
+def test_a_run_without_misses_says_so_rather_than_a_share_of_none():
+    assert PickCounts(picks=30).line() == "no misses; 0 false alarms (of 30 picks)"
+    assert PickCounts(picks=30, false_alarms=2).line().startswith("no misses; 2 false alarms")
