@@ -1,6 +1,6 @@
 """Cost of planning from the depth image: building the obstacles, and planning around them.
 
-    python benchmarks/bench_depth_obstacles.py [--scenes 10] [--repeats 5]
+    python benchmarks/bench_depth_obstacles.py [--scenes 10] [--repeats 5] [--sensor d435]
         [--out benchmarks/results/depth_obstacles.json]
 
 For the first ``--scenes`` test scenes of each yumi task (seed 0), at the first pick: renders
@@ -8,7 +8,9 @@ the head camera's RGB-D frame, then times :func:`control.depth_obstacles.depth_o
 around the oracle's grasp (median of ``--repeats``), with hidden space free (the default) and
 occupied. The bar: <= 30 ms per pick (median). Peers in the same run: coal's ``makeOctree`` on
 the same points at the same resolution (the geometry the issue named), and the planner's time
-on the same pick given the true shapes instead of the depth obstacles.
+on the same pick given the true shapes instead of the depth obstacles. ``--sensor d435`` renders
+through the D435-like sensor (noise, invalid pixels: their rays go to the obstacles too) and
+writes ``depth_obstacles_d435.json`` unless ``--out`` says otherwise.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from sim.tasks.task_toml import load_task
 from sim.trials.planner_setup import ObstacleSource
 from sim.trials.trial_runner import TrialRunner
 from sim.world.grip import grip_of
+from sim.world.sensor import SensorConfig, SensorKind
 
 TASKS = ("single", "multiple", "selected-type", "selected-position")
 
@@ -60,14 +63,17 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", type=int, default=10)
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--out", type=Path,
-                        default=Path("benchmarks/results/depth_obstacles.json"))
+    parser.add_argument("--sensor", choices=[k.value for k in SensorKind], default="ideal")
+    parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
+    sensor = SensorConfig(SensorKind(args.sensor))
+    out = args.out or Path("benchmarks/results/" + ("depth_obstacles.json" if args.sensor ==
+                                                     "ideal" else "depth_obstacles_d435.json"))
 
     build = {policy: [] for policy in OccludedSpace}
     octree, render, plan_depth, plan_truth, cells = [], [], [], [], []
     for name in TASKS:
-        task = load_task(name)
+        task = dataclasses.replace(load_task(name), camera=sensor)
         with TrialRunner(task) as runner:
             occupied = dataclasses.replace(runner.depth, occluded=OccludedSpace.OCCUPIED)
             for index in range(args.scenes):
@@ -82,11 +88,12 @@ def main() -> None:
                 grasp, _ = clear_of_table(Pose(target.position_m, rotation), grip.opening_m)
                 region = GraspRegion(pin.SE3(grasp.matrix), grip.opening_m)
                 points, camera = frame.points_world(), np.asarray(frame.camera.position_m)
+                unknown = frame.unknown_rays()
                 for policy, config in ((OccludedSpace.FREE, runner.depth),
                                        (OccludedSpace.OCCUPIED, occupied)):
-                    build[policy].append(median_ms(
-                        partial(depth_obstacles, points, camera, config, region), args.repeats))
-                seen = depth_obstacles(points, camera, runner.depth, region)
+                    build[policy].append(median_ms(partial(
+                        depth_obstacles, points, camera, config, region, unknown), args.repeats))
+                seen = depth_obstacles(points, camera, runner.depth, region, unknown)
                 cells.append(seen.obstacle_cells + seen.target_cells)
                 kept = points[np.isfinite(points).all(axis=-1) & (points[..., 2] > 0.01)]
                 octree.append(median_ms(partial(coal.makeOctree, np.ascontiguousarray(
@@ -105,7 +112,7 @@ def main() -> None:
     result = {
         "machine": {"cpu_count": os.cpu_count(), "python": platform.python_version(),
                     "processor": platform.processor() or platform.machine()},
-        "scenes_per_task": args.scenes, "tasks": list(TASKS),
+        "scenes_per_task": args.scenes, "tasks": list(TASKS), "sensor": sensor.to_json(),
         "build_ms_hidden_free": free,
         "build_ms_hidden_occupied": summary(build[OccludedSpace.OCCUPIED]),
         "peer_coal_octree_build_ms": summary(octree),
@@ -120,9 +127,9 @@ def main() -> None:
     for key in ("build_ms_hidden_free", "build_ms_hidden_occupied", "peer_coal_octree_build_ms",
                 "plan_ms_depth", "plan_ms_true_shapes"):
         print(f"{key}: {result[key]}")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=2) + "\n")
+    print(f"wrote {out}")
 
 
 if __name__ == "__main__":
