@@ -40,9 +40,10 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from perception.catalog import OBJECT_TYPES, rot_z
+from perception.catalog import OBJECT_TYPES
 from perception.grasp_tolerance import AXES, READINGS, SIGNED_AXES, TOLERANCE_FORMAT
 from perception.interface import NO_CONDITION, Condition, Prediction, Target
+from perception.poses import rot_z
 from sim.jobs import JobPool
 from sim.tasks.scene_sampling import Scene, SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE

@@ -30,7 +30,7 @@ from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import scene_camera
 from sim.tasks.task_toml import load_task
 from sim.trials.collector import CollectSettings
-from sim.trials.records import differences, json_form
+from sim.trials.run_folder import differences, json_form
 from sim.trials.trial_settings import task_identity
 from sim.world.head_camera import CameraConfig
 

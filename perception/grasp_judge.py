@@ -19,8 +19,9 @@ from typing import Any
 
 import numpy as np
 
-from perception.catalog import ObjectSpec, Pose, Symmetry, rot_z
+from perception.catalog import ObjectSpec, Symmetry
 from perception.grasp_tolerance import ToleranceMap, default_tolerance_map
+from perception.poses import Pose, rot_z
 
 
 @dataclass(frozen=True)

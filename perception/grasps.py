@@ -10,7 +10,8 @@ import math
 
 import numpy as np
 
-from perception.catalog import GraspSpec, ObjectSpec, Pose, Symmetry, rot_z
+from perception.catalog import GraspSpec, ObjectSpec, Symmetry
+from perception.poses import Pose, rot_z
 
 
 def grasp_pose(spec: ObjectSpec, T_world_object: Pose) -> Pose:

@@ -33,7 +33,6 @@ from perception.catalog import (
     OBJECT_TYPES,
     SPRAY_BOTTLE,
     ObjectSpec,
-    Pose,
     get_object_spec,
 )
 from perception.grasps import grasp_pose
@@ -48,6 +47,7 @@ from perception.interface import (
     Prediction,
     Target,
 )
+from perception.poses import Pose
 
 ABOVE_TABLE_M = 0.004
 """Points lower than this are the table (z = 0); every object rises higher [m]."""

@@ -27,7 +27,7 @@ from experiments.tables import RunReport, cost_bar
 from sim.executors import open_pool
 from sim.jobs import Pool
 from sim.trials.provenance import provenance
-from sim.trials.records import claim_run_folder, run_folder_lock
+from sim.trials.run_folder import claim_run_folder, run_folder_lock
 
 ReproduceSimReport = RunReport[CellOutcome, Cell]
 

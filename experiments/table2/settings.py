@@ -23,7 +23,7 @@ from experiments.tables import (
 from perception.learning.train import TrainConfig, available_threads
 from sim.jobs import LOCAL, Executor
 from sim.tasks.task_toml import load_task
-from sim.trials.records import json_form
+from sim.trials.run_folder import json_form
 from sim.trials.trial_settings import task_identity
 
 SIZES = (4, 20, 100)

@@ -52,7 +52,7 @@ from sim.jobs import ONE_CPU, JobResources
 from sim.tasks.scene_sampling import SeedStream, target_count
 from sim.tasks.task_toml import load_task
 from sim.trials.collector import CollectSettings, collect
-from sim.trials.records import json_form
+from sim.trials.run_folder import json_form
 from sim.trials.run_loop import run_trials
 from sim.trials.trial_settings import TrialSettings, torch_threads
 

@@ -17,7 +17,7 @@ from experiments.table3.report import write_reports
 from experiments.table3.settings import ReproduceRealSettings, seed_folder, write_variant_tasks
 from experiments.tables import RunReport
 from sim.trials.provenance import provenance
-from sim.trials.records import claim_run_folder, run_folder_lock
+from sim.trials.run_folder import claim_run_folder, run_folder_lock
 
 ReproduceRealReport = RunReport[JobOutcome, str]
 

@@ -15,12 +15,13 @@ from typing import Any
 
 import numpy as np
 
-from perception.catalog import Pose, get_object_spec
+from perception.catalog import get_object_spec
 from perception.grasp_judge import GraspVerdict, judge_grasp
 from perception.grasp_tolerance import ToleranceMap, default_tolerance_map
 from perception.interface import Prediction
 from perception.learning.data import Dataset
 from perception.learning.labels import split_label
+from perception.poses import Pose
 
 ERRORS = ("position_cm", "closing_mm", "across_mm", "approach_mm", "yaw_deg", "tilt_deg")
 """The errors each group reports; offsets as their size (no sign)."""

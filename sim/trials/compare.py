@@ -25,7 +25,8 @@ from sim.trials.paired_statistics import (
     PairedTest,
     Verdict,
 )
-from sim.trials.records import TrialOutcome, TrialRecord, differences
+from sim.trials.records import TrialOutcome, TrialRecord
+from sim.trials.run_folder import differences
 
 RUN_FILES = ("run.json", "trials.jsonl", "summary.json")
 """What a finished ``gva trials`` run folder holds."""

@@ -16,9 +16,10 @@ from typing import Any
 
 import numpy as np
 
-from perception.catalog import Pose, get_object_spec
+from perception.catalog import get_object_spec
 from perception.grasp_judge import GraspVerdict, judge_grasp
 from perception.grasp_tolerance import ToleranceMap, default_tolerance_map
+from perception.poses import Pose
 from sim.errors import InvalidInputError
 from sim.trials.records import PickCounts, TrialOutcome, TrialRecord, read_trial_records
 

@@ -14,8 +14,8 @@ import numpy as np
 import pinocchio as pin
 
 from control.pick import PickPlan, PlanStatus
-from perception.catalog import Pose
 from perception.grasp_judge import GraspVerdict
+from perception.poses import Pose
 from sim.trials.records import TrialOutcome
 from sim.world.grip import Grip
 

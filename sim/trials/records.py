@@ -8,25 +8,19 @@ and a folder that holds a different run is refused rather than mixed.
 
 from __future__ import annotations
 
-import contextlib
 import enum
 import json
 import math
 import os
-import socket
 import statistics
-import sys
-import time
 from collections import Counter
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-import filelock
-
-from perception.files import atomic_write
 from sim.errors import RunFolderError
+from sim.trials.run_folder import claim_run_folder
 
 RECORD_FORMAT_VERSION = 1
 
@@ -253,111 +247,6 @@ class TrialSummary:
         low, high = self.wilson95
         return (f"{self.successes}/{self.n} successes "
                 f"(95 % Wilson interval {100 * low:.1f}-{100 * high:.1f} %)")
-
-
-def json_form(data: Mapping[str, Any]) -> dict[str, Any]:
-    """``data`` as it reads back from JSON (tuples become lists), so stored and asked compare."""
-    return json.loads(json.dumps(dict(data)))
-
-
-def differences(stored: Mapping[str, Any], asked: Mapping[str, Any]) -> dict[str, Any]:
-    """The keys whose values differ, as ``{key: (stored, asked)}``; nested dicts by their keys.
-
-    A key inside a nested dict is named ``outer.inner``, so a message shows what changed
-    (``model_config.temperature``) rather than two whole configurations.
-    """
-    found: dict[str, Any] = {}
-    for key in sorted(set(stored) | set(asked), key=str):
-        old, new = stored.get(key), asked.get(key)
-        if isinstance(old, Mapping) and isinstance(new, Mapping):
-            found |= {f"{key}.{inner}": pair for inner, pair in differences(old, new).items()}
-        elif old != new:
-            found[key] = (old, new)
-    return found
-
-
-def claim_run_folder(folder: Path, settings: Mapping[str, Any], name: str = "run.json",
-                     provenance: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """Makes ``folder`` the home of the run ``settings`` identify; returns them in JSON form.
-
-    A new folder gets ``folder/name`` holding the settings (written atomically); a folder that
-    has one is accepted only if it holds the same settings. ``provenance``
-    (:mod:`sim.trials.provenance`) is appended to the file's ``provenance`` list, one entry per
-    session that worked on the run; it is not part of what identifies the run.
-
-    Raises:
-        RunFolderError: The folder holds a different run (the message names what differs,
-            stored vs asked), or its settings file is damaged.
-
-    """
-    folder.mkdir(parents=True, exist_ok=True)
-    asked = json_form(settings)
-    path = folder / name
-    history: list[Any] = []
-    if path.exists():
-        try:
-            stored = json.loads(path.read_text())
-        except json.JSONDecodeError as error:
-            raise RunFolderError(f"{path} is damaged ({error}); use another --out") from None
-        history = stored.pop(PROVENANCE_KEY, []) if isinstance(stored, dict) else []
-        if stored != asked:
-            raise RunFolderError(f"{folder} holds a different run ({differences(stored, asked)}"
-                                 ", stored vs asked); use another --out or remove the folder")
-    if provenance is not None or not path.exists():
-        record = asked | {PROVENANCE_KEY: [*history, *([json_form(provenance)]
-                                                         if provenance is not None else [])]}
-        text = json.dumps(record, indent=2, sort_keys=True) + "\n"
-        atomic_write(path, lambda temporary: temporary.write_text(text))
-    return asked
-
-
-PROVENANCE_KEY = "provenance"
-"""The key of a settings file's list of sessions (not part of the run's identity)."""
-
-
-LOCK_FILE = ".gva.lock"
-"""The lock a run holds on its folder for its whole life (``filelock``: an OS lock, released
-by the OS when the process ends, however it ends)."""
-HOLDER_FILE = ".gva.lock.holder"
-"""Who holds the lock: process, host, start time and command, for the refusal's message."""
-
-
-@contextlib.contextmanager
-def run_folder_lock(folder: Path) -> Iterator[None]:
-    """Holds ``folder``'s lock inside the block: one run per folder, at any time.
-
-    A second run on the same folder, from this process or another, is refused at once rather
-    than left to wait: two runs would write the same trials twice.
-
-    Raises:
-        RunFolderError: Another run holds the folder; the message says which, and what to do.
-
-    """
-    folder.mkdir(parents=True, exist_ok=True)
-    lock = filelock.FileLock(folder / LOCK_FILE, timeout=0, thread_local=False)
-    try:
-        lock.acquire()
-    except filelock.Timeout:
-        holder = folder / HOLDER_FILE
-        try:
-            who = json.loads(holder.read_text())
-            shown = (f"process {who['pid']} on {who['host']}, started "
-                     f"{time.strftime('%Y-%m-%d %H:%M:%S', time.localtime(who['started']))}: "
-                     f"{who['command']}")
-        except (OSError, ValueError, KeyError, TypeError):
-            shown = "another process"
-        raise RunFolderError(f"{folder} is in use by another run ({shown}); wait until it "
-                             "ends (then the same command resumes it) or use another --out"
-                             ) from None
-    try:
-        who = {"pid": os.getpid(), "host": socket.gethostname(), "started": time.time(),
-               "command": " ".join(sys.argv)}
-        atomic_write(folder / HOLDER_FILE,
-                     lambda temporary: temporary.write_text(json.dumps(who) + "\n"))
-        yield
-    finally:
-        (folder / HOLDER_FILE).unlink(missing_ok=True)
-        lock.release()
 
 
 class TrialLog:

@@ -34,7 +34,8 @@ from sim.tasks.scene_sampling import (
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_spec import TaskSpec
 from sim.trials.provenance import provenance
-from sim.trials.records import TrialLog, TrialRecord, TrialSummary, run_folder_lock
+from sim.trials.records import TrialLog, TrialRecord, TrialSummary
+from sim.trials.run_folder import run_folder_lock
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_settings import (
     TrialModel,
@@ -73,7 +74,7 @@ def run_trials(
 ) -> TrialSummary:
     """Runs (or resumes) ``settings.n`` trials into ``out_dir``; writes ``summary.json``.
 
-    The folder is locked for the run (:func:`~sim.trials.records.run_folder_lock`). With
+    The folder is locked for the run (:func:`~sim.trials.run_folder.run_folder_lock`). With
     ``workers`` > 1 the trials run side by side in that many processes (:mod:`sim.jobs`), or
     with the Ray executor as Ray tasks, one per trial (:mod:`sim.ray_jobs`); this process
     appends each record as it comes. Every trial starts from a rebuilt world, so the records

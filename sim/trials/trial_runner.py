@@ -36,7 +36,7 @@ from control.depth_obstacles import DepthObstacleConfig, GraspRegion, depth_obst
 from control.pick import PickPlan, PickRequest, PlanStatus
 from control.planner import PickPlanner
 from perception.camera import RgbdFrame
-from perception.catalog import Pose, clear_of_table, get_object_spec
+from perception.catalog import clear_of_table, get_object_spec
 from perception.checks import check_inputs, check_prediction
 from perception.errors import InvalidPredictionError
 from perception.grasp_judge import judge_grasp, yaw_of
@@ -50,6 +50,7 @@ from perception.interface import (
     Target,
 )
 from perception.learning.labels import nearest_rotation
+from perception.poses import Pose
 from robots import yumi
 from sim.errors import InvalidInputError, SimError
 from sim.tasks.scene_sampling import Scene

@@ -16,9 +16,10 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from perception.catalog import MAX_OPENING_M, ObjectSpec, Pose, catalog_names, get_object_spec
+from perception.catalog import MAX_OPENING_M, ObjectSpec, catalog_names, get_object_spec
 from perception.grasps import symmetric_alternatives
 from perception.interface import Target
+from perception.poses import Pose
 from sim.errors import InvalidInputError
 
 DEFAULT_PREGRASP_DISTANCE_M = 0.08

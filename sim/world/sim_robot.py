@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pybullet
 
-from perception.catalog import Pose
+from perception.poses import Pose
 from robots import yumi
 from sim.errors import InvalidInputError
 

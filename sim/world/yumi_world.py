@@ -13,7 +13,8 @@ import pybullet
 import pybullet_data
 from pybullet_utils import bullet_client
 
-from perception.catalog import ObjectSpec, Pose, PrimitiveKind
+from perception.catalog import ObjectSpec, PrimitiveKind
+from perception.poses import Pose
 from robots import yumi
 from sim.errors import InvalidInputError, SimulationError
 from sim.world.quiet import silenced_output

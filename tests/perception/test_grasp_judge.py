@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from perception.catalog import MUG, OBJECT_TYPES, SPONGE, SPRAY_BOTTLE, Pose, rot_z
+from perception.catalog import MUG, OBJECT_TYPES, SPONGE, SPRAY_BOTTLE
 from perception.errors import InvalidInputError
 from perception.grasp_judge import grasp_error, judge_grasp
 from perception.grasp_tolerance import (
@@ -18,6 +18,7 @@ from perception.grasp_tolerance import (
     default_tolerance_map,
 )
 from perception.grasps import grasp_pose
+from perception.poses import Pose, rot_z
 
 YAWS_DEG = [0.0, 30.0, 90.0]
 

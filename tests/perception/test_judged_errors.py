@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from user_models import synthetic_dataset
 
-from perception.catalog import rot_z
 from perception.interface import LabelKind, Prediction, Target
 from perception.learning.judged_errors import judge_predictions
 from perception.learning.labels import split_label
+from perception.poses import rot_z
 
 
 @pytest.fixture

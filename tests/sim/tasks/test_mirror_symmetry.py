@@ -9,11 +9,11 @@ from perception.catalog import (
     DISTRACTOR_TYPES,
     OBJECT_TYPES,
     SPRAY_BOTTLE,
-    Pose,
     Primitive,
     get_object_spec,
 )
 from perception.grasps import grasp_pose
+from perception.poses import Pose
 from sim.tasks.mirror_symmetry import MIRROR_Y, mirror_symmetric, object_is_mirror_symmetric
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_toml import load_task, task_from_toml

@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 from gva_cli import gva
 
-from perception.catalog import SPONGE, SPRAY_BOTTLE, Pose, rot_z
+from perception.catalog import SPONGE, SPRAY_BOTTLE
 from perception.grasps import grasp_pose
 from perception.interface import NO_CONDITION, Prediction, Target
+from perception.poses import Pose, rot_z
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_toml import load_task

@@ -3,7 +3,7 @@ import math
 import numpy as np
 
 from control.pick import PlanStatus
-from perception.catalog import Pose, rot_z
+from perception.poses import Pose, rot_z
 from sim.trials.pick_results import PickAttempt, PlannedPick, TrialResult, as_recorded
 from sim.trials.records import TrialOutcome, TrialRecord
 from sim.world.grip import DEFAULT_GRIP

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from sim.errors import RunFolderError
-from sim.trials.records import run_folder_lock
+from sim.trials.run_folder import run_folder_lock
 from sim.trials.run_loop import run_trials
 from sim.trials.trial_settings import TrialSettings
 

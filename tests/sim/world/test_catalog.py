@@ -19,7 +19,6 @@ from perception.catalog import (
     OBJECT_TYPES,
     GraspSpec,
     ObjectSpec,
-    Pose,
     Primitive,
     PrimitiveKind,
     Symmetry,
@@ -29,6 +28,7 @@ from perception.catalog import (
 )
 from perception.grasps import grasp_pose
 from perception.interface import InvalidInputError
+from perception.poses import Pose
 from robots import yumi
 from sim.world.yumi_world import World
 

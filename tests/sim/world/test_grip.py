@@ -3,10 +3,11 @@
 import numpy as np
 import pytest
 
-from perception.catalog import MAX_OPENING_M, Pose, catalog_names, get_object_spec
+from perception.catalog import MAX_OPENING_M, catalog_names, get_object_spec
 from perception.grasps import grasp_pose
 from perception.interface import InvalidInputError as PerceptionInputError
 from perception.interface import Target
+from perception.poses import Pose
 from sim.errors import InvalidInputError
 from sim.world.grip import DEFAULT_GRIP, GripSource, grip_of
 
