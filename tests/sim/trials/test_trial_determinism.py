@@ -6,6 +6,7 @@ import dataclasses
 import json
 
 import numpy as np
+import pytest
 
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
@@ -15,11 +16,11 @@ from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_settings import TrialSettings
 from sim.world.sensor import SensorConfig, SensorKind
 
+D435_SINGLE = dataclasses.replace(load_task("single"), camera=SensorConfig(SensorKind.D435))
 
-def test_a_trials_record_does_not_depend_on_the_trials_before_it():
-    # multiple trial 1 after trial 0 lifted its last object 0.09900 m, alone 0.09901 m, while
-    # one PyBullet world carried its state from trial to trial
-    task = load_task("multiple")
+
+def second_record_after_another_and_alone(task):
+    """Trial 1's record run after trial 0 in one runner, and run alone in a fresh one."""
     scenes = [sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, i) for i in range(2)]
 
     def record(runner, index):
@@ -31,6 +32,15 @@ def test_a_trials_record_does_not_depend_on_the_trials_before_it():
         after_another = [record(runner, i) for i in (0, 1)][1]
     with TrialRunner(task) as runner:
         alone = record(runner, 1)  # as a resumed run, or another worker, runs it
+    return after_another, alone
+
+
+@pytest.mark.parametrize("task", [load_task("multiple"), D435_SINGLE], ids=["multiple", "d435"])
+def test_a_trials_record_does_not_depend_on_the_trials_before_it(task):
+    # multiple trial 1 after trial 0 lifted its last object 0.09900 m, alone 0.09901 m, while
+    # one PyBullet world carried its state from trial to trial; a D435's noise is seeded per
+    # trial and pick, never drawn from a stream the trials before it advanced
+    after_another, alone = second_record_after_another_and_alone(task)
     assert alone == after_another
 
 
@@ -43,24 +53,6 @@ def test_trials_side_by_side_write_the_records_of_one_process(tmp_path):
     run_trials(settings, tmp_path / "one", progress=False)
     summary = run_trials(settings, tmp_path / "two", progress=False, workers=2)
     assert records(tmp_path / "two") == records(tmp_path / "one") and summary.n == 3
-
-
-D435_SINGLE = dataclasses.replace(load_task("single"), camera=SensorConfig(SensorKind.D435))
-
-
-def test_a_d435_trials_record_does_not_depend_on_the_trials_before_it():
-    scenes = [sample_scene(D435_SINGLE, YUMI_SCENE, 0, SeedStream.TEST, i) for i in range(2)]
-
-    def record(runner, index):
-        fields = json.loads(runner.run(scenes[index], index, 0, "oracle").to_json())
-        fields.pop("wall_time_s")
-        return fields
-
-    with TrialRunner(D435_SINGLE) as runner:
-        after_another = [record(runner, i) for i in (0, 1)][1]
-    with TrialRunner(D435_SINGLE) as runner:
-        alone = record(runner, 1)
-    assert alone == after_another
 
 
 def test_a_d435_runner_seeds_each_frame_by_scene_and_pick():
