@@ -82,10 +82,28 @@ def contents_sha256(dataset: Dataset) -> str:
     return _contents_sha256(_record(dataset), dataset.tensors())
 
 
+def metadata_to_json(metadata: DatasetMetadata) -> dict[str, Any]:
+    """``metadata`` in the JSON form a dataset file (or a LeRobot export) keeps it."""
+    return {f.name: _plain(getattr(metadata, f.name)) for f in fields(DatasetMetadata)}
+
+
+def metadata_from_json(data: Mapping[str, Any]) -> DatasetMetadata:
+    """The metadata :func:`metadata_to_json` wrote, validated (an error names the field)."""
+    values = dict(data)
+    choices = data["condition_choices"]
+    values["condition_choices"] = tuple(choices) if isinstance(choices, list) else choices
+    for name, kind in (("label_kind", LabelKind), ("condition_kind", ConditionKind)):
+        try:
+            values[name] = kind(data[name])
+        except (ValueError, TypeError):
+            allowed = ", ".join(member.value for member in kind)
+            raise InvalidInputError(name, data[name], f"one of {allowed}") from None
+    return DatasetMetadata(**values)
+
+
 def _record(dataset: Dataset) -> dict[str, Any]:
     """The file's record of ``dataset`` in JSON form, before its checksum."""
-    metadata = {f.name: _plain(getattr(dataset.metadata, f.name)) for f in fields(DatasetMetadata)}
-    return {"metadata": metadata, "scenes": list(dataset.scenes)}
+    return {"metadata": metadata_to_json(dataset.metadata), "scenes": list(dataset.scenes)}
 
 
 def read_metadata(path: str | Path) -> DatasetMetadata:
@@ -175,16 +193,8 @@ def _read_record(path: Path, header: Mapping[str, Any]) -> dict[str, Any]:
 
 def _metadata_from_json(path: Path, data: Mapping[str, Any]) -> DatasetMetadata:
     """The metadata in its JSON form ``data`` (keys already checked), validated."""
-    values, choices = dict(data), data["condition_choices"]
-    values["condition_choices"] = tuple(choices) if isinstance(choices, list) else choices
     try:
-        for name, kind in (("label_kind", LabelKind), ("condition_kind", ConditionKind)):
-            try:
-                values[name] = kind(data[name])
-            except (ValueError, TypeError):
-                allowed = ", ".join(member.value for member in kind)
-                raise InvalidInputError(name, data[name], f"one of {allowed}") from None
-        return DatasetMetadata(**values)
+        return metadata_from_json(data)
     except InvalidInputError as error:
         raise DatasetError(path, f"metadata is not valid: {error}") from error
 

@@ -19,14 +19,13 @@ are PNG bytes in the parquet file (LeRobot's ``"image"`` dtype): lossless, no vi
 
 from __future__ import annotations
 
-import enum
 import io
 import json
 import os
 import shutil
 import tempfile
 import time
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -35,9 +34,14 @@ from PIL import Image
 from tqdm import tqdm
 
 from perception.files import FileError
-from perception.interface import ConditionKind, InvalidInputError, LabelKind
+from perception.interface import InvalidInputError, LabelKind
 from perception.learning.data import JOINT_NAMES_KEY, Dataset, DatasetMetadata
-from perception.learning.dataset_file import contents_sha256, load_dataset
+from perception.learning.dataset_file import (
+    contents_sha256,
+    load_dataset,
+    metadata_from_json,
+    metadata_to_json,
+)
 
 try:
     import pyarrow as pa
@@ -229,7 +233,7 @@ def _write_folder(data: Dataset, root: Path, progress: bool) -> int:
     _write_json(root / "meta/info.json", info)
     _write_json(root / "meta/stats.json", _all_stats(columns, data.images, data.depths_m))
     _write_json(root / GVA_PATH, {
-        "format": GVA_FORMAT, "metadata": _plain_metadata(meta), "scenes": list(data.scenes),
+        "format": GVA_FORMAT, "metadata": metadata_to_json(meta), "scenes": list(data.scenes),
         "condition_size": int(data.conditions.shape[1]), "contents_sha256": contents_sha256(data),
         "data_files": files, "depth": DEPTH_KEY if data.depths_m is not None else None,
         "state": STATE_KEY if data.joint_positions is not None else None})
@@ -357,23 +361,11 @@ def _vectors(table: pa.Table, key: str, nested: bool = False) -> np.ndarray:
     return np.asarray(values.to_numpy(), dtype=np.float32).reshape(len(column), -1)
 
 
-def _plain_metadata(meta: DatasetMetadata) -> dict[str, Any]:
-    """Metadata in its JSON form: enums by value, tuples as lists."""
-    def plain(value: Any) -> Any:
-        if isinstance(value, enum.Enum):
-            return value.value
-        return list(value) if isinstance(value, tuple) else value
-    return {f.name: plain(getattr(meta, f.name)) for f in fields(DatasetMetadata)}
-
-
 def _metadata(root: Path, data: dict[str, Any]) -> DatasetMetadata:
     """The metadata of its JSON form, validated."""
     try:
-        values = dict(data) | {"condition_choices": tuple(data["condition_choices"]),
-                               "label_kind": LabelKind(data["label_kind"]),
-                               "condition_kind": ConditionKind(data["condition_kind"])}
-        return DatasetMetadata(**values)
-    except (KeyError, TypeError, ValueError) as error:
+        return metadata_from_json(data)
+    except (InvalidInputError, KeyError, TypeError) as error:
         raise LeRobotFolderError(root, f"{GVA_PATH} metadata is not valid: {error}") from error
 
 
