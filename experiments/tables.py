@@ -175,9 +175,10 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
                     stream: SeedStream) -> bool:
     """Whether ``path`` holds the dataset asked for; refuses a file that holds another.
 
-    Compared: scene, task name, size (in scenes: a yumi demonstration has an image per pick,
-    a training scene of a task with a condition a sample per condition value), seed, seed
-    stream, whether each scene is asked every condition
+    ``task`` is a built-in task's name or a task file's path. Compared: scene, task name,
+    size (in scenes: a yumi demonstration has an image per pick, a training scene of a task
+    with a condition a sample per condition value), seed, seed stream, whether each scene is
+    asked every condition
     (:class:`sim.trials.collector.CollectSettings` ``every_condition``, at its default for the
     stream), the task's definition (a task whose TOML changed since is another dataset) and the
     scene's camera (other images).
@@ -189,11 +190,12 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
     if not path.exists():
         return False
     meta = read_metadata(path)
-    asked = json_form({"scene": scene, "task": task, "size": size, "seed": seed,
+    definition = load_task(task)
+    asked = json_form({"scene": scene, "task": definition.name, "size": size, "seed": seed,
                        "stream": stream.name.lower(),
                        "every_condition": CollectSettings(scene, task, size, seed,
                                                           stream).asks_every_condition,
-                       "definition": task_identity(load_task(task)),
+                       "definition": task_identity(definition),
                        "camera": asdict(scene_camera(scene))})
     scenes = meta.extra.get("scenes", meta.size)  # a scene may give several samples
     found = {"scene": meta.scene, "task": meta.task, "size": scenes, "seed": meta.seed,

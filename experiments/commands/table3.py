@@ -14,6 +14,7 @@ from experiments.table3.run import run_reproduce_real
 from experiments.table3.settings import ReproduceRealSettings
 from experiments.tables import BEYOND_TASKS
 from perception.learning.validation import CheckConfig
+from sim.world.sensor import SensorKind
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:
@@ -50,6 +51,12 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         default=defaults.robustness,
                         help="also run kqv under darker light and with a distractor "
                         f"({'on' if defaults.robustness else 'off'})")
+    parser.add_argument("--sensor", choices=[k.value for k in SensorKind],
+                        default=defaults.sensor.value,
+                        help="what the head camera renders through, for demonstrations and "
+                        "trials: d435 (lens distortion, depth noise and holes, hand-eye error; "
+                        "docs/decisions/d435-sensor.md) or ideal, an exact pinhole "
+                        "(%(default)s)")
     add_executor_options(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(run=run)
@@ -60,7 +67,8 @@ def run(args: argparse.Namespace) -> int:
     settings = ReproduceRealSettings(models=args.models, tasks=args.tasks, n=args.n,
                                      demos=args.demos, steps=args.steps, seed=args.seed,
                                      seeds=args.seeds, check=CheckConfig(holdout=args.holdout),
-                                     robustness=args.robustness, workers=args.workers,
+                                     robustness=args.robustness,
+                                     sensor=SensorKind(args.sensor), workers=args.workers,
                                      executor=executor(args), train_threads=args.train_threads)
     report = run_reproduce_real(settings, args.out, progress=not args.no_progress)
     for line in report.summary_lines("job(s) run", lambda record: record["job"]):

@@ -30,6 +30,7 @@ from experiments.table3.settings import (
     error_file,
     gif_file,
     seed_folder,
+    task_file,
     trained_file,
     trials_folder,
 )
@@ -180,8 +181,8 @@ def _work(job: Job) -> str:
 
 
 def _collect(job: CollectJob) -> str:
-    settings = CollectSettings(SCENE, job.task, job.settings.demos, job.settings.seed,
-                               SeedStream.TRAIN)
+    settings = CollectSettings(SCENE, str(task_file(job.out, job.task)), job.settings.demos,
+                               job.settings.seed, SeedStream.TRAIN)
     dataset = collect(settings, dataset_file(job.out, job.task, job.settings), progress=False)
     extra = dataset.metadata.extra
     return f"{extra.get('scenes', len(dataset))} demonstrations ({len(dataset)} " \
@@ -282,7 +283,8 @@ def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
         trains += [TrainJob(f"train-{u.name}-s{run_settings.seed}", u, run_settings,
                             run_settings.train_identity(u), folder) for u in units]
     collects_todo = [j for j in collects if not dataset_present(
-        dataset_file(j.out, j.task, j.settings), SCENE, j.task, j.settings.demos,
+        dataset_file(j.out, j.task, j.settings), SCENE, str(task_file(j.out, j.task)),
+        j.settings.demos,
         j.settings.seed, SeedStream.TRAIN)]
     trains_todo = [j for j in trains if not trained_file(j.out, j.unit).exists()]
     skipped = [j.name for j in collects if j not in collects_todo]

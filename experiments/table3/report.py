@@ -43,6 +43,7 @@ from sim.tasks.task_toml import load_task
 from sim.trials.compare import Comparison, compare_records
 from sim.trials.paired_statistics import CONFIDENCE, SIGNIFICANCE, format_p
 from sim.trials.records import TrialOutcome, TrialRecord
+from sim.world.sensor import SensorConfig
 
 PAPER_TABLE3 = {"single": 27, "multiple": 28, "selected-type": 26, "selected-position": 27}
 """The paper's Table III: successful picks of 30 on the real YuMi, 20 demonstrations each."""
@@ -353,8 +354,9 @@ def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float
              f"seeds {seeds[0]}-{seeds[-1]}, each its own")
     made_by = (f"Made by `{settings.command(out)}`: {settings.demos} demonstrations per task "
                f"(training stream of {named}), {settings.steps} optimiser steps, "
-               f"{settings.n} trials per task (test stream of the same seed), "
-               f"{settings.worker_count()} worker process(es). Last run: "
+               f"{settings.n} trials per task (test stream of the same seed), seen "
+               f"through the {settings.sensor.value} sensor, {settings.worker_count()} worker "
+               "process(es). Last run: "
                f"{duration(wall_time_s)} wall time; every run into this folder together: "
                f"{duration(all_runs_s)}.")
     table = {"seeds": seeds} | table3_json(sets) | {
@@ -362,7 +364,7 @@ def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float
         "settings": settings.shared_identity() | {
             "command": settings.command(out), "models": list(settings.models),
             "tasks": list(settings.tasks), "robustness": settings.robustness,
-            "workers": settings.worker_count()},
+            "sensor": SensorConfig(settings.sensor).to_json(), "workers": settings.worker_count()},
         "wall_time_s": wall_time_s, "wall_time_all_runs_s": all_runs_s, "failed": failed,
         "checks": checks, "provenance": session}
     paths = [out / "table3.json", out / "table3.md"]

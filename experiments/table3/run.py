@@ -1,6 +1,6 @@
 """Runs ``gva reproduce real`` into a run folder, or resumes it.
 
-Claims the folder and each seed's, writes the variant task files, runs the jobs, appends the
+Claims the folder and each seed's, writes the task files it runs, runs the jobs, appends the
 run to ``history.jsonl`` and rebuilds the reports from what every seed's folder holds.
 """
 
@@ -14,7 +14,7 @@ from typing import Any
 
 from experiments.table3.jobs import JobOutcome, run_jobs
 from experiments.table3.report import write_reports
-from experiments.table3.settings import ReproduceRealSettings, seed_folder, write_variant_tasks
+from experiments.table3.settings import ReproduceRealSettings, seed_folder, write_run_tasks
 from experiments.tables import RunReport
 from sim.trials.provenance import provenance
 from sim.trials.run_folder import claim_run_folder, run_folder_lock
@@ -48,7 +48,7 @@ def run_reproduce_real(settings: ReproduceRealSettings, out: str | Path,
         claim_run_folder(out, settings.shared_identity(), provenance=session)
         for seed in settings.training_seeds:
             claim_run_folder(seed_folder(out, seed), settings.for_seed(seed).run_identity())
-            write_variant_tasks(settings, seed_folder(out, seed))
+            write_run_tasks(settings, seed_folder(out, seed))
         try:
             computed, skipped = run_jobs(settings, out, progress)
         except KeyboardInterrupt:

@@ -23,6 +23,7 @@ from experiments.tables import (
 from perception.learning.train import TrainConfig, available_threads
 from perception.learning.validation import CheckConfig
 from perception.registry import MODELS, PRESETS
+from sim.errors import InvalidInputError
 from sim.jobs import LOCAL, Executor
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.task_spec import TaskSpec
@@ -31,6 +32,7 @@ from sim.trials.execution import ExecutionSettings
 from sim.trials.run_folder import json_form
 from sim.trials.trial_settings import TrialSettings, obstacle_identity, task_identity
 from sim.world.head_camera import CameraConfig
+from sim.world.sensor import SensorConfig, SensorKind
 
 SCENE = "yumi"
 ROBUST_MODEL = "kqv"
@@ -58,15 +60,17 @@ def allowed_models() -> tuple[str, ...]:
     return (*MODELS, *PRESETS)
 
 
-def variant_task(task: str, variant: Variant) -> TaskSpec:
-    """The task ``task`` under ``variant``: the same scenes, darker or with a distractor.
+def variant_task(task: str, variant: Variant, sensor: SensorKind = SensorKind.IDEAL
+                 ) -> TaskSpec:
+    """The task ``task`` under ``variant``, seen through ``sensor``.
 
+    The same scenes, darker or with a distractor, rendered by an ideal camera or a D435.
     Distractors come from a seed stream of their own, so the objects, poses, targets and
     conditions stay those of the plain task. The plain task's checkpoint serves every variant:
     trials check a model against the task's scene, condition, targets and image size, not its
     name.
     """
-    base = load_task(task)
+    base = replace(load_task(task), camera=SensorConfig(sensor))
     if variant is Variant.DARK:
         return replace(base, name=f"{task}-dark", brightness=DARK_BRIGHTNESS,
                        description=f"{base.description} Darker light ({DARK_BRIGHTNESS}).")
@@ -124,6 +128,9 @@ class ReproduceRealSettings:
             stream); with ``seeds`` > 1 the first of the seeds.
         seeds: Runs of the whole experiment, seeds ``S0 .. S0 + seeds - 1``.
         robustness: Also run :data:`ROBUST_MODEL`'s trials in the dark and with a distractor.
+        sensor: What the head camera renders through, for demonstrations and trials alike
+            (:class:`~sim.world.sensor.SensorKind`): the D435-like sensor by default, as the
+            paper's robot saw; the ideal pinhole is the world of earlier tables.
         workers: Processes at once; None: the cores this process may use.
         executor: Where the jobs run: this machine's process pool (default) or Ray
             (:class:`~sim.jobs.Executor`); the results are the same.
@@ -145,6 +152,7 @@ class ReproduceRealSettings:
     seed: int = 0
     seeds: int = 1
     robustness: bool = True
+    sensor: SensorKind = SensorKind.D435
     workers: int | None = None
     train_threads: int = 1
     executor: Executor = LOCAL
@@ -152,6 +160,9 @@ class ReproduceRealSettings:
 
     def __post_init__(self) -> None:
         custom = tuple(m for m in self.models if ":" in m)  # package.module:Class
+        if not isinstance(self.sensor, SensorKind):
+            raise InvalidInputError("sensor", self.sensor,
+                                    f"one of {', '.join(k.value for k in SensorKind)}")
         check_choices("models", self.models, (*allowed_models(), *custom))
         check_choices("tasks", self.tasks, ALL_TASKS)
         check_counts(self, {"n": 1, "demos": 1, "steps": 1, "seed": 0, "seeds": 1,
@@ -176,6 +187,10 @@ class ReproduceRealSettings:
         return [TrialSet(unit, v) for unit in self.units() for v in variants
                 if v is Variant.PLAIN or (self.robustness and unit.model == ROBUST_MODEL)]
 
+    def run_task(self, trial_set: TrialSet) -> TaskSpec:
+        """The task a set's trials run (and, plain, its demonstrations): variant and sensor."""
+        return variant_task(trial_set.unit.task, trial_set.variant, self.sensor)
+
     def worker_count(self) -> int:
         """The processes to run: ``workers``, or the cores this process may use."""
         return self.workers if self.workers is not None else available_threads()
@@ -189,10 +204,16 @@ class ReproduceRealSettings:
         return self.shared_identity() | {"seed": self.seed, "train": self.train_config()}
 
     def shared_identity(self) -> dict[str, Any]:
-        """What every seed of a run folder shares; ``OUT/run.json`` holds it."""
+        """What every seed of a run folder shares; ``OUT/run.json`` holds it.
+
+        The sensor is there only when it is not the ideal camera, so folders from before
+        sensors existed (all ideal) keep their identity.
+        """
         train = self.train_config()
         train.pop("seed")  # each seed's own
-        return {"format_version": FORMAT_VERSION, "experiment": "reproduce-real",
+        sensor = ({} if self.sensor is SensorKind.IDEAL
+                  else {"sensor": SensorConfig(self.sensor).to_json()})
+        return sensor | {"format_version": FORMAT_VERSION, "experiment": "reproduce-real",
                 "scene": SCENE, "demos": self.demos, "n": self.n,
                 "train": train, "settle_s": TrialSettings.settle_s,
                 "execution": asdict(ExecutionSettings()),
@@ -204,16 +225,15 @@ class ReproduceRealSettings:
         """What defines a unit's checkpoint; ``trained.json`` holds it."""
         return json_form({"model": unit.model, "model_config": model_config(unit.model,
                                                                              self.seed),
-                          "task": task_identity(load_task(unit.task)), "demos": self.demos,
+                          "task": task_identity(self.run_task(TrialSet(unit))), "demos": self.demos,
                           "camera": asdict(CameraConfig()), "seed": self.seed,
                           "train": self.train_config(), "check": asdict(self.check)})
 
     def trial_settings(self, out: Path, trial_set: TrialSet) -> TrialSettings:
         """The :class:`~sim.trials.trial_settings.TrialSettings` of a set (checkpoint present)."""
-        task = (trial_set.unit.task if trial_set.variant is Variant.PLAIN
-                else str(variant_file(out, trial_set)))
-        return TrialSettings(model=str(checkpoint_folder(out, trial_set.unit)), task=task,
-                             n=self.n, seed=self.seed)
+        return TrialSettings(model=str(checkpoint_folder(out, trial_set.unit)),
+                             task=str(task_file(out, trial_set.task_name)), n=self.n,
+                             seed=self.seed)
 
     def command(self, out: Path) -> str:
         """The ``gva reproduce real`` command line of these settings (workers left out)."""
@@ -227,6 +247,8 @@ class ReproduceRealSettings:
             parts.append(f"--models {','.join(self.models)}")
         if not self.robustness:
             parts.append("--no-robustness")
+        if self.sensor is not ReproduceRealSettings.sensor:
+            parts.append(f"--sensor {self.sensor.value}")
         if self.train_threads != ReproduceRealSettings.train_threads:
             parts.append(f"--train-threads {self.train_threads}")
         if self.check.holdout != CheckConfig.holdout:
@@ -257,9 +279,9 @@ def trained_file(out: Path, unit: Unit) -> Path:
     return checkpoint_folder(out, unit) / "trained.json"
 
 
-def variant_file(out: Path, trial_set: TrialSet) -> Path:
-    """The task TOML of a robustness variant."""
-    return out / "tasks" / f"{trial_set.task_name}.toml"
+def task_file(out: Path, task_name: str) -> Path:
+    """The task TOML a set runs, by :attr:`TrialSet.task_name` (a plain one's: its demos' too)."""
+    return out / "tasks" / f"{task_name}.toml"
 
 
 def trials_folder(out: Path, trial_set: TrialSet) -> Path:
@@ -277,14 +299,15 @@ def error_file(out: Path, job: str) -> Path:
     return out / "errors" / f"{job}.json"
 
 
-def write_variant_tasks(settings: ReproduceRealSettings, out: Path) -> None:
-    """Writes the task TOML of every robustness variant the run needs (when it changed)."""
+def write_run_tasks(settings: ReproduceRealSettings, out: Path) -> None:
+    """Writes the task TOML of every set the run needs, plain or a variant (when it changed).
+
+    Each is the task as run, under the run's sensor, so a reader sees what was run.
+    """
     for trial_set in settings.trial_sets():
-        if trial_set.variant is Variant.PLAIN:
-            continue
-        path = variant_file(out, trial_set)
-        text = (f"# {trial_set.variant.value} variant of the task {trial_set.unit.task}, "
-                "written by gva reproduce real\n"
-                + task_to_toml(variant_task(trial_set.unit.task, trial_set.variant)))
+        path = task_file(out, trial_set.task_name)
+        text = (f"# the task {trial_set.unit.task} ({trial_set.variant.value}, sensor "
+                f"{settings.sensor.value}), written by gva reproduce real\n"
+                + task_to_toml(settings.run_task(trial_set)))
         if not path.exists() or path.read_text(encoding="utf-8") != text:
             write_text(path, text)

@@ -17,14 +17,17 @@ from experiments.table3.settings import (
     TrialSet,
     Unit,
     Variant,
+    task_file,
     trained_file,
-    variant_file,
 )
 from experiments.table3.trial_sets import TrialSetResult
+from perception.learning.dataset_file import read_metadata
 from perception.registry import load_model
+from sim.errors import InvalidInputError, RunFolderError
 from sim.tasks.task_toml import load_task
 from sim.trials.records import TrialOutcome, TrialRecord
 from sim.trials.trial_settings import check_model_fits_task
+from sim.world.sensor import SensorConfig, SensorKind
 
 TINY = ["--tasks", "single", "--demos", "2", "--n", "2", "--steps", "3", "--workers", "1",
         "--no-progress"]
@@ -84,8 +87,8 @@ def test_the_gif_replays_the_logged_trials(tiny_run):
 
 def test_the_variants_are_task_files_the_checkpoint_is_accepted_for(tiny_run):
     seed0 = tiny_run / "s0"
-    dark = load_task(variant_file(seed0, TrialSet(UNIT, Variant.DARK)))
-    distractor = load_task(variant_file(seed0, TrialSet(UNIT, Variant.DISTRACTOR)))
+    dark = load_task(task_file(seed0, TrialSet(UNIT, Variant.DARK).task_name))
+    distractor = load_task(task_file(seed0, TrialSet(UNIT, Variant.DISTRACTOR).task_name))
     assert (dark.name, dark.brightness, dark.distractors) == ("single-dark", 0.5, ())
     assert (distractor.name, distractor.distractors) == ("single-distractor", ("block",))
     model = load_model(seed0 / "checkpoints" / "kqv" / "single")
@@ -100,6 +103,32 @@ def test_the_variants_are_task_files_the_checkpoint_is_accepted_for(tiny_run):
     for index, objects in scenes("single-distractor").items():  # the same scene, plus a block
         assert objects[:1] == plain[index]
         assert (objects[1]["type"], objects[1]["distractor"]) == ("block", True)
+
+
+def test_the_run_sees_through_the_d435_by_default_and_records_it(tiny_run):
+    seed0 = tiny_run / "s0"
+    for name in ("single", "single-dark", "single-distractor"):
+        assert load_task(task_file(seed0, name)).camera == SensorConfig(SensorKind.D435)
+    dataset = next((seed0 / "datasets").glob("*.gva"))
+    assert read_metadata(dataset).camera["sensor"]["sensor"] == "d435"
+    assert load_model(seed0 / "checkpoints" / "kqv" / "single").spec.sensor["sensor"] == "d435"
+    table = json.loads((tiny_run / "table3.json").read_text())
+    assert table["settings"]["sensor"]["sensor"] == "d435"
+    assert "seen through the d435 sensor" in (tiny_run / "table3.md").read_text()
+
+
+def test_a_folder_run_through_one_sensor_refuses_the_other(tiny_run):
+    ideal = replace(TINY_SETTINGS, sensor=SensorKind.IDEAL)
+    assert ideal.command(tiny_run).endswith("--sensor ideal")
+    with pytest.raises(RunFolderError, match="sensor"):
+        run_reproduce_real(ideal, tiny_run, progress=False)
+
+
+def test_an_unknown_sensor_is_refused_by_name():
+    status, _, stderr = gva("reproduce", "real", "--out", "unused", "--sensor", "kinect")
+    assert status == 2 and "--sensor" in stderr and "'d435'" in stderr
+    with pytest.raises(InvalidInputError, match="sensor"):
+        ReproduceRealSettings(sensor="d435")
 
 
 def test_a_rerun_skips_everything(tiny_run):
