@@ -51,6 +51,9 @@ PRESETS: Mapping[str, tuple[str, Mapping[str, Any]]] = MappingProxyType({
     "keypoint-16": ("keypoint", {"points": 16}),  # paper Table II: Key Point (q=16)
     "keypoint-min": ("keypoint", {"points": None}),  # Key Point (q=min): one point per target
     "dsae-16": ("dsae", {"points": 16}),  # Deep Spatial AE (q=16)
+    # kqv read out by the paper's MLP of the attention point and feature, not the camera's ray:
+    # the readout's share of kqv's grasps (docs/decisions/d435-sensor.md, error by radius)
+    "kqv-mlp": ("kqv", {"readout": "mlp"}),
 })
 """Named variants of a built-in model: name -> (model, hyper-parameters it sets)."""
 

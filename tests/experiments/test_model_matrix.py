@@ -15,8 +15,9 @@ each, ``--dist loadscope``) share the load and each collects its datasets once.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 import pytest
@@ -24,7 +25,7 @@ from gva_cli import gva
 
 from experiments import tables
 from perception.learning.dataset_file import load_dataset
-from perception.registry import MODELS, PRESETS, load_model
+from perception.registry import MODELS, PRESETS, load_model, model_class
 from sim.tasks.scene_specs import SCENE_NAMES
 from sim.tasks.task_toml import builtin_tasks
 from sim.trials.records import TrialOutcome
@@ -34,9 +35,14 @@ pytestmark = pytest.mark.slow
 
 def registered_models() -> tuple[str, ...]:
     """Every model by the name ``gva train`` takes: each preset, and each registered model
-    no preset stands for (``keypoint`` is ``keypoint-16``'s, ``dsae`` is ``dsae-16``'s)."""
-    bases = {base for base, _ in PRESETS.values()}
-    return (*(name for name in MODELS if name not in bases), *PRESETS)
+    no preset stands for (``keypoint`` is ``keypoint-16``, ``dsae`` is ``dsae-16``: presets
+    that set only defaults; ``kqv-mlp`` changes ``kqv``'s readout, so both are tried)."""
+    def at_defaults(base: str, settings: Mapping[str, Any]) -> bool:
+        config = model_class(base).config_class()
+        return all(getattr(config, key) == value for key, value in settings.items())
+
+    same = {base for base, settings in PRESETS.values() if at_defaults(base, settings)}
+    return (*(name for name in MODELS if name not in same), *PRESETS)
 
 
 MATRIX_MODELS = registered_models()
