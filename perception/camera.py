@@ -106,7 +106,7 @@ class PinholeCamera:
         tan_x, tan_y = self.tan_half_fov
         grid = np.linspace(-_DISTORTION_CHECK_SPAN, _DISTORTION_CHECK_SPAN, 81)
         x, y = np.meshgrid(grid * tan_x, grid * tan_y)
-        (dxx, dxy), (dyx, dyy) = self._distortion_jacobian(x, y)
+        (dxx, dxy), (dyx, dyy) = self.distortion_jacobian(x, y)
         k1, k2, _, _, k3 = coefficients
         r2 = x * x + y * y
         radial_slope = 1 + 3 * k1 * r2 + 5 * k2 * r2**2 + 7 * k3 * r2**3  # d(r R(r)) / dr
@@ -152,8 +152,11 @@ class PinholeCamera:
         """Whether the lens distorts (any coefficient non-zero)."""
         return any(v != 0.0 for v in self.distortion_k1_k2_p1_p2_k3)
 
-    def distort(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Normalised coordinates of the optical frame (x right, y down) through the lens."""
+    def distort(self, x: Any, y: Any) -> tuple[Any, Any]:
+        """Normalised coordinates of the optical frame (x right, y down) through the lens.
+
+        Plain arithmetic: numpy arrays and torch tensors alike (a model's readout distorts).
+        """
         k1, k2, p1, p2, k3 = self.distortion_k1_k2_p1_p2_k3
         r2 = x * x + y * y
         radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
@@ -169,14 +172,13 @@ class PinholeCamera:
             if not (np.nanmax(np.abs(ex), initial=0.0) > _UNDISTORT_TOLERANCE
                     or np.nanmax(np.abs(ey), initial=0.0) > _UNDISTORT_TOLERANCE):
                 break
-            (dxx, dxy), (dyx, dyy) = self._distortion_jacobian(x, y)
+            (dxx, dxy), (dyx, dyy) = self.distortion_jacobian(x, y)
             det = dxx * dyy - dxy * dyx
             x, y = x - (dyy * ex - dxy * ey) / det, y - (dxx * ey - dyx * ex) / det
         return x, y
 
-    def _distortion_jacobian(self, x: np.ndarray, y: np.ndarray) -> tuple[tuple[Any, Any],
-                                                                            tuple[Any, Any]]:
-        """((dxd/dx, dxd/dy), (dyd/dx, dyd/dy)) of :meth:`distort`."""
+    def distortion_jacobian(self, x: Any, y: Any) -> tuple[tuple[Any, Any], tuple[Any, Any]]:
+        """((dxd/dx, dxd/dy), (dyd/dx, dyd/dy)) of :meth:`distort` (numpy or torch alike)."""
         k1, k2, p1, p2, k3 = self.distortion_k1_k2_p1_p2_k3
         r2 = x * x + y * y
         radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))

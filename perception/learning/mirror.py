@@ -45,6 +45,11 @@ class Mirror:
         if off_plane:
             raise InvalidInputError("mirror", True, "False: the camera's y components must be "
                                     f"0 for a left-right mirror (they are {off_plane})")
+        p2 = camera.distortion_k1_k2_p1_p2_k3[3]
+        if p2 != 0.0:  # p2 (r^2 + 2 x^2) is even in x: the lens's image is not mirror-symmetric
+            raise InvalidInputError("mirror", True, "False for a calibration whose lens has a "
+                                    f"tangential p2 ({p2}): its image flipped is not the scene "
+                                    "mirrored (radial terms and p1 are)")
         ndc = np.asarray(camera.pixels_to_ndc(np.arange(camera.width_px, dtype=float), 0.0)[0])
         source = np.asarray(camera.ndc_to_pixels(-ndc, 0.0)[0])  # column j shows column u(j)
         # PyBullet samples column i at x = 2 i / W - 1, so the mirror of column j is W - j: the

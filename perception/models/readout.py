@@ -3,7 +3,8 @@
 The KQV model's head (``KqvConfig.readout = "ray"``) gives per target a height, an offset and a
 rotation from the attended feature; :class:`CameraRays` places the target where the ray through
 the attention point meets that height, so the image-to-world mapping is the camera's, not
-something 20 demonstrations must teach an MLP.
+something 20 demonstrations must teach an MLP. A calibration that carries its lens's distortion
+is read through it: rays are undistorted, projections distorted, differentiably.
 """
 
 from __future__ import annotations
@@ -11,9 +12,29 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
+from perception.camera import PinholeCamera
 from perception.interface import InvalidInputError
 from perception.learning.learnable import ModelSpec
 from perception.models.base import LabelScaler, normalised_to_pixels, pixels_to_normalised
+
+UNDISTORT_STEPS = 6
+"""Newton steps that undo the lens in the readout: a fixed count keeps it one graph for
+autograd; from the distorted point, a lens as strong as the D435's converges in three."""
+
+
+def undistorted(camera: PinholeCamera, x_d: Tensor, y_d: Tensor) -> tuple[Tensor, Tensor]:
+    """The optical-frame point (x right, y down) the lens maps to ``(x_d, y_d)``.
+
+    A tensor form of :meth:`~perception.camera.PinholeCamera.undistort`.
+    """
+    x, y = x_d, y_d
+    for _ in range(UNDISTORT_STEPS):
+        fx, fy = camera.distort(x, y)
+        ex, ey = fx - x_d, fy - y_d
+        (dxx, dxy), (dyx, dyy) = camera.distortion_jacobian(x, y)
+        det = dxx * dyy - dxy * dyx
+        x, y = x - (dyy * ex - dxy * ey) / det, y - (dxx * ey - dyx * ex) / det
+    return x, y
 
 
 class CameraRays(nn.Module):
@@ -56,8 +77,11 @@ class CameraRays(nn.Module):
         camera = self.camera
         pixels = normalised_to_pixels(coords, camera.height_px, camera.width_px)  # (B, q, 2)
         ndc_x, ndc_y = camera.pixels_to_ndc(pixels[..., 0], pixels[..., 1])  # (B, q) each
-        local = torch.stack([ndc_x * self.tangents[0], ndc_y * self.tangents[1],
-                             -torch.ones_like(ndc_x)], dim=-1)  # (B, q, 3), camera frame
+        x, y = ndc_x * self.tangents[0], ndc_y * self.tangents[1]  # y up
+        if camera.is_distorted:
+            x, y_down = undistorted(camera, x, -y)  # the lens works in the optical frame
+            y = -y_down
+        local = torch.stack([x, y, -torch.ones_like(x)], dim=-1)  # (B, q, 3), camera frame
         direction = local @ self.basis.T  # (B, q, 3), world frame
         centre = out.new_tensor(scaler.centre_m)  # (3,)
         height_m = centre[2] + scaler.scale_m * out[..., 0]  # (B, q)
@@ -82,7 +106,10 @@ class CameraRays(nn.Module):
         camera = self.camera
         local = (points_m - self.origin) @ self.basis  # (..., 3), camera frame
         depth = (-local[..., 2]).clamp(min=1e-3)  # (...)
-        u_px, v_px = camera.ndc_to_pixels(local[..., 0] / depth / self.tangents[0],
-                                          local[..., 1] / depth / self.tangents[1])
+        x, y = local[..., 0] / depth, local[..., 1] / depth  # y up
+        if camera.is_distorted:
+            x, y_down = camera.distort(x, -y)  # the lens works in the optical frame
+            y = -y_down
+        u_px, v_px = camera.ndc_to_pixels(x / self.tangents[0], y / self.tangents[1])
         return pixels_to_normalised(torch.stack([u_px, v_px], dim=-1), camera.height_px,
                                     camera.width_px)  # (..., 2)

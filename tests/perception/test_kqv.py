@@ -284,12 +284,21 @@ def test_temperature_warms_up_over_the_first_steps_then_stays():
 # A camera above and behind the synthetic scenes, looking down at 53 degrees.
 
 
-def test_the_ray_readout_reads_a_point_where_its_ray_meets_the_height():
-    model = trained_scaler(KqvModel(replace(spec(kind=LabelKind.GRASP_POSE), camera=CAMERA)))
+LENS = (-0.2, 0.05, 0.01, -0.01, 0.0)
+"""A strong lens (the D435's colour lens is k1 = -0.024): a readout that ignored it is mm off."""
+
+
+@pytest.mark.parametrize("lens", [None, LENS], ids=["pinhole", "distorted"])
+def test_the_ray_readout_reads_a_point_where_its_ray_meets_the_height(lens):
+    camera = CAMERA if lens is None else replace(CAMERA, distortion_k1_k2_p1_p2_k3=lens)
+    model = trained_scaler(KqvModel(replace(spec(kind=LabelKind.GRASP_POSE), camera=camera)))
     network, scaler = model.network, model.scaler
     assert network.readout == "ray"
-    point_m = np.array([0.45, 0.12, 0.05])
-    pixels = torch.tensor(CAMERA.project(point_m[None]), dtype=torch.float32)  # (1, 2)
+    ray = camera.rays(np.array([[6.0, 5.0]]))[0]  # near a corner, where a lens shows most
+    point_m = np.asarray(camera.position_m) + ray * (0.05 - camera.position_m[2]) / ray[2]
+    pixels = torch.tensor(camera.project(point_m[None]), dtype=torch.float32)  # (1, 2)
+    if lens is not None:  # the lens moves the point by pixels: reading it as a pinhole fails
+        assert np.abs(CAMERA.project(point_m[None]) - camera.project(point_m[None])).max() > 1
     coords = pixels_to_normalised(pixels, 64, 64)[None]  # (1, 1, 2)
     height = (point_m[2] - scaler.centre_m[2]) / scaler.scale_m
     out = torch.tensor([[[height, 0.0, 0.0, 0.0]]])  # (1, 1, 4)

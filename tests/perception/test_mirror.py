@@ -22,8 +22,11 @@ def batch_of(dataset):
                  torch.as_tensor(dataset.labels))
 
 
-def test_a_mirrored_image_shows_each_target_where_its_mirrored_label_projects():
-    dataset = synthetic_dataset(6, targets=2, kind=LabelKind.GRASP_POSE, seed=8, camera=CAMERA)
+@pytest.mark.parametrize("lens", [None, (-0.2, 0.05, 0.01, 0.0, 0.0)],
+                         ids=["pinhole", "radial-and-p1"])
+def test_a_mirrored_image_shows_each_target_where_its_mirrored_label_projects(lens):
+    camera = CAMERA if lens is None else replace(CAMERA, distortion_k1_k2_p1_p2_k3=lens)
+    dataset = synthetic_dataset(6, targets=2, kind=LabelKind.GRASP_POSE, seed=8, camera=camera)
     mirror = Mirror(ModelSpec.from_metadata(dataset.metadata), seed=0)
     batch = batch_of(dataset)
     mirrored = mirror(batch, flip=torch.ones(6, dtype=torch.bool))
@@ -34,7 +37,7 @@ def test_a_mirrored_image_shows_each_target_where_its_mirrored_label_projects():
     for n in range(6):
         for k in range(2):
             rows, columns = np.nonzero((images[n] == COLOURS[k]).all(axis=-1))
-            seen = CAMERA.project(labels[n, k, :3][None])[0]
+            seen = camera.project(labels[n, k, :3][None])[0]
             np.testing.assert_allclose([columns.mean(), rows.mean()], seen, atol=1e-3)
     # the TCP's approach and closing axes are mirrored too (y components negated)
     rotations = labels[..., 3:].reshape(6, 2, 3, 3)
@@ -67,6 +70,9 @@ def test_a_camera_off_the_mirror_plane_is_refused():
     with pytest.raises(InvalidInputError, match=r"mirror = True .* y components must be 0 .*"
                                                 r"position_m"):
         Mirror(replace(ModelSpec.from_metadata(dataset.metadata), camera=aside), seed=0)
+    p2 = replace(CAMERA, distortion_k1_k2_p1_p2_k3=(0.0, 0.0, 0.0, 0.01, 0.0))
+    with pytest.raises(InvalidInputError, match=r"mirror = True .* tangential p2 \(0.01\)"):
+        Mirror(replace(ModelSpec.from_metadata(dataset.metadata), camera=p2), seed=0)
     with pytest.raises(InvalidInputError, match=r"mirror = True .* records no camera"):
         Mirror(replace(ModelSpec.from_metadata(dataset.metadata), camera=None), seed=0)
     with pytest.raises(InvalidInputError, match=r"mirror = 'yes' is not allowed: None, True or "
