@@ -1,11 +1,15 @@
 """The object catalog of the YuMi scene: a sponge, a spray bottle and a mug, with their grasps.
 
-Plus a wooden block, presented only as a distractor (:data:`DISTRACTOR_TYPES`).
+Plus objects presented only as distractors, never targets: a wooden block the sponge's size
+(:data:`DISTRACTOR_TYPES`, the look-alike the experiments test with) and everyday table clutter
+unlike it (:data:`CLUTTER_TYPES`: a drink can, a notebook, a marker, a glue stick).
 
 Pure data and geometry (numpy only), so a perception model reads what it must output without
 the simulator: each type's shape, colours and grasp (the TCP pose in the object frame, the
-opening, the symmetry). :mod:`perception.grasps` chooses among symmetric grasps; the simulator
-builds its bodies and judges its picks from these same specs.
+opening, the symmetry). What a type is made of (primitives, grasp, physics) is
+:mod:`perception.object_spec`, whose names this module re-exports; :mod:`perception.grasps`
+chooses among symmetric grasps; the simulator builds its bodies and judges its picks from these
+same specs.
 
 Every object frame sits at the centre of the object's footprint on the table, z up, so an object
 resting on the table at (x, y) with yaw ψ has ``T_world_object = (x, y, 0) · Rz(ψ)``. The object's
@@ -14,236 +18,38 @@ resting on the table at (x, y) with yaw ψ has ``T_world_object = (x, y, 0) · R
 
 from __future__ import annotations
 
-import enum
 import math
-from dataclasses import dataclass
 from types import MappingProxyType
 from typing import NamedTuple
 
-import numpy as np
-
 from perception.errors import InvalidInputError
-from perception.poses import Pose, rot_rpy
-from robots.yumi import specs as yumi_specs
-
-FINGERTIP_BEYOND_TCP_M = (
-    yumi_specs.FINGER_JOINT_Z_M + yumi_specs.FINGER_BOX.size[2] - yumi_specs.TCP_Z_M
+from perception.object_spec import (
+    FINGER_HALF_WIDTH_M,
+    FINGER_LENGTH_M,
+    FINGER_THICKNESS_M,
+    FINGERTIP_BEYOND_TCP_M,
+    MAX_OPENING_M,
+    MAX_PAYLOAD_KG,
+    MAX_PRIMITIVES,
+    MIN_FINGERTIP_HEIGHT_M,
+    GraspSpec,
+    ObjectSpec,
+    Primitive,
+    PrimitiveKind,
+    Symmetry,
+    clear_of_table,
+    lowest_fingertip_z_m,
 )
-"""How far the fingertips reach past the TCP along the approach axis [m] (about 21.5 mm)."""
-FINGER_HALF_WIDTH_M = 0.5 * yumi_specs.FINGER_BOX.size[1]
-FINGER_THICKNESS_M = yumi_specs.FINGER_BOX.size[0]
-FINGER_LENGTH_M = yumi_specs.FINGER_BOX.size[2]
-MAX_OPENING_M = 2.0 * yumi_specs.FINGER_TRAVEL_M
-MIN_FINGERTIP_HEIGHT_M = 0.005
-"""Fingertips must stay this far above the table at the grasp [m]."""
-MAX_PAYLOAD_KG = 0.5
-MAX_PRIMITIVES = 16
-"""PyBullet builds at most 16 shapes into one compound (``MAX_COMPOUND_COLLISION_SHAPES``)."""
+from perception.poses import Pose
 
-
-class PrimitiveKind(enum.Enum):
-    """Shape of one primitive; a cylinder runs along its own z axis."""
-
-    BOX = "box"
-    CYLINDER = "cylinder"
-
-
-@dataclass(frozen=True)
-class Primitive:
-    """One box or cylinder of an object, in the object frame.
-
-    Attributes:
-        kind: Box or cylinder.
-        size_m: Edge lengths of the primitive's bounding box in its own frame [m]: a box's
-            (x, y, z), a cylinder's (2 r, 2 r, length).
-        position_m: Centre in the object frame [m].
-        rgba: Colour, each channel in [0, 1].
-        rpy_rad: Orientation in the object frame (URDF roll, pitch, yaw) [rad].
-
-    """
-
-    kind: PrimitiveKind
-    size_m: tuple[float, float, float]
-    position_m: tuple[float, float, float]
-    rgba: tuple[float, float, float, float]
-    rpy_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
-
-    def __post_init__(self) -> None:
-        if min(self.size_m) <= 0.0:
-            raise InvalidInputError("size_m", self.size_m, "three edge lengths > 0 m")
-        if self.kind is PrimitiveKind.CYLINDER and self.size_m[0] != self.size_m[1]:
-            raise InvalidInputError("size_m", self.size_m, "a cylinder's (2 r, 2 r, length)")
-        if not all(0.0 <= c <= 1.0 for c in self.rgba):
-            raise InvalidInputError("rgba", self.rgba, "four channels in [0, 1]")
-
-    @property
-    def volume_m3(self) -> float:
-        """Volume [m^3]."""
-        x, y, z = self.size_m
-        return math.pi * x * y * z / 4.0 if self.kind is PrimitiveKind.CYLINDER else x * y * z
-
-    @property
-    def pose(self) -> Pose:
-        """``T_object_primitive``."""
-        return Pose(np.array(self.position_m, dtype=float), rot_rpy(self.rpy_rad))
-
-
-class Symmetry(enum.Enum):
-    """An object's symmetry about its vertical axis, as far as grasping is concerned."""
-
-    NONE = "none"  # one grasp (which may still be turned within ``max_turn_rad``)
-    TWO_FOLD = "two_fold"  # the same after a half turn
-    CONTINUOUS = "continuous"  # the same after any turn
-
-
-@dataclass(frozen=True)
-class GraspSpec:
-    """How the YuMi gripper takes an object, in the object frame.
-
-    The TCP frame's z axis is the approach direction (into the object) and its x axis the
-    direction the fingers close along; y = z × x.
-
-    Attributes:
-        tcp_position_m: TCP at the grasp, in the object frame [m].
-        approach_axis: TCP z axis in the object frame (unit).
-        closing_axis: TCP x axis in the object frame (unit, orthogonal to ``approach_axis``).
-        opening_m: Finger gap to approach with [m], at most 0.05.
-        pregrasp_distance_m: How far back along the approach the pre-grasp pose lies [m].
-        symmetry: The object's symmetry about its vertical axis.
-        max_turn_rad: For an object without symmetry, how far the grasp may be turned about the
-            object's vertical axis and stay good (the mug's rim: anywhere but at the handle).
-            Must be 0 for symmetric objects, whose symmetry sets the turns.
-
-    """
-
-    tcp_position_m: tuple[float, float, float]
-    approach_axis: tuple[float, float, float]
-    closing_axis: tuple[float, float, float]
-    opening_m: float
-    pregrasp_distance_m: float
-    symmetry: Symmetry
-    max_turn_rad: float = 0.0
-
-    def __post_init__(self) -> None:
-        z, x = np.array(self.approach_axis), np.array(self.closing_axis)
-        if abs(np.linalg.norm(z) - 1) > 1e-9 or abs(np.linalg.norm(x) - 1) > 1e-9:
-            raise InvalidInputError("approach_axis/closing_axis", (z, x), "unit vectors")
-        if abs(float(z @ x)) > 1e-9:
-            raise InvalidInputError("closing_axis", self.closing_axis, "orthogonal to approach")
-        if not 0.0 < self.opening_m <= MAX_OPENING_M:
-            raise InvalidInputError("opening_m", self.opening_m, f"in (0, {MAX_OPENING_M}] m")
-        if self.pregrasp_distance_m <= 0.0:
-            raise InvalidInputError("pregrasp_distance_m", self.pregrasp_distance_m, "> 0 m")
-        limit = 0.0 if self.symmetry is not Symmetry.NONE else math.pi
-        if not 0.0 <= self.max_turn_rad <= limit:
-            raise InvalidInputError(
-                "max_turn_rad", self.max_turn_rad,
-                f"in [0, {limit:.4f}] rad for symmetry {self.symmetry.value}",
-            )
-
-    @property
-    def T_object_grasp(self) -> Pose:
-        """The TCP pose at the grasp in the object frame."""
-        z, x = np.array(self.approach_axis), np.array(self.closing_axis)
-        rotation = np.column_stack([x, np.cross(z, x), z])  # columns: TCP x, y, z
-        return Pose(np.array(self.tcp_position_m, dtype=float), rotation)
-
-    def object_frame(self, T_world_grasp: Pose) -> Pose:
-        """The object frame a grasp ``T_world_grasp`` of this spec takes it in.
-
-        Turned as the grasp is: for a symmetric object, the frame of the equivalent turn.
-        """
-        return T_world_grasp.compose(self.T_object_grasp.inverse())
-
-    def lowest_finger_point_z_m(self) -> float:
-        """Height of the lowest fingertip corner above the table at the grasp [m]."""
-        return lowest_fingertip_z_m(self.T_object_grasp, self.opening_m)
-
-
-def lowest_fingertip_z_m(T_tcp: Pose, opening_m: float) -> float:
-    """The lowest z of the open gripper's fingertip corners with its TCP at ``T_tcp`` [m]."""
-    x, y, z = T_tcp.rotation.T
-    outer = opening_m / 2 + FINGER_THICKNESS_M  # outer finger faces, from the TCP
-    tip = T_tcp.position + FINGERTIP_BEYOND_TCP_M * z
-    corners = [tip + sx * outer * x + sy * FINGER_HALF_WIDTH_M * y
-               for sx in (-1.0, 1.0) for sy in (-1.0, 1.0)]
-    return float(min(c[2] for c in corners))
-
-
-def clear_of_table(T_world_tcp: Pose, opening_m: float) -> tuple[Pose, float]:
-    """``T_world_tcp`` raised just enough that the fingertips keep clear of the table.
-
-    A predicted grasp a few millimetres too low would put the fingertips into the table (z = 0),
-    where no plan exists; the workcell knows its table, so the grasp is lifted along the world z
-    until its lowest fingertip corner is :data:`MIN_FINGERTIP_HEIGHT_M` above it. Returns the
-    pose and how far it was raised [m] (0 when it was clear already).
-    """
-    raise_m = max(0.0, MIN_FINGERTIP_HEIGHT_M - lowest_fingertip_z_m(T_world_tcp, opening_m))
-    if raise_m == 0.0:
-        return T_world_tcp, 0.0
-    return Pose(T_world_tcp.position + np.array([0.0, 0.0, raise_m]), T_world_tcp.rotation), raise_m
-
-
-@dataclass(frozen=True)
-class ObjectSpec:
-    """One object type of the catalog: its shape, physics and grasp.
-
-    Attributes:
-        name: Catalog name (``"sponge"``, ``"spray_bottle"``, ``"mug"``).
-        primitives: Boxes and cylinders in the object frame (collision and visual alike).
-        mass_kg: Total mass [kg], spread uniformly over the primitives' volume.
-        lateral_friction: Coulomb coefficient against the fingers and the table.
-        spinning_friction_m: Torsional friction [m] (torque per newton of normal force).
-        rolling_friction_m: Rolling friction [m].
-        grasp: How the gripper takes it.
-
-    """
-
-    name: str
-    primitives: tuple[Primitive, ...]
-    mass_kg: float
-    lateral_friction: float
-    spinning_friction_m: float
-    rolling_friction_m: float
-    grasp: GraspSpec
-
-    def __post_init__(self) -> None:
-        if not 1 <= len(self.primitives) <= MAX_PRIMITIVES:
-            raise InvalidInputError(
-                "number of primitives", len(self.primitives),
-                f"1 to {MAX_PRIMITIVES} (PyBullet's limit per compound shape)",
-            )
-        if not 0.0 < self.mass_kg <= MAX_PAYLOAD_KG:
-            raise InvalidInputError("mass_kg", self.mass_kg, f"in (0, {MAX_PAYLOAD_KG}] kg")
-        if self.lateral_friction <= 0.0:
-            raise InvalidInputError("lateral_friction", self.lateral_friction, "> 0")
-        if min(_primitive_bounds_z(p)[0] for p in self.primitives) < -1e-9:
-            raise InvalidInputError("primitives", self.name, "all above the object frame's z = 0")
-        lowest = self.grasp.lowest_finger_point_z_m()
-        if lowest < MIN_FINGERTIP_HEIGHT_M:
-            raise InvalidInputError(
-                "grasp", f"fingertips at z = {lowest:.4f} m",
-                f"fingertips >= {MIN_FINGERTIP_HEIGHT_M} m above the table"
-            )
-
-    @property
-    def height_m(self) -> float:
-        """Height of the object's top above the table [m]."""
-        return max(_primitive_bounds_z(p)[1] for p in self.primitives)
-
-    @property
-    def center_of_mass_m(self) -> np.ndarray:
-        """Centre of mass in the object frame at uniform density [m], (3,)."""
-        volumes = np.array([p.volume_m3 for p in self.primitives])
-        centres = np.array([p.position_m for p in self.primitives])  # (P, 3)
-        return np.asarray(volumes @ centres / volumes.sum())
-
-
-def _primitive_bounds_z(primitive: Primitive) -> tuple[float, float]:
-    """Lowest and highest z of a primitive in the object frame (from its rotated bounding box)."""
-    rotation = primitive.pose.rotation
-    half_extent_z = float(np.abs(rotation[2]) @ (0.5 * np.array(primitive.size_m)))
-    return primitive.position_m[2] - half_extent_z, primitive.position_m[2] + half_extent_z
+__all__ = [  # the names of perception.object_spec that importers have always found here, too
+    "BLOCK", "CLUTTER_TYPES", "DISTRACTOR_TYPES", "DRINK_CAN", "FINGERTIP_BEYOND_TCP_M",
+    "FINGER_HALF_WIDTH_M", "FINGER_LENGTH_M", "FINGER_THICKNESS_M", "GLUE_STICK", "MARKER",
+    "MAX_OPENING_M", "MAX_PAYLOAD_KG", "MAX_PRIMITIVES", "MIN_FINGERTIP_HEIGHT_M", "MUG",
+    "NOTEBOOK", "OBJECT_TYPES", "SPONGE", "SPRAY_BOTTLE", "GraspSpec", "ObjectSpec",
+    "ObstacleShape", "Primitive", "PrimitiveKind", "Symmetry", "catalog_names", "clear_of_table",
+    "get_object_spec", "lowest_fingertip_z_m", "obstacle_shapes",
+]
 
 
 def _ring(
@@ -328,15 +134,73 @@ BLOCK = ObjectSpec(
     grasp=GraspSpec((0.0, 0.0, 0.028), _DOWN, (0.0, 1.0, 0.0), 0.05, 0.08, Symmetry.TWO_FOLD),
 )
 
-_CATALOG = MappingProxyType({spec.name: spec for spec in (SPONGE, SPRAY_BOTTLE, MUG, BLOCK)})
+# Table clutter, never a target: objects a model learns to ignore, unlike the block in shape and
+# unlike every target and the block in colour (no yellow, green, white, blue, red or wood; nor
+# grey or black, which have white's chromaticity), so a model trained among them never saw the
+# block. Each reaches at most 74 mm from its centre, as far as the mug's handle. Their grasps
+# are top-down placeholders, only for the type to be valid: no trial picks them.
+_TEAL, _PURPLE = (0.10, 0.60, 0.62, 1.0), (0.45, 0.20, 0.55, 1.0)
+_DARK_VIOLET, _VIOLET = (0.20, 0.06, 0.30, 1.0), (0.30, 0.08, 0.42, 1.0)
+_MAGENTA, _DARK_MAGENTA = (0.85, 0.20, 0.60, 1.0), (0.60, 0.10, 0.45, 1.0)
+_AXIS_ALONG_X = (0.0, math.pi / 2, 0.0)  # a cylinder lying down, its axis along the object's x
+
+# A full 330 ml drink can in teal print: 66 mm across, 115 mm tall, 0.35 kg (full, so an arm
+# brushing it does not fling it). Wider than the 50 mm stroke: the gripper cannot take it.
+DRINK_CAN = ObjectSpec(
+    name="drink_can",
+    primitives=(Primitive(_CYL, (0.066, 0.066, 0.115), (0.0, 0.0, 0.0575), _TEAL),),
+    mass_kg=0.35, lateral_friction=0.6, spinning_friction_m=0.003, rolling_friction_m=0.0005,
+    grasp=GraspSpec((0.0, 0.0, 0.13), _DOWN, (0.0, 1.0, 0.0), 0.05, 0.08, Symmetry.CONTINUOUS),
+)
+
+# A purple pocket notebook lying flat: 120 x 85 x 15 mm, 0.12 kg. Wider than the stroke either
+# way, and far from the block's and the sponge's 85-90 x 35 mm footprint.
+NOTEBOOK = ObjectSpec(
+    name="notebook",
+    primitives=(Primitive(_BOX, (0.120, 0.085, 0.015), (0.0, 0.0, 0.0075), _PURPLE),),
+    mass_kg=0.12, lateral_friction=0.6, spinning_friction_m=0.003, rolling_friction_m=0.0005,
+    grasp=GraspSpec((0.0, 0.0, 0.0275), _DOWN, (0.0, 1.0, 0.0), 0.05, 0.08, Symmetry.TWO_FOLD),
+)
+
+# A dark violet marker pen lying on its side: 15 mm across, 130 mm long (a 95 mm barrel and a
+# 35 mm cap of the same width, so it lies level), 15 g; the grasp closes across the barrel.
+MARKER = ObjectSpec(
+    name="marker",
+    primitives=(
+        Primitive(_CYL, (0.015, 0.015, 0.095), (-0.0175, 0.0, 0.0075), _DARK_VIOLET,
+                  _AXIS_ALONG_X),  # barrel
+        Primitive(_CYL, (0.015, 0.015, 0.035), (0.0475, 0.0, 0.0075), _VIOLET,
+                  _AXIS_ALONG_X),  # cap
+    ),
+    mass_kg=0.015, lateral_friction=0.8, spinning_friction_m=0.002, rolling_friction_m=0.001,
+    grasp=GraspSpec((0.0, 0.0, 0.0275), _DOWN, (0.0, 1.0, 0.0), 0.05, 0.08, Symmetry.TWO_FOLD),
+)
+
+# A magenta glue stick standing on its base: 30 mm across, 100 mm tall with its 25 mm cap,
+# 40 g; the grasp closes across it 5 mm below the top.
+GLUE_STICK = ObjectSpec(
+    name="glue_stick",
+    primitives=(
+        Primitive(_CYL, (0.030, 0.030, 0.075), (0.0, 0.0, 0.0375), _MAGENTA),  # tube
+        Primitive(_CYL, (0.030, 0.030, 0.025), (0.0, 0.0, 0.0875), _DARK_MAGENTA),  # cap
+    ),
+    mass_kg=0.04, lateral_friction=0.8, spinning_friction_m=0.003, rolling_friction_m=0.0005,
+    grasp=GraspSpec((0.0, 0.0, 0.095), _DOWN, (0.0, 1.0, 0.0), 0.05, 0.08, Symmetry.CONTINUOUS),
+)
+
+_CATALOG = MappingProxyType({spec.name: spec for spec in (
+    SPONGE, SPRAY_BOTTLE, MUG, BLOCK, DRINK_CAN, NOTEBOOK, MARKER, GLUE_STICK)})
 OBJECT_TYPES: tuple[str, ...] = ("sponge", "spray_bottle", "mug")
 """Names of the object types a task targets, in a fixed order (a one-hot condition's order)."""
 DISTRACTOR_TYPES: tuple[str, ...] = ("block",)
-"""Catalog types presented only as distractors, never targets."""
+"""The look-alike distractor: the sponge's size and shape, never a target."""
+CLUTTER_TYPES: tuple[str, ...] = ("drink_can", "notebook", "marker", "glue_stick")
+"""Everyday table clutter, presented only as distractors, never targets. Unlike the block in
+shape and colour, so a model trained among clutter was never shown the block it is tested on."""
 
 
 def catalog_names() -> tuple[str, ...]:
-    """Every type of the catalog, targets and distractors."""
+    """Every type of the catalog: targets, the block and the clutter."""
     return tuple(_CATALOG)
 
 

@@ -5,6 +5,8 @@ model was trained on: scene ``index`` of stream ``stream`` under seed ``seed`` i
 ``SeedSequence([seed, stream, index])``. A task's distractors are drawn after the scene, from
 ``SeedSequence([seed, stream, index, 1])``: a task with distractors presents the same scene
 as the task without them (same objects, poses, targets and condition), plus the distractors.
+A task with ``distractors.per_scene`` draws which of its distractors a scene presents from that
+same stream, before placing them.
 
 Placement is rejection sampling, bounded: a task that cannot fit is refused before sampling by
 :func:`check_task_fits` (an area bound, Groemer's packing inequality), and one that the bound
@@ -193,11 +195,14 @@ def check_task_fits(task: TaskSpec, spec: SceneSpec) -> None:
                 "placement.min_spacing_m")
     if task.phrasings is not None:
         task.phrasings.check_targets(condition_choices(task, spec), where)
-    total = task.count + len(task.distractors)
+    most_distractors = task.distractor_count_range[1]
+    total = task.count + most_distractors
     most = max_spaced_points(x_high - x_low + spacing, y_high - y_low + spacing, spacing)
-    if task.distractors and total > most:
+    if most_distractors and total > most:
+        per_scene = task.distractors_per_scene
         raise InvalidInputError(
-            f"{where}: distractors.types", list(task.distractors),
+            f"{where}: distractors.{'types' if per_scene is None else 'per_scene'}",
+            list(task.distractors) if per_scene is None else list(per_scene),
             f"at most {max(most - task.count, 0)} distractors: no more than {most} objects "
             f"{spacing} m apart fit in {region} and the {spacing / 2} m band around it, however "
             "placed (an area bound); fewer distractors, or lower placement.min_spacing_m")
@@ -249,7 +254,8 @@ def sample_scene(
     if task.distractors:
         distractor_rng = np.random.default_rng(np.random.SeedSequence(
             [seed, int(stream), index, DISTRACTOR_STREAM]))
-        objects += _place_distractors(task, spec, objects, distractor_rng)
+        objects += _place_distractors(task, spec, objects, _draw_distractors(task, distractor_rng),
+                                      distractor_rng)
     return Scene(task.name, spec.name, seed, stream, index, objects, targets, condition,
                  query_for(task, spec.name, condition, seed, stream, index))
 
@@ -265,9 +271,23 @@ def balanced_type(spec: SceneSpec, seed: int, index: int) -> str:
     return spec.object_types[int(block[index % count])]
 
 
+def _draw_distractors(task: TaskSpec, rng: np.random.Generator) -> tuple[str, ...]:
+    """The distractor types a scene presents: all of them, or ``per_scene`` draws of them.
+
+    With ``distractors.per_scene = [low, high]``: a count uniform in [low, high], then that many
+    distinct types in a random order. Without it nothing is drawn, so ``rng`` is left as before.
+    """
+    if task.distractors_per_scene is None:
+        return task.distractors
+    low, high = task.distractors_per_scene
+    count = int(rng.integers(low, high + 1))
+    return tuple(task.distractors[int(i)] for i in rng.permutation(len(task.distractors))[:count])
+
+
 def _place_distractors(task: TaskSpec, spec: SceneSpec, objects: tuple[PlacedObject, ...],
-                       rng: np.random.Generator) -> tuple[PlacedObject, ...]:
-    """The task's distractors, ``min_spacing_m`` from every object placed before them.
+                       types: tuple[str, ...], rng: np.random.Generator
+                       ) -> tuple[PlacedObject, ...]:
+    """The distractors ``types``, ``min_spacing_m`` from every object placed before them.
 
     Each goes in the workspace where it has room, else in a band ``min_spacing_m / 2`` wide
     around it (three objects can leave the workspace no room for a fourth).
@@ -275,7 +295,7 @@ def _place_distractors(task: TaskSpec, spec: SceneSpec, objects: tuple[PlacedObj
     (x_low, x_high), (y_low, y_high) = _region(task, spec)
     placed = [o.position_xy_m for o in objects]
     added: list[PlacedObject] = []
-    for object_type in task.distractors:
+    for object_type in types:
         for grow in (0.0, task.min_spacing_m / 2):
             for _ in range(MAX_PLACEMENT_TRIES):
                 candidate = (float(rng.uniform(x_low - grow, x_high + grow)),

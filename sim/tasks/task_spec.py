@@ -28,15 +28,17 @@ a user writes a new one as a TOML file and passes its path wherever a task name 
     brightness = 1.0          # 1 = the scene's normal light; 0.3 is a dim room
 
     [distractors]
-    types = []                # extra objects that are never targets (yumi: also "block")
+    types = []                # extra objects that are never targets (yumi: also "block" and
+                              # the clutter: "drink_can", "notebook", "marker", "glue_stick")
+    per_scene = [0, 2]        # optional: each scene presents 0-2 of the types, drawn anew
 
     [camera]
     sensor = "ideal"          # ideal | d435 (then any D435Config field by name)
 
 A task is valid in both scenes: the object types come from the scene (``paper-sim``: duck,
-soccer ball, mug; ``yumi``: sponge, spray bottle, mug, plus a wooden block as a distractor
-only), and so does the workspace unless the task narrows it with ``[placement] x_m = [lo, hi]``
-and ``y_m = [lo, hi]``.
+soccer ball, mug; ``yumi``: sponge, spray bottle, mug, plus a wooden block and table clutter as
+distractors only), and so does the workspace unless the task narrows it with
+``[placement] x_m = [lo, hi]`` and ``y_m = [lo, hi]``.
 
 A task file is user input: every number must be finite and within the range below, and every
 mistake is an :class:`~sim.errors.InvalidInputError` naming the file, the field, the value and
@@ -48,6 +50,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -128,6 +131,9 @@ class TaskSpec:
             keeps the scene's.
         brightness: Light level, 1 = the scene's normal light.
         distractors: Types of extra objects that are presented but never targets.
+        distractors_per_scene: ``(low, high)``: each scene presents a number drawn uniformly in
+            [low, high] of the distinct ``distractors``, chosen without replacement; None (the
+            default): every scene presents them all.
         camera: The head camera's sensor (``[camera]``): the ideal pinhole, or a D435's.
         source: The file the task came from.
 
@@ -149,6 +155,7 @@ class TaskSpec:
     workspace_y_m: tuple[float, float] | None = None
     brightness: float = 1.0
     distractors: tuple[str, ...] = ()
+    distractors_per_scene: tuple[int, int] | None = None
     camera: SensorConfig = dataclasses.field(default_factory=SensorConfig)
     source: str = "<code>"
 
@@ -168,7 +175,10 @@ class TaskSpec:
         if not 1 <= self.count <= MAX_OBJECTS:
             raise bad("objects.count", self.count, f"an integer in [1, {MAX_OBJECTS}] (the most "
                       "objects a scene presents, distractors included)")
-        if self.count + len(self.distractors) > MAX_OBJECTS:
+        per_scene = self.distractors_per_scene
+        if per_scene is not None:
+            _check_per_scene(per_scene, self.distractors, self.count, bad)
+        elif self.count + len(self.distractors) > MAX_OBJECTS:
             raise bad("distractors.types", list(self.distractors),
                       f"at most {MAX_OBJECTS - self.count} types (objects.count + distractors "
                       f"<= {MAX_OBJECTS})")
@@ -229,10 +239,37 @@ class TaskSpec:
                       error.allowed) from None
 
     @property
+    def distractor_count_range(self) -> tuple[int, int]:
+        """The fewest and the most distractors a scene of this task presents."""
+        if self.distractors_per_scene is None:
+            return len(self.distractors), len(self.distractors)
+        return self.distractors_per_scene
+
+    @property
     def model_condition(self) -> ConditionKind:
         """The kind of condition the model is given: what is named, or a sentence, a picture."""
         return {ConditionForm.ONE_HOT: self.condition, ConditionForm.TEXT: ConditionKind.TEXT,
                 ConditionForm.IMAGE: ConditionKind.IMAGE}[self.given_as]
+
+
+def _check_per_scene(per_scene: Any, types: tuple[str, ...], count: int,
+                     bad: Callable[[str, Any, str], InvalidInputError]) -> None:
+    """Refuses a ``distractors.per_scene`` that is not ``[low, high]`` of the listed types."""
+    field = "distractors.per_scene"
+    value = list(per_scene) if isinstance(per_scene, tuple | list) else per_scene
+    if not (isinstance(value, list) and len(value) == 2
+            and all(isinstance(v, int) and not isinstance(v, bool) for v in value)):
+        raise bad(field, value, "a list of two integers [low, high]")
+    low, high = value
+    if not 0 <= low <= high <= len(types):
+        raise bad(field, value, f"[low, high] with 0 <= low <= high <= {len(types)} (the number "
+                  "of distractors.types)")
+    if count + high > MAX_OBJECTS:
+        raise bad(field, value, f"[low, high] with high <= {MAX_OBJECTS - count} (objects.count "
+                  f"+ distractors <= {MAX_OBJECTS})")
+    if len(set(types)) != len(types):
+        raise bad("distractors.types", list(types), "distinct types when distractors.per_scene "
+                  "is given (each is drawn at most once a scene)")
 
 
 def _finite(*values: float) -> bool:

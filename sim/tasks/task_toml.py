@@ -48,7 +48,7 @@ _SECTIONS: dict[str, set[str]] = {
     "condition": {"kind", "given_as", "phrases"},
     "placement": {"sides", "yaw_deg", "min_spacing_m", "x_m", "y_m"},
     "lighting": {"brightness"},
-    "distractors": {"types"},
+    "distractors": {"types", "per_scene"},
     "camera": {"sensor", *(f.name for f in dataclasses.fields(D435Config))},
 }
 
@@ -135,6 +135,11 @@ def task_from_toml(text: str, source: str = "<string>") -> TaskSpec:
     distractors = reader.get("distractors", "types", list, [])
     if not all(isinstance(t, str) for t in distractors):
         raise reader.error("distractors.types", distractors, "a list of object type names")
+    per_scene = reader.get("distractors", "per_scene", list, None,
+                           "a list of two integers [low, high]")
+    if per_scene is not None and not (len(per_scene) == 2 and all(
+            isinstance(v, int) and not isinstance(v, bool) for v in per_scene)):
+        raise reader.error("distractors.per_scene", per_scene, "a list of two integers [low, high]")
     return TaskSpec(
         name=name,
         description=reader.get("", "description", str, ""),
@@ -152,6 +157,7 @@ def task_from_toml(text: str, source: str = "<string>") -> TaskSpec:
         workspace_y_m=reader.pair("placement", "y_m"),
         brightness=reader.number("lighting", "brightness", 1.0),
         distractors=tuple(distractors),
+        distractors_per_scene=None if per_scene is None else (per_scene[0], per_scene[1]),
         camera=_camera(reader, source),
         source=source,
     )
@@ -258,7 +264,9 @@ def task_to_toml(task: TaskSpec) -> str:
         "condition": {"kind": task.condition.value, "given_as": task.given_as.value},
         "placement": placement,
         "lighting": {"brightness": task.brightness},
-        "distractors": {"types": list(task.distractors)},
+        "distractors": {"types": list(task.distractors)} | (
+            {} if task.distractors_per_scene is None
+            else {"per_scene": list(task.distractors_per_scene)}),
         "camera": task.camera.to_json(),
     }
     if task.phrasings is not None:

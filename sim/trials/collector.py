@@ -184,6 +184,8 @@ def _task_json(task: TaskSpec) -> dict[str, Any]:
     data = dataclasses.asdict(task)
     data.pop("source")
     data.pop("camera")
+    if task.distractors_per_scene is None:  # tasks that present all their distractors
+        data.pop("distractors_per_scene")
     if task.camera.kind is not SensorKind.IDEAL:
         data["camera"] = task.camera.to_json()
     return json.loads(json.dumps(data, default=lambda v: v.value))

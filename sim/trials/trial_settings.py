@@ -76,10 +76,13 @@ def task_identity(task: TaskSpec) -> dict[str, Any]:
 
     The sensor is ``"camera"`` (:meth:`SensorConfig.to_json`), absent for the ideal camera:
     run folders and datasets from before sensors existed (all ideal) keep their identity.
+    Likewise ``"distractors_per_scene"`` is absent where a task presents all its distractors.
     """
     data = asdict(task)
     data.pop("source")
     data.pop("camera")
+    if task.distractors_per_scene is None:
+        data.pop("distractors_per_scene")
     if task.camera.kind is not SensorKind.IDEAL:
         data["camera"] = task.camera.to_json()
     data["phrasings"] = None if task.phrasings is None else task.phrasings.to_json()

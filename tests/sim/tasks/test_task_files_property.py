@@ -65,7 +65,9 @@ VALID: dict[tuple[str, str], st.SearchStrategy[Any]] = {
     ("placement", "y_m"): st.one_of(_ranges(-0.20, 0.20), _ranges(-0.18, 0.18), _ranges(-1, 1)),
     ("lighting", "brightness"): st.floats(0.0, 2.0, exclude_min=True),
     ("distractors", "types"): st.lists(st.sampled_from(
-        ["block", "mug", "sponge", "spray_bottle", "duck", "soccer_ball"]), max_size=4),
+        ["block", "mug", "sponge", "spray_bottle", "duck", "soccer_ball", "drink_can",
+         "marker"]), max_size=4),
+    ("distractors", "per_scene"): st.lists(st.integers(0, 4), min_size=2, max_size=2),
     ("camera", "sensor"): st.sampled_from(["ideal", "d435"]),
     ("camera", "subpixel_rms_px"): st.floats(0.01, 0.2),
     ("camera", "depth_width_px"): st.integers(1, 2000),
@@ -90,6 +92,8 @@ EDGES: dict[tuple[str, str], list[Any]] = {
                            [0, math.inf]],
     ("lighting", "brightness"): [0, 2, 2.000001, -1, *_NON_FINITE],
     ("distractors", "types"): [["block"] * 12, ["mug"] * 11, [3], "block", ["x"]],
+    ("distractors", "per_scene"): [[0, 0], [1, 0], [-1, 1], [0, 13], [0], [0, 1, 2], [0.0, 1],
+                                   [True, 1], "0-2", [10**400, 0]],
     ("camera", "sensor"): ["kinect", "", "D435", 1, None],
     ("camera", "subpixel_rms_px"): [0, -0.0, -1, 1e-300, *_NON_FINITE, *_HUGE, 10**400, True,
                                     "0.1"],
@@ -235,7 +239,8 @@ def test_any_task_file_samples_or_is_refused_naming_the_file_and_the_field(
             try:
                 for index in range(SCENES_SAMPLED):
                     drawn = sample_scene(task, spec, 0, SeedStream.TEST, index)
-                    assert len(drawn.objects) == task.count + len(task.distractors)
+                    low, high = task.distractor_count_range
+                    assert low <= len(drawn.objects) - task.count <= high
                 event(f"sampled in {scene}")
             except InvalidInputError as error:
                 _check_refusal(error)
