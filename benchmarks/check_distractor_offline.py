@@ -1,0 +1,399 @@
+"""Whether a fix keeps ``kqv`` off the look-alike block, judged offline in minutes (issue 49).
+
+    python benchmarks/check_distractor_offline.py --candidate clutter --seed 0 --seeds 2 \
+        [--tasks single,multiple] [--sensor d435] [--demos 20] [--steps N] \
+        [--clutter-per-scene 0,2] [--checkpoints runs/t3-s10 ...] [--test-scenes 30] \
+        [--out runs/distractor-offline] [--json benchmarks/results/distractor_offline.json]
+
+Per model, task and seed: the grasps the grasp judge predicts would be picked (as ``gva
+evaluate`` judges them) on test scenes *with the block* and on *clean* ones, the mean position
+error, and the grasps nearer the block than the target. ``--candidate clutter`` records the
+demonstrations with ``--clutter-per-scene`` of ``CLUTTER_TYPES`` a scene and trains as ``gva
+reproduce real`` trains a unit, in ``OUT/clutter/s<S>/`` (a rerun resumes; a folder of other
+settings is refused). ``--checkpoints RUN`` scores ``RUN/s<S>/checkpoints/kqv/<T>/`` on the
+run's own ``tasks/<T>-distractor.toml`` and ``<T>.toml`` (missing in older runs: the built-in
+variant under ``run.json``'s sensor, as the output notes). Test scenes (TEST stream, seeds
+``--seed`` .. ``--seed + --seeds - 1``) are cached in ``OUT/test-scenes/<sensor>/s<S>/``. They
+are oracle demonstrations: a scene the oracle fails is replaced by a later one (``redrawn``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import shlex
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, astuple, dataclass, replace
+from functools import partial
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from experiments import tables
+from experiments.commands.arguments import integer, integers, names
+from experiments.table3 import jobs
+from experiments.table3 import settings as table3
+from perception.catalog import CLUTTER_TYPES
+from perception.interface import Prediction
+from perception.learning.data import Dataset
+from perception.learning.dataset_file import load_dataset
+from perception.learning.evaluate import evaluate, predict_dataset
+from perception.learning.learnable import LearnableModel
+from perception.learning.train import TrainConfig
+from perception.registry import load_model
+from sim.errors import RunFolderError, SimError
+from sim.tasks.scene_sampling import SeedStream, target_count
+from sim.tasks.task_spec import TaskSpec
+from sim.tasks.task_toml import load_task, task_to_toml
+from sim.trials.collector import CollectSettings, collect
+from sim.trials.run_folder import differences, json_form
+from sim.trials.trial_settings import task_identity
+from sim.world.sensor import SensorConfig, SensorKind, sensor_from_table
+
+MODEL = "kqv"
+CANDIDATES = ("clutter",)
+TEST_SETS = {"block": table3.Variant.DISTRACTOR, "clean": table3.Variant.PLAIN}
+
+
+@dataclass(frozen=True)
+class ObjectScore:
+    """One object type's judged picks: how many, and how many the judge predicts picked."""
+
+    picks: int
+    predicted_picked: int
+
+
+@dataclass(frozen=True)
+class SetScore:
+    """A model on one test set: judged picks, position error, grasps nearer the block."""
+
+    test_set: str  # block | clean
+    dataset: str
+    scenes: int
+    redrawn: int  # test scenes the oracle failed, replaced by later ones of the stream
+    picks: int  # targets judged: in an image, of a known type (gva evaluate's count)
+    predicted_picked: int
+    expected_success_rate: float
+    mean_position_error_cm: float
+    scored_targets: int  # present targets behind the mean error
+    per_object: dict[str, ObjectScore]
+    nearer_block: int | None  # predicted grasps nearer a block than the target; None: no block
+
+
+@dataclass(frozen=True)
+class Score:
+    """One checkpoint (a candidate's or a run's) on one seed's two test sets."""
+
+    source: str  # the candidate's name or the run folder
+    task: str
+    seed: int | None  # None: every seed's sets pooled
+    checkpoint: str
+    block: SetScore
+    clean: SetScore
+
+
+@dataclass(frozen=True)
+class TestTask:
+    """A test set's task: its definition, the file to collect from, the cached dataset."""
+
+    spec: TaskSpec
+    task_path: Path
+    dataset: Path
+
+
+@dataclass(frozen=True)
+class Entry:
+    """A checkpoint to score, with its seed's two test tasks."""
+
+    source: str
+    task: str
+    seed: int
+    checkpoint: Path
+    block: TestTask
+    clean: TestTask
+
+
+class Step(NamedTuple):
+    """Work to do before scoring: its name, its estimated seconds, the work."""
+
+    name: str
+    cost_s: float
+    run: Callable[[], object]
+
+
+def clutter_task(task: str, sensor: SensorKind, per_scene: tuple[int, int]) -> TaskSpec:
+    """The task under ``sensor`` with ``per_scene`` clutter objects a scene, never targets."""
+    base = table3.variant_task(task, table3.Variant.PLAIN, sensor)
+    return replace(base, distractors=CLUTTER_TYPES, distractors_per_scene=per_scene,
+                   description=f"{base.description} Plus {per_scene[0]}-{per_scene[1]} of "
+                   f"{', '.join(CLUTTER_TYPES)} (clutter, never a target).")
+
+
+def test_task(out: Path, spec: TaskSpec, task: str, variant: table3.Variant, seed: int,
+              n: int, given: Path | None) -> TestTask:
+    """Where ``spec``'s test set is cached: by sensor, plus a hash unless the built-in variant.
+
+    ``given``: the task file to collect from (a run's); None: one written into the cache.
+    """
+    key, identity = spec.camera.kind.value, json_form(task_identity(spec))
+    if identity != json_form(task_identity(table3.variant_task(task, variant, spec.camera.kind))):
+        key += "-" + hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()[:8]
+    folder = out / "test-scenes" / key / f"s{seed}"
+    path, text = given or folder / "tasks" / f"{spec.name}.toml", task_to_toml(spec)
+    if given is None and (not path.exists() or path.read_text(encoding="utf-8") != text):
+        tables.write_text(path, text)
+    return TestTask(spec, path, tables.dataset_path(folder, spec.name, SeedStream.TEST, n, seed))
+
+
+def candidate_entry(args: argparse.Namespace, task: str, seed: int, steps: list[Step]
+                    ) -> Entry:
+    """The clutter candidate's checkpoint of ``task`` and ``seed``; its missing work to steps."""
+    folder, sensor = table3.seed_folder(args.out / "clutter", seed), SensorKind(args.sensor)
+    settings = table3.ReproduceRealSettings(
+        models=(MODEL,), tasks=(task,), demos=args.demos, steps=args.steps, seed=seed,
+        sensor=sensor, train_threads=args.train_threads)
+    spec, unit = clutter_task(task, sensor, args.clutter_per_scene), table3.Unit(MODEL, task)
+    path, asked = table3.task_file(folder, task), json_form(task_identity(spec))
+    if path.exists() and (found := json_form(task_identity(load_task(path)))) != asked:
+        raise RunFolderError(f"{path} holds the task of other settings ({differences(found, asked)}"
+                             f", stored vs asked); remove {folder} or use another --out")
+    tables.write_text(path, f"# {task} with clutter, written by {Path(__file__).name}\n"
+                      + task_to_toml(spec))
+    identity = json_form(settings.train_identity(unit) | {"task": asked, "candidate": "clutter"})
+    trained = table3.trained_file(folder, unit)
+    if trained.exists():  # reused, unless trained with other settings
+        tables.refuse_other_settings(
+            [(str(trained), tables.read_json(trained)["identity"], identity)], "checkpoint(s)")
+    else:
+        demos = table3.dataset_file(folder, task, settings)
+        if not tables.dataset_present(demos, table3.SCENE, str(path), args.demos, seed,
+                                      SeedStream.TRAIN):
+            job = jobs.CollectJob(f"collect-{task}-s{seed}", task, settings, folder)
+            steps.append(Step(job.name, jobs.COLLECT_S_PER_PICK * args.demos
+                              * target_count(spec), partial(finish, job)))
+        train = jobs.TrainJob(f"train-{unit.name}-s{seed}", unit, settings, identity, folder)
+        steps.append(Step(train.name, jobs.TRAIN_S_PER_STEP * args.steps, partial(finish, train)))
+    block, clean = (test_task(args.out, table3.variant_task(task, v, sensor), task, v, seed,
+                              args.test_scenes, None) for v in TEST_SETS.values())
+    return Entry("clutter", task, seed, table3.checkpoint_folder(folder, unit), block, clean)
+
+
+def finish(job: jobs.Job) -> None:
+    """Runs a job of ``gva reproduce real``; its failure stops the check, naming its record."""
+    if (failure := jobs.run_job(job).failure) is not None:
+        raise SimError(f"{job.name} failed: {failure} (see {jobs.error_file(job.out, job.name)})")
+
+
+def run_entry(args: argparse.Namespace, run: Path, task: str, seed: int, notes: list[str]
+              ) -> Entry:
+    """A run folder's checkpoint of ``task`` and ``seed``, on the scenes of its task files."""
+    folder = table3.seed_folder(run, seed)
+    checkpoint = table3.checkpoint_folder(folder, table3.Unit(MODEL, task))
+    if not (checkpoint / "config.json").exists():
+        have = sorted(p.parts[-5] for p in run.glob(f"s*/checkpoints/{MODEL}/{task}/config.json"))
+        raise SystemExit(f"--checkpoints {run}: no {MODEL} checkpoint of task {task!r} for seed "
+                         f"{seed} ({checkpoint}); seed folders with one: "
+                         f"{', '.join(have) or 'none'} (choose them with --seed and --seeds)")
+    meta = next((p for p in (folder / "run.json", run / "run.json") if p.exists()), None)
+    stored = {} if meta is None else tables.read_json(meta)
+    sensor = (sensor_from_table(stored["sensor"], f"{meta}: sensor") if "sensor" in stored
+              else SensorConfig())
+    tests = []
+    for variant in TEST_SETS.values():
+        spec = replace(table3.variant_task(task, variant, sensor.kind), camera=sensor)
+        given: Path | None = table3.task_file(folder, spec.name)
+        if given is not None and given.exists():
+            spec = load_task(given)
+        else:
+            given = None
+            notes.append(f"{run} s{seed}: no tasks/{spec.name}.toml; used the built-in {task} "
+                         f"as variant_task(..., {variant.name}) with the run's sensor "
+                         f"{sensor.describe()} (from {meta})")
+        tests.append(test_task(args.out, spec, task, variant, seed, args.test_scenes, given))
+    return Entry(str(run), task, seed, checkpoint, tests[0], tests[1])
+
+
+def collect_step(test: TestTask, seed: int, n: int) -> Step | None:
+    """The collection of a test set, unless the cache holds it (another one there is refused)."""
+    if tables.dataset_present(test.dataset, table3.SCENE, str(test.task_path), n, seed,
+                              SeedStream.TEST):
+        return None
+    settings = CollectSettings(table3.SCENE, str(test.task_path), n, seed, SeedStream.TEST)
+    return Step(f"collect test {test.spec.name} s{seed}",
+                jobs.COLLECT_S_PER_PICK * n * target_count(test.spec),
+                partial(collect, settings, test.dataset, progress=False))
+
+
+def nearer_block(predictions: Sequence[Prediction], dataset: Dataset) -> int | None:
+    """How many present targets' predicted grasps lie nearer a block than the target (x, y)."""
+    nearer: list[bool] = []
+    for prediction, record, shown in zip(predictions, dataset.scenes, dataset.target_present(),
+                                         strict=True):
+        objects = record["objects"]
+        blocks = [o["position_xy_m"] for o in objects if o["type"] in table3.DISTRACTOR_TYPES]
+        xy = [np.asarray(target.position_m[:2]) for target in prediction.targets]
+        nearer += [min(np.linalg.norm(xy[k] - block) for block in blocks) < np.linalg.norm(
+            xy[k] - objects[record["targets"][k]]["position_xy_m"])
+            for k in range(len(xy)) if blocks and shown[k]]
+    return int(sum(nearer)) if nearer else None
+
+
+def score_set(model: LearnableModel, name: str, test: TestTask) -> SetScore:
+    """The model's judged picks, error and grasps nearer the block on one test set."""
+    dataset = load_dataset(test.dataset)
+    model.spec.check_dataset(dataset)
+    result = evaluate(model, dataset)
+    judged, extra = result.judged, dataset.metadata.extra
+    if judged is None:
+        raise SimError(f"{test.dataset}: no target the grasp judge can judge (grasp labels)")
+    return SetScore(
+        name, str(test.dataset), extra.get("scenes", len(dataset)),
+        extra.get("demonstrations_redrawn", 0), judged.all.targets,
+        round(judged.all.targets * judged.all.predicted_success_rate),
+        judged.all.expected_success_rate, result.mean_position_error_cm,
+        sum(e is not None for row in result.position_errors_cm for e in row),
+        {kind: ObjectScore(g.targets, round(g.targets * g.predicted_success_rate))
+         for kind, g in judged.per_object.items()},
+        nearer_block(predict_dataset(model, dataset), dataset))
+
+
+def score(entry: Entry) -> Score:
+    """One checkpoint scored on its seed's block and clean test sets."""
+    model = load_model(entry.checkpoint)
+    return Score(entry.source, entry.task, entry.seed, str(entry.checkpoint),
+                 score_set(model, "block", entry.block), score_set(model, "clean", entry.clean))
+
+
+def pooled(sets: Sequence[SetScore]) -> SetScore:
+    """Every seed's set as one: counts summed, rate and error weighted by their targets."""
+    picks, targets = sum(s.picks for s in sets), sum(s.scored_targets for s in sets)
+    near = [s.nearer_block for s in sets if s.nearer_block is not None]
+    return SetScore(
+        sets[0].test_set, "", sum(s.scenes for s in sets), sum(s.redrawn for s in sets), picks,
+        sum(s.predicted_picked for s in sets),
+        sum(s.expected_success_rate * s.picks for s in sets) / max(picks, 1),
+        sum(s.mean_position_error_cm * s.scored_targets for s in sets) / max(targets, 1),
+        targets, {kind: ObjectScore(*map(sum, zip(*(astuple(s.per_object[kind]) for s in sets
+                                                    if kind in s.per_object), strict=True)))
+                  for kind in dict.fromkeys(k for s in sets for k in s.per_object)},
+        sum(near) if near else None)
+
+
+def cell(x: SetScore) -> str:
+    """``25/30 1.2cm 3>blk``: judged picked / picks, mean error, grasps nearer the block."""
+    near = "" if x.nearer_block is None else f" {x.nearer_block}>blk"
+    return f"{x.predicted_picked}/{x.picks} {x.mean_position_error_cm:.1f}cm{near}"
+
+
+def table(scores: Sequence[Score], seeds: Sequence[int]) -> tuple[list[str], list[Score]]:
+    """The printed table's lines (a row per source, task and test set), and the pooled scores."""
+    rows, totals = [["source", "task", "set", *(f"s{seed}" for seed in seeds), "pooled"]], []
+    for source, task in dict.fromkeys((s.source, s.task) for s in scores):
+        mine = {s.seed: s for s in scores if (s.source, s.task) == (source, task)}
+        totals.append(Score(source, task, None, "", *(
+            pooled([getattr(s, name) for s in mine.values()]) for name in TEST_SETS)))
+        rows += [[source, task, name, *(cell(getattr(mine[seed], name)) if seed in mine else "-"
+                                        for seed in seeds), cell(getattr(totals[-1], name))]
+                 for name in TEST_SETS]
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    return ["  ".join(v.ljust(w) for v, w in zip(r, widths, strict=True)).rstrip()
+            for r in rows], totals
+
+
+def per_scene(text: str) -> tuple[int, int]:
+    """An argparse type: ``LO,HI`` clutter objects a scene, 0 <= LO <= HI <= the types."""
+    values, most = integers(text), len(CLUTTER_TYPES)
+    if len(values) != 2 or not 0 <= values[0] <= values[1] <= most:
+        raise argparse.ArgumentTypeError(f"{text!r} is not allowed: LO,HI with 0 <= LO <= HI <= "
+                                         f"{most} (the clutter types: {', '.join(CLUTTER_TYPES)})")
+    return values[0], values[1]
+
+
+def parse(argv: Sequence[str]) -> argparse.Namespace:
+    """The options, checked: a bad one exits naming the option, its value and what is allowed."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
+    add = parser.add_argument
+    add("--candidate", action="append", choices=CANDIDATES, default=[],
+        help="a fix to train and score: clutter in the demonstrations")
+    add("--checkpoints", action="append", type=Path, default=[], metavar="RUN_FOLDER",
+        help="a gva reproduce real run folder to score (repeatable)")
+    add("--tasks", type=names, default=("single",),
+        help=f"comma-separated, from {','.join(tables.TASKS)} (single)")
+    add("--seed", type=integer(0), default=0, help="the first seed (0)")
+    add("--seeds", type=integer(1), default=1, help="how many seeds (1)")
+    add("--sensor", choices=[k.value for k in SensorKind], default=SensorKind.D435.value,
+        help="the candidate's camera (d435); a run keeps its own")
+    add("--demos", type=integer(1), default=20, help="the candidate's demonstrations (20)")
+    add("--steps", type=integer(1), default=TrainConfig.steps, help="its steps (%(default)s)")
+    add("--train-threads", type=integer(1), default=table3.ReproduceRealSettings.train_threads,
+        help="torch threads of a training, as gva reproduce real's (%(default)s)")
+    add("--clutter-per-scene", type=per_scene, default=(0, 2), metavar="LO,HI",
+        help="clutter objects a demonstration presents (0,2)")
+    add("--test-scenes", type=integer(1), default=30, help="test scenes of each set (30)")
+    add("--out", type=Path, default=Path("runs/distractor-offline"), help="the work folder")
+    add("--json", type=Path, default=Path("benchmarks/results/distractor_offline.json"))
+    add("--no-progress", action="store_true", help="no progress bar")
+    args = parser.parse_args(argv)
+    unknown = [t for t in args.tasks if t not in tables.TASKS]
+    if unknown or not args.tasks or len(set(args.tasks)) != len(args.tasks):
+        parser.error(f"argument --tasks: {','.join(unknown or args.tasks)!r} is not allowed: "
+                     f"distinct comma-separated names from {', '.join(tables.TASKS)}")
+    if not args.candidate and not args.checkpoints:
+        parser.error("nothing to score: give --candidate clutter and/or --checkpoints RUN_FOLDER")
+    for run in args.checkpoints:
+        if not (run / "run.json").is_file():
+            parser.error(f"argument --checkpoints: {str(run)!r} is not allowed: a gva reproduce "
+                         "real run folder (it has no run.json)")
+    return args
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Prepares every checkpoint and test set, scores them, prints the table, writes the JSON."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = parse(argv)
+    started, load = time.perf_counter(), os.getloadavg()
+    seeds = range(args.seed, args.seed + args.seeds)
+    steps: list[Step] = []
+    notes: list[str] = []
+    entries = [entry for seed in seeds for task in args.tasks for entry in (
+        *([candidate_entry(args, task, seed, steps)] if args.candidate else []),
+        *(run_entry(args, run, task, seed, notes) for run in args.checkpoints))]
+    tests = {t.dataset: (t, e.seed) for e in entries for t in (e.block, e.clean)}
+    steps += [step for test, seed in tests.values()
+              if (step := collect_step(test, seed, args.test_scenes)) is not None]
+    print("".join(f"note: {note}\n" for note in notes) + f"{len(steps)} job(s) to run "
+          f"({', '.join(s.name for s in steps) or 'none'}), {len(entries)} checkpoint(s) to score")
+    with tables.cost_bar(sum(s.cost_s for s in steps), "distractor offline",
+                         not args.no_progress) as bar:
+        for step in steps:
+            bar.set_postfix_str(step.name)
+            step.run()
+            bar.update(step.cost_s)
+    scores = [score(entry) for entry in entries]
+    lines, totals = table(scores, list(seeds))
+    print("cell: picks the grasp judge predicts succeed / picks, mean position error; "
+          "N>blk: predicted grasps nearer the block than the target")
+    print("\n".join(lines))
+    for dataset, redrawn in {s.dataset: s.redrawn for x in scores for s in (x.block, x.clean)
+                             if s.redrawn}.items():
+        print(f"note: {dataset}: {redrawn} test scene(s) the oracle failed were replaced by "
+              "later ones of the stream (not the trials' scenes)")
+    tables.write_json(args.json, json_form({
+        "benchmark": "distractor_offline",
+        "command": shlex.join(["python", "benchmarks/check_distractor_offline.py", *argv]),
+        "settings": {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()}
+        | {"checkpoints": [str(r) for r in args.checkpoints], "clutter_types": CLUTTER_TYPES},
+        "notes": notes, "scores": [asdict(s) for s in scores],
+        "pooled": [asdict(t) for t in totals], "wall_time_s": time.perf_counter() - started,
+        "load_average_1_5_15min_at_start": load}))
+    print(f"wrote {args.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
