@@ -20,6 +20,7 @@ from perception.learning.validation import CheckConfig
 from sim.jobs import Executor, ExecutorKind
 from sim.trials.collector import CollectSettings
 from sim.trials.trial_settings import TrialSettings
+from sim.world.sensor import SensorKind
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -65,7 +66,8 @@ def test_the_defaults_are_the_settings_dataclasses_defaults():
     real = _parsed("reproduce", "real", "--out", "x")
     for field in dataclasses.fields(ReproduceRealSettings):
         if field.name not in ("check", "executor"):
-            assert real[field.name] == getattr(ReproduceRealSettings(), field.name), field.name
+            value = SensorKind(real["sensor"]) if field.name == "sensor" else real[field.name]
+            assert value == getattr(ReproduceRealSettings(), field.name), field.name
     assert real["holdout"] == ReproduceRealSettings().check.holdout
     for parsed in (sim, real, _parsed("trials", "--out", "x")):
         assert Executor(ExecutorKind(parsed["executor"]), parsed["ray_address"]) == Executor()
