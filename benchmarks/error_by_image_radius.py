@@ -86,9 +86,11 @@ def summary(picks: list[Pick]) -> dict[str, Any]:
                      "mean_error_mm": statistics.fmean(inside) if inside else None})
     return {"picks": len(picks), "bins": bins,
             "inner_third": {"radius_max": inner[-1].radius,
-                            "mean_error_mm": statistics.fmean(p.error_mm for p in inner)},
+                            "mean_error_mm": statistics.fmean(p.error_mm for p in inner),
+                            "median_error_mm": statistics.median(p.error_mm for p in inner)},
             "outer_third": {"radius_min": outer[0].radius,
-                            "mean_error_mm": statistics.fmean(p.error_mm for p in outer)},
+                            "mean_error_mm": statistics.fmean(p.error_mm for p in outer),
+                            "median_error_mm": statistics.median(p.error_mm for p in outer)},
             "outer_over_inner": (statistics.fmean(p.error_mm for p in outer)
                                  / statistics.fmean(p.error_mm for p in inner))}
 
@@ -137,7 +139,9 @@ def main() -> None:
         print(f"{name}: {group['picks']} picks; mean error inner third "
               f"{group['inner_third']['mean_error_mm']:.1f} mm, outer third "
               f"{group['outer_third']['mean_error_mm']:.1f} mm "
-              f"(x{group['outer_over_inner']:.2f})")
+              f"(x{group['outer_over_inner']:.2f}); medians "
+              f"{group['inner_third']['median_error_mm']:.1f} and "
+              f"{group['outer_third']['median_error_mm']:.1f} mm")
     args.out.write_text(json.dumps({"runs": [str(r) for r in args.runs], "groups": groups},
                                    indent=1) + "\n")
     figure(groups, args.figure)
