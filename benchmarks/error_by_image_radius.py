@@ -58,11 +58,14 @@ def sensor_of(run: Path) -> str:
     return str(identity.get("sensor", {"sensor": "ideal"})["sensor"])
 
 
-def read_picks(run: Path, model: str, camera: PinholeCamera) -> list[Pick]:
-    """Every pick with a prediction of ``model``'s plain trials in every seed of ``run``."""
+def read_picks(run: Path, model: str, camera: PinholeCamera,
+               seeds: set[int] | None = None) -> list[Pick]:
+    """Every pick with a prediction of ``model``'s plain trials in ``run``'s seeds (None: all)."""
     picks = []
     for folder in sorted(run.glob(f"s*/trials/{model}/*")):
         if folder.name not in TASKS:  # a robustness variant: other light, other objects
+            continue
+        if seeds is not None and int(folder.parent.parent.parent.name[1:]) not in seeds:
             continue
         for record in read_trial_records(folder / "trials.jsonl"):
             for pick in record.picks:
@@ -106,7 +109,8 @@ def figure(groups: dict[str, dict[str, Any]], path: Path) -> None:
     for name, group in groups.items():
         shown = [b for b in group["bins"] if b["picks"] >= MIN_BIN_PICKS]
         axes.plot([sum(b["radius"]) / 2 for b in shown], [b["mean_error_mm"] for b in shown],
-                  marker="o", label=f"{name} ({group['picks']} picks)")
+                  marker="o", label=f"{name} (seeds {', '.join(map(str, group['seeds']))}: "
+                  f"{group['picks']} picks)")
     axes.set_xlabel("target's distance from the image centre (1 = a corner)")
     axes.set_ylabel("mean grasp position error [mm]")
     axes.set_ylim(bottom=0)
@@ -121,6 +125,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("runs", type=Path, nargs="+", help="gva reproduce real folders")
     parser.add_argument("--models", default="kqv,kqv-mlp", help="comma-separated (%(default)s)")
+    parser.add_argument("--seeds", default=None,
+                        help="comma-separated seeds to read (default: every seed a run holds)")
     parser.add_argument("--out", type=Path,
                         default=Path("benchmarks/results/error_by_image_radius.json"))
     parser.add_argument("--figure", type=Path,
@@ -130,7 +136,8 @@ def main() -> None:
     groups: dict[str, dict[str, Any]] = {}
     for run in args.runs:
         for model in args.models.split(","):
-            picks = read_picks(run, model, camera)
+            seeds = None if args.seeds is None else {int(s) for s in args.seeds.split(",")}
+            picks = read_picks(run, model, camera, seeds)
             if picks:
                 name = f"{sensor_of(run)}, {model}"
                 groups[name] = {"run": str(run), "seeds": sorted({p.seed for p in picks}),
