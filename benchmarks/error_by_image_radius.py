@@ -133,10 +133,10 @@ def main() -> None:
                         default=Path("docs/figures/error_by_image_radius.png"))
     args = parser.parse_args()
     camera = CameraConfig().pinhole  # the calibration every run's model was handed
+    seeds = None if args.seeds is None else {int(s) for s in args.seeds.split(",")}
     groups: dict[str, dict[str, Any]] = {}
     for run in args.runs:
         for model in args.models.split(","):
-            seeds = None if args.seeds is None else {int(s) for s in args.seeds.split(",")}
             picks = read_picks(run, model, camera, seeds)
             if picks:
                 name = f"{sensor_of(run)}, {model}"

@@ -59,7 +59,7 @@ from perception.interface import InvalidInputError as PerceptionInputError
 from sim.errors import InvalidInputError
 from sim.tasks.phrasings import Phrasings
 from sim.world.head_camera import CameraConfig
-from sim.world.sensor import SensorConfig
+from sim.world.sensor import SensorConfig, SensorKind
 
 SIDES = ("left", "right")
 """Side condition values: ``left`` is +y (the robot's left, the image's left)."""
@@ -244,6 +244,22 @@ class TaskSpec:
         if self.distractors_per_scene is None:
             return len(self.distractors), len(self.distractors)
         return self.distractors_per_scene
+
+    def recorded_fields(self) -> dict[str, Any]:
+        """The fields records keep of the task (run identities, datasets' task records).
+
+        Without its source; the sensor as ``"camera"`` (:meth:`SensorConfig.to_json`) and
+        ``"distractors_per_scene"`` only where set, so records from before either existed (all
+        ideal, every distractor presented) are the same task.
+        """
+        data = dataclasses.asdict(self)
+        data.pop("source")
+        data.pop("camera")
+        if self.distractors_per_scene is None:
+            data.pop("distractors_per_scene")
+        if self.camera.kind is not SensorKind.IDEAL:
+            data["camera"] = self.camera.to_json()
+        return data
 
     @property
     def model_condition(self) -> ConditionKind:

@@ -17,7 +17,6 @@ one of 20.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -47,7 +46,6 @@ from sim.tasks.task_toml import load_task
 from sim.trials.records import TrialOutcome
 from sim.trials.trial_runner import TrialRunner
 from sim.world.head_camera import HeadCamera
-from sim.world.sensor import SensorKind
 from sim.world.yumi_world import World
 
 MAX_REDRAW_FACTOR = 3
@@ -181,14 +179,7 @@ def _task_json(task: TaskSpec) -> dict[str, Any]:
 
     As :func:`~sim.trials.trial_settings.task_identity` does, so a stored dataset is matched.
     """
-    data = dataclasses.asdict(task)
-    data.pop("source")
-    data.pop("camera")
-    if task.distractors_per_scene is None:  # tasks that present all their distractors
-        data.pop("distractors_per_scene")
-    if task.camera.kind is not SensorKind.IDEAL:
-        data["camera"] = task.camera.to_json()
-    return json.loads(json.dumps(data, default=lambda v: v.value))
+    return json.loads(json.dumps(task.recorded_fields(), default=lambda v: v.value))
 
 
 def _camera_json(camera: HeadCamera) -> dict[str, Any]:

@@ -37,7 +37,7 @@ from sim.trials.oracle import OraclePerception
 from sim.trials.planner_setup import ObstacleSource, yumi_depth_config
 from sim.trials.trial_runner import TRIAL_INPUTS, ModelFactory
 from sim.world.head_camera import CameraConfig
-from sim.world.sensor import SensorConfig, SensorKind, sensor_from_table
+from sim.world.sensor import SensorConfig, sensor_from_table
 from sim.world.yumi_world import check_wait_s
 
 MODELS: dict[str, ModelFactory] = {"oracle": OraclePerception}
@@ -74,17 +74,10 @@ def model_source(model: str) -> ModelSource:
 def task_identity(task: TaskSpec) -> dict[str, Any]:
     """A task's settings as JSON-able data (a resumed run must use the same task).
 
-    The sensor is ``"camera"`` (:meth:`SensorConfig.to_json`), absent for the ideal camera:
-    run folders and datasets from before sensors existed (all ideal) keep their identity.
-    Likewise ``"distractors_per_scene"`` is absent where a task presents all its distractors.
+    :meth:`TaskSpec.recorded_fields`, its phrasings and enums as JSON: run folders from before
+    sensors and per-scene distractors keep their identity.
     """
-    data = asdict(task)
-    data.pop("source")
-    data.pop("camera")
-    if task.distractors_per_scene is None:
-        data.pop("distractors_per_scene")
-    if task.camera.kind is not SensorKind.IDEAL:
-        data["camera"] = task.camera.to_json()
+    data = task.recorded_fields()
     data["phrasings"] = None if task.phrasings is None else task.phrasings.to_json()
     for key, value in data.items():
         if hasattr(value, "value"):
