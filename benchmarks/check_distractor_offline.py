@@ -7,13 +7,15 @@
 
 Per model, task and seed: the grasps the grasp judge predicts would be picked (as ``gva
 evaluate`` judges them) on test scenes *with the block* and on *clean* ones, the mean position
-error, and the grasps nearer the block than the target. ``--candidate clutter`` records the
-demonstrations with ``--clutter-per-scene`` of ``CLUTTER_TYPES`` a scene and trains as ``gva
-reproduce real`` trains a unit, in ``OUT/clutter/s<S>/`` (a rerun resumes; a folder of other
-settings is refused). ``--checkpoints RUN`` scores ``RUN/s<S>/checkpoints/kqv/<T>/`` on the
-run's own ``tasks/<T>-distractor.toml`` and ``<T>.toml`` (missing in older runs: the built-in
-variant under ``run.json``'s sensor, as the output notes). Test scenes (TEST stream, seeds
-``--seed`` .. ``--seed + --seeds - 1``) are cached in ``OUT/test-scenes/<sensor>/s<S>/``. They
+error, and the grasps nearer the block than the target. A candidate records its own
+demonstrations and trains as ``gva reproduce real`` trains a unit, in ``OUT/<candidate>/s<S>/``
+(a rerun resumes; a folder of other settings is refused): ``clutter``, with
+``--clutter-per-scene`` of ``CLUTTER_TYPES`` a scene; ``balanced``, the object types taken in
+turn (``objects.balance_types``: 20 demonstrations of ``single`` at seed 10 hold 2 sponges).
+``--checkpoints RUN`` scores ``RUN/s<S>/checkpoints/kqv/<T>/`` on the run's own
+``tasks/<T>-distractor.toml`` and ``<T>.toml`` (missing in older runs: the built-in variant under
+``run.json``'s sensor, as the output notes). Test scenes (TEST stream, seeds ``--seed`` ..
+``--seed + --seeds - 1``) are cached in ``OUT/test-scenes/<sensor>/s<S>/``. They
 are oracle demonstrations: a scene the oracle fails is replaced by a later one (``redrawn``).
 """
 
@@ -27,23 +29,18 @@ import shlex
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, astuple, dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from functools import partial
 from pathlib import Path
 from typing import NamedTuple
 
-import numpy as np
+from distractor_scores import SET_NAMES, Score, score_set, table
 
 from experiments import tables
 from experiments.commands.arguments import integer, integers, names
 from experiments.table3 import jobs
 from experiments.table3 import settings as table3
 from perception.catalog import CLUTTER_TYPES
-from perception.interface import Prediction
-from perception.learning.data import Dataset
-from perception.learning.dataset_file import load_dataset
-from perception.learning.evaluate import evaluate, predict_dataset
-from perception.learning.learnable import LearnableModel
 from perception.learning.train import TrainConfig
 from perception.registry import load_model
 from sim.errors import RunFolderError, SimError
@@ -56,45 +53,7 @@ from sim.trials.trial_settings import task_identity
 from sim.world.sensor import SensorConfig, SensorKind, sensor_from_table
 
 MODEL = "kqv"
-CANDIDATES = ("clutter",)
-TEST_SETS = {"block": table3.Variant.DISTRACTOR, "clean": table3.Variant.PLAIN}
-
-
-@dataclass(frozen=True)
-class ObjectScore:
-    """One object type's judged picks: how many, and how many the judge predicts picked."""
-
-    picks: int
-    predicted_picked: int
-
-
-@dataclass(frozen=True)
-class SetScore:
-    """A model on one test set: judged picks, position error, grasps nearer the block."""
-
-    test_set: str  # block | clean
-    dataset: str
-    scenes: int
-    redrawn: int  # test scenes the oracle failed, replaced by later ones of the stream
-    picks: int  # targets judged: in an image, of a known type (gva evaluate's count)
-    predicted_picked: int
-    expected_success_rate: float
-    mean_position_error_cm: float
-    scored_targets: int  # present targets behind the mean error
-    per_object: dict[str, ObjectScore]
-    nearer_block: int | None  # predicted grasps nearer a block than the target; None: no block
-
-
-@dataclass(frozen=True)
-class Score:
-    """One checkpoint (a candidate's or a run's) on one seed's two test sets."""
-
-    source: str  # the candidate's name or the run folder
-    task: str
-    seed: int | None  # None: every seed's sets pooled
-    checkpoint: str
-    block: SetScore
-    clean: SetScore
+TEST_SETS = dict(zip(SET_NAMES, (table3.Variant.DISTRACTOR, table3.Variant.PLAIN), strict=True))
 
 
 @dataclass(frozen=True)
@@ -134,6 +93,18 @@ def clutter_task(task: str, sensor: SensorKind, per_scene: tuple[int, int]) -> T
                    f"{', '.join(CLUTTER_TYPES)} (clutter, never a target).")
 
 
+def balanced_task(task: str, sensor: SensorKind, _: tuple[int, int]) -> TaskSpec:
+    """The task under ``sensor`` with its training scenes' types taken in turn."""
+    base = table3.variant_task(task, table3.Variant.PLAIN, sensor)
+    return replace(base, balance_types=True, description=f"{base.description} Types taken in "
+                   "turn in the training scenes.")
+
+
+CANDIDATES: dict[str, Callable[[str, SensorKind, tuple[int, int]], TaskSpec]] = {
+    "clutter": clutter_task, "balanced": balanced_task}
+"""Each candidate's task for a built-in task name, a sensor and ``--clutter-per-scene``."""
+
+
 def test_task(out: Path, spec: TaskSpec, task: str, variant: table3.Variant, seed: int,
               n: int, given: Path | None) -> TestTask:
     """Where ``spec``'s test set is cached: by sensor, plus a hash unless the built-in variant.
@@ -150,21 +121,22 @@ def test_task(out: Path, spec: TaskSpec, task: str, variant: table3.Variant, see
     return TestTask(spec, path, tables.dataset_path(folder, spec.name, SeedStream.TEST, n, seed))
 
 
-def candidate_entry(args: argparse.Namespace, task: str, seed: int, steps: list[Step]
-                    ) -> Entry:
-    """The clutter candidate's checkpoint of ``task`` and ``seed``; its missing work to steps."""
-    folder, sensor = table3.seed_folder(args.out / "clutter", seed), SensorKind(args.sensor)
+def candidate_entry(args: argparse.Namespace, candidate: str, task: str, seed: int,
+                    steps: list[Step]) -> Entry:
+    """``candidate``'s checkpoint of ``task`` and ``seed``; its missing work to ``steps``."""
+    folder, sensor = table3.seed_folder(args.out / candidate, seed), SensorKind(args.sensor)
     settings = table3.ReproduceRealSettings(
         models=(MODEL,), tasks=(task,), demos=args.demos, steps=args.steps, seed=seed,
         sensor=sensor, train_threads=args.train_threads)
-    spec, unit = clutter_task(task, sensor, args.clutter_per_scene), table3.Unit(MODEL, task)
+    spec = CANDIDATES[candidate](task, sensor, args.clutter_per_scene)
+    unit = table3.Unit(MODEL, task)
     path, asked = table3.task_file(folder, task), json_form(task_identity(spec))
     if path.exists() and (found := json_form(task_identity(load_task(path)))) != asked:
         raise RunFolderError(f"{path} holds the task of other settings ({differences(found, asked)}"
                              f", stored vs asked); remove {folder} or use another --out")
-    tables.write_text(path, f"# {task} with clutter, written by {Path(__file__).name}\n"
-                      + task_to_toml(spec))
-    identity = json_form(settings.train_identity(unit) | {"task": asked, "candidate": "clutter"})
+    tables.write_text(path, f"# {task}, candidate {candidate}, written by "
+                      f"{Path(__file__).name}\n" + task_to_toml(spec))
+    identity = json_form(settings.train_identity(unit) | {"task": asked, "candidate": candidate})
     trained = table3.trained_file(folder, unit)
     if trained.exists():  # reused, unless trained with other settings
         tables.refuse_other_settings(
@@ -180,7 +152,7 @@ def candidate_entry(args: argparse.Namespace, task: str, seed: int, steps: list[
         steps.append(Step(train.name, jobs.TRAIN_S_PER_STEP * args.steps, partial(finish, train)))
     block, clean = (test_task(args.out, table3.variant_task(task, v, sensor), task, v, seed,
                               args.test_scenes, None) for v in TEST_SETS.values())
-    return Entry("clutter", task, seed, table3.checkpoint_folder(folder, unit), block, clean)
+    return Entry(candidate, task, seed, table3.checkpoint_folder(folder, unit), block, clean)
 
 
 def finish(job: jobs.Job) -> None:
@@ -229,80 +201,12 @@ def collect_step(test: TestTask, seed: int, n: int) -> Step | None:
                 partial(collect, settings, test.dataset, progress=False))
 
 
-def nearer_block(predictions: Sequence[Prediction], dataset: Dataset) -> int | None:
-    """How many present targets' predicted grasps lie nearer a block than the target (x, y)."""
-    nearer: list[bool] = []
-    for prediction, record, shown in zip(predictions, dataset.scenes, dataset.target_present(),
-                                         strict=True):
-        objects = record["objects"]
-        blocks = [o["position_xy_m"] for o in objects if o["type"] in table3.DISTRACTOR_TYPES]
-        xy = [np.asarray(target.position_m[:2]) for target in prediction.targets]
-        nearer += [min(np.linalg.norm(xy[k] - block) for block in blocks) < np.linalg.norm(
-            xy[k] - objects[record["targets"][k]]["position_xy_m"])
-            for k in range(len(xy)) if blocks and shown[k]]
-    return int(sum(nearer)) if nearer else None
-
-
-def score_set(model: LearnableModel, name: str, test: TestTask) -> SetScore:
-    """The model's judged picks, error and grasps nearer the block on one test set."""
-    dataset = load_dataset(test.dataset)
-    model.spec.check_dataset(dataset)
-    result = evaluate(model, dataset)
-    judged, extra = result.judged, dataset.metadata.extra
-    if judged is None:
-        raise SimError(f"{test.dataset}: no target the grasp judge can judge (grasp labels)")
-    return SetScore(
-        name, str(test.dataset), extra.get("scenes", len(dataset)),
-        extra.get("demonstrations_redrawn", 0), judged.all.targets,
-        round(judged.all.targets * judged.all.predicted_success_rate),
-        judged.all.expected_success_rate, result.mean_position_error_cm,
-        sum(e is not None for row in result.position_errors_cm for e in row),
-        {kind: ObjectScore(g.targets, round(g.targets * g.predicted_success_rate))
-         for kind, g in judged.per_object.items()},
-        nearer_block(predict_dataset(model, dataset), dataset))
-
-
 def score(entry: Entry) -> Score:
     """One checkpoint scored on its seed's block and clean test sets."""
     model = load_model(entry.checkpoint)
     return Score(entry.source, entry.task, entry.seed, str(entry.checkpoint),
-                 score_set(model, "block", entry.block), score_set(model, "clean", entry.clean))
-
-
-def pooled(sets: Sequence[SetScore]) -> SetScore:
-    """Every seed's set as one: counts summed, rate and error weighted by their targets."""
-    picks, targets = sum(s.picks for s in sets), sum(s.scored_targets for s in sets)
-    near = [s.nearer_block for s in sets if s.nearer_block is not None]
-    return SetScore(
-        sets[0].test_set, "", sum(s.scenes for s in sets), sum(s.redrawn for s in sets), picks,
-        sum(s.predicted_picked for s in sets),
-        sum(s.expected_success_rate * s.picks for s in sets) / max(picks, 1),
-        sum(s.mean_position_error_cm * s.scored_targets for s in sets) / max(targets, 1),
-        targets, {kind: ObjectScore(*map(sum, zip(*(astuple(s.per_object[kind]) for s in sets
-                                                    if kind in s.per_object), strict=True)))
-                  for kind in dict.fromkeys(k for s in sets for k in s.per_object)},
-        sum(near) if near else None)
-
-
-def cell(x: SetScore) -> str:
-    """``25/30 1.2cm 3>blk``: judged picked / picks, mean error, grasps nearer the block."""
-    near = "" if x.nearer_block is None else f" {x.nearer_block}>blk"
-    return f"{x.predicted_picked}/{x.picks} {x.mean_position_error_cm:.1f}cm{near}"
-
-
-def table(scores: Sequence[Score], seeds: Sequence[int]) -> tuple[list[str], list[Score]]:
-    """The printed table's lines (a row per source, task and test set), and the pooled scores."""
-    rows, totals = [["source", "task", "set", *(f"s{seed}" for seed in seeds), "pooled"]], []
-    for source, task in dict.fromkeys((s.source, s.task) for s in scores):
-        mine = {s.seed: s for s in scores if (s.source, s.task) == (source, task)}
-        totals.append(Score(source, task, None, "", *(
-            pooled([getattr(s, name) for s in mine.values()]) for name in TEST_SETS)))
-        rows += [[source, task, name, *(cell(getattr(mine[seed], name)) if seed in mine else "-"
-                                        for seed in seeds), cell(getattr(totals[-1], name))]
-                 for name in TEST_SETS]
-    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-    return ["  ".join(v.ljust(w) for v, w in zip(r, widths, strict=True)).rstrip()
-            for r in rows], totals
+                 score_set(model, "block", entry.block.dataset),
+                 score_set(model, "clean", entry.clean.dataset))
 
 
 def per_scene(text: str) -> tuple[int, int]:
@@ -318,8 +222,9 @@ def parse(argv: Sequence[str]) -> argparse.Namespace:
     """The options, checked: a bad one exits naming the option, its value and what is allowed."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
     add = parser.add_argument
-    add("--candidate", action="append", choices=CANDIDATES, default=[],
-        help="a fix to train and score: clutter in the demonstrations")
+    add("--candidate", action="append", choices=list(CANDIDATES), default=[],
+        help="a fix to train and score (repeatable): clutter in the demonstrations, or their "
+        "object types balanced")
     add("--checkpoints", action="append", type=Path, default=[], metavar="RUN_FOLDER",
         help="a gva reproduce real run folder to score (repeatable)")
     add("--tasks", type=names, default=("single",),
@@ -344,7 +249,8 @@ def parse(argv: Sequence[str]) -> argparse.Namespace:
         parser.error(f"argument --tasks: {','.join(unknown or args.tasks)!r} is not allowed: "
                      f"distinct comma-separated names from {', '.join(tables.TASKS)}")
     if not args.candidate and not args.checkpoints:
-        parser.error("nothing to score: give --candidate clutter and/or --checkpoints RUN_FOLDER")
+        parser.error(f"nothing to score: give --candidate ({'|'.join(CANDIDATES)}) and/or "
+                     "--checkpoints RUN_FOLDER")
     for run in args.checkpoints:
         if not (run / "run.json").is_file():
             parser.error(f"argument --checkpoints: {str(run)!r} is not allowed: a gva reproduce "
@@ -361,7 +267,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     steps: list[Step] = []
     notes: list[str] = []
     entries = [entry for seed in seeds for task in args.tasks for entry in (
-        *([candidate_entry(args, task, seed, steps)] if args.candidate else []),
+        *(candidate_entry(args, c, task, seed, steps) for c in dict.fromkeys(args.candidate)),
         *(run_entry(args, run, task, seed, notes) for run in args.checkpoints))]
     tests = {t.dataset: (t, e.seed) for e in entries for t in (e.block, e.clean)}
     steps += [step for test, seed in tests.values()
