@@ -89,6 +89,29 @@ def softmax2d(logits: Tensor, temperature: float = 1.0) -> Tensor:
     return torch.softmax(flat, dim=-1).reshape(batch, heads, height, width)  # (B, q, h, w)
 
 
+def focus(heatmaps: Tensor, box_cells: int, window_cells: int) -> Tensor:
+    """Each heatmap kept inside a window around its densest part, renormalised: (B, q, h, w).
+
+    The densest part is the cell whose ``box_cells``-wide square (odd; clipped at the border)
+    holds the most of the map's mass; the window is the square of half-width ``window_cells``
+    around it. A map whose mass is split between two objects keeps the one holding more.
+    """
+    batch, heads, height, width = heatmaps.shape
+    maps = heatmaps.reshape(batch * heads, 1, height, width)
+    box = box_cells | 1
+    mass = nn.functional.avg_pool2d(maps, box, 1, box // 2, count_include_pad=False) \
+        if box > 1 else maps  # (B q, 1, h, w)
+    densest = mass.flatten(1).argmax(dim=1)  # (B q,)
+    rows = torch.arange(height, device=heatmaps.device).view(1, height, 1)
+    cols = torch.arange(width, device=heatmaps.device).view(1, 1, width)
+    reach = max(window_cells, box // 2)  # the window holds the densest square's mass
+    inside = ((rows - (densest // width).view(-1, 1, 1)).abs() <= reach) & \
+        ((cols - (densest % width).view(-1, 1, 1)).abs() <= reach)  # (B q, h, w)
+    kept = maps.squeeze(1) * inside
+    kept = kept / kept.sum(dim=(-2, -1), keepdim=True)
+    return kept.reshape(batch, heads, height, width)
+
+
 def spatial_expectation(heatmaps: Tensor, values: Tensor) -> Tensor:
     """Σ_uv M(u, v) V(u, v), the expectation of values under each heatmap.
 

@@ -40,6 +40,15 @@ class KqvConfig:
         similarity: ``"dot"``: the paper's K · Q / sqrt(hw); ``"cosine"``: K and Q of unit
             length, logits in [-1, 1] before the temperature.
         temperature: Divides the logits before the 2-D softmax; inference always uses it.
+        focus_window_px: At inference, each head reads ``a_coord`` and ``a_feat`` inside a
+            square of this half-width [image px] around the densest part of its heatmap (the
+            cell whose ``focus_box_px`` square holds the most attention), the heatmap
+            renormalised there: attention split between a target and a look-alike reads the
+            one holding more of it, not a point between them (docs/decisions/distractor.md).
+            Training reads the whole heatmap. None: 24 px for grasp-pose labels (the robot's
+            scene), 0 for positions; 0: the whole heatmap, as the paper.
+        focus_box_px: Side of the square [image px] whose attention mass finds that part:
+            about one object's size in the image.
         warmup_temperature: The temperature at the first training step; it falls linearly to
             ``temperature`` over ``warmup_steps`` steps, so every Query finds its objects before
             its heatmap can saturate.
@@ -104,6 +113,8 @@ class KqvConfig:
     stride: int | None = None
     similarity: str = "cosine"
     temperature: float = 0.1
+    focus_window_px: int | None = None
+    focus_box_px: int = 18
     warmup_temperature: float = 0.3
     warmup_steps: int = 300
     starts: int = 3
@@ -131,11 +142,16 @@ class KqvConfig:
             raise InvalidInputError("channels", self.channels, "two integers >= 1")
         object.__setattr__(self, "channels", channels)  # a JSON list reads back as the tuple
         for name in ("key_dim", "value_dim", "head_width", "warmup_steps", "starts",
-                     "start_steps", "type_steps"):
+                     "start_steps", "type_steps", "focus_box_px"):
             value = getattr(self, name)
             least = 0 if name == "warmup_steps" else 1
             if not isinstance(value, int) or isinstance(value, bool) or value < least:
                 raise InvalidInputError(name, value, f"an integer >= {least}")
+        if self.focus_window_px is not None and (
+                not isinstance(self.focus_window_px, int) or
+                isinstance(self.focus_window_px, bool) or self.focus_window_px < 0):
+            raise InvalidInputError("focus_window_px", self.focus_window_px,
+                                    "None or an integer >= 0")
         if self.start_batch_size is not None and (
                 not isinstance(self.start_batch_size, int) or
                 isinstance(self.start_batch_size, bool) or self.start_batch_size < 1):

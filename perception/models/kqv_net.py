@@ -2,8 +2,9 @@
 
 Selection: the Key ``K = FCN1(image)`` (CoordConv) meets one Query per head in a heatmap
 ``M = Softmax2D(similarity(K, Q) / temperature)``. Extraction: ``a_feat = Σ M FCN2(image)`` and
-``a_coord = Σ M [x, y]``. A head MLP maps each head's ``a_coord`` and ``a_feat`` to its target,
-or reads it off the camera ray through ``a_coord``; a type head names what each head sees.
+``a_coord = Σ M [x, y]`` (at inference over the densest part of ``M``). A head MLP maps each
+head's ``a_coord`` and ``a_feat`` to its target, or reads it off the camera ray through
+``a_coord``; a type head names what each head sees.
 Where and why it departs from the paper: ``docs/decisions/kqv.md``.
 """
 
@@ -22,6 +23,7 @@ from perception.models.base import (
     CoordConv,
     LabelScaler,
     coordinate_grid,
+    focus,
     normalise_images,
     softmax2d,
     spatial_expectation,
@@ -40,6 +42,9 @@ class Attention(NamedTuple):
     coords: Tensor  # (B, q, 2) a_coord, (x, y) in [-1, 1]
     features: Tensor  # (B, q, Cv) a_feat
 
+
+FOCUS_WINDOW_PX = 24
+"""KqvConfig.focus_window_px's value for grasp-pose labels (docs/decisions/distractor.md)."""
 
 PICTURE_FEATURES = 32
 """What the picture encoder makes of an image condition: 32 numbers, as a one-hot has a few."""
@@ -79,6 +84,10 @@ class KqvNet(nn.Module):
             norm = "per-image" if spec.label_kind is LabelKind.GRASP_POSE else "fixed"
         self.per_image = norm == "per-image"
         self.temperature = c.temperature
+        window_px = c.focus_window_px
+        if window_px is None:
+            window_px = FOCUS_WINDOW_PX if spec.label_kind is LabelKind.GRASP_POSE else 0
+        self.focus_cells = (round(window_px / self.stride), round(c.focus_box_px / self.stride))
         self.similarity = c.similarity
         self.key_net = nn.Sequential(  # FCN1 with CoordConv: (B, 3, H, W) -> (B, Ck + 2, h, w)
             CoordConv(3, wide1, 5, first),
@@ -203,7 +212,11 @@ class KqvNet(nn.Module):
         return torch.softmax(cosines / self.sentence_temperature, dim=-1)
 
     def attend(self, images: Tensor, queries: Tensor) -> Attention:
-        """Selection and extraction: images (B, 3, H, W) in [0, 1], queries (B, q', Ck + 2)."""
+        """Selection and extraction: images (B, 3, H, W) in [0, 1], queries (B, q', Ck + 2).
+
+        At inference each heatmap is first focused on its densest part (``focus_window_px``);
+        the returned heatmaps are the ones read.
+        """
         x = normalise_images(images, self.per_image)  # (B, 3, H, W)
         keys = self.key_net(x)  # (B, Ck + 2, h, w)
         values = self.value_net(x)  # (B, Cv, h, w)
@@ -215,6 +228,8 @@ class KqvNet(nn.Module):
         else:
             logits = torch.einsum("bchw,bqc->bqhw", keys, queries) / math.sqrt(height * width)
         heatmaps = softmax2d(logits, self.temperature)  # (B, q', h, w)
+        if self.focus_cells[0] > 0 and not self.training:  # KqvConfig.focus_window_px
+            heatmaps = focus(heatmaps, self.focus_cells[1], self.focus_cells[0])
         grid = coordinate_grid(height, width, images.device)  # (2, h, w)
         return Attention(heatmaps, spatial_expectation(heatmaps, grid),  # (B, q', 2)
                          spatial_expectation(heatmaps, values))  # (B, q', Cv)

@@ -1,0 +1,72 @@
+"""The focus on a heatmap's densest part (``KqvConfig.focus_window_px``, issue 49)."""
+
+from dataclasses import replace
+
+import pytest
+import torch
+from user_models import CAMERA, spec
+
+from perception.interface import InvalidInputError, LabelKind
+from perception.models.base import coordinate_grid, focus, spatial_expectation
+from perception.models.kqv import KqvConfig, KqvModel
+from perception.models.kqv_net import FOCUS_WINDOW_PX
+
+
+def split_map() -> torch.Tensor:
+    """A 32 x 32 heatmap (1, 1, h, w): 0.7 of its mass spread over a 6 x 6 object around row
+    and column 8, 0.3 on one bright cell (a look-alike's sharp edge) at row and column 24."""
+    heatmap = torch.zeros(1, 1, 32, 32)
+    heatmap[0, 0, 5:11, 5:11] = 0.7 / 36
+    heatmap[0, 0, 24, 24] = 0.3
+    return heatmap
+
+
+def test_focus_reads_the_part_holding_more_mass_not_the_brightest_cell_nor_between():
+    heatmap, grid = split_map(), coordinate_grid(32, 32)
+    whole = spatial_expectation(heatmap, grid)[0, 0]
+    focused = focus(heatmap, box_cells=5, window_cells=6)
+    torch.testing.assert_close(focused.sum(), torch.tensor(1.0))
+    assert focused[0, 0, 24, 24] == 0  # the look-alike's cell is left out
+    centre = (2 * 7.5 + 1) / 32 - 1  # the object's cells 5..10 have their centre at 7.5
+    torch.testing.assert_close(spatial_expectation(focused, grid)[0, 0],
+                               torch.tensor([centre, centre]))
+    assert whole[0] > centre + 0.3  # the whole map's point lies between the two
+    brightest = heatmap.flatten().argmax()
+    assert brightest == 24 * 32 + 24  # a window around the brightest cell would read the block
+
+
+def test_focus_leaves_a_map_with_one_object_inside_its_window_as_it_is():
+    heatmap = torch.zeros(2, 3, 16, 16)
+    heatmap[..., 4:9, 6:10] = torch.rand(2, 3, 5, 4, generator=torch.Generator().manual_seed(0))
+    heatmap = heatmap + 1e-9
+    heatmap = heatmap / heatmap.sum(dim=(-2, -1), keepdim=True)
+    focused = focus(heatmap, box_cells=3, window_cells=8)
+    grid = coordinate_grid(16, 16)
+    torch.testing.assert_close(spatial_expectation(focused, grid),
+                               spatial_expectation(heatmap, grid), atol=1e-6, rtol=0)
+
+
+def test_the_network_focuses_at_inference_only_and_by_label_kind():
+    queries, images = torch.randn(1, 1, 18), torch.rand(1, 3, 64, 64)
+    grasp = KqvModel(replace(spec(kind=LabelKind.GRASP_POSE), camera=CAMERA)).network
+    assert grasp.focus_cells == (FOCUS_WINDOW_PX // 2, 9)  # stride 2: 24 px, 18 px
+    position = KqvModel(spec()).network
+    assert position.focus_cells[0] == 0  # the paper's whole heatmap for positions
+    grasp.eval()
+    inference = grasp.attend(images, queries).heatmaps
+    grasp.train()
+    training = grasp.attend(images, queries).heatmaps
+    assert (inference == 0).any() and (training > 0).all()  # cells outside the window, dropped
+    torch.testing.assert_close(inference.sum(), torch.tensor(1.0))
+    off = KqvModel(replace(spec(kind=LabelKind.GRASP_POSE), camera=CAMERA),
+                   KqvConfig(focus_window_px=0)).network.eval()
+    assert (off.attend(images, queries).heatmaps > 0).all()
+
+
+def test_focus_settings_are_checked():
+    with pytest.raises(InvalidInputError, match=r"focus_window_px = -1 is not allowed: None or "
+                                                 r"an integer >= 0"):
+        KqvConfig(focus_window_px=-1)
+    with pytest.raises(InvalidInputError, match=r"focus_box_px = 0 is not allowed: an integer "
+                                                 r">= 1"):
+        KqvConfig(focus_box_px=0)
