@@ -51,6 +51,11 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         default=defaults.robustness,
                         help="also run kqv under darker light and with a distractor "
                         f"({'on' if defaults.robustness else 'off'})")
+    parser.add_argument("--balance-types", action=argparse.BooleanOptionalAction,
+                        default=defaults.balance_types,
+                        help="demonstrations take the object types in turn where a scene draws "
+                        "one type, as a person recording them would; off: at random "
+                        f"({'on' if defaults.balance_types else 'off'})")
     parser.add_argument("--sensor", choices=[k.value for k in SensorKind],
                         default=defaults.sensor.value,
                         help="what the head camera renders through, for demonstrations and "
@@ -68,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
                                      demos=args.demos, steps=args.steps, seed=args.seed,
                                      seeds=args.seeds, check=CheckConfig(holdout=args.holdout),
                                      robustness=args.robustness,
+                                     balance_types=args.balance_types,
                                      sensor=SensorKind(args.sensor), workers=args.workers,
                                      executor=executor(args), train_threads=args.train_threads)
     report = run_reproduce_real(settings, args.out, progress=not args.no_progress)

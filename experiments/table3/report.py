@@ -352,9 +352,11 @@ def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float
     all_runs_s = history_wall_time_s(out)
     named = (f"seed {seeds[0]}" if len(seeds) == 1 else
              f"seeds {seeds[0]}-{seeds[-1]}, each its own")
+    turns = "in turn" if settings.balance_types else "at random"
     made_by = (f"Made by `{settings.command(out)}`: {settings.demos} demonstrations per task "
                f"(training stream of {named}), {settings.steps} optimiser steps, "
-               f"{settings.n} trials per task (test stream of the same seed), seen "
+               f"{settings.n} trials per task (test stream of the same seed), the "
+               f"demonstrations' object types {turns} where a scene draws one type, seen "
                f"through the {settings.sensor.value} sensor, {settings.worker_count()} worker "
                "process(es). Last run: "
                f"{duration(wall_time_s)} wall time; every run into this folder together: "
@@ -364,6 +366,7 @@ def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float
         "settings": settings.shared_identity() | {
             "command": settings.command(out), "models": list(settings.models),
             "tasks": list(settings.tasks), "robustness": settings.robustness,
+            "balance_types": settings.balance_types,
             "sensor": SensorConfig(settings.sensor).to_json(), "workers": settings.worker_count()},
         "wall_time_s": wall_time_s, "wall_time_all_runs_s": all_runs_s, "failed": failed,
         "checks": checks, "provenance": session}

@@ -128,6 +128,11 @@ class ReproduceRealSettings:
             stream); with ``seeds`` > 1 the first of the seeds.
         seeds: Runs of the whole experiment, seeds ``S0 .. S0 + seeds - 1``.
         robustness: Also run :data:`ROBUST_MODEL`'s trials in the dark and with a distractor.
+        balance_types: The demonstrations of a task whose scenes draw one object type take the
+            types in turn (``objects.balance_types``), as the person recording the paper's 20
+            demonstrations would place each object about as often; drawn at random, 20 of
+            ``single`` at seed 10 hold 2 sponges (docs/decisions/distractor.md). The trials'
+            scenes are the same either way. False: at random, as Table II's scenes.
         sensor: What the head camera renders through, for demonstrations and trials alike
             (:class:`~sim.world.sensor.SensorKind`): the D435-like sensor by default, as the
             paper's robot saw; the ideal pinhole is the world of earlier tables.
@@ -152,6 +157,7 @@ class ReproduceRealSettings:
     seed: int = 0
     seeds: int = 1
     robustness: bool = True
+    balance_types: bool = True
     sensor: SensorKind = SensorKind.D435
     workers: int | None = None
     train_threads: int = 1
@@ -188,8 +194,14 @@ class ReproduceRealSettings:
                 if v is Variant.PLAIN or (self.robustness and unit.model == ROBUST_MODEL)]
 
     def run_task(self, trial_set: TrialSet) -> TaskSpec:
-        """The task a set's trials run (and, plain, its demonstrations): variant and sensor."""
-        return variant_task(trial_set.unit.task, trial_set.variant, self.sensor)
+        """The task a set's trials run (and, plain, its demonstrations): variant and sensor.
+
+        Its training scenes take the types in turn where ``balance_types`` says so.
+        """
+        task = variant_task(trial_set.unit.task, trial_set.variant, self.sensor)
+        if self.balance_types and task.draws_one_type and not task.balance_types:
+            task = replace(task, balance_types=True)
+        return task
 
     def worker_count(self) -> int:
         """The processes to run: ``workers``, or the cores this process may use."""
@@ -247,6 +259,8 @@ class ReproduceRealSettings:
             parts.append(f"--models {','.join(self.models)}")
         if not self.robustness:
             parts.append("--no-robustness")
+        if not self.balance_types:
+            parts.append("--no-balance-types")
         if self.sensor is not ReproduceRealSettings.sensor:
             parts.append(f"--sensor {self.sensor.value}")
         if self.train_threads != ReproduceRealSettings.train_threads:

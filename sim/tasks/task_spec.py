@@ -182,9 +182,7 @@ class TaskSpec:
             raise bad("distractors.types", list(self.distractors),
                       f"at most {MAX_OBJECTS - self.count} types (objects.count + distractors "
                       f"<= {MAX_OBJECTS})")
-        one_drawn_type = self.objects is ObjectChoice.SAME_TYPE or (
-            self.objects is ObjectChoice.RANDOM and self.count == 1)
-        if self.balance_types and not one_drawn_type:
+        if self.balance_types and not self.draws_one_type:
             raise bad("objects.balance_types", True, "false unless objects.choose = 'same_type', "
                       "or 'random' with objects.count = 1 (one drawn type a scene)")
         if self.targets is TargetSelection.CONDITION and self.condition is ConditionKind.NONE:
@@ -237,6 +235,12 @@ class TaskSpec:
         except PerceptionInputError as error:
             raise bad("camera.colour_distortion_k1_k2_p1_p2_k3", list(lens),
                       error.allowed) from None
+
+    @property
+    def draws_one_type(self) -> bool:
+        """Whether each scene draws one object type (``balance_types`` can take them in turn)."""
+        return self.objects is ObjectChoice.SAME_TYPE or (
+            self.objects is ObjectChoice.RANDOM and self.count == 1)
 
     @property
     def distractor_count_range(self) -> tuple[int, int]:

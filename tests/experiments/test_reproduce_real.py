@@ -117,6 +117,20 @@ def test_the_run_sees_through_the_d435_by_default_and_records_it(tiny_run):
     assert "seen through the d435 sensor" in (tiny_run / "table3.md").read_text()
 
 
+def test_demonstrations_take_the_types_in_turn_unless_asked_and_trials_see_the_same_scenes():
+    single, multiple = (TINY_SETTINGS.run_task(TrialSet(Unit("kqv", t))) for t in
+                        ("single", "multiple"))
+    assert single.balance_types and not multiple.balance_types  # one drawn type a scene only
+    random = replace(TINY_SETTINGS, balance_types=False)
+    assert not random.run_task(TrialSet(UNIT)).balance_types
+    assert random.command(Path("out")).endswith("--no-balance-types")
+    status, stdout, _ = gva("reproduce", "real", "--help")
+    assert status == 0 and "--no-balance-types" in stdout
+    balanced = TINY_SETTINGS.run_task(TrialSet(UNIT, Variant.DISTRACTOR))
+    assert balanced.balance_types and replace(balanced, balance_types=False) == \
+        random.run_task(TrialSet(UNIT, Variant.DISTRACTOR))
+
+
 def test_a_folder_run_through_one_sensor_refuses_the_other(tiny_run):
     ideal = replace(TINY_SETTINGS, sensor=SensorKind.IDEAL)
     assert ideal.command(tiny_run).endswith("--sensor ideal")
