@@ -1,7 +1,7 @@
 """The look-alike block's pull on ``kqv``'s attention, before and after the focus (issue 49).
 
     python benchmarks/attention_focus_figure.py --model RUN/s11/checkpoints/kqv/single \
-        --data TESTS/d435/s11/datasets/single-distractor-test-30-s11.gva [--count 4] \
+        --data TESTS/d435/s11/datasets/single-distractor-test-30-s11.gva [--count 3] \
         [--min-error-cm 2] [--out docs/figures/distractor_focus.png]
 
 (RUN: a ``gva reproduce real`` folder; TESTS: ``check_distractor_offline.py``'s cached test
@@ -43,7 +43,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
     parser.add_argument("--model", type=Path, required=True, help="a kqv checkpoint folder")
     parser.add_argument("--data", type=Path, required=True, help="a dataset with the block")
-    parser.add_argument("--count", type=int, default=4, help="scenes drawn (4)")
+    parser.add_argument("--count", type=int, default=3, help="scenes drawn (3)")
+    parser.add_argument("--scale", type=int, default=2, help="image enlarged this many times (2)")
     parser.add_argument("--min-error-cm", type=float, default=2.0,
                         help="draw scenes whose whole-heatmap grasp is this far off (2.0)")
     parser.add_argument("--out", type=Path, default=Path("docs/figures/distractor_focus.png"))
@@ -66,7 +67,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             continue
         rows = [AttentionRow(p.attention_px, p.heatmaps, label=r)
                 for r, p in enumerate(predictions)]
-        figures.append(attention_figure(image[0], rows, caption=[
+        figures.append(attention_figure(image[0], rows, args.scale, caption=[
             f"test scene {index}: row 0 whole heatmap, grasp {errors_cm[0]:.1f} cm off; "
             f"row 1 focused, {errors_cm[1]:.1f} cm off"]))
         if len(figures) == args.count:
