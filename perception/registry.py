@@ -30,6 +30,7 @@ from perception.models.dsae import DsaeModel
 from perception.models.fcn import FcnModel
 from perception.models.keypoint import KeypointModel
 from perception.models.kqv import KqvModel
+from perception.models.kqv_config import PAPER as PAPER_KQV
 from perception.models.torch_model import TorchModel
 from perception.plugins import (
     ENTRY_POINT_GROUP,
@@ -54,6 +55,8 @@ PRESETS: Mapping[str, tuple[str, Mapping[str, Any]]] = MappingProxyType({
     # kqv read out by the paper's MLP of the attention point and feature, not the camera's ray:
     # the readout's share of kqv's grasps (docs/decisions/d435-sensor.md, error by radius)
     "kqv-mlp": ("kqv", {"readout": "mlp"}),
+    # the paper's model as written (perception.models.kqv_config.PAPER, a sentence per setting)
+    "kqv-paper": ("kqv", PAPER_KQV),
 })
 """Named variants of a built-in model: name -> (model, hyper-parameters it sets)."""
 

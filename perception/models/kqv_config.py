@@ -7,13 +7,16 @@ import it from :mod:`perception.models.kqv` or from here.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Any
 
 from perception.interface import InvalidInputError
 from perception.learning.learnable import check_choices
 from perception.models.rotations import ROTATION_CODES
 
-QUERY_MODES = ("auto", "base", "conditioned", "conditioned+base")
+QUERY_MODES = ("auto", "base", "conditioned", "conditioned+base", "paper")
 READOUTS = ("auto", "mlp", "ray")
 INPUT_NORMS = ("auto", "fixed", "per-image")
 SENTENCE_READINGS = ("nearest", "prototypes", "embedding")
@@ -64,7 +67,8 @@ class KqvConfig:
         query_mode: ``"base"`` (learned vectors), ``"conditioned"`` (MLP of the one-hot
             condition), ``"conditioned+base"`` (their sum, the condition's MLP started at zero)
             or ``"auto"``: base without a condition, conditioned+base for an object type,
-            conditioned for a side.
+            conditioned for a side; ``"paper"``: base without a condition, conditioned with
+            one (the paper's Sec. IV-B).
         head_features: Whether the head MLP reads ``a_feat`` besides ``a_coord``. None: for
             grasp labels and the ray readout; coordinates only for positions read by the MLP.
         head_coords: Whether the ray readout's head reads ``a_coord`` too (the MLP readout
@@ -181,3 +185,34 @@ class KqvConfig:
             raise InvalidInputError("head_coords", self.head_coords, "True or False")
         if not isinstance(self.seed, int) or self.seed < 0:
             raise InvalidInputError("seed", self.seed, "an integer >= 0")
+
+
+PAPER: Mapping[str, Any] = MappingProxyType({
+    # "The model computes pixel-wise dot product of K and a Query vector Q, and applies 2D
+    # softmax with temperature": M = Softmax2D(K (.) Q / sqrt(HW)) (Sec. III-B). The
+    # temperature's value is not given: gva's 0.1, with no warm-up.
+    "similarity": "dot", "warmup_steps": 0,
+    # One training from one initialisation; nothing is said of starts compared.
+    "starts": 1,
+    # "the Base Queries and Conditioned Queries were used for the baseline tasks and top-down
+    # tasks, respectively" (Sec. IV-B).
+    "query_mode": "paper",
+    # "MLPs were used to convert attention coordinate values to object coordinates in simulator
+    # environment. Similarly, attention coordinate and feature values were concatenated and
+    # converted to robot picking poses with MLPs" (Sec. IV-B): the MLP readout; head_features
+    # None reads coordinates alone for positions, coordinates and features for poses.
+    "readout": "mlp", "head_features": None,
+    # "acquires attention through end-to-end learning, without any explicit supervisions of
+    # where or what to attend to" (Sec. III-A): no point loss.
+    "point_loss_weight": 0.0,
+    # Three-layered FCNs whose first two layers halve the image twice: 32 x 32 heatmaps of a
+    # 128 x 128 image (docs/decisions/kqv.md's paper column), read whole.
+    "stride": 4, "focus_window_px": 0,
+    # Nothing in the paper scales each image, mirrors samples or names the attended type.
+    "input_norm": "fixed", "mirror": False, "type_head": False,
+})
+"""``kqv-paper``: the :class:`KqvConfig` fields the paper's model sets, each with its sentence.
+
+Where the paper is silent (widths, the temperature's value, the rotation code, optimiser, steps,
+augmentation of colours) the preset keeps what every model here uses.
+"""

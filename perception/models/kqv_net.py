@@ -100,6 +100,8 @@ class KqvNet(nn.Module):
             nn.Conv2d(wide2, value, 3, 1, 1),
         )
         mode = c.query_mode
+        if mode == "paper":  # Base Queries without a condition, Conditioned ones with one
+            mode = "base" if spec.condition_kind is ConditionKind.NONE else "conditioned"
         if mode == "auto":
             # A sentence or a picture may name a type: it refines the shared Base Query too.
             mode = {ConditionKind.NONE: "base", ConditionKind.OBJECT_TYPE: "conditioned+base",

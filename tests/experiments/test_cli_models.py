@@ -230,3 +230,25 @@ def test_points_reach_the_model_and_each_point_gets_a_panel(files: dict[str, Pat
     assert "attention points (u, v) px: 0 (" in out and ", 4 (" in out
     # The image, then five heatmaps: four to a line, the fifth on a second line.
     assert png_size(tmp_path / "attention-000.png") == (4 + 5 * 68, 4 + 2 * 68)
+
+
+@pytest.mark.parametrize(("data", "queries"), [("two", "base"), ("cond", "conditioned")])
+def test_kqv_paper_trains_and_its_checkpoint_shows_the_papers_settings(
+        files: dict[str, Path], tmp_path: Path, data: str, queries: str) -> None:
+    status, _, err = gva("train", "--model", "kqv-paper", "--data", files[data],
+                         "--out", tmp_path / "paper", *FAST)
+    assert status == 0, err
+    config = read_config(tmp_path / "paper")
+    assert config["model"] == "kqv"
+    settings = config["hyperparameters"]
+    assert {k: settings[k] for k in ("similarity", "starts", "readout", "point_loss_weight",
+                                     "stride", "input_norm", "mirror", "type_head",
+                                     "focus_window_px", "warmup_steps", "query_mode")} == {
+        "similarity": "dot", "starts": 1, "readout": "mlp", "point_loss_weight": 0.0,
+        "stride": 4, "input_norm": "fixed", "mirror": False, "type_head": False,
+        "focus_window_px": 0, "warmup_steps": 0, "query_mode": "paper"}
+    network = load_model(tmp_path / "paper").network
+    assert network.readout == "mlp" and network.stride == 4 and not network.per_image
+    # Base Queries for a task without a condition, Conditioned Queries alone with one
+    assert (network.base_queries is not None) == (queries == "base")
+    assert (network.query_mlp is not None) == (queries == "conditioned")
