@@ -23,6 +23,7 @@ from tqdm import tqdm
 
 from perception.files import atomic_write
 from perception.learning.dataset_file import read_metadata
+from perception.model_config_file import ModelConfigFile
 from perception.models.torch_model import TorchModel
 from perception.registry import PRESETS, model_class
 from sim.errors import InvalidInputError, RunFolderError
@@ -60,13 +61,41 @@ TASK_TITLES = {"single": "Single Object", "multiple": "Multiple Objects",
                "selected-type-image": "Selected Type (picture)"}
 
 
-def model_config(model: str, seed: int) -> dict[str, Any]:
-    """The hyper-parameters ``new_model(model, dataset, seed=seed)`` builds with, as a dict."""
+def model_config(model: str, seed: int, settings: Mapping[str, Any] | None = None
+                 ) -> dict[str, Any]:
+    """The hyper-parameters ``new_model(model, dataset, seed=seed, **settings)`` builds with.
+
+    As a dict, every field: a run folder's identities hold it, so a file that changes a setting
+    (``--model-config``) changes them, and with no settings they are what they always were.
+    """
     name, preset = PRESETS.get(model, (model, {}))
     cls = model_class(name)
     if not issubclass(cls, TorchModel):  # every model of MODELS is one
         raise InvalidInputError("model", model, f"a model that trains: {', '.join(MODELS)}")
-    return asdict(cls.config_class(**preset, seed=seed))
+    return asdict(cls.config_class(**{**preset, **(settings or {})}, seed=seed))
+
+
+def model_config_file(files: Sequence[ModelConfigFile], model: str) -> ModelConfigFile | None:
+    """The file of ``files`` (``--model-config``, at most one per model) for ``model``, if any."""
+    return next((file for file in files if file.model == model), None)
+
+
+def check_model_configs(given: Sequence[tuple[str, str]], models: Sequence[str]) -> None:
+    """Raises unless each ``(model, path)`` of ``--model-config`` names its own one of ``models``.
+
+    Checked before any file is read: a file for a model the run does not train is a mistake.
+    """
+    names = [model for model, _ in given]
+    for model, path in given:
+        if model not in models or names.count(model) > 1:
+            raise InvalidInputError("--model-config", f"{model}={path}",
+                                    f"MODEL=FILE.toml, at most one per MODEL, MODEL one of "
+                                    f"--models: {', '.join(models)}")
+
+
+def model_config_options(files: Sequence[ModelConfigFile]) -> list[str]:
+    """``--model-config MODEL=FILE`` per file: the options of a run's command line."""
+    return [f"--model-config {file.model}={file.path}" for file in files]
 
 
 # settings

@@ -6,6 +6,8 @@ import argparse
 import shlex
 from collections.abc import Callable
 
+from experiments.tables import check_model_configs
+from perception.model_config_file import ModelConfigFile
 from sim.jobs import Executor, ExecutorKind
 
 
@@ -35,6 +37,29 @@ def integers(text: str) -> tuple[int, ...]:
         return tuple(int(value) for value in names(text))
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not comma-separated integers") from None
+
+
+def model_config_pair(text: str) -> tuple[str, str]:
+    """An argparse type: ``MODEL=FILE.toml``, a ``--model-config`` of a run of several models."""
+    model, equals, path = text.partition("=")
+    if not equals or not model.strip() or not path.strip():
+        raise argparse.ArgumentTypeError(f"{text!r} is not MODEL=FILE.toml")
+    return model.strip(), path.strip()
+
+
+def add_model_config_option(parser: argparse.ArgumentParser) -> None:
+    """``--model-config MODEL=FILE.toml``, repeatable: a model's settings from a file."""
+    parser.add_argument("--model-config", type=model_config_pair, action="append", default=[],
+                        metavar="MODEL=FILE.toml",
+                        help="settings of MODEL (one of --models) from a TOML file, a top-level "
+                        "key per field of its config (docs/perception.md); repeatable, one "
+                        "per model; part of each checkpoint's identity")
+
+
+def model_config_files(args: argparse.Namespace) -> tuple[ModelConfigFile, ...]:
+    """The ``--model-config`` files, each checked against ``--models`` and then read."""
+    check_model_configs(args.model_config, args.models)
+    return tuple(ModelConfigFile.read(path, model) for model, path in args.model_config)
 
 
 def resume_command(args: argparse.Namespace) -> str:

@@ -27,6 +27,7 @@ from perception.learning.evaluate import evaluate
 from perception.learning.learnable import LearnableModel
 from perception.learning.train import TrainConfig
 from perception.learning.validation import CHECK_FILE, CheckConfig, fit_checked, write_check
+from perception.model_config_file import ModelConfigFile, settings_text
 from perception.models.kqv import KqvModel
 from perception.registry import load_model, new_model
 
@@ -69,6 +70,10 @@ def _train_options(parser: argparse.ArgumentParser) -> None:
                         help="samples per step (%(default)s)")
     parser.add_argument("--points", type=integer(1),
                         help="attention points of models that have the setting (keypoint)")
+    parser.add_argument("--model-config", type=Path, metavar="FILE.toml",
+                        help="TOML file of the model's settings, a top-level key per field of "
+                        "its config (docs/perception.md); a key left out keeps the preset's "
+                        "or the default value")
     parser.add_argument("--threads", type=integer(1), default=TrainConfig.threads,
                         help="torch CPU threads (default: the cores it may use)")
     parser.add_argument("--holdout", type=float, default=CheckConfig.holdout,
@@ -98,8 +103,16 @@ def run_train(args: argparse.Namespace) -> int:
     if held and not args.overwrite:
         raise InvalidInputError("--out", str(out), f"a folder without a checkpoint; it holds "
                                 f"{' and '.join(held)} (pass --overwrite to replace them)")
+    source = None if args.model_config is None else ModelConfigFile.read(args.model_config,
+                                                                         args.model)
+    hyperparameters = {} if source is None else source.hyperparameters()
+    if args.points is not None and "points" in hyperparameters:
+        raise InvalidInputError("--points", args.points, f"left out: --model-config "
+                                f"{args.model_config} sets points too "
+                                f"({hyperparameters['points']!r}); give it one way")
+    if args.points is not None:
+        hyperparameters["points"] = args.points
     dataset = load_dataset(args.data)
-    hyperparameters = {} if args.points is None else {"points": args.points}
     config = TrainConfig(steps=args.steps, batch_size=args.batch_size, seed=args.seed,
                          threads=args.threads)
     check = CheckConfig(holdout=args.holdout, limit_cm=args.check_limit_cm,
@@ -107,6 +120,8 @@ def run_train(args: argparse.Namespace) -> int:
     fit = fit_checked(lambda seed: new_model(args.model, dataset, seed=seed, **hyperparameters),
                       dataset, config, check, progress=not args.no_progress, log=print)
     model, report = fit.model, fit.report
+    if source is not None:
+        source.record(model)
     model.save(out)
     write_check(out, fit)
     meta = dataset.metadata
@@ -116,6 +131,9 @@ def run_train(args: argparse.Namespace) -> int:
     if len(report.phases) > 1:
         print("phases: " + "; ".join(f"{phase.name} {phase.steps} steps, final loss "
                                      f"{phase.final_loss:.4g}" for phase in report.phases))
+    if source is not None:
+        print(f"model config {source.path}: "
+              f"{settings_text(source.hyperparameters()) or 'nothing set (the defaults)'}")
     print(f"checkpoint: {out}" + (" (replaced)" if held else ""))
     if fit.check is not None and not fit.check.passed:
         print(f"WARNING: {out} failed its held-out check after {len(fit.checks)} attempt(s): "

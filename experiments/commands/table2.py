@@ -8,7 +8,15 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from experiments.commands.arguments import add_executor_options, executor, integer, integers, names
+from experiments.commands.arguments import (
+    add_executor_options,
+    add_model_config_option,
+    executor,
+    integer,
+    integers,
+    model_config_files,
+    names,
+)
 from experiments.table2.run import run_reproduce_sim
 from experiments.table2.settings import SCENES, ReproduceSimSettings
 from experiments.tables import BEYOND_TASKS
@@ -26,6 +34,7 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         help="processes at once (default: the cores this process may use)")
     parser.add_argument("--models", type=names, default=defaults.models,
                         help=f"comma-separated (default all: {','.join(defaults.models)})")
+    add_model_config_option(parser)
     parser.add_argument("--tasks", type=names, default=defaults.tasks,
                         help=f"comma-separated (default the paper's: {','.join(defaults.tasks)}; "
                         f"beyond it: {','.join(BEYOND_TASKS)})")
@@ -50,7 +59,8 @@ def run(args: argparse.Namespace) -> int:
     settings = ReproduceSimSettings(models=args.models, tasks=args.tasks, sizes=args.sizes,
                                     seeds=args.seeds, seed=args.seed, steps=args.steps,
                                     test_scenes=args.test_scenes, workers=args.workers,
-                                    executor=executor(args), scene=args.scene)
+                                    executor=executor(args), scene=args.scene,
+                                    model_configs=model_config_files(args))
     report = run_reproduce_sim(settings, args.out, progress=not args.no_progress)
     for line in report.summary_lines(
             "cell(s) computed", lambda r: f"{r['model']}-{r['task']}-{r['size']}-s{r['seed']}"):

@@ -9,7 +9,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from experiments.commands.arguments import add_executor_options, executor, integer, names
+from experiments.commands.arguments import (
+    add_executor_options,
+    add_model_config_option,
+    executor,
+    integer,
+    model_config_files,
+    names,
+)
 from experiments.table3.run import run_reproduce_real
 from experiments.table3.settings import ReproduceRealSettings
 from experiments.tables import BEYOND_TASKS
@@ -38,6 +45,7 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--models", type=names, default=defaults.models,
                         help="comma-separated names gva train takes, e.g. kqv,keypoint-16,fcn "
                         f"(default {','.join(defaults.models)})")
+    add_model_config_option(parser)
     parser.add_argument("--n", type=integer(1), default=defaults.n,
                         help="trials per model and task (%(default)s)")
     parser.add_argument("--demos", type=integer(1), default=defaults.demos,
@@ -75,7 +83,8 @@ def run(args: argparse.Namespace) -> int:
                                      robustness=args.robustness,
                                      balance_types=args.balance_types,
                                      sensor=SensorKind(args.sensor), workers=args.workers,
-                                     executor=executor(args), train_threads=args.train_threads)
+                                     executor=executor(args), train_threads=args.train_threads,
+                                     model_configs=model_config_files(args))
     report = run_reproduce_real(settings, args.out, progress=not args.no_progress)
     for line in report.summary_lines("job(s) run", lambda record: record["job"]):
         print(line)

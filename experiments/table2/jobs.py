@@ -38,6 +38,7 @@ from perception.learning.data import Dataset
 from perception.learning.dataset_file import DatasetError, load_dataset, save_dataset
 from perception.learning.evaluate import EvaluationResult, evaluate
 from perception.learning.train import TrainConfig, TrainReport
+from perception.model_config_file import ModelConfigFile
 from perception.registry import new_model
 from sim.jobs import JobResources
 from sim.tasks.scene_sampling import SeedStream
@@ -106,6 +107,7 @@ class CellJob:
     test_seed: int
     out: Path
     scene: str = SCENE
+    model_config: ModelConfigFile | None = None  # the file that sets the model's settings
 
     @property
     def name(self) -> str:
@@ -153,9 +155,13 @@ def _train_and_score(job: CellJob) -> _Scored:
         test = load_scenes(dataset_path(out, cell.task, SeedStream.TEST, job.test_scenes,
                                         job.test_seed), job.scene, cell.task, job.test_scenes,
                            job.test_seed)
-        model = new_model(cell.model, train, seed=cell.seed)
+        file = job.model_config
+        model = new_model(cell.model, train, seed=cell.seed,
+                          **({} if file is None else file.hyperparameters()))
         config = TrainConfig(steps=job.steps, seed=cell.seed, threads=CELL_THREADS)
         report = model.fit(train, config, progress=False)
+        if file is not None:
+            file.record(model)
         model.save(checkpoint_folder(out, cell))
         return _Scored(report, evaluate(model, test), test)
 

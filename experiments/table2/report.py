@@ -315,7 +315,8 @@ def write_reports(settings: ReproduceSimSettings, out: Path, wall_time_s: float,
         "settings": settings.run_identity() | {
             "command": settings.command(out), "models": list(settings.models),
             "tasks": list(settings.tasks), "sizes": list(settings.sizes),
-            "seeds": list(settings.training_seeds), "workers": settings.worker_count()},
+            "seeds": list(settings.training_seeds), "workers": settings.worker_count(),
+            "model_configs": {f.model: f.to_json() for f in settings.model_configs}},
         "wall_time_s": wall_time_s, "cells_computed": computed,
         "failed": [{k: r[k] for k in ("model", "task", "size", "seed", "error")}
                    for r in failed],

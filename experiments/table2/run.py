@@ -79,7 +79,8 @@ def _run_cells(settings: ReproduceSimSettings, out: Path, todo: Sequence[Cell], 
                pool: Pool, progress: bool, computed: list[CellOutcome]) -> None:
     """Computes ``todo`` into ``computed`` under one bar whose length is the cells' cost."""
     jobs = [CellJob(cell, settings.cell_identity(cell), settings.steps, settings.test_scenes,
-                    settings.seed, out, settings.scene) for cell in todo]
+                    settings.seed, out, settings.scene, settings.model_config_file(cell.model))
+            for cell in todo]
     earlier = f", {skipped} done earlier" if skipped else ""
     bar = cost_bar(sum(cell.cost for cell in todo), "reproduce sim", progress)
     bar.set_postfix_str(f"0/{len(jobs)} cells{earlier}")

@@ -18,9 +18,13 @@ from experiments.tables import (
     TWO_PHASE_MODELS,
     check_choices,
     check_counts,
+    check_model_configs,
     model_config,
+    model_config_file,
+    model_config_options,
 )
 from perception.learning.train import TrainConfig, available_threads
+from perception.model_config_file import ModelConfigFile
 from sim.jobs import LOCAL, Executor
 from sim.tasks.task_toml import load_task
 from sim.trials.run_folder import json_form
@@ -82,6 +86,10 @@ class ReproduceSimSettings:
             runs everything in this process.
         executor: Where the jobs run: this machine's process pool (default) or Ray
             (:class:`~sim.jobs.Executor`); the results are the same.
+        model_configs: Settings of some of ``models`` read from files (``--model-config
+            MODEL=FILE.toml``), at most one per model. They reach ``new_model`` and the
+            model's hyper-parameters in each cell's identity, so a cell computed with other
+            settings is refused; with none, identities are as before files existed.
 
     """
 
@@ -95,12 +103,14 @@ class ReproduceSimSettings:
     workers: int | None = None
     scene: str = SCENE
     executor: Executor = LOCAL
+    model_configs: tuple[ModelConfigFile, ...] = ()
 
     def __post_init__(self) -> None:
         check_choices("scene", (self.scene,), SCENES)
         check_choices("models", self.models, MODELS)
         check_choices("tasks", self.tasks, ALL_TASKS)
         check_choices("sizes", self.sizes, SIZES)
+        check_model_configs([(f.model, f.path) for f in self.model_configs], self.models)
         check_counts(self, {"seeds": 1, "seed": 0, "steps": 1, "test_scenes": 1}, self.workers)
 
     @property
@@ -133,8 +143,18 @@ class ReproduceSimSettings:
         settings, test seed and test scenes.
         """
         return json_form(self.run_identity() | {
-            "model": cell.model, "model_config": model_config(cell.model, cell.seed),
+            "model": cell.model,
+            "model_config": model_config(cell.model, cell.seed, self.model_settings(cell.model)),
             "task": task_identity(load_task(cell.task)), "size": cell.size, "seed": cell.seed})
+
+    def model_config_file(self, model: str) -> ModelConfigFile | None:
+        """The file of ``model_configs`` for ``model``; None: it trains with its own settings."""
+        return model_config_file(self.model_configs, model)
+
+    def model_settings(self, model: str) -> dict[str, Any]:
+        """The settings ``model_configs`` give ``model`` (``new_model``'s keywords); {}: none."""
+        file = self.model_config_file(model)
+        return {} if file is None else file.hyperparameters()
 
     def command(self, out: Path) -> str:
         """The ``gva reproduce sim`` command line of these settings (workers left out)."""
@@ -149,7 +169,7 @@ class ReproduceSimSettings:
             parts.append(f"--test-scenes {self.test_scenes}")
         if self.scene != SCENE:
             parts.append(f"--scene {self.scene}")
-        return " ".join(parts)
+        return " ".join(parts + model_config_options(self.model_configs))
 
 
 # files of a run folder

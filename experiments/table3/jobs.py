@@ -40,6 +40,7 @@ from experiments.tables import (
     cost_bar,
     dataset_present,
     guarded,
+    model_config_file,
     read_json,
     refuse_other_settings,
     write_json,
@@ -199,9 +200,12 @@ def _train(job: TrainJob) -> str:
         if demonstrations != settings.demos:  # a demonstration has an image per pick
             raise DatasetError(path, f"holds {demonstrations} demonstrations, the run asks "
                                f"for {settings.demos}")
-        fit = fit_checked(lambda seed: new_model(unit.model, data, seed=seed), data,
-                          TrainConfig(**settings.train_config()), settings.check,
+        hyperparameters = settings.model_settings(unit.model)
+        fit = fit_checked(lambda seed: new_model(unit.model, data, seed=seed, **hyperparameters),
+                          data, TrainConfig(**settings.train_config()), settings.check,
                           progress=False)
+        if (file := model_config_file(settings.model_configs, unit.model)) is not None:
+            file.record(fit.model)
         fit.model.save(checkpoint_folder(job.out, unit))
         write_check(checkpoint_folder(job.out, unit), fit)
     report, check = fit.report, fit.check

@@ -367,7 +367,8 @@ def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float
             "command": settings.command(out), "models": list(settings.models),
             "tasks": list(settings.tasks), "robustness": settings.robustness,
             "balance_types": settings.balance_types,
-            "sensor": SensorConfig(settings.sensor).to_json(), "workers": settings.worker_count()},
+            "sensor": SensorConfig(settings.sensor).to_json(), "workers": settings.worker_count(),
+            "model_configs": {f.model: f.to_json() for f in settings.model_configs}},
         "wall_time_s": wall_time_s, "wall_time_all_runs_s": all_runs_s, "failed": failed,
         "checks": checks, "provenance": session}
     paths = [out / "table3.json", out / "table3.md"]

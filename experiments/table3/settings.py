@@ -16,12 +16,16 @@ from experiments.tables import (
     TASKS,
     check_choices,
     check_counts,
+    check_model_configs,
     dataset_path,
     model_config,
+    model_config_file,
+    model_config_options,
     write_text,
 )
 from perception.learning.train import TrainConfig, available_threads
 from perception.learning.validation import CheckConfig
+from perception.model_config_file import ModelConfigFile
 from perception.registry import MODELS, PRESETS
 from sim.errors import InvalidInputError
 from sim.jobs import LOCAL, Executor
@@ -146,6 +150,10 @@ class ReproduceRealSettings:
             per core; a run with a single unit (``make demo``) trains alone, and two threads on
             two cores halve its training time. Results depend on it (float sums in another
             order), so it is part of a checkpoint's identity.
+        model_configs: Settings of some of ``models`` read from files (``--model-config
+            MODEL=FILE.toml``), at most one per model. They reach ``new_model`` and the
+            model's hyper-parameters in each checkpoint's identity, so a folder trained with
+            other settings is refused; with none, identities are as before files existed.
 
     """
 
@@ -163,6 +171,7 @@ class ReproduceRealSettings:
     train_threads: int = 1
     executor: Executor = LOCAL
     check: CheckConfig = field(default_factory=CheckConfig)
+    model_configs: tuple[ModelConfigFile, ...] = ()
 
     def __post_init__(self) -> None:
         custom = tuple(m for m in self.models if ":" in m)  # package.module:Class
@@ -171,6 +180,7 @@ class ReproduceRealSettings:
                                     f"one of {', '.join(k.value for k in SensorKind)}")
         check_choices("models", self.models, (*allowed_models(), *custom))
         check_choices("tasks", self.tasks, ALL_TASKS)
+        check_model_configs([(f.model, f.path) for f in self.model_configs], self.models)
         check_counts(self, {"n": 1, "demos": 1, "steps": 1, "seed": 0, "seeds": 1,
                             "train_threads": 1}, self.workers)
 
@@ -235,11 +245,17 @@ class ReproduceRealSettings:
 
     def train_identity(self, unit: Unit) -> dict[str, Any]:
         """What defines a unit's checkpoint; ``trained.json`` holds it."""
-        return json_form({"model": unit.model, "model_config": model_config(unit.model,
-                                                                             self.seed),
+        return json_form({"model": unit.model,
+                          "model_config": model_config(unit.model, self.seed,
+                                                       self.model_settings(unit.model)),
                           "task": task_identity(self.run_task(TrialSet(unit))), "demos": self.demos,
                           "camera": asdict(CameraConfig()), "seed": self.seed,
                           "train": self.train_config(), "check": asdict(self.check)})
+
+    def model_settings(self, model: str) -> dict[str, Any]:
+        """The settings ``model_configs`` give ``model`` (``new_model``'s keywords); {}: none."""
+        file = model_config_file(self.model_configs, model)
+        return {} if file is None else file.hyperparameters()
 
     def trial_settings(self, out: Path, trial_set: TrialSet) -> TrialSettings:
         """The :class:`~sim.trials.trial_settings.TrialSettings` of a set (checkpoint present)."""
@@ -267,7 +283,7 @@ class ReproduceRealSettings:
             parts.append(f"--train-threads {self.train_threads}")
         if self.check.holdout != CheckConfig.holdout:
             parts.append(f"--holdout {self.check.holdout:g}")
-        return " ".join(parts)
+        return " ".join(parts + model_config_options(self.model_configs))
 
 
 # files of a run folder

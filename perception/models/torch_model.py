@@ -110,6 +110,9 @@ class TorchModel(LearnableModel):
         self.spec, self.config, self.scaler = spec, config, scaler
         self.label_kind = spec.label_kind
         self.report: TrainReport | None = None
+        # Where settings came from (``model_config_file``: the file that set them): saved in
+        # the checkpoint's training record beside the report, so a reader can trace them.
+        self.provenance: dict[str, Any] = {}
         self.network = self.seeded_network(config.seed).eval()
 
     @abc.abstractmethod
@@ -230,7 +233,8 @@ class TorchModel(LearnableModel):
         config: dict[str, Any] = {
             "spec": self.spec.to_json(), "hyperparameters": dataclasses.asdict(self.config),
             "label_scaler": self._scaler().to_json(),
-            "training": None if self.report is None else self.report.to_json(),
+            "training": None if self.report is None
+            else self.report.to_json() | self.provenance,
         }
         return save_checkpoint(path, self.name, config, self.network.state_dict())
 
