@@ -20,22 +20,15 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from distractor_scores import refocused
 
 from perception.drawing import BACKGROUND, GAP_PX, AttentionRow, attention_figure, write_png
 from perception.learning.dataset_file import load_dataset
 from perception.models.kqv import KqvModel
 from perception.registry import load_model
-
-
-def unfocused(model: KqvModel) -> KqvModel:
-    """The same weights reading the whole heatmap (``focus_window_px = 0``)."""
-    whole = KqvModel(model.spec, replace(model.config, focus_window_px=0), model.scaler)
-    whole.network.load_state_dict(model.network.state_dict())
-    return whole
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -55,7 +48,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                      f"(it holds {focused.name})")
     dataset = load_dataset(args.data)
     focused.spec.check_dataset(dataset)
-    models = (unfocused(focused), focused)
+    models = (refocused(focused, 0), focused)
     figures: list[np.ndarray] = []
     for index in range(len(dataset)):
         image, condition = dataset.images[index:index + 1], dataset.conditions[index:index + 1]

@@ -34,7 +34,7 @@ from functools import partial
 from pathlib import Path
 from typing import NamedTuple
 
-from distractor_scores import SET_NAMES, Score, score_set, table
+from distractor_scores import SET_NAMES, Score, refocused, score_set, table
 
 from experiments import tables
 from experiments.commands.arguments import integer, integers, names
@@ -42,6 +42,7 @@ from experiments.table3 import jobs
 from experiments.table3 import settings as table3
 from perception.catalog import CLUTTER_TYPES
 from perception.learning.train import TrainConfig
+from perception.models.kqv import KqvModel
 from perception.registry import load_model
 from sim.errors import RunFolderError, SimError
 from sim.tasks.scene_sampling import SeedStream, target_count
@@ -201,10 +202,16 @@ def collect_step(test: TestTask, seed: int, n: int) -> Step | None:
                 partial(collect, settings, test.dataset, progress=False))
 
 
-def score(entry: Entry) -> Score:
-    """One checkpoint scored on its seed's block and clean test sets."""
-    model = load_model(entry.checkpoint)
-    return Score(entry.source, entry.task, entry.seed, str(entry.checkpoint),
+def score(entry: Entry, focus_px: int | None) -> Score:
+    """One checkpoint scored on its seed's block and clean test sets.
+
+    ``focus_px``: the heatmap focus to read with (``KqvConfig.focus_window_px``; 0: the whole
+    heatmap); None: the checkpoint's own. The source is named with it.
+    """
+    model, source = load_model(entry.checkpoint), entry.source
+    if focus_px is not None and isinstance(model, KqvModel):
+        model, source = refocused(model, focus_px), f"{source} (focus {focus_px} px)"
+    return Score(source, entry.task, entry.seed, str(entry.checkpoint),
                  score_set(model, "block", entry.block.dataset),
                  score_set(model, "clean", entry.clean.dataset))
 
@@ -216,6 +223,15 @@ def per_scene(text: str) -> tuple[int, int]:
         raise argparse.ArgumentTypeError(f"{text!r} is not allowed: LO,HI with 0 <= LO <= HI <= "
                                          f"{most} (the clutter types: {', '.join(CLUTTER_TYPES)})")
     return values[0], values[1]
+
+
+def focus_list(text: str) -> tuple[int | None, ...]:
+    """An argparse type: comma-separated focus windows [px], each >= 0."""
+    values = integers(text)
+    if not values or min(values) < 0:
+        raise argparse.ArgumentTypeError(f"{text!r} is not allowed: comma-separated integers "
+                                         ">= 0 (0: the whole heatmap)")
+    return values
 
 
 def parse(argv: Sequence[str]) -> argparse.Namespace:
@@ -239,6 +255,9 @@ def parse(argv: Sequence[str]) -> argparse.Namespace:
         help="torch threads of a training, as gva reproduce real's (%(default)s)")
     add("--clutter-per-scene", type=per_scene, default=(0, 2), metavar="LO,HI",
         help="clutter objects a demonstration presents (0,2)")
+    add("--focus-px", type=focus_list, default=(None,), metavar="PX[,PX...]",
+        help="score each checkpoint reading its heatmaps through these focus windows "
+        "(KqvConfig.focus_window_px; 0: the whole heatmap); default: each checkpoint's own")
     add("--test-scenes", type=integer(1), default=30, help="test scenes of each set (30)")
     add("--out", type=Path, default=Path("runs/distractor-offline"), help="the work folder")
     add("--json", type=Path, default=Path("benchmarks/results/distractor_offline.json"))
@@ -280,7 +299,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             bar.set_postfix_str(step.name)
             step.run()
             bar.update(step.cost_s)
-    scores = [score(entry) for entry in entries]
+    scores = [score(entry, focus) for focus in args.focus_px for entry in entries]
     lines, totals = table(scores, list(seeds))
     print("cell: picks the grasp judge predicts succeed / picks, mean position error; "
           "N>blk: predicted grasps nearer the block than the target")
