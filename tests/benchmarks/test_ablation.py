@@ -1,0 +1,182 @@
+"""benchmarks/ablation.py: its row files, its statistics and ``--from`` on hand-made run folders."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import pytest
+
+from perception.model_config_file import read_model_config
+from perception.models.kqv_config import PAPER, KqvConfig
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _load() -> ModuleType:
+    """The script as a module (benchmarks are scripts, not a package): its folder on the path."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    spec = importlib.util.spec_from_file_location("ablation", ROOT / "benchmarks" / "ablation.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["ablation"] = module  # dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module
+
+
+ablation = _load()
+ROWS = ablation.row_files()
+
+
+# row files
+
+
+def test_the_rows_of_the_issue_are_there() -> None:
+    assert {"minus-cosine", "minus-starts", "minus-point-loss", "minus-ray-readout",
+            "minus-64-heatmap", "minus-focus", "minus-per-image", "minus-mirror",
+            "minus-type-head", "minus-axis-line", "paper"} <= set(ROWS)
+    assert set(ablation.ONLY_TASKS) <= set(ROWS)
+    assert all(set(tasks) <= set(ablation.TASKS) for tasks in ablation.ONLY_TASKS.values())
+
+
+@pytest.mark.parametrize("row", sorted(ROWS))
+def test_each_row_file_reads_and_changes_kqv(row: str) -> None:
+    path = ROWS[row]
+    settings = read_model_config(path, "kqv")
+    default = KqvConfig()
+    assert any(getattr(default, key) != value for key, value in settings.items()), row
+    assert path.read_text().startswith("# ")
+    assert "docs/decisions/kqv.md" in path.read_text()
+
+
+def test_the_paper_row_is_the_paper_preset() -> None:
+    settings = read_model_config(ROWS["paper"], "kqv")
+    assert settings == {key: value for key, value in PAPER.items() if value is not None}
+
+
+# statistics
+
+
+def test_seed_stats_mean_std_and_worst_seed() -> None:
+    stats = ablation.seed_stats({0: 1.0, 1: 3.0, 2: 2.0})
+    assert (stats.mean, stats.std, stats.worst_seed, stats.worst) == (2.0, 1.0, 1, 3.0)
+    lowest = ablation.seed_stats({0: 0.9, 1: 0.7, 2: 0.8}, worst_is_high=False)
+    assert (lowest.worst_seed, lowest.worst) == (1, 0.7)
+    assert ablation.seed_stats({4: 1.5}).std is None
+
+
+def test_paired_difference_flags_beyond_two_standard_errors() -> None:
+    steady = ablation.paired_difference({0: 1.5, 1: 2.5, 2: 3.5}, {0: 1.0, 1: 2.0, 2: 3.0})
+    assert steady.difference_cm == pytest.approx(0.5)
+    assert steady.standard_error_cm == pytest.approx(0.0)
+    assert steady.beyond_seed_spread and steady.seeds == 3
+    # differences -1 and +2: mean 0.5, std 2.12, standard error 1.5
+    noisy = ablation.paired_difference({0: 1.0, 1: 3.0}, {0: 2.0, 1: 1.0})
+    assert noisy.difference_cm == pytest.approx(0.5)
+    assert noisy.standard_error_cm == pytest.approx(1.5)
+    assert not noisy.beyond_seed_spread
+    assert ablation.paired_difference({0: 1.0, 1: 2.0}, {1: 2.0, 2: 3.0}) is None
+
+
+# run folders
+
+
+def _cell(task: str, seed: int, error_cm: float, train_s: float,
+          picked: tuple[float, int] | None) -> dict[str, Any]:
+    """A cell of ``table2.json`` as experiments/table2/report.py writes it."""
+    judged = None if picked is None else {
+        "all": {"targets": picked[1], "predicted_success_rate": picked[0]}, "per_object": {}}
+    return {"model": "kqv", "task": task, "size": 20, "seed": seed, "error_cm": error_cm,
+            "per_condition_error_cm": None, "per_target_error_cm": [error_cm],
+            "per_stage_error_cm": [error_cm], "judged": judged, "train_s": train_s}
+
+
+def _write(folder: Path, cells: list[dict[str, Any]],
+           settings: dict[str, Any] | None = None) -> None:
+    configs = {} if settings is None else {"kqv": {"path": "x.toml", "settings": settings}}
+    folder.mkdir(parents=True)
+    (folder / "table2.json").write_text(json.dumps({
+        "cells": cells, "failed": [], "settings": {"scene": "yumi", "test_scenes": 100,
+                                                   "model_configs": configs}}))
+
+
+@pytest.fixture
+def runs(tmp_path: Path) -> Path:
+    """recipe and minus-starts finished on single (seeds 0-2), minus-mirror at one seed."""
+    _write(tmp_path / "recipe", [
+        _cell("single", 0, 1.0, 100.0, (1.0, 100)), _cell("single", 1, 2.0, 120.0, (0.5, 100)),
+        _cell("single", 2, 3.0, 140.0, (0.9, 50))])
+    _write(tmp_path / "minus-starts", [
+        _cell("single", 0, 1.5, 60.0, None), _cell("single", 1, 2.5, 50.0, None),
+        _cell("single", 2, 3.5, 70.0, None)], {"starts": 1})
+    _write(tmp_path / "minus-mirror", [_cell("single", 0, 1.0, 1.0, None)], {"mirror": False})
+    _write(tmp_path / "minus-focus", [_cell("single", s, 1.0, 1.0, None) for s in range(3)],
+           {"focus_window_px": 24})  # a file changed since the run
+    return tmp_path
+
+
+def test_summary_of_finished_unfinished_and_stale_rows(runs: Path) -> None:
+    rows = {"recipe": None, **{r: ROWS[r] for r in ("minus-starts", "minus-mirror",
+                                                    "minus-focus", "minus-cosine")}}
+    summary = ablation.summarise(runs, rows, ["single"], [0, 1, 2])["rows"]
+    recipe = summary["recipe"]["tasks"]["single"]
+    assert recipe["status"] == "finished"
+    assert recipe["error"] == {"mean": 2.0, "std": 1.0, "worst_seed": 2, "worst": 3.0}
+    assert recipe["median_train_s"] == 120.0
+    assert recipe["picked"]["pooled"] == pytest.approx((100 + 50 + 45) / 250)
+    assert (recipe["picked"]["worst_seed"], recipe["picked"]["worst"]) == (1, 0.5)
+    starts = summary["minus-starts"]["tasks"]["single"]
+    assert starts["error"]["mean"] == pytest.approx(2.5)
+    assert "picked" not in starts  # no cell was judged
+    assert starts["vs_recipe"]["beyond_seed_spread"]
+    assert starts["vs_recipe"]["difference_cm"] == pytest.approx(0.5)
+    mirror = summary["minus-mirror"]["tasks"]["single"]
+    assert (mirror["status"], mirror["seeds_missing"]) == ("unfinished", [1, 2])
+    assert "error" not in mirror and "vs_recipe" not in mirror
+    assert summary["minus-focus"]["tasks"]["single"]["status"] == "other settings"
+    assert summary["minus-cosine"]["tasks"]["single"]["status"] == "not run"
+
+
+def test_from_reports_a_missing_row_unfinished(runs: Path, tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    record = tmp_path / "ablation.json"
+    status = ablation.main(["--from", str(runs), "--json", str(record), "--rows",
+                            "recipe,minus-point-loss,minus-query", "--tasks", "single",
+                            "--seeds", "3"])
+    assert status == 0
+    printed = capsys.readouterr().out
+    assert "| minus-point-loss | single | not run (0/3 seeds) |" in printed
+    assert "| minus-query | single | recipe's model |" in printed
+    assert "| recipe | single | 2.00 ± 1.00 | 3.00 (s2) | 78 % | 50 % (s1) | 120 |" in printed
+    rows = json.loads(record.read_text())["rows"]
+    assert rows["minus-point-loss"]["tasks"]["single"]["status"] == "not run"
+    assert not (runs / "minus-point-loss").exists()  # --from runs nothing
+
+
+def test_command_and_shared_datasets(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(ROOT)
+    args = ablation.parse_args(["--tasks", "single,selected-type", "--seeds", "2",
+                                "--workers", "2"])
+    argv = ablation.command("minus-query", ROWS["minus-query"], tmp_path, args)
+    assert argv[:2] == ["reproduce", "sim"]
+    assert argv[argv.index("--tasks") + 1] == "selected-type"
+    assert argv[argv.index("--out") + 1] == str(tmp_path / "minus-query")
+    assert argv[-4:] == ["--workers", "2", "--model-config",
+                         "kqv=benchmarks/ablation/minus-query.toml"]
+    assert "--model-config" not in ablation.command("recipe", None, tmp_path, args)
+    (tmp_path / "recipe" / "datasets").mkdir(parents=True)
+    (tmp_path / "recipe" / "datasets" / "single-train-20-s0.gva").write_bytes(b"demos")
+    assert ablation.share_datasets(tmp_path, "minus-starts") == 1
+    assert (tmp_path / "minus-starts" / "datasets" / "single-train-20-s0.gva").read_bytes() == (
+        b"demos")
+    assert ablation.share_datasets(tmp_path, "minus-starts") == 0
+
+
+def test_rows_are_every_file_of_the_folder(tmp_path: Path) -> None:
+    (tmp_path / "paper-plus-ray-readout.toml").write_text('readout = "ray"\n')
+    assert list(ablation.row_files(tmp_path)) == ["paper-plus-ray-readout"]
+    assert ablation.parse_args([]).rows == ["recipe", *ROWS]
