@@ -66,13 +66,18 @@ def model_config(model: str, seed: int, settings: Mapping[str, Any] | None = Non
     """The hyper-parameters ``new_model(model, dataset, seed=seed, **settings)`` builds with.
 
     As a dict, every field: a run folder's identities hold it, so a file that changes a setting
-    (``--model-config``) changes them, and with no settings they are what they always were.
+    (``--model-config``) changes them, and with no settings they are what they always were. A
+    field the config class lists in ``SINCE`` (added later) is left out at the value that
+    behaves as before it, so folders made before it still resume.
     """
     name, preset = PRESETS.get(model, (model, {}))
     cls = model_class(name)
     if not issubclass(cls, TorchModel):  # every model of MODELS is one
         raise InvalidInputError("model", model, f"a model that trains: {', '.join(MODELS)}")
-    return asdict(cls.config_class(**{**preset, **(settings or {})}, seed=seed))
+    config = asdict(cls.config_class(**{**preset, **(settings or {})}, seed=seed))
+    since: Mapping[str, Any] = getattr(cls.config_class, "SINCE", {})
+    return {key: value for key, value in config.items()
+            if key not in since or value != since[key]}
 
 
 def model_config_file(files: Sequence[ModelConfigFile], model: str) -> ModelConfigFile | None:

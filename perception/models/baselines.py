@@ -16,22 +16,30 @@ In top-down tasks the one-hot condition is concatenated with the features before
 the paper gives these models the target "with the coordinates" to an MLP. The two autoencoders
 (:class:`AutoencoderModel`) train the encoder and decoder on reconstruction first, then the head
 alone on the frozen encoder, as the paper trains them ("separately training vision models").
+
+Every baseline can have the help the KQV model trains with, off by default (the paper's models):
+each image's colours standardised by their own statistics (``input_norm = "per-image"``) and a
+random half of each batch mirrored where the task allows it (``mirror``), as
+:class:`~perception.models.kqv_config.KqvConfig`'s fields of the same names do.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from types import MappingProxyType
+from typing import Any, ClassVar, NamedTuple
 
 import torch
 from torch import Tensor, nn
 
 from perception.interface import InvalidInputError
+from perception.learning.data import Dataset
 from perception.learning.learnable import ModelSpec, check_choices
-from perception.learning.train import Batch
-from perception.models.base import MLP, normalise_images
+from perception.learning.mirror import MIRROR_FLAG, Mirror
+from perception.learning.train import Batch, TrainConfig, TrainReport
+from perception.models.base import MLP, LabelScaler, normalise_images
 from perception.models.torch_model import NetOutput, Phase, TorchModel, pose_size, split_pose
 
 RECONSTRUCTION_PX = (16, 32, 64)
@@ -39,6 +47,8 @@ RECONSTRUCTION_PX = (16, 32, 64)
 
 GREY_WEIGHTS = (0.299, 0.587, 0.114)
 """ITU-R BT.601 luma weights of R, G and B: the grey image DSAE reconstructs."""
+
+INPUT_NORMS = ("fixed", "per-image")
 
 
 def check_count(name: str, value: Any) -> None:
@@ -67,12 +77,26 @@ class BaselineConfig:
         rotation_loss_weight: Weight of the chordal rotation loss against the position loss
             (squared distance in scaled units); 0.1 weighs 1 cm (at a 0.2 m label scale) like
             about 6 degrees of rotation.
+        input_norm: ``"fixed"``: ``(image - 0.5) / 0.25``, the paper's; ``"per-image"``: each
+            image's colour channels standardised by their own mean and spread, as kqv's.
+        mirror: Whether training also shows a random half of each batch mirrored across the
+            world's xz-plane, labels with it (:mod:`perception.learning.mirror`); every phase of
+            an autoencoder alike. None: where the dataset's collector says its task allows it.
+            False: the paper's.
         seed: Seeds the initial weights.
 
     """
 
+    SINCE: ClassVar[Mapping[str, Any]] = MappingProxyType({"input_norm": "fixed",
+                                                          "mirror": False})
+    """Fields added after run folders recorded these configs, with the value that behaves as
+    before they existed: a record leaves such a field out at that value, so older run folders
+    still resume (``experiments.tables.model_config``)."""
+
     head_width: int = 64
     rotation_loss_weight: float = 0.1
+    input_norm: str = "fixed"
+    mirror: bool | None = False
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -80,6 +104,9 @@ class BaselineConfig:
         if not (math.isfinite(self.rotation_loss_weight) and self.rotation_loss_weight >= 0):
             raise InvalidInputError("rotation_loss_weight", self.rotation_loss_weight,
                                     "a finite value >= 0")
+        check_choices("input_norm", self.input_norm, INPUT_NORMS)
+        if self.mirror not in (None, True, False):
+            raise InvalidInputError("mirror", self.mirror, "None, True or False")
         if not isinstance(self.seed, int) or isinstance(self.seed, bool) or self.seed < 0:
             raise InvalidInputError("seed", self.seed, "an integer >= 0")
 
@@ -154,13 +181,17 @@ class Decoder(nn.Module):
 class BaselineNet(nn.Module):
     """An encoder, the head on its features and, for an autoencoder, a decoder."""
 
-    def __init__(self, encoder: nn.Module, head: PoseHead, decoder: Decoder | None = None) -> None:
+    per_image = False  # BaselineConfig.input_norm == "per-image"; set by BaselineModel
+    scaler: LabelScaler | None = None  # for a head that places targets in metres (ray readout)
+
+    def __init__(self, encoder: nn.Module, head: nn.Module, decoder: Decoder | None = None
+                 ) -> None:
         super().__init__()
         self.encoder, self.head, self.decoder = encoder, head, decoder
 
     def encode(self, images: Tensor) -> Encoding:
         """The encoding of images (B, 3, H, W) in [0, 1]."""
-        encoding: Encoding = self.encoder(normalise_images(images))
+        encoding: Encoding = self.encoder(normalise_images(images, self.per_image))
         return encoding
 
     def targets(self, encoding: Encoding, conditions: Tensor) -> NetOutput:
@@ -176,14 +207,49 @@ class BaselineNet(nn.Module):
         """Mean squared error of the decoder's reconstruction of images (B, 3, H, W)."""
         if self.decoder is None:
             raise InvalidInputError("decoder", None, "a network built with a decoder")
-        x = normalise_images(images)  # (B, 3, H, W)
+        x = normalise_images(images, self.per_image)  # (B, 3, H, W)
         return (self.decoder(self.encoder(x).features) - self.decoder.target(x)).square().mean()
 
 
 class BaselineModel(TorchModel):
     """A comparison model: a :class:`BaselineNet` trained end to end on the target loss."""
 
+    config: BaselineConfig
     network: BaselineNet
+    _mirror: Mirror | None = None  # mirrors training samples (BaselineConfig.mirror)
+
+    def seeded_network(self, seed: int) -> nn.Module:
+        """The network, told how to scale its images and (once known) the label scaler."""
+        network = super().seeded_network(seed)
+        if isinstance(network, BaselineNet):
+            network.per_image = self.config.input_norm == "per-image"
+            network.scaler = self.scaler
+        return network
+
+    def fit(self, dataset: Dataset, config: TrainConfig | None = None,
+            progress: bool = True) -> TrainReport:
+        """Trains as :meth:`TorchModel.fit` does, mirroring samples where the config says.
+
+        The label scaler is set before the first step, where the network reads it too.
+        """
+        config = config or TrainConfig()
+        mirror = self.config.mirror
+        if mirror is None:
+            mirror = dataset.metadata.extra.get(MIRROR_FLAG) is True
+        self._mirror = Mirror(self.spec, config.seed) if mirror else None
+        if self.scaler is None:
+            self.spec.check_dataset(dataset)
+            self.scaler = LabelScaler.fit(dataset.labels[..., :3])
+        self.network.scaler = self.scaler
+        return super().fit(dataset, config, progress)
+
+    def mirrored(self, batch: Batch) -> Batch:
+        """The batch as training sees it: with :attr:`BaselineConfig.mirror`, half mirrored."""
+        return batch if self._mirror is None else self._mirror(batch)
+
+    def batch_loss(self, batch: Batch) -> Tensor:
+        """The target loss of the network's prediction for the (mirrored) batch."""
+        return super().batch_loss(self.mirrored(batch))
 
 
 class AutoencoderModel(BaselineModel):
@@ -204,11 +270,12 @@ class AutoencoderModel(BaselineModel):
                 Phase("head", self.head_loss, list(net.head.parameters()))]
 
     def reconstruction_loss(self, batch: Batch) -> Tensor:
-        """Phase 1's loss: the reconstruction error of the batch's images."""
-        return self.network.reconstruction_loss(batch.images)
+        """Phase 1's loss: the reconstruction error of the batch's (mirrored) images."""
+        return self.network.reconstruction_loss(self.mirrored(batch).images)
 
     def head_loss(self, batch: Batch) -> Tensor:
         """Phase 2's loss: the target loss, the encoder frozen."""
+        batch = self.mirrored(batch)
         with torch.no_grad():
             encoding = self.network.encode(batch.images)
         return self.target_loss(self.network.targets(encoding, batch.conditions), batch.labels,

@@ -11,6 +11,12 @@ The paper trains it with K = 16 ("q=16", preset ``keypoint-16``) and with K = q,
 as targets ("q=min", ``points=None``, preset ``keypoint-min``). :class:`SpatialSoftmaxEncoder`
 is also the Deep Spatial AE's encoder (:mod:`perception.models.dsae`).
 
+With ``readout = "ray"`` and a ``point_loss_weight`` (presets ``keypoint-16-helped``,
+``keypoint-min-helped``), the model gets the help the KQV model's readout and loss give it: each
+target is read off the camera's ray through one point, a head picks which point serves which
+target (:mod:`perception.models.keypoint_ray`), and the point loss pulls that point to where the
+camera sees the target.
+
 The FCN's layers match the first two of the KQV model's FCN1 (a 5 x 5 then a 3 x 3 conv, both
 stride 2, 16 and 32 channels), so the heatmaps are 32 x 32 for 128 x 128 images, as KQV's are:
 the comparison is between attention mechanisms, not between network sizes.
@@ -19,15 +25,20 @@ the comparison is between attention mechanisms, not between network sizes.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Any, ClassVar
 
 import torch
 from torch import Tensor, nn
 
 from perception.interface import InvalidInputError
-from perception.learning.learnable import ModelSpec
+from perception.learning.learnable import ModelSpec, check_choices
+from perception.learning.train import Batch
 from perception.models.base import coordinate_grid, softmax2d, spatial_expectation
 from perception.models.baselines import (
+    AutoencoderModel,
     BaselineConfig,
     BaselineModel,
     BaselineNet,
@@ -37,6 +48,10 @@ from perception.models.baselines import (
     check_count,
     conv_stack,
 )
+from perception.models.keypoint_ray import KeypointRayNet
+from perception.models.torch_model import present_mean
+
+READOUTS = ("mlp", "ray")
 
 
 @dataclass(frozen=True)
@@ -50,14 +65,30 @@ class KeypointConfig(BaselineConfig):
             each); the third (3 x 3, stride 1) gives the K logit maps.
         temperature: Initial temperature of the spatial softmax (the logits are divided by it);
             learned from there, as in Levine et al., in log form so it stays positive.
+        readout: ``"mlp"``: the paper's MLP maps all 2K coordinates to the targets.
+            ``"ray"``: each target is read off the ray, through its point, of the dataset's
+            calibrated camera, at a height, offset (and rotation) a head MLP gives (a dataset
+            that records its camera only; :mod:`perception.models.keypoint_ray`). With
+            K = q point k serves target k; otherwise a selection head picks, per target, a
+            softmax-weighted mean of the K points: "a head picks which point serves which
+            target".
+        point_loss_weight: Weight of kqv's point loss (readout ``"ray"`` only): the squared
+            distance (normalised image units) from each target's point to where the camera
+            sees the target (its label projected), over the targets present. 0: none, the
+            paper's.
         head_width: See :class:`~perception.models.baselines.BaselineConfig`, as are
-            ``rotation_loss_weight`` and ``seed``.
+            ``rotation_loss_weight``, ``input_norm``, ``mirror`` and ``seed``.
 
     """
 
     points: int | None = 16
     channels: tuple[int, int] = (16, 32)
     temperature: float = 1.0
+    SINCE: ClassVar[Mapping[str, Any]] = MappingProxyType(
+        {**BaselineConfig.SINCE, "readout": "mlp", "point_loss_weight": 0.0})
+
+    readout: str = "mlp"
+    point_loss_weight: float = 0.0
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -67,6 +98,14 @@ class KeypointConfig(BaselineConfig):
                                                             range(2, 3)))
         if not (math.isfinite(self.temperature) and self.temperature > 0):
             raise InvalidInputError("temperature", self.temperature, "a finite value > 0")
+        check_choices("readout", self.readout, READOUTS)
+        if not (math.isfinite(self.point_loss_weight) and self.point_loss_weight >= 0):
+            raise InvalidInputError("point_loss_weight", self.point_loss_weight,
+                                    "a finite value >= 0")
+        if self.point_loss_weight > 0 and self.readout != "ray":
+            raise InvalidInputError("point_loss_weight", self.point_loss_weight,
+                                    f"0 with readout {self.readout!r} (its points serve no "
+                                    "target; readout 'ray' gives each target one)")
 
     def keypoints(self, spec: ModelSpec) -> int:
         """K for a task: ``points``, or the task's number of targets when that is None."""
@@ -97,12 +136,43 @@ class KeypointModel(BaselineModel):
     """The Key Point comparison model behind the :class:`PerceptionModel` interface."""
 
     name = "keypoint"
-    attention_per_target = False  # the MLP reads all K points at once; none is a target's
+    # The MLP reads all K points at once; none is a target's. The ray readout's predictions do
+    # carry one point per target (its attention_px and heatmaps), but the class says False.
+    attention_per_target = False
     config_class = KeypointConfig
     config: KeypointConfig
 
     def build_network(self) -> BaselineNet:
-        """The FCN and spatial softmax, and the head MLP on the 2K point coordinates."""
-        config, points = self.config, self.config.keypoints(self.spec)
-        return BaselineNet(SpatialSoftmaxEncoder(points, config.channels, config.temperature),
-                           PoseHead(2 * points, self.spec, config.head_width))
+        """The FCN and spatial softmax, then the MLP on the 2K coordinates or the ray readout.
+
+        The ray readout's network is :class:`~perception.models.keypoint_ray.KeypointRayNet`.
+        """
+        config, spec, points = self.config, self.spec, self.config.keypoints(self.spec)
+        encoder = SpatialSoftmaxEncoder(points, config.channels, config.temperature)
+        if config.readout == "mlp":
+            return BaselineNet(encoder, PoseHead(2 * points, spec, config.head_width))
+        if isinstance(self, AutoencoderModel):
+            raise InvalidInputError("readout", config.readout, f"'mlp' for {self.name} (its "
+                                    "head trains on the frozen encoder's points)")
+        if spec.camera is None:
+            raise InvalidInputError("readout", config.readout, "'mlp' for a dataset that "
+                                    "records no camera (the ray readout reads through it)")
+        return KeypointRayNet(encoder, points, spec, config.head_width)
+
+    def batch_loss(self, batch: Batch) -> Tensor:
+        """The target loss of the (mirrored) batch, plus the point loss where the config sets it.
+
+        The point loss is kqv's: :attr:`KeypointConfig.point_loss_weight` times the squared
+        distance (normalised image units) from each target's point to where the camera sees the
+        target (its label projected), over the targets present.
+        """
+        network, weight = self.network, self.config.point_loss_weight
+        if not isinstance(network, KeypointRayNet) or weight == 0:
+            return super().batch_loss(batch)
+        batch = self.mirrored(batch)
+        out = network(batch.images, batch.conditions)
+        loss = self.target_loss(out, batch.labels, batch.present)
+        if out.points is None:
+            raise InvalidInputError("points", None, "a target's point for the point loss")
+        return loss + weight * present_mean(
+            (out.points - network.seen(batch.labels)).square().sum(-1), batch.present)

@@ -192,3 +192,11 @@ def test_a_model_config_changes_a_table2_cells_identity_and_command(tmp_path):
     with pytest.raises(SimInvalidInputError, match="MODEL one of --models: kqv"):
         ReproduceSimSettings(models=("kqv",), model_configs=(
             ModelConfigFile.read(write(tmp_path / "f.toml", ""), "fcn"),))
+
+
+def test_fields_added_later_stay_out_of_identities_at_their_old_behaviour():
+    before = {"channels", "head_width", "points", "rotation_loss_weight", "seed", "temperature"}
+    assert set(model_config("keypoint-16", 0)) == before  # folders made before them resume
+    helped = model_config("keypoint-16-helped", 0)
+    assert helped["readout"] == "ray" and helped["input_norm"] == "per-image"
+    assert "mirror" in helped and "point_loss_weight" in helped

@@ -177,7 +177,7 @@ def test_registry_names_and_presets():
     assert new_model("dsae-16", dataset, points=4).config.points == 4  # a preset is a default
     with pytest.raises(InvalidInputError, match=r"hyper-parameters = \['points'\] is not "
                        r"allowed: fields of fcn's FcnConfig: head_width, rotation_loss_weight, "
-                       r"seed, channels$"):
+                       r"input_norm, mirror, seed, channels$"):
         new_model("fcn", dataset, points=3)
 
 

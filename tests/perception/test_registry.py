@@ -18,8 +18,9 @@ def test_registered_name():
 def test_unknown_name_lists_the_registered_ones():
     with pytest.raises(InvalidInputError, match=r"model = 'kvq' is not allowed: a registered "
                                                 r"name \(kqv, keypoint, dsae, conv-ae, fcn, "
-                                                r"keypoint-16, keypoint-min, dsae-16, kqv-mlp, "
-                                                r"kqv-paper\), a name "
+                                                r"keypoint-16, keypoint-min, "
+                                                r"keypoint-16-helped, keypoint-min-helped, "
+                                                r"dsae-16, kqv-mlp, kqv-paper\), a name "
                                                 r"an installed package registers in "
                                                 r"'gva.models' \(none installed\), or "
                                                 r"'package.module:Class'"):
