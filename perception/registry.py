@@ -51,6 +51,12 @@ MODELS: Mapping[str, type[PerceptionModel]] = MappingProxyType({
 PRESETS: Mapping[str, tuple[str, Mapping[str, Any]]] = MappingProxyType({
     "keypoint-16": ("keypoint", {"points": 16}),  # paper Table II: Key Point (q=16)
     "keypoint-min": ("keypoint", {"points": None}),  # Key Point (q=min): one point per target
+    "dsae-16": ("dsae", {"points": 16}),  # Deep Spatial AE (q=16)
+    # kqv read out by the paper's MLP of the attention point and feature, not the camera's ray:
+    # the readout's share of kqv's grasps (docs/decisions/d435-sensor.md, error by radius)
+    "kqv-mlp": ("kqv", {"readout": "mlp"}),
+    # the paper's model as written (perception.models.kqv_config.PAPER, a sentence per setting)
+    "kqv-paper": ("kqv", PAPER_KQV),
     # helped: kqv's ray readout + point loss on its points, per-image scaling, mirror where allowed
     "keypoint-16-helped": ("keypoint", {"points": 16, "readout": "ray", "point_loss_weight": 10.0,
                                         "input_norm": "per-image", "mirror": None}),
@@ -58,12 +64,6 @@ PRESETS: Mapping[str, tuple[str, Mapping[str, Any]]] = MappingProxyType({
     "keypoint-min-helped": ("keypoint", {"points": None, "readout": "ray",
                                          "point_loss_weight": 10.0, "input_norm": "per-image",
                                          "mirror": None}),
-    "dsae-16": ("dsae", {"points": 16}),  # Deep Spatial AE (q=16)
-    # kqv read out by the paper's MLP of the attention point and feature, not the camera's ray:
-    # the readout's share of kqv's grasps (docs/decisions/d435-sensor.md, error by radius)
-    "kqv-mlp": ("kqv", {"readout": "mlp"}),
-    # the paper's model as written (perception.models.kqv_config.PAPER, a sentence per setting)
-    "kqv-paper": ("kqv", PAPER_KQV),
 })
 """Named variants of a built-in model: name -> (model, hyper-parameters it sets)."""
 

@@ -5,10 +5,12 @@ from __future__ import annotations
 import argparse
 import shlex
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
-from experiments.tables import check_model_configs
-from perception.model_config_file import ModelConfigFile
 from sim.jobs import Executor, ExecutorKind
+
+if TYPE_CHECKING:  # imported where used: a command's --help must not load torch
+    from perception.model_config_file import ModelConfigFile
 
 
 def integer(minimum: int) -> Callable[[str], int]:
@@ -58,6 +60,9 @@ def add_model_config_option(parser: argparse.ArgumentParser) -> None:
 
 def model_config_files(args: argparse.Namespace) -> tuple[ModelConfigFile, ...]:
     """The ``--model-config`` files, each checked against ``--models`` and then read."""
+    from experiments.tables import check_model_configs
+    from perception.model_config_file import ModelConfigFile
+
     check_model_configs(args.model_config, args.models)
     return tuple(ModelConfigFile.read(path, model) for model, path in args.model_config)
 

@@ -61,11 +61,13 @@ def _parsed(*argv: str) -> dict[str, object]:
 def test_the_defaults_are_the_settings_dataclasses_defaults():
     sim = _parsed("reproduce", "sim", "--out", "x")
     for field in dataclasses.fields(ReproduceSimSettings):
-        if field.name != "executor":
+        if field.name not in ("executor", "model_configs"):
             assert sim[field.name] == getattr(ReproduceSimSettings(), field.name), field.name
     real = _parsed("reproduce", "real", "--out", "x")
+    assert sim["model_config"] == real["model_config"] == []  # the settings' () of files
+    assert ReproduceSimSettings().model_configs == ReproduceRealSettings().model_configs == ()
     for field in dataclasses.fields(ReproduceRealSettings):
-        if field.name not in ("check", "executor"):
+        if field.name not in ("check", "executor", "model_configs"):
             value = SensorKind(real["sensor"]) if field.name == "sensor" else real[field.name]
             assert value == getattr(ReproduceRealSettings(), field.name), field.name
     assert real["holdout"] == ReproduceRealSettings().check.holdout

@@ -18,9 +18,9 @@ def test_registered_name():
 def test_unknown_name_lists_the_registered_ones():
     with pytest.raises(InvalidInputError, match=r"model = 'kvq' is not allowed: a registered "
                                                 r"name \(kqv, keypoint, dsae, conv-ae, fcn, "
-                                                r"keypoint-16, keypoint-min, "
-                                                r"keypoint-16-helped, keypoint-min-helped, "
-                                                r"dsae-16, kqv-mlp, kqv-paper\), a name "
+                                                r"keypoint-16, keypoint-min, dsae-16, kqv-mlp, "
+                                                r"kqv-paper, keypoint-16-helped, "
+                                                r"keypoint-min-helped\), a name "
                                                 r"an installed package registers in "
                                                 r"'gva.models' \(none installed\), or "
                                                 r"'package.module:Class'"):
@@ -76,7 +76,7 @@ def test_load_model_reads_the_name_from_config(tiny_checkpoints):
 def test_load_model_of_an_unregistered_model_needs_its_class(tiny_checkpoints):
     folder = tiny_checkpoints["my-kqv"]
     with pytest.raises(CheckpointError, match=r"names model 'my-kqv', which is not registered "
-                                              r"\(kqv, keypoint, .*, kqv-paper\); pass "
+                                              r"\(kqv, keypoint, .*, keypoint-min-helped\); pass "
                                               r"model='package.module:Class'"):
         load_model(folder)
     assert type(load_model(folder, "user_models:MyKqv")) is MyKqv
