@@ -41,6 +41,7 @@ from experiments.commands.arguments import integer, integers, names
 from experiments.table3 import jobs
 from experiments.table3 import settings as table3
 from perception.catalog import CLUTTER_TYPES
+from perception.learning.learnable import LearnableModel
 from perception.learning.train import TrainConfig
 from perception.models.kqv import KqvModel
 from perception.registry import load_model
@@ -202,13 +203,13 @@ def collect_step(test: TestTask, seed: int, n: int) -> Step | None:
                 partial(collect, settings, test.dataset, progress=False))
 
 
-def score(entry: Entry, focus_px: int | None) -> Score:
-    """One checkpoint scored on its seed's block and clean test sets.
+def score(entry: Entry, model: LearnableModel, focus_px: int | None) -> Score:
+    """``entry``'s checkpoint, loaded as ``model``, scored on its block and clean test sets.
 
     ``focus_px``: the heatmap focus to read with (``KqvConfig.focus_window_px``; 0: the whole
     heatmap); None: the checkpoint's own. The source is named with it.
     """
-    model, source = load_model(entry.checkpoint), entry.source
+    source = entry.source
     if focus_px is not None and isinstance(model, KqvModel):
         model, source = refocused(model, focus_px), f"{source} (focus {focus_px} px)"
     return Score(source, entry.task, entry.seed, str(entry.checkpoint),
@@ -299,7 +300,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             bar.set_postfix_str(step.name)
             step.run()
             bar.update(step.cost_s)
-    scores = [score(entry, focus) for focus in args.focus_px for entry in entries]
+    models = [load_model(entry.checkpoint) for entry in entries]  # once, for every focus
+    scores = [score(entry, model, focus) for focus in args.focus_px
+              for entry, model in zip(entries, models, strict=True)]
     lines, totals = table(scores, list(seeds))
     print("cell: picks the grasp judge predicts succeed / picks, mean position error; "
           "N>blk: predicted grasps nearer the block than the target")
