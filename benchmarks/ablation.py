@@ -19,7 +19,12 @@ the median training seconds per cell; and the difference of mean errors against 
 when |mean of the paired per-seed differences| > 2 x their standard error (sample std of the
 differences / sqrt(seeds)), over the seeds both rows finished (at least two). A task a row has
 not finished, or whose folder holds another row's settings, is shown as such, with no number.
-A row whose settings are the recipe's on a task (:data:`ONLY_TASKS`) is not trained there.
+A row whose settings are the recipe's on a task (:data:`ONLY_TASKS`) is not trained there. A
+row that changes only how a trained network is read (every setting in
+:data:`~perception.models.kqv_config.INFERENCE_FIELDS`, e.g. ``minus-focus``) is not trained at
+all: the recipe's checkpoints are scored again under its settings on the recipe's test scenes
+(``OUT/<row>/rescored.json``, each cell tied to the recipe cell it came from), and its
+training time is the recipe's.
 """
 
 from __future__ import annotations
@@ -38,13 +43,20 @@ from pathlib import Path
 from typing import Any
 
 from experiments.cli import main as gva
+from experiments.tables import SeedStream, dataset_path
+from perception.learning.dataset_file import load_dataset
+from perception.learning.evaluate import evaluate
 from perception.model_config_file import read_model_config
+from perception.models.kqv import KqvModel
+from perception.models.kqv_config import INFERENCE_FIELDS
+from perception.registry import load_model
 
 ROWS_DIR = Path(__file__).resolve().parent / "ablation"
 RECIPE = "recipe"
 TASKS = ("single", "multiple", "selected-type", "selected-position")
 SIZE = 20
 TEST_SCENES = 100
+RESCORED = "rescored.json"
 ONLY_TASKS: Mapping[str, tuple[str, ...]] = {
     # query_mode "paper" and "auto" differ on an object-type condition only.
     "minus-query": ("selected-type",),
@@ -93,6 +105,55 @@ def paired_difference(row: Mapping[int, float], recipe: Mapping[int, float]) -> 
     return Difference(mean, error, len(seeds), abs(mean) > 2 * error)
 
 
+def inference_only(settings: Mapping[str, Any]) -> bool:
+    """Whether a row changes only how a trained network is read (scored, never trained)."""
+    return bool(settings) and set(settings) <= INFERENCE_FIELDS
+
+
+def rescore(out: Path, row: str, file: Path, tasks: Sequence[str], seeds: Sequence[int]) -> int:
+    """Scores the recipe's finished cells under an inference-only row; returns cells scored.
+
+    Writes ``out/row/rescored.json`` as ``reproduce sim`` writes ``table2.json`` (the fields
+    :func:`row_summary` reads), each cell with the identity of the recipe cell it came from: a
+    cell is scored again only when that cell changed. Recipe cells not finished are left out.
+    """
+    settings = read_model_config(file, "kqv")
+    recipe = out / RECIPE
+    if not (recipe / "table2.json").exists():
+        print(f"[{row}] scores the recipe's checkpoints: run the recipe row first", flush=True)
+        return 0
+    run = json.loads((recipe / "table2.json").read_text())["settings"]
+    target = out / row / RESCORED
+    kept = {(c["task"], c["seed"]): c for c in (json.loads(target.read_text())["cells"]
+                                                if target.exists() else [])}
+    cells, scored = [], 0
+    for path in sorted((recipe / "cells").glob(f"kqv-*-{SIZE}-s*.json")):
+        source = json.loads(path.read_text())
+        if path.name.endswith("-error.json") or source["task"] not in tasks or source[
+                "seed"] not in seeds:
+            continue
+        old = kept.get((source["task"], source["seed"]))
+        if old is not None and old["scored_from"] == source["identity"] and old[
+                "settings"] == settings:
+            cells.append(old)
+            continue
+        model = load_model(recipe / source["checkpoint"])
+        assert isinstance(model, KqvModel), path  # the recipe row trains kqv
+        test = load_dataset(dataset_path(recipe, source["task"], SeedStream.TEST,
+                                         run["test_scenes"], run["test_seed"]))
+        result = evaluate(model.read_with(**settings), test)
+        cells.append({k: source[k] for k in ("model", "task", "size", "seed", "train_s")} | {
+            "error_cm": result.mean_position_error_cm,
+            "judged": None if result.judged is None else result.judged.to_json(),
+            "settings": settings, "scored_from": source["identity"]})
+        scored += 1
+    target.parent.mkdir(parents=True, exist_ok=True)
+    target.write_text(json.dumps({"cells": cells, "failed": [], "settings": {
+        "scene": run["scene"], "test_scenes": run["test_scenes"], "scored_from": str(recipe),
+        "model_configs": {"kqv": {"path": str(file), "settings": settings}}}}, indent=1) + "\n")
+    return scored
+
+
 def row_files(folder: Path = ROWS_DIR) -> dict[str, Path]:
     """Every row file of ``folder``: its stem -> its path, in name order."""
     return {path.stem: path for path in sorted(folder.glob("*.toml"))}
@@ -125,7 +186,7 @@ def row_summary(folder: Path, file: Path | None, tasks: Sequence[str],
     settings = {} if file is None else read_model_config(file, "kqv")
     record: dict[str, Any] = {"file": None if file is None else str(file),
                               "settings": json.loads(json.dumps(settings)), "tasks": {}}
-    path = folder / "table2.json"
+    path = folder / (RESCORED if inference_only(settings) else "table2.json")
     table = json.loads(path.read_text()) if path.exists() else None
     made_with = None if table is None else (table["settings"].get("model_configs") or {}).get(
         "kqv", {}).get("settings", {})
@@ -264,10 +325,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Runs the rows asked (or reads ``--from``), writes the record and prints the table."""
     args = parse_args(argv)
     out = args.source or args.out
+    seeds = list(range(args.seed, args.seed + args.seeds))
     status = 0
     if args.source is None:
         ordered = sorted(args.files.items(), key=lambda item: item[0] != RECIPE)
         for row, file in ordered:
+            if file is not None and inference_only(read_model_config(file, "kqv")):
+                scored = rescore(out, row, file, args.tasks, seeds)
+                print(f"[{row}] {scored} recipe checkpoint(s) scored under {file.name}",
+                      flush=True)
+                continue
             linked = share_datasets(out, row)
             argv_row = command(row, file, out, args)
             print(f"[{row}] gva {' '.join(argv_row)}" + (f" ({linked} dataset(s) linked)"
@@ -276,7 +343,6 @@ def main(argv: Sequence[str] | None = None) -> int:
             if row_status == 130:  # Ctrl-C: stop the sweep, the rows keep what they finished
                 return row_status
             status = max(status, row_status)
-    seeds = list(range(args.seed, args.seed + args.seeds))
     summary = summarise(out, args.files, args.tasks, seeds)
     args.json.parent.mkdir(parents=True, exist_ok=True)
     args.json.write_text(json.dumps(summary, indent=2) + "\n")

@@ -23,7 +23,6 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-from distractor_scores import refocused
 
 from perception.drawing import BACKGROUND, GAP_PX, AttentionRow, attention_figure, write_png
 from perception.learning.dataset_file import load_dataset
@@ -48,7 +47,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                      f"(it holds {focused.name})")
     dataset = load_dataset(args.data)
     focused.spec.check_dataset(dataset)
-    models = (refocused(focused, 0), focused)
+    models = (focused.read_with(focus_window_px=0), focused)
     figures: list[np.ndarray] = []
     for index in range(len(dataset)):
         image, condition = dataset.images[index:index + 1], dataset.conditions[index:index + 1]

@@ -34,7 +34,7 @@ from functools import partial
 from pathlib import Path
 from typing import NamedTuple
 
-from distractor_scores import SET_NAMES, Score, refocused, score_set, table
+from distractor_scores import SET_NAMES, Score, score_set, table
 
 from experiments import tables
 from experiments.commands.arguments import integer, integers, names
@@ -211,7 +211,7 @@ def score(entry: Entry, model: LearnableModel, focus_px: int | None) -> Score:
     """
     source = entry.source
     if focus_px is not None and isinstance(model, KqvModel):
-        model, source = refocused(model, focus_px), f"{source} (focus {focus_px} px)"
+        model, source = model.read_with(focus_window_px=focus_px), f"{source} (focus {focus_px} px)"
     return Score(source, entry.task, entry.seed, str(entry.checkpoint),
                  score_set(model, "block", entry.block.dataset),
                  score_set(model, "clean", entry.clean.dataset))

@@ -7,7 +7,7 @@ A checkpoint's judged picks, mean error and grasps nearer the block on one test 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import astuple, dataclass, replace
+from dataclasses import astuple, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +18,6 @@ from perception.learning.data import Dataset
 from perception.learning.dataset_file import load_dataset
 from perception.learning.evaluate import evaluate, predict_dataset
 from perception.learning.learnable import LearnableModel
-from perception.models.kqv import KqvModel
 from sim.errors import SimError
 
 SET_NAMES = ("block", "clean")
@@ -74,17 +73,6 @@ def nearer_block(predictions: Sequence[Prediction], dataset: Dataset) -> int | N
             xy[k] - objects[record["targets"][k]]["position_xy_m"])
             for k in range(len(xy)) if blocks and shown[k]]
     return int(sum(nearer)) if nearer else None
-
-
-def refocused(model: KqvModel, window_px: int | None) -> KqvModel:
-    """The same weights reading each heatmap through another ``focus_window_px`` (0: whole).
-
-    The focus acts at inference only (``KqvConfig.focus_window_px``), so a checkpoint can be
-    scored before and after it without training again.
-    """
-    other = KqvModel(model.spec, replace(model.config, focus_window_px=window_px), model.scaler)
-    other.network.load_state_dict(model.network.state_dict())
-    return other
 
 
 def score_set(model: LearnableModel, name: str, path: Path) -> SetScore:

@@ -23,7 +23,7 @@ from perception.learning.mirror import MIRROR_FLAG, Mirror
 from perception.learning.train import Batch, TrainConfig, TrainReport, train
 from perception.learning.validation import split_scenes
 from perception.models.base import LabelScaler, images_to_tensor, normalised_to_pixels
-from perception.models.kqv_config import KqvConfig
+from perception.models.kqv_config import INFERENCE_FIELDS, KqvConfig
 from perception.models.kqv_net import KqvNet
 from perception.models.torch_model import Phase, TorchModel, present_mean
 
@@ -249,6 +249,27 @@ class KqvModel(TorchModel):
         given = self._check_queries(queries, len(images))
         out = self.network(images_to_tensor(images), torch.as_tensor(conditions).float(), given)
         return self.to_predictions(out, conditions)
+
+    def read_with(self, **settings: Any) -> KqvModel:
+        """The same trained weights read under other inference settings (:data:`INFERENCE_FIELDS`).
+
+        The focus acts at inference only, so a checkpoint is scored with and without it (the
+        ablation's ``minus-focus`` row, the distractor checks) without training again.
+
+        Raises:
+            InvalidInputError: A setting that training depends on, or a value the config
+                refuses.
+
+        """
+        for name in settings:
+            if name not in INFERENCE_FIELDS:
+                raise InvalidInputError(name, settings[name], "a training setting; read_with "
+                                        f"changes only {', '.join(sorted(INFERENCE_FIELDS))}")
+        other = type(self)(self.spec, replace(self.config, **settings), self.scaler)
+        other._prototypes, other.report = self._prototypes, self.report
+        other.provenance = dict(self.provenance)
+        other.network.load_state_dict(self.network.state_dict())
+        return other
 
     @torch.no_grad()
     def queries(self, conditions: np.ndarray) -> np.ndarray:

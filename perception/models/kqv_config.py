@@ -20,6 +20,9 @@ QUERY_MODES = ("auto", "base", "conditioned", "conditioned+base", "paper")
 READOUTS = ("auto", "mlp", "ray")
 INPUT_NORMS = ("auto", "fixed", "per-image")
 SENTENCE_READINGS = ("nearest", "prototypes", "embedding")
+INFERENCE_FIELDS = frozenset({"focus_window_px", "focus_box_px"})
+"""KqvConfig fields that only change how a trained network is read (``KqvModel.read_with``):
+a checkpoint is scored under other values without training again."""
 
 
 @dataclass(frozen=True)

@@ -10,9 +10,16 @@ from types import ModuleType
 from typing import Any
 
 import pytest
+from user_models import CAMERA, synthetic_dataset
 
+from experiments.tables import SeedStream, dataset_path
+from perception.interface import LabelKind
+from perception.learning.dataset_file import save_dataset
+from perception.learning.evaluate import evaluate
+from perception.learning.train import TrainConfig
 from perception.model_config_file import read_model_config
 from perception.models.kqv_config import PAPER, KqvConfig
+from perception.registry import new_model
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -114,14 +121,14 @@ def runs(tmp_path: Path) -> Path:
         _cell("single", 0, 1.5, 60.0, None), _cell("single", 1, 2.5, 50.0, None),
         _cell("single", 2, 3.5, 70.0, None)], {"starts": 1})
     _write(tmp_path / "minus-mirror", [_cell("single", 0, 1.0, 1.0, None)], {"mirror": False})
-    _write(tmp_path / "minus-focus", [_cell("single", s, 1.0, 1.0, None) for s in range(3)],
-           {"focus_window_px": 24})  # a file changed since the run
+    _write(tmp_path / "minus-cosine", [_cell("single", s, 1.0, 1.0, None) for s in range(3)],
+           {"similarity": "cosine"})  # a file changed since the run
     return tmp_path
 
 
 def test_summary_of_finished_unfinished_and_stale_rows(runs: Path) -> None:
     rows = {"recipe": None, **{r: ROWS[r] for r in ("minus-starts", "minus-mirror",
-                                                    "minus-focus", "minus-cosine")}}
+                                                    "minus-cosine", "minus-per-image")}}
     summary = ablation.summarise(runs, rows, ["single"], [0, 1, 2])["rows"]
     recipe = summary["recipe"]["tasks"]["single"]
     assert recipe["status"] == "finished"
@@ -137,8 +144,8 @@ def test_summary_of_finished_unfinished_and_stale_rows(runs: Path) -> None:
     mirror = summary["minus-mirror"]["tasks"]["single"]
     assert (mirror["status"], mirror["seeds_missing"]) == ("unfinished", [1, 2])
     assert "error" not in mirror and "vs_recipe" not in mirror
-    assert summary["minus-focus"]["tasks"]["single"]["status"] == "other settings"
-    assert summary["minus-cosine"]["tasks"]["single"]["status"] == "not run"
+    assert summary["minus-cosine"]["tasks"]["single"]["status"] == "other settings"
+    assert summary["minus-per-image"]["tasks"]["single"]["status"] == "not run"
 
 
 def test_from_reports_a_missing_row_unfinished(runs: Path, tmp_path: Path,
@@ -180,3 +187,44 @@ def test_rows_are_every_file_of_the_folder(tmp_path: Path) -> None:
     (tmp_path / "paper-plus-ray-readout.toml").write_text('readout = "ray"\n')
     assert list(ablation.row_files(tmp_path)) == ["paper-plus-ray-readout"]
     assert ablation.parse_args([]).rows == ["recipe", *ROWS]
+
+
+# rows scored from the recipe's checkpoints
+
+
+def test_only_rows_that_change_how_a_network_is_read_are_scored_untrained() -> None:
+    assert ablation.inference_only(read_model_config(ROWS["minus-focus"], "kqv"))
+    assert not any(ablation.inference_only(read_model_config(ROWS[r], "kqv"))
+                   for r in ROWS if r != "minus-focus")
+    assert not ablation.inference_only({})
+
+
+def test_minus_focus_scores_the_recipe_checkpoints_again(tmp_path: Path) -> None:
+    recipe = tmp_path / "recipe"
+    train = synthetic_dataset(8, kind=LabelKind.GRASP_POSE, camera=CAMERA, seed=1)
+    test = synthetic_dataset(6, kind=LabelKind.GRASP_POSE, camera=CAMERA, seed=2)
+    save_dataset(test, dataset_path(recipe, "single", SeedStream.TEST, 100, 0))
+    model = new_model("kqv", train, seed=0, starts=1, warmup_steps=0)
+    model.fit(train, TrainConfig(steps=2, seed=0), progress=False)
+    model.save(recipe / "checkpoints" / "s0")
+    (recipe / "table2.json").write_text(json.dumps({"cells": [], "settings": {
+        "scene": "yumi", "test_scenes": 100, "test_seed": 0}}))
+    (recipe / "cells").mkdir()
+    cell = recipe / "cells" / "kqv-single-20-s0.json"
+    cell.write_text(json.dumps({"model": "kqv", "task": "single", "size": 20, "seed": 0,
+                                "train_s": 90.0, "checkpoint": "checkpoints/s0",
+                                "identity": {"steps": 1300}}))
+    (recipe / "cells" / "kqv-single-20-s1-error.json").write_text("{}")  # a failed cell
+    assert ablation.rescore(tmp_path, "minus-focus", ROWS["minus-focus"], ["single"], [0, 1]) == 1
+    record = json.loads((tmp_path / "minus-focus" / "rescored.json").read_text())
+    [scored] = record["cells"]
+    whole = evaluate(model.read_with(focus_window_px=0), test)
+    assert scored["error_cm"] == pytest.approx(whole.mean_position_error_cm)
+    assert (scored["train_s"], scored["scored_from"]) == (90.0, {"steps": 1300})
+    assert record["settings"]["model_configs"]["kqv"]["settings"] == {"focus_window_px": 0}
+    assert ablation.rescore(tmp_path, "minus-focus", ROWS["minus-focus"], ["single"], [0]) == 0
+    cell.write_text(cell.read_text().replace("1300", "1000"))  # the recipe cell was redone
+    assert ablation.rescore(tmp_path, "minus-focus", ROWS["minus-focus"], ["single"], [0]) == 1
+    summary = ablation.summarise(tmp_path, {"minus-focus": ROWS["minus-focus"]}, ["single"], [0])
+    assert summary["rows"]["minus-focus"]["tasks"]["single"]["status"] == "finished"
+    assert summary["rows"]["minus-focus"]["tasks"]["single"]["median_train_s"] == 90.0

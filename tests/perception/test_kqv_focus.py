@@ -70,3 +70,20 @@ def test_focus_settings_are_checked():
     with pytest.raises(InvalidInputError, match=r"focus_box_px = 0 is not allowed: an integer "
                                                  r">= 1"):
         KqvConfig(focus_box_px=0)
+
+
+def test_read_with_keeps_the_weights_and_changes_only_how_the_heatmap_is_read():
+    model = KqvModel(replace(spec(kind=LabelKind.GRASP_POSE), camera=CAMERA))
+    whole = model.read_with(focus_window_px=0)
+    assert whole.config == replace(model.config, focus_window_px=0)
+    assert whole.network.focus_cells[0] == 0 and model.network.focus_cells[0] > 0
+    for name, tensor in model.network.state_dict().items():
+        torch.testing.assert_close(whole.network.state_dict()[name], tensor)
+    images = torch.randint(0, 255, (1, 64, 64, 3), dtype=torch.uint8).numpy()
+    queries = model.queries(torch.zeros(1, model.spec.condition_size).numpy())
+    assert (whole.attend(images, queries)["heatmaps"] > 0).all()
+    assert (model.attend(images, queries)["heatmaps"] == 0).any()
+    with pytest.raises(InvalidInputError, match=r"starts = 1 is not allowed: a training setting; "
+                                                r"read_with changes only focus_box_px, "
+                                                r"focus_window_px"):
+        model.read_with(starts=1)
