@@ -64,6 +64,8 @@ PRESETS: Mapping[str, tuple[str, Mapping[str, Any]]] = MappingProxyType({
     "keypoint-min-helped": ("keypoint", {"points": None, "readout": "ray",
                                          "point_loss_weight": 10.0, "input_norm": "per-image",
                                          "mirror": None}),
+    # helped where a model without attention points can be: per-image scaling, mirror allowed
+    "fcn-helped": ("fcn", {"input_norm": "per-image", "mirror": None}),
 })
 """Named variants of a built-in model: name -> (model, hyper-parameters it sets)."""
 

@@ -202,3 +202,12 @@ def test_every_baseline_scales_each_image_and_mirrors_where_told(name):
     fixed = new_model(name, dataset)
     fixed.fit(dataset, SHORT, progress=False)
     assert fixed._mirror is None and not fixed.network.per_image
+
+
+def test_fcn_helped_gets_the_help_a_model_without_points_can_take():
+    dataset = synthetic_dataset(4, seed=7, camera=CAMERA)
+    flagged = replace(dataset, metadata=replace(dataset.metadata, extra={MIRROR_FLAG: True}))
+    model = new_model("fcn-helped", flagged)
+    assert (model.config.input_norm, model.config.mirror) == ("per-image", None)
+    model.fit(flagged, SHORT, progress=False)
+    assert model._mirror is not None and model.network.per_image

@@ -20,7 +20,7 @@ def test_unknown_name_lists_the_registered_ones():
                                                 r"name \(kqv, keypoint, dsae, conv-ae, fcn, "
                                                 r"keypoint-16, keypoint-min, dsae-16, kqv-mlp, "
                                                 r"kqv-paper, keypoint-16-helped, "
-                                                r"keypoint-min-helped\), a name "
+                                                r"keypoint-min-helped, fcn-helped\), a name "
                                                 r"an installed package registers in "
                                                 r"'gva.models' \(none installed\), or "
                                                 r"'package.module:Class'"):
@@ -76,7 +76,7 @@ def test_load_model_reads_the_name_from_config(tiny_checkpoints):
 def test_load_model_of_an_unregistered_model_needs_its_class(tiny_checkpoints):
     folder = tiny_checkpoints["my-kqv"]
     with pytest.raises(CheckpointError, match=r"names model 'my-kqv', which is not registered "
-                                              r"\(kqv, keypoint, .*, keypoint-min-helped\); pass "
+                                              r"\(kqv, keypoint, .*, fcn-helped\); pass "
                                               r"model='package.module:Class'"):
         load_model(folder)
     assert type(load_model(folder, "user_models:MyKqv")) is MyKqv
