@@ -24,8 +24,7 @@ from tqdm import tqdm
 from perception.files import atomic_write
 from perception.learning.dataset_file import read_metadata
 from perception.model_config_file import ModelConfigFile
-from perception.models.torch_model import TorchModel
-from perception.registry import PRESETS, model_class
+from perception.registry import trainable
 from sim.errors import InvalidInputError, RunFolderError
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import scene_camera
@@ -70,10 +69,7 @@ def model_config(model: str, seed: int, settings: Mapping[str, Any] | None = Non
     field the config class lists in ``SINCE`` (added later) is left out at the value that
     behaves as before it, so folders made before it still resume.
     """
-    name, preset = PRESETS.get(model, (model, {}))
-    cls = model_class(name)
-    if not issubclass(cls, TorchModel):  # every model of MODELS is one
-        raise InvalidInputError("model", model, f"a model that trains: {', '.join(MODELS)}")
+    cls, preset = trainable(model)
     config = asdict(cls.config_class(**{**preset, **(settings or {})}, seed=seed))
     since: Mapping[str, Any] = getattr(cls.config_class, "SINCE", {})
     return {key: value for key, value in config.items()

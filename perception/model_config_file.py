@@ -31,7 +31,7 @@ from typing import Any
 from perception.interface import InvalidInputError
 from perception.learning.learnable import LearnableModel
 from perception.models.torch_model import TorchModel
-from perception.registry import PRESETS, model_class
+from perception.registry import trainable
 
 MAX_MODEL_CONFIG_BYTES = 64 * 1024
 """A model config file is a few lines; a bigger file is refused unread (a dataset, a model)."""
@@ -93,11 +93,7 @@ def read_model_config(path: str | Path, model: str) -> dict[str, Any]:
             config refuses. The message names the file, the key, the value and what is allowed.
 
     """
-    name, preset = PRESETS.get(model, (model, {}))
-    cls = model_class(name)
-    if not issubclass(cls, TorchModel):
-        raise InvalidInputError("model", model, "a model that trains from a dataset (a "
-                                "TorchModel), the only kind whose settings a file can set")
+    cls, preset = trainable(model)
     source = str(path)
     data = _read_toml(Path(path), source)
     config_class = cls.config_class

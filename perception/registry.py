@@ -19,7 +19,7 @@ import dataclasses
 from collections.abc import Mapping
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any
+from typing import Any, NamedTuple
 
 from perception.interface import InvalidInputError, PerceptionModel
 from perception.learning.checkpoint import CONFIG_FILE, CheckpointError, read_config
@@ -70,6 +70,31 @@ PRESETS: Mapping[str, tuple[str, Mapping[str, Any]]] = MappingProxyType({
 """Named variants of a built-in model: name -> (model, hyper-parameters it sets)."""
 
 
+class Trainable(NamedTuple):
+    """What a model name trains: its class, and the settings its preset gives (none: empty)."""
+
+    cls: type[TorchModel]
+    preset: Mapping[str, Any]
+
+
+def trainable(name_or_path: str) -> Trainable:
+    """The class and preset settings behind a name :func:`new_model` takes.
+
+    One place resolves a name for training, for a run's identities and for a model config
+    file, so the three cannot disagree about what a preset sets.
+
+    Raises:
+        InvalidInputError: An unknown model, or one that does not train from a dataset.
+
+    """
+    base, preset = PRESETS.get(name_or_path, (name_or_path, MappingProxyType({})))
+    cls = model_class(base)
+    if not issubclass(cls, TorchModel):
+        raise InvalidInputError("model", name_or_path, "a model that trains from a dataset "
+                                f"(a TorchModel: {_names()}, or a subclass of your own)")
+    return Trainable(cls, preset)
+
+
 def new_model(name_or_path: str, dataset: Dataset, *, seed: int = 0,
               **hyperparameters: Any) -> LearnableModel:
     """A fresh, untrained model for ``dataset``'s task, its weights seeded with ``seed``.
@@ -87,13 +112,7 @@ def new_model(name_or_path: str, dataset: Dataset, *, seed: int = 0,
             hyper-parameter the model's config does not have (the message lists those it has).
 
     """
-    preset: Mapping[str, Any] = {}
-    if name_or_path in PRESETS:
-        name_or_path, preset = PRESETS[name_or_path]
-    cls = model_class(name_or_path)
-    if not issubclass(cls, TorchModel):
-        raise InvalidInputError("model", name_or_path, "a model that trains from a dataset "
-                                f"(a TorchModel: {_names()}, or a subclass of your own)")
+    cls, preset = trainable(name_or_path)
     settings = {**preset, **hyperparameters, "seed": seed}
     allowed = [field.name for field in dataclasses.fields(cls.config_class)]
     if unknown := sorted(set(settings) - set(allowed)):
