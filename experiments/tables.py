@@ -24,7 +24,8 @@ from tqdm import tqdm
 from perception.files import atomic_write
 from perception.learning.dataset_file import read_metadata
 from perception.model_config_file import ModelConfigFile
-from perception.registry import trainable
+from perception.registry import MODELS as REGISTERED
+from perception.registry import PRESETS, trainable
 from sim.errors import InvalidInputError, RunFolderError
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import scene_camera
@@ -52,7 +53,42 @@ MODEL_TITLES = {
     "keypoint-min": "Key Point (q=min)", "dsae-16": "Deep Spatial AE (q=16)",
     "conv-ae": "Convolutional AE", "fcn": "FCN",
     NO_IMAGE: "No image (training-label mean)",
+    "kqv-paper": "The paper's model as written (kqv-paper)", "kqv-mlp": "Ours, MLP readout",
+    "keypoint-16-helped": "Key Point (q=16), helped",
+    "keypoint-min-helped": "Key Point (q=min), helped", "fcn-helped": "FCN, helped",
 }
+"""Each model's row title, in the tables' row order (the paper's models first)."""
+
+
+def model_title(model: str) -> str:
+    """The row title of ``model`` (a plug-in's own name where it has none)."""
+    return MODEL_TITLES.get(model, model)
+
+
+def model_order(model: str) -> tuple[int, str]:
+    """Where ``model`` sorts in the tables: :data:`MODEL_TITLES`' order, then others by name."""
+    known = list(MODEL_TITLES)
+    return (known.index(model) if model in known else len(known), model)
+
+
+def paper_row(model: str) -> str | None:
+    """The row of the paper's tables that ``model`` stands beside, if any.
+
+    A paper model's own; the paper's KQV for ``kqv-paper`` (that model as written); None for
+    gva's variants and plug-ins.
+    """
+    return "kqv" if model == "kqv-paper" else model if model in MODELS else None
+
+
+def allowed_models() -> tuple[str, ...]:
+    """The model names ``new_model`` takes: registered models and presets."""
+    return (*REGISTERED, *PRESETS)
+
+
+def check_models(models: Sequence[str]) -> None:
+    """Raises unless ``models`` are distinct names ``new_model`` takes (or plug-in paths)."""
+    custom = tuple(m for m in models if ":" in m)  # package.module:Class
+    check_choices("models", models, (*allowed_models(), *custom))
 TASK_TITLES = {"single": "Single Object", "multiple": "Multiple Objects",
                "selected-type": "Selected Type", "selected-position": "Selected Position",
                "selected-type-text": "Selected Type (sentence)",

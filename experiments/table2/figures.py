@@ -15,7 +15,15 @@ import numpy as np
 from matplotlib.figure import Figure  # an Agg canvas of its own, no global backend state
 
 from experiments.table2.settings import BOLD_BELOW_CM, SIZES, Key, ReproduceSimSettings
-from experiments.tables import ALL_TASKS, MODEL_TITLES, MODELS, NO_IMAGE, TASK_TITLES, dataset_path
+from experiments.tables import (
+    ALL_TASKS,
+    MODEL_TITLES,
+    NO_IMAGE,
+    TASK_TITLES,
+    dataset_path,
+    model_order,
+    model_title,
+)
 from perception.drawing import draw_points, enlarge
 from perception.files import atomic_write
 from perception.interface import ConditionKind
@@ -40,7 +48,7 @@ def plot_table2(stats: Mapping[Key, tuple[float, float | None, int]], path: Path
     ``reference`` (the no-image reference's spread) is drawn as a dotted black line.
     """
     tasks = [t for t in ALL_TASKS if any(k[1] == t for k in stats)]
-    models = [m for m in MODELS if any(k[0] == m for k in stats)]
+    models = sorted({k[0] for k in stats if k[0] != NO_IMAGE}, key=model_order)
     sizes = [s for s in SIZES if any(k[2] == s for k in stats)]
     figure = Figure(figsize=(3.6 * len(tasks) + 1.2, 3.8), layout="constrained")
     axes = figure.subplots(1, len(tasks), sharey=True, squeeze=False)[0]
@@ -52,7 +60,7 @@ def plot_table2(stats: Mapping[Key, tuple[float, float | None, int]], path: Path
             dodge = 1.0 + 0.03 * (number - (len(models) - 1) / 2)  # bars side by side
             axis.errorbar([s * dodge for s, _ in points], [m for _, (m, _, _) in points],
                           yerr=[std or 0.0 for _, (_, std, _) in points], capsize=3,
-                          marker="o", color=f"C{number}", label=MODEL_TITLES[model])
+                          marker="o", color=f"C{number}", label=model_title(model))
         floor = [(s, reference[(NO_IMAGE, task, s)][0]) for s in sizes
                  if reference and (NO_IMAGE, task, s) in reference]
         if floor:
@@ -138,4 +146,4 @@ def _draw_fig5_panels(axes: np.ndarray, test: Dataset, model_name: str,
         wanted = "" if not choices else (f'"{given.value}"\n' if given.kind is ConditionKind.TEXT
                                          else f"{names[k]}, ")
         axis.set_xlabel(f"{wanted}{error_cm:.1f} cm")
-    axes[0].set_ylabel(f"{MODEL_TITLES[model_name]}\n{cell['size']} scenes, seed {cell['seed']}")
+    axes[0].set_ylabel(f"{model_title(model_name)}\n{cell['size']} scenes, seed {cell['seed']}")

@@ -24,12 +24,14 @@ from experiments.table2.settings import (
 )
 from experiments.tables import (
     ALL_TASKS,
-    MODEL_TITLES,
     MODELS,
     NO_IMAGE,
     TASK_TITLES,
     dataset_path,
     duration,
+    model_order,
+    model_title,
+    paper_row,
     read_json,
     write_json,
     write_text,
@@ -64,8 +66,8 @@ PAPER_TABLE2_CM: Mapping[str, Mapping[str, tuple[float, float, float]]] = {
 }
 
 
-def _order(record: Mapping[str, Any]) -> tuple[int, int, int, int]:
-    return (MODELS.index(record["model"]), ALL_TASKS.index(record["task"]),
+def _order(record: Mapping[str, Any]) -> tuple[tuple[int, str], int, int, int]:
+    return (model_order(record["model"]), ALL_TASKS.index(record["task"]),
             SIZES.index(record["size"]), record["seed"])
 
 
@@ -113,7 +115,7 @@ def markdown_table(rows: Mapping[str, Mapping[tuple[str, int], str]], tasks: Seq
     lines = ["| " + " | ".join(header) + " |", "|---" + "|---:" * (len(header) - 1) + "|"]
     for model, values in rows.items():
         cells = [values.get((t, s), "—") for t in tasks for s in sizes]
-        lines.append(f"| {MODEL_TITLES[model]} | " + " | ".join(cells) + " |")
+        lines.append(f"| {model_title(model)} | " + " | ".join(cells) + " |")
     return lines
 
 
@@ -140,11 +142,12 @@ def differences_markdown(stats: Mapping[Key, tuple[float, float | None, int]]) -
     lines = ["| Model | Task | Size | Ours | Paper | Paper / ours | No image | Ours at the "
              "no-image level | Paper above it |", "|---|---|---:|---:|---:|---:|---:|---|---|"]
     for (model, task, size), (mean, _, _) in sorted(
-            stats.items(), key=lambda kv: (MODELS.index(kv[0][0]) if kv[0][0] in MODELS
-                                           else len(MODELS), ALL_TASKS.index(kv[0][1]), kv[0][2])):
-        if model == NO_IMAGE or task not in PAPER_TABLE2_CM[model]:  # a task beyond the paper
+            stats.items(), key=lambda kv: (model_order(kv[0][0]), ALL_TASKS.index(kv[0][1]),
+                                           kv[0][2])):
+        row = paper_row(model)
+        if row is None or task not in PAPER_TABLE2_CM[row]:  # no paper row, a task beyond it
             continue
-        paper = PAPER_TABLE2_CM[model][task][SIZES.index(size)]
+        paper = PAPER_TABLE2_CM[row][task][SIZES.index(size)]
         ratio = paper / mean
         if 1 / RATIO_FLAGGED <= ratio <= RATIO_FLAGGED:
             continue
@@ -153,7 +156,7 @@ def differences_markdown(stats: Mapping[Key, tuple[float, float | None, int]]) -
         if reference is not None:
             level = "yes" if mean > NEAR_NO_IMAGE * reference[0] else "no"
             above = "yes" if paper > reference[0] else "no"
-        lines.append(f"| {MODEL_TITLES[model]} | {TASK_TITLES[task]} | {size} | {mean:.2f} | "
+        lines.append(f"| {model_title(model)} | {TASK_TITLES[task]} | {size} | {mean:.2f} | "
                      f"{paper:.2f} | {ratio:.2f} | "
                      f"{'—' if reference is None else f'{reference[0]:.2f}'} | {level} | "
                      f"{above} |")
@@ -170,7 +173,7 @@ def table2_markdown(cells: Sequence[Mapping[str, Any]], failed: Sequence[Mapping
     ``yumi`` scene (grasp positions, offline) the paper has no such table: ours alone.
     """
     present = [*cells, *failed]
-    models = [m for m in MODELS if any(c["model"] == m for c in present)]
+    models = sorted({c["model"] for c in present}, key=model_order)
     tasks = [t for t in ALL_TASKS if any(c["task"] == t for c in present)]
     sizes = [s for s in SIZES if any(c["size"] == s for c in present)]
     stats, above = spread(cells), failures(cells)
@@ -182,9 +185,10 @@ def table2_markdown(cells: Sequence[Mapping[str, Any]], failed: Sequence[Mapping
         count, worst = above[(model, task, size)]
         ours[model][(task, size)] = _shown(mean, std) + (f" (n={n})" if n < most else "") + (
             f" [{count}/{n} > {BOLD_BELOW_CM:g}, worst {worst:.1f}]" if count and n > 1 else "")
+    rows = [row for row in MODELS if row in {paper_row(m) for m in models}]
     paper = {m: {(t, s): _shown(PAPER_TABLE2_CM[m][t][SIZES.index(s)], None)
                  if t in PAPER_TABLE2_CM[m] else "—" for t in tasks for s in sizes}
-             for m in models}
+             for m in rows}
     references = spread(reference)
     if references:
         ours[NO_IMAGE] = {(t, s): _shown(mean, std)
@@ -259,7 +263,7 @@ def judged_markdown(cells: Sequence[Mapping[str, Any]]) -> list[str]:
                                for name, (picked, n) in sorted(objects.items()))
         yaw = max(a["errors"]["yaw_deg"]["p95"] for a in alls)
         closing = max(a["errors"]["closing_mm"]["p95"] for a in alls)
-        lines.append(f"| {MODEL_TITLES[model]} | {TASK_TITLES[task]} | {size} | {per_seed} | "
+        lines.append(f"| {model_title(model)} | {TASK_TITLES[task]} | {size} | {per_seed} | "
                      f"{100 * pooled:.1f} | {per_object} | {yaw:.0f} | {closing:.1f} |")
     return lines
 
@@ -281,7 +285,7 @@ def worst_conditions_markdown(cells: Sequence[Mapping[str, Any]]) -> list[str]:
     for (model, task, size), group in groups.items():
         worst = max(group, key=lambda c: max([e for _, e in parts(c)] or [c["error_cm"]]))
         name, error = max(parts(worst) or [("mean", worst["error_cm"])], key=lambda p: p[1])
-        lines.append(f"| {MODEL_TITLES[model]} | {TASK_TITLES[task]} | {size} | seed "
+        lines.append(f"| {model_title(model)} | {TASK_TITLES[task]} | {size} | seed "
                      f"{worst['seed']} | {worst['error_cm']:.2f} | {name} {error:.2f} |")
     return lines
 

@@ -19,9 +19,11 @@ from experiments.tables import (
     check_choices,
     check_counts,
     check_model_configs,
+    check_models,
     model_config,
     model_config_file,
     model_config_options,
+    model_order,
 )
 from perception.learning.train import TrainConfig, available_threads
 from perception.model_config_file import ModelConfigFile
@@ -73,7 +75,8 @@ class ReproduceSimSettings:
     """What ``gva reproduce sim`` runs; its fields' defaults are the command's.
 
     Args:
-        models: Models, from :data:`~experiments.tables.MODELS`.
+        models: Models, names ``new_model`` takes (the paper's :data:`~experiments.tables.MODELS`
+            by default; a preset such as ``kqv-paper`` or a plug-in too).
         tasks: Tasks, from :data:`~experiments.tables.ALL_TASKS` (default: the paper's).
         sizes: Training set sizes, from :data:`SIZES`.
         seeds: Number of training seeds.
@@ -107,7 +110,7 @@ class ReproduceSimSettings:
 
     def __post_init__(self) -> None:
         check_choices("scene", (self.scene,), SCENES)
-        check_choices("models", self.models, MODELS)
+        check_models(self.models)
         check_choices("tasks", self.tasks, ALL_TASKS)
         check_choices("sizes", self.sizes, SIZES)
         check_model_configs([(f.model, f.path) for f in self.model_configs], self.models)
@@ -120,7 +123,7 @@ class ReproduceSimSettings:
 
     def cells(self) -> list[Cell]:
         """Every cell, in the paper's order (models, tasks, sizes, then seeds)."""
-        return [Cell(m, t, s, seed) for m in MODELS if m in self.models
+        return [Cell(m, t, s, seed) for m in sorted(self.models, key=model_order)
                 for t in ALL_TASKS if t in self.tasks for s in SIZES if s in self.sizes
                 for seed in self.training_seeds]
 

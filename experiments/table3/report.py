@@ -26,15 +26,15 @@ from experiments.table3.settings import (
 from experiments.table3.trial_sets import (
     TrialSetResult,
     first_pick_errors_cm,
-    model_order,
     read_trial_sets,
 )
 from experiments.tables import (
     ALL_TASKS,
-    MODEL_TITLES,
     TASK_TITLES,
     TASKS,
     duration,
+    model_order,
+    model_title,
     write_json,
     write_text,
 )
@@ -102,11 +102,6 @@ def baseline_comparisons(sets: Sequence[TrialSetResult]) -> list[BaselineCompari
             found.append(BaselineComparison(result.model, result.task, seed, comparison,
                                             len(common) < result.expected))
     return found
-
-
-def model_title(model: str) -> str:
-    """The row title of a model (the paper's names where it has them)."""
-    return MODEL_TITLES.get(model, model)
 
 
 def row_title(model: str, variant: Variant) -> str:

@@ -17,6 +17,7 @@ from experiments.tables import (
     check_choices,
     check_counts,
     check_model_configs,
+    check_models,
     dataset_path,
     model_config,
     model_config_file,
@@ -26,7 +27,6 @@ from experiments.tables import (
 from perception.learning.train import TrainConfig, available_threads
 from perception.learning.validation import CheckConfig
 from perception.model_config_file import ModelConfigFile
-from perception.registry import MODELS, PRESETS
 from sim.errors import InvalidInputError
 from sim.jobs import LOCAL, Executor
 from sim.tasks.scene_sampling import SeedStream
@@ -57,11 +57,6 @@ class Variant(enum.Enum):
     PLAIN = "plain"  # the task as trained
     DARK = "dark"  # the same scenes under darker light
     DISTRACTOR = "distractor"  # the same scenes plus a distractor that is never a target
-
-
-def allowed_models() -> tuple[str, ...]:
-    """The model names ``new_model`` takes: registered models and presets."""
-    return (*MODELS, *PRESETS)
 
 
 def variant_task(task: str, variant: Variant, sensor: SensorKind = SensorKind.IDEAL
@@ -174,11 +169,10 @@ class ReproduceRealSettings:
     model_configs: tuple[ModelConfigFile, ...] = ()
 
     def __post_init__(self) -> None:
-        custom = tuple(m for m in self.models if ":" in m)  # package.module:Class
         if not isinstance(self.sensor, SensorKind):
             raise InvalidInputError("sensor", self.sensor,
                                     f"one of {', '.join(k.value for k in SensorKind)}")
-        check_choices("models", self.models, (*allowed_models(), *custom))
+        check_models(self.models)
         check_choices("tasks", self.tasks, ALL_TASKS)
         check_model_configs([(f.model, f.path) for f in self.model_configs], self.models)
         check_counts(self, {"n": 1, "demos": 1, "steps": 1, "seed": 0, "seeds": 1,

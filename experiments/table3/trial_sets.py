@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from experiments.table3.settings import Variant, seed_folder
-from experiments.tables import ALL_TASKS, MODEL_TITLES
+from experiments.tables import ALL_TASKS, model_order
 from sim.trials.records import TrialRecord, TrialSummary
 
 
@@ -121,7 +121,3 @@ def read_trial_sets(out: Path, seeds: Sequence[int], n: int) -> list[TrialSetRes
     return found
 
 
-def model_order(model: str) -> tuple[int, str]:
-    """Where ``model`` sorts in the tables: the paper's order, then others by name."""
-    known = list(MODEL_TITLES)
-    return (known.index(model) if model in known else len(known), model)

@@ -19,7 +19,7 @@ from experiments.table2.report import (
 )
 from experiments.table2.run import run_reproduce_sim
 from experiments.table2.settings import Cell, ReproduceSimSettings, cell_path
-from experiments.tables import MODELS, model_config
+from experiments.tables import MODELS, model_config, model_order, paper_row
 from perception.learning.dataset_file import load_dataset
 from sim.errors import InvalidInputError, RunFolderError
 
@@ -250,7 +250,9 @@ def test_model_config_is_what_new_model_builds(tiny_run):
 
 @pytest.mark.parametrize(("option", "value", "allowed"), [
     ("--models", "kqv,resnet", "'resnet' is not allowed: distinct comma-separated values from "
-                               "kqv, keypoint-16, keypoint-min, dsae-16, conv-ae, fcn"),
+                               "kqv, keypoint, dsae, conv-ae, fcn, keypoint-16, keypoint-min, "
+                               "dsae-16, kqv-mlp, kqv-paper, keypoint-16-helped, "
+                               "keypoint-min-helped, fcn-helped"),
     ("--tasks", "juggle", "'juggle' is not allowed: distinct comma-separated values from "
                           "single, multiple, selected-type, selected-position"),
     ("--sizes", "4,50", "'50' is not allowed: distinct comma-separated values from 4, 20, 100"),
@@ -290,3 +292,20 @@ def test_the_same_sweep_runs_offline_on_the_yumi_scene(tmp_path):
     assert "## Per condition and head, the worst training" in text
     assert "The paper's Table II" not in text
     assert "--scene yumi" in json.loads((out / "table2.json").read_text())["settings"]["command"]
+
+
+def test_the_papers_model_stands_beside_the_papers_kqv_row_and_variants_beside_none():
+    assert paper_row("kqv-paper") == "kqv" and paper_row("kqv") == "kqv"
+    assert [paper_row(m) for m in ("kqv-mlp", "fcn-helped", "my.module:Model")] == [None] * 3
+    table = table2_markdown([
+        {"model": m, "task": "single", "size": 4, "seed": 0, "error_cm": 20.0,
+         "test_scenes": 100} for m in ("fcn-helped", "kqv-paper", "kqv")], [], "made by")
+    ours = [line for line in table.splitlines() if line.startswith("| ") and "20.00" in line]
+    assert [line.split(" | ")[0] for line in ours[:3]] == [
+        "| Ours (kqv, q=min)", "| The paper's model as written (kqv-paper)", "| FCN, helped"]
+    assert sorted(["fcn-helped", "kqv-paper", "kqv"], key=model_order) == [
+        "kqv", "kqv-paper", "fcn-helped"]
+    differences = table.split("differ by more than")[1]
+    assert "| The paper's model as written (kqv-paper) | Single Object | 4 | 20.00 | 4.14 |" in (
+        differences)
+    assert "FCN, helped" not in differences  # no paper row to differ from
