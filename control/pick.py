@@ -25,6 +25,9 @@ class PlanStatus(enum.Enum):
     UNREACHABLE = "unreachable"  # no arm has IK solutions for the pre-grasp, grasp and lift
     COLLISION = "collision"  # IK solutions exist, but every path through them collides
     START_IN_COLLISION = "start_in_collision"  # the start configuration already collides
+    # a re-plan mid-motion (PickPlanner.replan): the motion from the moving state to the new
+    # pre-grasp leaves a joint limit or collides
+    RETARGET_FAILED = "retarget_failed"
 
 
 class GripperCommand(enum.Enum):
@@ -124,6 +127,8 @@ class PickRequest:
             grasp fails on every arm.
         finger_opening_m: Finger joint value while approaching [m] (gap = 2 x this).
         pregrasp_distance_m: Back-off for this grasp; None takes the planner's default.
+        arms: The arms that may pick (empty: every arm, nearer first); a re-plan mid-motion
+            keeps to the arm that moves.
 
     """
 
@@ -135,6 +140,7 @@ class PickRequest:
     alternatives: tuple[pin.SE3, ...] = ()
     finger_opening_m: float = 0.025
     pregrasp_distance_m: float | None = None
+    arms: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)

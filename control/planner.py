@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pinocchio as pin
@@ -35,6 +35,7 @@ from control.pick import (
     PlanSegment,
     PlanStatus,
 )
+from control.retarget import JointState, RetargetError, retarget
 from control.robot_model import RobotModel
 from control.trajectory import JointLimits, JointTrajectory, plan_segment, plan_through
 
@@ -88,10 +89,10 @@ class PickPlanner:
         if not isinstance(request.T_world_grasp, pin.SE3):
             kind = type(request.T_world_grasp).__name__
             raise InvalidInputError("T_world_grasp", kind, "pin.SE3")
-        q0 = self.robot.clip_to_limits(request.q_start, "q_start")
-        for spec in self.arms.values():
-            for finger in spec.finger_joints:
-                q0[self.robot.joint_index(finger)] = request.finger_opening_m
+        unknown = [arm for arm in request.arms if arm not in self.arms]
+        if unknown:
+            raise InvalidInputError("arms", request.arms, f"names among {', '.join(self.arms)}")
+        q0 = self._start(request)
         self.checker.set_obstacles(request.obstacles + request.target_obstacles)
         self._target_names = [o.name for o in request.target_obstacles]
         start_report = self.checker.check(q0)
@@ -105,7 +106,7 @@ class PickPlanner:
         any_ik = False
         for number, T_grasp in enumerate((request.T_world_grasp, *request.alternatives)):
             grasp_name = "grasp" if number == 0 else f"alternative {number}"
-            for arm in self._arms_by_distance(q0, T_grasp.translation):
+            for arm in self._arms_by_distance(q0, T_grasp.translation, request.arms):
                 for scale in self.config.pregrasp_scales:
                     distance_m = scale * pregrasp
                     candidates = self._candidates(arm, T_grasp, q0, distance_m, rng)
@@ -126,12 +127,65 @@ class PickPlanner:
         return PlanResult(status, "; ".join(reasons[:4]), None, time.perf_counter() - started,
                           tried)
 
-    def _arms_by_distance(self, q: np.ndarray, target: np.ndarray) -> list[str]:
+    def replan(self, request: PickRequest, moving: JointState) -> PlanResult:
+        """A new pick for the arm in motion, its approach re-targeted from its moving state.
+
+        Plans as :meth:`plan` from ``request.q_start`` (the robot's configuration now), for the
+        moving arm only, then replaces the approach, planned from rest, by the jerk-limited
+        motion from ``moving`` to the new pre-grasp (:func:`control.retarget.retarget`), checked
+        at every sample as every segment is. Its first sample is ``moving``: the switch is
+        continuous. No plan (``RETARGET_FAILED``, or why :meth:`plan` found none) tells the
+        caller to keep the plan it follows, or to stop.
+
+        Raises:
+            InvalidInputError: ``moving`` is not the joints of one arm, in order.
+
+        """
+        arm = next((name for name, spec in self.arms.items()
+                    if spec.joints == moving.joint_names), None)
+        if arm is None:
+            raise InvalidInputError("moving.joint_names", moving.joint_names, "one arm's joints: "
+                                    + "; ".join(f"{a}: {s.joints}" for a, s in self.arms.items()))
+        started = time.perf_counter()
+        result = self.plan(replace(request, arms=(arm,)))
+        if result.plan is None:
+            return result
+        plan, q0 = result.plan, self._start(request)
+        q_pre = plan.segment("approach").trajectory.positions[-1]
+        try:
+            approach = retarget(moving, q_pre, self.transit_limits(arm), self.config.dt_s)
+        except RetargetError as error:
+            return replace(result, status=PlanStatus.RETARGET_FAILED, plan=None,
+                           reason=f"arm {arm}: {error.result} ({error.detail or error})",
+                           planning_time_s=time.perf_counter() - started)
+        report = self._check(arm, q0, approach)
+        if report.in_collision:
+            return replace(result, status=PlanStatus.RETARGET_FAILED, plan=None,
+                           reason=f"arm {arm}, re-targeted approach: {report.describe()}",
+                           planning_time_s=time.perf_counter() - started)
+        segments = (PlanSegment("approach", approach, GripperCommand.OPEN), *plan.segments[1:])
+        return replace(result, plan=replace(plan, segments=segments),
+                       planning_time_s=time.perf_counter() - started)
+
+    def _start(self, request: PickRequest) -> np.ndarray:
+        """The start configuration: ``q_start`` within limits, every gripper open as asked."""
+        q0 = self.robot.clip_to_limits(request.q_start, "q_start")
+        for spec in self.arms.values():
+            for finger in spec.finger_joints:
+                q0[self.robot.joint_index(finger)] = request.finger_opening_m
+        return q0
+
+    def transit_limits(self, arm: str) -> JointLimits:
+        """The joint limits ``arm``'s approach and retreat are planned under."""
+        return self._limits[(arm, self.config.transit_velocity_scale)]
+
+    def _arms_by_distance(self, q: np.ndarray, target: np.ndarray,
+                          allowed: tuple[str, ...] = ()) -> list[str]:
         def distance(arm: str) -> float:
             shoulder = self.robot.frame_pose(q, self.arms[arm].shoulder_frame).translation
             return float(np.linalg.norm(shoulder - target))
 
-        return sorted(self.arms, key=distance)
+        return sorted((arm for arm in self.arms if not allowed or arm in allowed), key=distance)
 
     def _candidates(
         self, arm: str, T_grasp: pin.SE3, q0: np.ndarray, pregrasp_m: float,
