@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 import pybullet
+from scipy import ndimage
 
 from perception.camera import PinholeCamera, RgbdFrame
 from perception.interface import InvalidInputError as PerceptionInputError
@@ -31,6 +32,11 @@ from sim.world.d435 import (
     wide_camera_for,
 )
 from sim.world.sensor import SensorConfig, SensorKind, SensorSeed
+
+SELF_FILTER_PADDING_PX = 2
+"""How far a frame's self filter grows the robot's own pixels [px]: about 6 mm at the table
+(128 px over 37 deg, 0.6 m away), over twice what the hand-eye rotation error's RMS (0.25 deg,
+``D435Config``) moves an edge there (2.6 mm), so the arm's silhouette leaves no rim behind."""
 
 
 @dataclass(frozen=True)
@@ -228,7 +234,7 @@ class HeadCamera:
         return self.render_rgbd(client, lighting, seed).rgb
 
     def render_rgbd(self, client: Any, lighting: Lighting | None = None,
-                    seed: SensorSeed | None = None) -> RgbdFrame:
+                    seed: SensorSeed | None = None, self_body: int | None = None) -> RgbdFrame:
         """Render colour and depth together, with the camera's calibration (see :meth:`render`).
 
         Depth is along the optical axis [m], from PyBullet's depth buffer (OpenGL's non-linear
@@ -236,12 +242,18 @@ class HeadCamera:
         rendered wider from :meth:`true_camera`'s pose, distorted by its lens (colour
         bilinear, depth nearest), the stereo shadow and noise added, 0.0 where it has no depth;
         ``seed`` is required (the noise is drawn per frame, never from a global generator).
+
+        ``self_body``: the robot's body, whose own pixels get no depth (0: no measurement), grown
+        by :data:`SELF_FILTER_PADDING_PX`, so a frame taken while the arm is in view gives the
+        planner no obstacle where the arm is. A real robot does the same by rendering its model
+        at the measured joints through the calibrated camera (e.g. ``realtime_urdf_filter``);
+        here PyBullet's segmentation of that model stands in for it.
         """
         c, light = self.config, self.config.lighting if lighting is None else lighting
         if self.sensor.kind is SensorKind.IDEAL:
-            rgb, depth = self._render(client, c.width_px, c.height_px, self.view_matrix,
-                                      self.projection_matrix, light)
-            return RgbdFrame(rgb, depth, self.pinhole)
+            rgb, depth, bodies = self._render(client, c.width_px, c.height_px,
+                                              self.view_matrix, self.projection_matrix, light)
+            return RgbdFrame(rgb, _self_filtered(depth, bodies, self_body), self.pinhole)
         if not isinstance(seed, SensorSeed):
             raise InvalidInputError("seed", seed, "a SensorSeed: a D435 draws its noise per "
                                     "frame and its mount per run seed")
@@ -253,18 +265,26 @@ class HeadCamera:
         view = pybullet.computeViewMatrix(wide.position_m, wide.target_m, wide.up)
         projection = pybullet.computeProjectionMatrixFOV(wide.vertical_fov_deg, tan_x / tan_y,
                                                          c.near_m, c.far_m)
-        rgb_wide, depth_wide = self._render(client, wide.width_px, wide.height_px, view,
-                                            projection, light)
+        rgb_wide, depth_wide, bodies_wide = self._render(client, wide.width_px, wide.height_px,
+                                                         view, projection, light)
         rng = seed.noise_rng()
         rgb = colour_noise(distort_image(rgb_wide, wide, true), rng, sensor)
         depth = invalid_depth_edges(distort_depth(depth_wide, wide, true), true, sensor)
-        return RgbdFrame(rgb, depth_noise(depth, true, rng, sensor), self.pinhole)
+        depth = depth_noise(depth, true, rng, sensor)
+        if self_body is not None:  # the body ids registered as the depth is (nearest)
+            bodies = distort_depth(bodies_wide.astype(np.float32), wide, true).astype(int)
+            depth = _self_filtered(depth, bodies, self_body)
+        return RgbdFrame(rgb, depth, self.pinhole)
 
     def _render(self, client: Any, width_px: int, height_px: int, view: Any, projection: Any,
-                light: Lighting) -> tuple[np.ndarray, np.ndarray]:
-        """PyBullet's image: RGB uint8 (H, W, 3) and depth float32 (H, W) [m], inf for none."""
+                light: Lighting) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """PyBullet's image: RGB, depth and the body each pixel shows.
+
+        RGB uint8 (H, W, 3); depth float32 (H, W) [m], inf for none; bodies int (H, W), -1 for
+        none.
+        """
         c = self.config
-        _, _, rgba, buffer, _ = client.getCameraImage(
+        _, _, rgba, buffer, segmentation = client.getCameraImage(
             width_px, height_px, view, projection,
             lightDirection=list(light.direction),
             lightColor=[light.brightness] * 3,
@@ -279,7 +299,8 @@ class HeadCamera:
         buffer = np.asarray(buffer, dtype=np.float64).reshape(height_px, width_px)
         with np.errstate(divide="ignore"):
             depth = c.far_m * c.near_m / (c.far_m - (c.far_m - c.near_m) * buffer)
-        return rgb, np.where(buffer >= 1.0, np.inf, depth).astype(np.float32)  # (H, W)
+        bodies = np.asarray(segmentation, dtype=np.int64).reshape(height_px, width_px)
+        return rgb, np.where(buffer >= 1.0, np.inf, depth).astype(np.float32), bodies
 
     def project(self, points_world: np.ndarray) -> np.ndarray:
         """Pixel coordinates (u right, v down) of world points, (N, 3) -> (N, 2).
@@ -291,3 +312,15 @@ class HeadCamera:
         if np.ndim(points_world) not in (1, 2) or np.shape(points_world)[-1] != 3:
             raise InvalidInputError("points_world", np.shape(points_world), "shape (N, 3)")
         return self.pinhole.project(points_world)
+
+
+def _self_filtered(depth_m: np.ndarray, bodies: np.ndarray, self_body: int | None
+                   ) -> np.ndarray:
+    """``depth_m`` without its measurements (0) where ``bodies`` shows ``self_body``.
+
+    The robot's pixels grown by :data:`SELF_FILTER_PADDING_PX`; None: ``depth_m`` unchanged.
+    """
+    if self_body is None:
+        return depth_m
+    own = ndimage.binary_dilation(bodies == self_body, iterations=SELF_FILTER_PADDING_PX)
+    return np.where(own, np.float32(0.0), depth_m).astype(np.float32)
