@@ -35,6 +35,9 @@ a user writes a new one as a TOML file and passes its path wherever a task name 
     [camera]
     sensor = "ideal"          # ideal | d435 (then any D435Config field by name)
 
+    [disturbance]             # optional: the target moves during the pick (issue 36)
+    move_m = [0.03, 0.08]     # see sim/tasks/disturbance.py
+
 A task is valid in both scenes: the object types come from the scene (``paper-sim``: duck,
 soccer ball, mug; ``yumi``: sponge, spray bottle, mug, plus a wooden block and table clutter as
 distractors only), and so does the workspace unless the task narrows it with
@@ -57,6 +60,7 @@ from typing import Any
 from perception.interface import ConditionKind
 from perception.interface import InvalidInputError as PerceptionInputError
 from sim.errors import InvalidInputError
+from sim.tasks.disturbance import Disturbance
 from sim.tasks.phrasings import Phrasings
 from sim.world.head_camera import CameraConfig
 from sim.world.sensor import SensorConfig, SensorKind
@@ -135,6 +139,9 @@ class TaskSpec:
             [low, high] of the distinct ``distractors``, chosen without replacement; None (the
             default): every scene presents them all.
         camera: The head camera's sensor (``[camera]``): the ideal pinhole, or a D435's.
+        disturbance: How the target moves during a pick (``[disturbance]``,
+            :mod:`sim.tasks.disturbance`); None (the default): it lies still. It needs the
+            ``yumi`` scene's physics: the trial runner applies it.
         source: The file the task came from.
 
     """
@@ -157,6 +164,7 @@ class TaskSpec:
     distractors: tuple[str, ...] = ()
     distractors_per_scene: tuple[int, int] | None = None
     camera: SensorConfig = dataclasses.field(default_factory=SensorConfig)
+    disturbance: Disturbance | None = None
     source: str = "<code>"
 
     def __post_init__(self) -> None:
@@ -229,6 +237,8 @@ class TaskSpec:
                       f"a number in (0, {MAX_BRIGHTNESS:g}]")
         if not isinstance(self.camera, SensorConfig):
             raise bad("camera", self.camera, "a SensorConfig")
+        if not (self.disturbance is None or isinstance(self.disturbance, Disturbance)):
+            raise bad("disturbance", self.disturbance, "a Disturbance or None")
         lens = self.camera.d435.colour_distortion_k1_k2_p1_p2_k3
         try:  # one-to-one over the head camera's image (and beyond): PinholeCamera checks it
             replace(CameraConfig().pinhole, distortion_k1_k2_p1_p2_k3=lens)
@@ -252,13 +262,17 @@ class TaskSpec:
     def recorded_fields(self) -> dict[str, Any]:
         """The fields records keep of the task (run identities, datasets' task records).
 
-        Without its source; the sensor as ``"camera"`` (:meth:`SensorConfig.to_json`) and
-        ``"distractors_per_scene"`` only where set, so records from before either existed (all
-        ideal, every distractor presented) are the same task.
+        Without its source; the sensor as ``"camera"`` (:meth:`SensorConfig.to_json`),
+        ``"distractors_per_scene"`` and ``"disturbance"`` (:meth:`Disturbance.to_json`) only
+        where set, so records from before they existed (all ideal, every distractor presented,
+        targets lying still) are the same task.
         """
         data = dataclasses.asdict(self)
         data.pop("source")
         data.pop("camera")
+        data.pop("disturbance")
+        if self.disturbance is not None:
+            data["disturbance"] = self.disturbance.to_json()
         if self.distractors_per_scene is None:
             data.pop("distractors_per_scene")
         if self.camera.kind is not SensorKind.IDEAL:

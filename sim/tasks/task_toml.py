@@ -18,6 +18,7 @@ from typing import Any
 
 from perception.interface import ConditionKind
 from sim.errors import InvalidInputError
+from sim.tasks.disturbance import Disturbance, DisturbanceWhen, disturbance_from_table
 from sim.tasks.phrasings import Phrasings, read_phrase_file
 from sim.tasks.task_spec import (
     MAX_OBJECTS,
@@ -42,7 +43,7 @@ def _key(key: str) -> str:
 
 _SECTIONS: dict[str, set[str]] = {
     "": {"name", "description", "objects", "targets", "condition", "placement", "lighting",
-         "distractors", "camera"},
+         "distractors", "camera", "disturbance"},
     "objects": {"choose", "count", "balance_types"},
     "targets": {"select"},
     "condition": {"kind", "given_as", "phrases"},
@@ -50,6 +51,7 @@ _SECTIONS: dict[str, set[str]] = {
     "lighting": {"brightness"},
     "distractors": {"types", "per_scene"},
     "camera": {"sensor", *(f.name for f in dataclasses.fields(D435Config))},
+    "disturbance": {f.name for f in dataclasses.fields(Disturbance)},
 }
 
 
@@ -159,8 +161,21 @@ def task_from_toml(text: str, source: str = "<string>") -> TaskSpec:
         distractors=tuple(distractors),
         distractors_per_scene=None if per_scene is None else (per_scene[0], per_scene[1]),
         camera=_camera(reader, source),
+        disturbance=_disturbance(reader, source),
         source=source,
     )
+
+
+def _disturbance(reader: _Reader, source: str) -> Disturbance | None:
+    """``[disturbance]``: how the target moves during a pick; None where the table is absent."""
+    if "disturbance" not in reader.data:
+        return None
+    table: dict[str, Any] = {
+        "move_m": reader.pair("disturbance", "move_m") or (0.0, 0.0),
+        "turn_deg": reader.pair("disturbance", "turn_deg") or (0.0, 0.0),
+        "velocity_m_s": reader.number("disturbance", "velocity_m_s", 0.0),
+        "when": reader.choice("disturbance", "when", DisturbanceWhen, DisturbanceWhen.APPROACH)}
+    return disturbance_from_table(table, f"task file {source}")
 
 
 def _camera(reader: _Reader, source: str) -> SensorConfig:
@@ -269,6 +284,8 @@ def task_to_toml(task: TaskSpec) -> str:
             else {"per_scene": list(task.distractors_per_scene)}),
         "camera": task.camera.to_json(),
     }
+    if task.disturbance is not None:
+        tables["disturbance"] = task.disturbance.to_json()
     if task.phrasings is not None:
         for split, phrases in task.phrasings.to_json().items():
             tables[f"condition.phrases.{split}"] = {_key(t): p for t, p in phrases.items()}

@@ -14,7 +14,7 @@ import pybullet_data
 from pybullet_utils import bullet_client
 
 from perception.catalog import ObjectSpec, PrimitiveKind
-from perception.poses import Pose
+from perception.poses import Pose, rot_z
 from robots import yumi
 from sim.errors import InvalidInputError, SimulationError
 from sim.world.quiet import silenced_output
@@ -126,6 +126,7 @@ class World:
         self.steps = 0
         self._objects: dict[int, ObjectSpec] = {}
         self._shapes: dict[ObjectSpec, tuple[int, int]] = {}
+        self._sliding: dict[int, tuple[float, float]] = {}
         self.robot = SimRobot(client, robot_id, self.config.robot, step=self.step)
 
     def rebuild(self) -> None:
@@ -150,6 +151,9 @@ class World:
             raise InvalidInputError("n", n, f"a number of steps in [0, {most}] ({MAX_WAIT_S} s)")
         for _ in range(n):
             self.robot.before_step()
+            for body, (vx, vy) in self._sliding.items():  # carried as on a belt: see keep_sliding
+                vz = self.client.getBaseVelocity(body)[0][2]
+                self.client.resetBaseVelocity(body, [vx, vy, vz], [0.0, 0.0, 0.0])
             self.client.stepSimulation()
             self.steps += 1
             if self.step_hook is not None:
@@ -160,13 +164,7 @@ class World:
     ) -> int:
         """Place an object resting on the table at ``position_xy_m`` turned by ``yaw_rad``."""
         x, y = (float(v) for v in position_xy_m)
-        cx, cy = self.config.table_center_xy_m
-        hx, hy = TABLE_HALF_SIZE_M
-        if not (abs(x - cx) <= hx - 0.05 and abs(y - cy) <= hy - 0.05):
-            raise InvalidInputError(
-                "position_xy_m", (x, y), f"on the table, x {cx - hx + 0.05}..{cx + hx - 0.05} m, "
-                f"y {cy - hy + 0.05}..{cy + hy - 0.05} m",
-            )
+        self._check_on_table("position_xy_m", (x, y), (x, y))
         collision, visual = self._shape_ids(spec)
         body = int(self.client.createMultiBody(
             baseMass=spec.mass_kg, baseCollisionShapeIndex=collision,
@@ -185,6 +183,89 @@ class World:
         self._objects[body] = spec
         return body
 
+    def _check_on_table(self, field: str, value: Any, xy: tuple[float, float],
+                        moved: str = "") -> None:
+        """Raises unless ``xy`` is where :meth:`add_object` places objects: 5 cm inside the top."""
+        (cx, cy), (hx, hy) = self.config.table_center_xy_m, TABLE_HALF_SIZE_M
+        if not (abs(xy[0] - cx) <= hx - 0.05 and abs(xy[1] - cy) <= hy - 0.05):
+            raise InvalidInputError(field, value, f"{moved}on the table, x {cx - hx + 0.05}.."
+                                    f"{cx + hx - 0.05} m, y {cy - hy + 0.05}..{cy + hy - 0.05} m")
+
+    def move_object(self, body_id: int, dx_m: float, dy_m: float, dyaw_rad: float,
+                    settle_s: float = 0.25) -> Pose:
+        """Teleport and settle: moves an object on the table by (dx, dy) and turns it by dyaw.
+
+        The object frame (:meth:`object_pose`: footprint centre, z up) is lifted 2 mm, moved by
+        ``(dx_m, dy_m)`` and turned by ``dyaw_rad`` about the world vertical through its
+        footprint centre, its velocities zeroed and it woken; then the world steps ``settle_s``
+        so it drops the 2 mm and rests on the table again (a push's path is not simulated:
+        nothing it would have brushed against on the way is disturbed). Returns its new pose.
+
+        Raises:
+            InvalidInputError: An unknown body, a value that is not finite, a ``settle_s``
+                outside [0, MAX_WAIT_S], or a move that leaves the table area
+                :meth:`add_object` allows (field ``dx_m, dy_m``).
+
+        """
+        spec = self.object_spec(body_id)
+        for name, value in (("dx_m", dx_m), ("dy_m", dy_m), ("dyaw_rad", dyaw_rad)):
+            if not math.isfinite(value):
+                raise InvalidInputError(name, value, "a finite number")
+        check_wait_s("settle_s", settle_s)
+        pose = self.object_pose(body_id)
+        x, y, z = (float(v) for v in pose.position)
+        self._check_on_table("dx_m, dy_m", (dx_m, dy_m), (x + dx_m, y + dy_m),
+                             f"a move that keeps the object ({x:.3f}, {y:.3f} m) ")
+        origin = np.array([x + dx_m, y + dy_m, z + 0.002])
+        rotation = rot_z(dyaw_rad) @ pose.rotation
+        _, quaternion = self.client.multiplyTransforms(  # the turn, then the object's rotation
+            [0.0, 0.0, 0.0], self.client.getQuaternionFromEuler([0.0, 0.0, dyaw_rad]),
+            [0.0, 0.0, 0.0], self.client.getBasePositionAndOrientation(body_id)[1])
+        self.client.resetBasePositionAndOrientation(  # PyBullet's base is the centre of mass
+            body_id, (origin + rotation @ spec.center_of_mass_m).tolist(), quaternion)
+        self.client.resetBaseVelocity(body_id, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
+        self.client.changeDynamics(body_id, -1, activationState=pybullet.ACTIVATION_STATE_WAKE_UP)
+        self.step(round(settle_s / self.config.time_step_s))
+        return self.object_pose(body_id)
+
+    def keep_sliding(self, body_id: int, velocity_xy_m_s: tuple[float, float]) -> None:
+        """Carries an object across the table at a steady velocity, as a conveyor belt would.
+
+        Until :meth:`stop_sliding`, every :meth:`step` sets its horizontal velocity to
+        ``velocity_xy_m_s`` [m/s] (and its spin to zero; gravity and contacts keep its
+        vertical motion), and its friction is off: a belt moving under it drags it along,
+        so the table's friction must not hold it back (with friction on, a velocity set
+        before each step moved a sponge 0.5 mm, not 25 mm, in 0.5 s at 0.05 m/s: the step's
+        friction impulse stops it). It does not sleep meanwhile. Call :meth:`stop_sliding`
+        before the fingers close on it: an object without friction cannot be held, and a
+        carried one pushes against the grip.
+        """
+        self.object_spec(body_id)
+        vx, vy = (float(v) for v in velocity_xy_m_s)
+        if not (math.isfinite(vx) and math.isfinite(vy)):
+            raise InvalidInputError("velocity_xy_m_s", (vx, vy), "two finite numbers [m/s]")
+        self.client.changeDynamics(
+            body_id, -1, lateralFriction=0.0, spinningFriction=0.0, rollingFriction=0.0,
+            activationState=pybullet.ACTIVATION_STATE_DISABLE_SLEEPING)
+        self.client.changeDynamics(body_id, -1, activationState=pybullet.ACTIVATION_STATE_WAKE_UP)
+        self._sliding[body_id] = (vx, vy)
+
+    def stop_sliding(self, body_id: int) -> None:
+        """Stops :meth:`keep_sliding`: the object stops with the belt, its friction restored.
+
+        Its horizontal velocity and spin are zeroed; nothing happens to an object not sliding.
+        """
+        spec = self.object_spec(body_id)
+        if self._sliding.pop(body_id, None) is None:
+            return
+        vz = self.client.getBaseVelocity(body_id)[0][2]
+        self.client.resetBaseVelocity(body_id, [0.0, 0.0, vz], [0.0, 0.0, 0.0])
+        self.client.changeDynamics(
+            body_id, -1, lateralFriction=spec.lateral_friction,
+            spinningFriction=spec.spinning_friction_m, rollingFriction=spec.rolling_friction_m,
+            activationState=pybullet.ACTIVATION_STATE_ENABLE_SLEEPING
+            if self.config.object_sleeping else pybullet.ACTIVATION_STATE_DISABLE_SLEEPING)
+
     def sleep_resting_objects(self) -> None:
         """Puts every object at rest to sleep now, rather than after Bullet's 2 s of stillness.
 
@@ -194,6 +275,8 @@ class World:
         if not self.config.object_sleeping:
             return
         for body in self._objects:
+            if body in self._sliding:
+                continue
             linear, angular = self.client.getBaseVelocity(body)
             if np.linalg.norm(linear) < REST_SPEED_M_S and \
                     np.linalg.norm(angular) < REST_SPEED_RAD_S:
@@ -203,6 +286,7 @@ class World:
     def remove_object(self, body_id: int) -> None:
         """Take an object out of the world."""
         self.object_spec(body_id)
+        self._sliding.pop(body_id, None)
         self.client.removeBody(body_id)
         del self._objects[body_id]
 
