@@ -40,10 +40,10 @@ from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_spec import TaskSpec
 from sim.tasks.task_toml import load_task
 from sim.trials.execution import ExecutionSettings
-from sim.trials.pick_results import PickAttempt
+from sim.trials.pick_results import PickAttempt, Sighting, trial_result
 from sim.trials.records import TrialOutcome
 from sim.trials.run_loop import trial_scene
-from sim.trials.trial_runner import Sighting, TrialRunner, trial_result
+from sim.trials.trial_runner import TrialRunner
 
 WORKSPACE_BOUND_M = 1.0
 """Grasp positions the action space holds: within this of the robot base on each axis [m]."""

@@ -10,6 +10,7 @@ and the target stayed pinched between both fingers the whole time.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from control.pick import GripperCommand, PickPlan
@@ -20,6 +21,14 @@ from sim.world.yumi_world import MAX_WAIT_S, World
 
 TOUCH_DISTANCE_M = 1e-4
 """Contact points closer than this count as touching [m]."""
+
+StepWatch = Callable[[int], bool]
+"""Called after each physics step of a segment; True stops the robot (it touched something)."""
+
+ApproachFollower = Callable[[PickPlan, StepWatch], tuple[PickPlan, bool]]
+"""Tracks a plan's approach in its own way (re-targeting it, moving the target; see
+:mod:`sim.trials.closed_loop`): given the plan and the contact watch, returns the plan followed
+from the approach's end on, and whether the watch stopped the robot."""
 
 
 @dataclass(frozen=True)
@@ -87,15 +96,29 @@ def execute_pick(
     target_body: int,
     opening_m: float,
     settings: ExecutionSettings,
+    follow: ApproachFollower | None = None,
 ) -> ExecutionResult:
-    """Runs ``plan`` on ``world`` and judges whether ``target_body`` was picked."""
+    """Runs ``plan`` on ``world`` and judges whether ``target_body`` was picked.
+
+    ``follow`` tracks the approach instead of tracking it as planned: a closed loop may hand
+    back another plan, whose later segments are then run, and the target may have moved on the
+    way, so its rise is then measured from where it rests when the approach ends.
+    """
     robot, arm = world.robot, plan.arm
     start_bottom = world.object_bottom_z_m(target_body)
     forbidden = {world.table_id: "the table"}
     forbidden |= {b: f"the {s.name}" for b, s in world.objects.items() if b != target_body}
     watch = _ContactWatch(world, forbidden)
+    segments = plan.segments
+    if follow is not None:
+        robot.open_gripper(arm, opening_m)  # the approach's gripper command
+        plan, stopped = follow(plan, watch)
+        if stopped:
+            return ExecutionResult(TrialOutcome.COLLIDED, f"approach: {watch.hit}",
+                                   world.object_bottom_z_m(target_body) - start_bottom)
+        start_bottom, segments = world.object_bottom_z_m(target_body), plan.segments[1:]
     joints = yumi.ARM_JOINTS[arm]
-    for segment in plan.segments:
+    for segment in segments:
         if segment.name == "retreat":
             break
         if segment.gripper_before is GripperCommand.OPEN:

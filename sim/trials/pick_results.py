@@ -13,7 +13,9 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from control.collision import AnyObstacle
 from control.pick import PickPlan, PlanStatus
+from perception.camera import RgbdFrame
 from perception.grasp_judge import GraspVerdict
 from perception.poses import Pose
 from sim.trials.records import TrialOutcome
@@ -88,6 +90,9 @@ class PickAttempt:
         lift_m: How far the target rose [m]; None if no plan ran.
         verdict: The grasp judge's prediction of the pick from its error alone
             (:mod:`perception.grasp_judge`); None where the model gave no grasp.
+        loop: The approach's re-predictions and the target's disturbance, as the record
+            keeps them (:meth:`sim.trials.closed_loop.ApproachLoop.to_record`); None for a
+            plain open-loop pick.
 
     """
 
@@ -98,6 +103,7 @@ class PickAttempt:
     reason: str
     lift_m: float | None = None
     verdict: GraspVerdict | None = None
+    loop: dict[str, Any] | None = None
 
     @property
     def position_error_m(self) -> float | None:
@@ -144,7 +150,7 @@ class PickAttempt:
             data["traceback"] = planned.traceback
         if self.lift_m is not None:
             data["lift_m"] = self.lift_m
-        return data
+        return data | (self.loop or {})
 
 
 @dataclass(frozen=True)
@@ -167,10 +173,59 @@ class TrialResult:
         """What a :class:`~sim.trials.records.TrialRecord` keeps of the result.
 
         The outcome and reason, the last pick's fields at the top (the pick that decided the
-        trial), and every pick under ``picks``.
+        trial; its loop's re-predictions and disturbance stay in ``picks``), and every pick
+        under ``picks``.
         """
         if not self.picks:
             return {"outcome": self.outcome, "reason": self.reason}
         picks = [pick.to_record() for pick in self.picks]
-        last = {k: v for k, v in picks[-1].items() if k not in ("outcome", "reason", "traceback")}
+        kept_in_picks = ("outcome", "reason", "traceback", *(self.picks[-1].loop or ()))
+        last = {k: v for k, v in picks[-1].items() if k not in kept_in_picks}
         return last | {"outcome": self.outcome, "reason": self.reason, "picks": picks}
+
+
+@dataclass(frozen=True)
+class PickObstacles:
+    """What a pick is planned around besides the table, and what its record keeps of them.
+
+    Args:
+        obstacles: Everything the robot must not touch (other objects, unknown shapes).
+        target: The target's own shapes: avoided on the approach, ignored from the descent on.
+        record: Their source and size, as the pick's record keeps them.
+
+    """
+
+    obstacles: tuple[AnyObstacle, ...]
+    target: tuple[AnyObstacle, ...]
+    record: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class Sighting:
+    """What a pick starts from: the frame the robot sees, and the referee's note of the target.
+
+    Args:
+        frame: The head camera's RGB-D frame, all the robot acts on.
+        body: The target's body id (the referee's, never the plan's).
+        target: The target's catalog type.
+        truth: Its canonical grasp when the frame was taken: the label the pick is judged by.
+        object_yaw_rad: Its yaw then, which the judge needs for the mug's rim.
+
+    """
+
+    frame: RgbdFrame
+    body: int
+    target: str
+    truth: Pose
+    object_yaw_rad: float
+
+
+def trial_result(picks: list[PickAttempt], total: int) -> TrialResult:
+    """How a trial of ``total`` targets went, from the picks it tried (one at least)."""
+    last = picks[-1]
+    if total == 1:
+        return TrialResult(last.outcome, last.reason, tuple(picks))
+    if last.outcome is TrialOutcome.SUCCESS:  # the last of all the targets
+        return TrialResult(TrialOutcome.SUCCESS, f"picked all {total} targets", tuple(picks))
+    return TrialResult(last.outcome, f"pick {len(picks)} of {total} ({last.target}): "
+                       f"{last.reason}", tuple(picks))

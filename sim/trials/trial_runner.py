@@ -24,17 +24,16 @@ import dataclasses
 import time
 import traceback
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 import pinocchio as pin
 
-from control.collision import AnyObstacle
 from control.depth_obstacles import DepthObstacleConfig, GraspRegion, depth_obstacles
 from control.pick import PickPlan, PickRequest, PlanStatus
 from control.planner import PickPlanner
+from control.retarget import JointState
 from perception.camera import RgbdFrame
 from perception.catalog import clear_of_table, get_object_spec
 from perception.checks import check_inputs, check_prediction
@@ -53,11 +52,21 @@ from perception.learning.labels import nearest_rotation
 from perception.poses import Pose
 from robots import yumi
 from sim.errors import InvalidInputError, SimError
+from sim.tasks.disturbance import scene_disturbance
 from sim.tasks.scene_sampling import Scene
 from sim.tasks.task_spec import TaskSpec
+from sim.trials.closed_loop import ApproachLoop, Loop, LoopSettings
 from sim.trials.execution import ExecutionSettings, execute_pick
 from sim.trials.oracle import OraclePerception
-from sim.trials.pick_results import PickAttempt, PlannedPick, TrialResult, as_recorded
+from sim.trials.pick_results import (
+    PickAttempt,
+    PickObstacles,
+    PlannedPick,
+    Sighting,
+    TrialResult,
+    as_recorded,
+    trial_result,
+)
 from sim.trials.planner_setup import (
     ObstacleSource,
     make_yumi_planner,
@@ -76,6 +85,7 @@ _PLAN_OUTCOMES = {
     PlanStatus.UNREACHABLE: TrialOutcome.IK_UNREACHABLE,
     PlanStatus.COLLISION: TrialOutcome.PLAN_COLLISION,
     PlanStatus.START_IN_COLLISION: TrialOutcome.PLAN_COLLISION,
+    PlanStatus.RETARGET_FAILED: TrialOutcome.PLAN_COLLISION,  # a closed loop's re-plan only
 }
 
 
@@ -104,53 +114,6 @@ ModelFactory = Callable[[World, HeadCamera], PerceptionModel]
 the world; any other model ignores both (e.g. ``lambda world, camera: model``)."""
 
 
-@dataclass(frozen=True)
-class PickObstacles:
-    """What a pick is planned around besides the table, and what its record keeps of them.
-
-    Args:
-        obstacles: Everything the robot must not touch (other objects, unknown shapes).
-        target: The target's own shapes: avoided on the approach, ignored from the descent on.
-        record: Their source and size, as the pick's record keeps them.
-
-    """
-
-    obstacles: tuple[AnyObstacle, ...]
-    target: tuple[AnyObstacle, ...]
-    record: dict[str, Any]
-
-
-@dataclass(frozen=True)
-class Sighting:
-    """What a pick starts from: the frame the robot sees, and the referee's note of the target.
-
-    Args:
-        frame: The head camera's RGB-D frame, all the robot acts on.
-        body: The target's body id (the referee's, never the plan's).
-        target: The target's catalog type.
-        truth: Its canonical grasp when the frame was taken: the label the pick is judged by.
-        object_yaw_rad: Its yaw then, which the judge needs for the mug's rim.
-
-    """
-
-    frame: RgbdFrame
-    body: int
-    target: str
-    truth: Pose
-    object_yaw_rad: float
-
-
-def trial_result(picks: list[PickAttempt], total: int) -> TrialResult:
-    """How a trial of ``total`` targets went, from the picks it tried (one at least)."""
-    last = picks[-1]
-    if total == 1:
-        return TrialResult(last.outcome, last.reason, tuple(picks))
-    if last.outcome is TrialOutcome.SUCCESS:  # the last of all the targets
-        return TrialResult(TrialOutcome.SUCCESS, f"picked all {total} targets", tuple(picks))
-    return TrialResult(last.outcome, f"pick {len(picks)} of {total} ({last.target}): "
-                       f"{last.reason}", tuple(picks))
-
-
 class TrialRunner:
     """One world, camera, model and planner, reused across the trials of a run.
 
@@ -165,6 +128,7 @@ class TrialRunner:
         obstacles: What picks are planned around besides the table: the depth image (the
             default), or the simulator's true shapes (for debugging the planner only).
         depth: How depth points become obstacles; the YuMi workcell's when None.
+        loop: Whether picks re-predict while the arm approaches; open when None.
 
     """
 
@@ -178,6 +142,7 @@ class TrialRunner:
         observer: TrialObserver | None = None,
         obstacles: ObstacleSource = ObstacleSource.DEPTH,
         depth: DepthObstacleConfig | None = None,
+        loop: LoopSettings | None = None,
     ) -> None:
         if not isinstance(obstacles, ObstacleSource):
             allowed = ", ".join(f"ObstacleSource.{s.name}" for s in ObstacleSource)
@@ -186,6 +151,7 @@ class TrialRunner:
         self.task = task
         self.settle_s = settle_s
         self.execution = execution or ExecutionSettings()
+        self.loop = loop or LoopSettings()
         self.obstacle_source = obstacles
         self.world = World()
         self.depth = depth or yumi_depth_config(self.world.config)
@@ -231,9 +197,14 @@ class TrialRunner:
             self.model.named = scene.condition  # what a sentence or a picture stands for
         return bodies
 
-    def sense(self) -> RgbdFrame:
-        """The head camera's RGB-D frame now, under the task's lighting, with its calibration."""
-        return self.camera.render_rgbd(self.world.client, self.lighting, self.frame_seed)
+    def sense(self, self_filter: bool = False) -> RgbdFrame:
+        """The head camera's RGB-D frame now, under the task's lighting, with its calibration.
+
+        ``self_filter``: no depth on the robot's own pixels (a frame taken with the arm in view,
+        :meth:`HeadCamera.render_rgbd`); the first image of a pick has the arms at HOME.
+        """
+        return self.camera.render_rgbd(self.world.client, self.lighting, self.frame_seed,
+                                       self.world.robot.body_id if self_filter else None)
 
     def render(self) -> np.ndarray:
         """The head camera's colour image now, under the task's lighting."""
@@ -279,12 +250,12 @@ class TrialRunner:
             self._set_aside(body, attempt.planned.plan)
         return True
 
-    def sight(self, body: int) -> Sighting:
+    def sight(self, body: int, self_filter: bool = False) -> Sighting:
         """The head camera's frame now, and the referee's note of ``body``, the pick's target.
 
         Each sighting since :meth:`setup` is the next pick's: its frame's noise is seeded by it.
         """
-        frame, seed = self.sense(), self.frame_seed
+        frame, seed = self.sense(self_filter), self.frame_seed
         self.frame_seed = dataclasses.replace(seed, frame=seed.frame + 1)
         return Sighting(frame, body, self.world.object_spec(body).name, self.truth(body),
                         yaw_of(self.world.object_pose(body).rotation))
@@ -306,15 +277,17 @@ class TrialRunner:
                                  traceback=traceback.format_exc())
             return PickAttempt(sighting.target, sighting.truth, failed,
                                TrialOutcome.PERCEPTION_FAILED, failed.reason)
-        return self.attempt(sighting, prediction, number, total)
+        return self.attempt(sighting, prediction, number, total, scene)
 
-    def attempt(self, sighting: Sighting, prediction: Prediction, number: int, total: int
-                ) -> PickAttempt:
+    def attempt(self, sighting: Sighting, prediction: Prediction, number: int, total: int,
+                scene: Scene | None = None) -> PickAttempt:
         """Acts on ``prediction`` of the frame in ``sighting``: plan, run, judge.
 
         What a trial does with its model's prediction, and what the Gymnasium environment
         (:mod:`sim.envs`) does with an agent's grasp: one code path, so both get the same
-        outcome for the same grasp.
+        outcome for the same grasp. With ``scene``, the first pick's approach is run by an
+        :class:`~sim.trials.closed_loop.ApproachLoop` where the loop is closed or the task
+        moves its target (:mod:`sim.trials.closed_loop`).
         """
         planned = self.plan_pick(sighting.frame, prediction, number, total)
         if self.observer is not None:  # the Prediction once checked, else None
@@ -326,20 +299,28 @@ class TrialRunner:
             assert planned.outcome is not None  # a plan phase that ends a pick says how
             return PickAttempt(sighting.target, sighting.truth, planned, planned.outcome,
                                planned.reason, verdict=verdict)
+        follow = self._approach_loop(scene, number, total, sighting.body, planned)
         executed = execute_pick(self.world, planned.plan, sighting.body, planned.grip.opening_m,
-                                self.execution)
+                                self.execution, follow)
         return PickAttempt(sighting.target, sighting.truth, planned, executed.outcome,
-                           executed.reason, executed.lift_m, verdict)
+                           executed.reason, executed.lift_m, verdict,
+                           None if follow is None else follow.to_record())
 
-    def plan_pick(self, frame: RgbdFrame, prediction: Prediction, number: int, total: int
-                  ) -> PlannedPick:
-        """The plan phase: the grip, the obstacles and the plan, from what the robot senses.
+    def _approach_loop(self, scene: Scene | None, number: int, total: int, body: int,
+                       planned: PlannedPick) -> ApproachLoop | None:
+        """The closed loop of this pick, or its disturbance's (the first pick's only)."""
+        draw = None if scene is None or number else scene_disturbance(
+            self.task, scene.seed, scene.index, int(scene.stream))
+        if scene is None or (self.loop.loop is Loop.OPEN and draw is None):
+            return None
+        return ApproachLoop(self, scene, number, total, body, planned, self.loop, draw)
 
-        Reads the frame, the prediction, the robot's joint state and the table, nothing of the
-        objects (unless the runner was made with ``ObstacleSource.TRUTH``, for debugging). A
-        prediction the robot cannot act on (:func:`perception.checks.check_prediction`) ends
-        the pick as ``perception_failed``. A model may omit the targets already picked: the
-        prediction's targets are matched to the task's from the end.
+    def read_grasp(self, prediction: Prediction, number: int, total: int) -> PlannedPick:
+        """The grasp and grip ``prediction`` states for pick ``number`` of ``total``.
+
+        A prediction the robot cannot act on (:func:`perception.checks.check_prediction`, a
+        grip it cannot make) ends the pick as ``perception_failed`` (the outcome is set). A
+        model may omit the targets already picked: its targets are matched from the end.
         """
         try:
             targets = check_prediction(prediction, self.model.name, least=total - number,
@@ -352,12 +333,27 @@ class TrialRunner:
         rotation = nearest_rotation("predicted rotation", predicted.rotation)
         grasp = Pose(np.asarray(predicted.position_m, dtype=float), rotation)
         try:
-            grip = grip_of(predicted)
+            return PlannedPick(None, "", grasp, grip_of(predicted))
         except InvalidInputError as error:
             return PlannedPick(TrialOutcome.PERCEPTION_FAILED, str(error), grasp)
+
+    def plan_pick(self, frame: RgbdFrame, prediction: Prediction, number: int, total: int,
+                  moving: JointState | None = None) -> PlannedPick:
+        """The plan phase: the grip, the obstacles and the plan, from what the robot senses.
+
+        Reads the frame, the prediction (:meth:`read_grasp`), the robot's joint state and the
+        table, nothing of the objects (unless the runner was made with
+        ``ObstacleSource.TRUTH``, for debugging). ``moving``: the arm is in motion (a closed
+        loop's re-plan): the plan keeps to it and its approach starts from this state
+        (:meth:`~control.planner.PickPlanner.replan`).
+        """
+        read = self.read_grasp(prediction, number, total)
+        if read.outcome is not None or read.predicted is None or read.grip is None:
+            return read
+        grasp, grip = read.predicted, read.grip
         raised, raised_m = clear_of_table(grasp, grip.opening_m)
         obstacles = self._obstacles(frame, raised, grip)
-        result = self.planner.plan(PickRequest(
+        request = PickRequest(
             T_world_grasp=pin.SE3(raised.matrix),
             q_start=self.planner.robot.q_from_dict(self.world.robot.joint_positions()),
             obstacles=(table_obstacle(self.world), *obstacles.obstacles),
@@ -365,7 +361,9 @@ class TrialRunner:
             alternatives=tuple(pin.SE3(p.matrix) for p in grip.alternatives(raised)),
             finger_opening_m=grip.opening_m / 2,
             pregrasp_distance_m=grip.pregrasp_distance_m,
-        ))
+        )
+        result = (self.planner.plan(request) if moving is None
+                  else self.planner.replan(request, moving))
         planned = PlannedPick(None, "", grasp, grip, raised_m, obstacles.record, result.status,
                               result.plan)
         if result.plan is None:

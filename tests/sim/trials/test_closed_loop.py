@@ -1,0 +1,71 @@
+"""Closed-loop picks (issue 36): re-predictions during the approach, a target moved on the way."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from sim.errors import InvalidInputError
+from sim.tasks.disturbance import Disturbance
+from sim.tasks.task_toml import load_task
+from sim.trials.closed_loop import Loop, LoopSettings, Reaction, reactions
+from sim.trials.records import TrialOutcome
+from sim.trials.run_loop import trial_scene
+from sim.trials.trial_runner import TrialRunner
+
+MOVED = Disturbance(move_m=(0.05, 0.07), turn_deg=(-30.0, 30.0))
+"""Farther than a pick tolerates (a sponge is 3.5 cm wide): an open-loop pick closes on air."""
+
+
+@pytest.fixture(scope="module")
+def single_moved():
+    return dataclasses.replace(load_task("single"), name="single-moved", disturbance=MOVED)
+
+
+def run(task, loop: Loop, index: int):
+    with TrialRunner(task, loop=LoopSettings(loop)) as runner:
+        return runner.run(trial_scene(task, 0, index), index, 0, "oracle")
+
+
+@pytest.mark.parametrize("index", [0, 3])
+def test_the_oracle_misses_a_moved_target_open_loop_and_picks_it_closed_loop(single_moved,
+                                                                             index):
+    blind = run(single_moved, Loop.OPEN, index)
+    assert blind.outcome is TrialOutcome.MISSED, blind.reason
+    [pick] = blind.picks
+    assert 0.05 <= pick["disturbance"]["moved_m"] <= 0.07 + 1e-3
+    assert "repredictions" not in pick  # open loop: no re-prediction
+    looked = run(single_moved, Loop.CLOSED, index)
+    assert looked.outcome is TrialOutcome.SUCCESS, looked.reason
+    [pick] = looked.picks
+    assert pick["disturbance"] == blind.picks[0]["disturbance"]  # the same move, both loops
+    counted = reactions(pick["repredictions"])
+    assert counted["retargeted"] >= 1 and counted["unseen"] == 0
+    moved_at = pick["disturbance"]["time_s"]
+    retargeted = [r for r in pick["repredictions"] if r["reaction"] == "retargeted"]
+    assert retargeted[0]["time_s"] >= moved_at  # it re-targets after the move, not before
+    assert all(r["reaction"] == "held" for r in pick["repredictions"]
+               if r["time_s"] < moved_at)
+
+
+def test_closed_loop_on_an_unmoved_target_only_holds(single_moved):
+    looked = run(load_task("single"), Loop.CLOSED, 1)
+    assert looked.outcome is TrialOutcome.SUCCESS, looked.reason
+    [pick] = looked.picks
+    assert pick["repredictions"] and all(
+        r["reaction"] == Reaction.HELD.value for r in pick["repredictions"])
+    assert "disturbance" not in pick
+
+
+def test_loop_settings_are_checked():
+    with pytest.raises(InvalidInputError, match=r"replan_hz = 0.0 is not allowed: a rate in "
+                                                 r"\(0, 60\] Hz"):
+        LoopSettings(Loop.CLOSED, replan_hz=0.0)
+    with pytest.raises(InvalidInputError, match=r"move_threshold_m = -0.01 .* >= 0"):
+        LoopSettings(move_threshold_m=-0.01)
+    with pytest.raises(InvalidInputError, match=r"loop = 'closed' is not allowed: open or "
+                                                 r"closed"):
+        LoopSettings("closed")  # type: ignore[arg-type]
+    assert LoopSettings().to_json() == {"loop": "open"}
+    assert LoopSettings(Loop.CLOSED).to_json()["replan_hz"] == 10.0
