@@ -11,6 +11,8 @@ import sys
 from pathlib import Path
 
 from experiments.commands.arguments import add_executor_options, executor, integer, resume_command
+from sim.errors import InvalidInputError
+from sim.trials.closed_loop import Loop, LoopSettings
 from sim.trials.planner_setup import ObstacleSource
 from sim.trials.records import TrialSummary
 from sim.trials.run_loop import TRIAL_WORKERS, RunStopped, run_trials
@@ -44,9 +46,27 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--allow-sensor-change", action="store_true",
                         help="run a checkpoint under the task's camera sensor even when its "
                         "datasets were rendered by another (refused by default, naming both)")
+    add_loop_options(parser)
     add_executor_options(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(run=run)
+
+
+def add_loop_options(parser: argparse.ArgumentParser) -> None:
+    """``--loop`` and ``--replan-hz``: whether picks look again while the arm approaches."""
+    parser.add_argument("--loop", choices=[loop.value for loop in Loop],
+                        default=LoopSettings.loop.value,
+                        help="open (default): one image, one plan; closed: re-predict during "
+                        "the approach and re-target the arm when the grasp moved")
+    parser.add_argument("--replan-hz", type=float, default=LoopSettings.replan_hz,
+                        help="re-predictions per second of a closed loop (%(default)s)")
+
+
+def loop_settings(args: argparse.Namespace) -> LoopSettings:
+    """The loop the options ask for; a rate given to an open loop is refused."""
+    if args.loop == Loop.OPEN.value and args.replan_hz != LoopSettings.replan_hz:
+        raise InvalidInputError("--replan-hz", args.replan_hz, "only with --loop closed")
+    return LoopSettings(Loop(args.loop), args.replan_hz)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -55,7 +75,8 @@ def run(args: argparse.Namespace) -> int:
                              model_class=args.model_class,
                              obstacles=ObstacleSource(args.obstacles),
                              phrases=None if args.phrases is None else str(args.phrases),
-                             allow_sensor_change=args.allow_sensor_change)
+                             allow_sensor_change=args.allow_sensor_change,
+                             loop=loop_settings(args))
     check = held_out_check(settings)
     if check is not None and not check.passed:
         print(f"WARNING: checkpoint {args.model} failed its training's held-out check "

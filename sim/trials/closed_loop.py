@@ -27,12 +27,14 @@ import numpy as np
 
 from control.pick import PickPlan
 from control.retarget import trajectory_state
+from perception.catalog import ObjectSpec
+from perception.grasp_judge import GraspVerdict, judge_grasp, yaw_of
 from perception.poses import Pose
 from robots import yumi
 from sim.errors import InvalidInputError
 from sim.tasks.disturbance import DisturbanceDraw
 from sim.trials.execution import StepWatch
-from sim.trials.pick_results import PlannedPick, grasp_angle_rad, pose_json
+from sim.trials.pick_results import PlannedPick, as_recorded, grasp_angle_rad, pose_json
 
 if TYPE_CHECKING:  # the runner imports this module
     from sim.tasks.scene_sampling import Scene
@@ -159,6 +161,7 @@ class ApproachLoop:
         self.followed = first
         self.repredictions: list[Reprediction] = []
         self.moved: Moved | None = None
+        self.end: tuple[Pose, float] | None = None  # the target's grasp and yaw at the end
 
     def __call__(self, plan: PickPlan, watch: StepWatch) -> tuple[PickPlan, bool]:
         """Runs the approach of ``plan``; (the plan followed at its end, stopped by ``watch``)."""
@@ -177,6 +180,19 @@ class ApproachLoop:
         finally:  # the belt stops before the fingers close: a sliding object has no friction
             if self.disturbance is not None and self.disturbance.slides:
                 world.stop_sliding(self.body)
+            self.end = (self.runner.truth(self.body),
+                        yaw_of(world.object_pose(self.body).rotation))
+
+    def judged(self, spec: ObjectSpec) -> GraspVerdict | None:
+        """The grasp judge on the grasp followed last, against the target at the approach's end.
+
+        In open loop with a disturbance: the first grasp against the moved target.
+        """
+        grasp = self.followed.predicted
+        if grasp is None or self.end is None:
+            return None
+        truth, yaw_rad = self.end
+        return judge_grasp(spec, truth, as_recorded(grasp), yaw_rad)
 
     def _follow(self, plan: PickPlan, watch: StepWatch, tick: int, disturb_at: int | None,
                 joints: tuple[str, ...]) -> tuple[PickPlan, bool]:
@@ -252,8 +268,19 @@ class ApproachLoop:
         return None
 
     def to_record(self) -> dict[str, Any]:
-        """What the pick's record keeps of the loop: its re-predictions and the disturbance."""
+        """What the pick's record keeps of the loop.
+
+        Its re-predictions (closed loop), the disturbance, and ``executed``: the grasp run
+        against the target's grasp at the approach's end.
+        """
         data: dict[str, Any] = {}
+        grasp = self.followed.predicted
+        if grasp is not None and self.end is not None:
+            data["executed"] = {
+                "predicted": pose_json(grasp.position, grasp.rotation),
+                "truth": pose_json(self.end[0].position, self.end[0].rotation),
+                "position_error_m": float(np.linalg.norm(grasp.position
+                                                         - self.end[0].position))}
         if self.settings.loop is Loop.CLOSED:
             data["repredictions"] = [r.to_record() for r in self.repredictions]
         if self.moved is not None:

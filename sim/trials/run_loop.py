@@ -126,7 +126,7 @@ def _run_todo(settings: TrialSettings, model: TrialModel, log: TrialLog, todo: l
             return
         threads = torch_threads(1) if model.one_torch_thread else contextlib.nullcontext()
         with threads, TrialRunner(task, model.factory, settings.settle_s, settings.execution,
-                                  obstacles=settings.obstacles) as runner:
+                                  obstacles=settings.obstacles, loop=settings.loop) as runner:
             for scene in todo:
                 done(runner.run(scene, scene.index, settings.seed, settings.model))
 
@@ -157,7 +157,7 @@ def run_trial_job(job: TrialJob) -> TrialRecord:
         model = load_trial_model(settings)
         _WORKER_RUNNER[:] = [(settings, TrialRunner(
             settings.task_spec, model.factory, settings.settle_s, settings.execution,
-            obstacles=settings.obstacles))]
+            obstacles=settings.obstacles, loop=settings.loop))]
     runner = _WORKER_RUNNER[0][1]
     scene = trial_scene(runner.task, settings.seed, job.index)
     return runner.run(scene, job.index, settings.seed, settings.model)

@@ -302,6 +302,8 @@ class TrialRunner:
         follow = self._approach_loop(scene, number, total, sighting.body, planned)
         executed = execute_pick(self.world, planned.plan, sighting.body, planned.grip.opening_m,
                                 self.execution, follow)
+        if follow is not None:  # judged as run: the grasp followed, the target where it lay
+            verdict = follow.judged(spec)
         return PickAttempt(sighting.target, sighting.truth, planned, executed.outcome,
                            executed.reason, executed.lift_m, verdict,
                            None if follow is None else follow.to_record())

@@ -32,6 +32,7 @@ from sim.tasks.scene_sampling import (
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_spec import SIDES, TaskSpec
 from sim.tasks.task_toml import TASK_FILES, load_task, with_test_phrases
+from sim.trials.closed_loop import Loop, LoopSettings
 from sim.trials.execution import ExecutionSettings
 from sim.trials.oracle import OraclePerception
 from sim.trials.planner_setup import ObstacleSource, yumi_depth_config
@@ -115,6 +116,8 @@ class TrialSettings:
             phrasings; None: the task's own.
         allow_sensor_change: Run a checkpoint under another sensor than the one its datasets
             were rendered by (``gva trials --allow-sensor-change``); refused otherwise.
+        loop: Whether picks re-predict while the arm approaches (``--loop closed``,
+            ``--replan-hz``; :mod:`sim.trials.closed_loop`); open by default.
 
     """
 
@@ -128,6 +131,7 @@ class TrialSettings:
     obstacles: ObstacleSource = ObstacleSource.DEPTH
     phrases: str | None = None
     allow_sensor_change: bool = False
+    loop: LoopSettings = field(default_factory=LoopSettings)
 
     def __post_init__(self) -> None:
         if not isinstance(self.obstacles, ObstacleSource):
@@ -154,11 +158,15 @@ class TrialSettings:
                                  YUMI_SCENE.object_types + SIDES)
 
     def identity(self) -> dict[str, Any]:
-        """What identifies a run: a folder is only resumed by a run with the same identity."""
+        """What identifies a run: a folder is only resumed by a run with the same identity.
+
+        An open loop adds nothing: folders from before closed loops resume.
+        """
         return {"model": self.model, "task": task_identity(self.task_spec), "seed": self.seed,
                 "scene": YUMI_SCENE.name, "camera": asdict(CameraConfig()),
                 "settle_s": self.settle_s, "execution": asdict(self.execution),
-                "obstacles": obstacle_identity(self.obstacles)} | self._model_identity()
+                "obstacles": obstacle_identity(self.obstacles)} | self._model_identity() | (
+                    {} if self.loop.loop is Loop.OPEN else {"loop": self.loop.to_json()})
 
     def inputs(self) -> dict[str, Path | None]:
         """The files the run reads, for its provenance: the task file and the checkpoint's."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import pytest
 
@@ -36,6 +37,9 @@ def test_the_oracle_misses_a_moved_target_open_loop_and_picks_it_closed_loop(sin
     [pick] = blind.picks
     assert 0.05 <= pick["disturbance"]["moved_m"] <= 0.07 + 1e-3
     assert "repredictions" not in pick  # open loop: no re-prediction
+    # judged as run: the first grasp against the moved target, which it misses by the move
+    assert pick["executed"]["position_error_m"] > 0.04
+    assert pick["judge"]["predicted_success"] is False
     looked = run(single_moved, Loop.CLOSED, index)
     assert looked.outcome is TrialOutcome.SUCCESS, looked.reason
     [pick] = looked.picks
@@ -47,6 +51,8 @@ def test_the_oracle_misses_a_moved_target_open_loop_and_picks_it_closed_loop(sin
     assert retargeted[0]["time_s"] >= moved_at  # it re-targets after the move, not before
     assert all(r["reaction"] == "held" for r in pick["repredictions"]
                if r["time_s"] < moved_at)
+    assert pick["executed"]["position_error_m"] < 0.005  # the oracle re-read the moved target
+    assert pick["judge"]["predicted_success"] is True
 
 
 def test_closed_loop_on_an_unmoved_target_only_holds(single_moved):
@@ -69,3 +75,21 @@ def test_loop_settings_are_checked():
         LoopSettings("closed")  # type: ignore[arg-type]
     assert LoopSettings().to_json() == {"loop": "open"}
     assert LoopSettings(Loop.CLOSED).to_json()["replan_hz"] == 10.0
+
+
+def test_gva_trials_closes_the_loop_and_records_it(tmp_path):
+    from gva_cli import gva
+
+    status, stdout, err = gva("trials", "--task", "single", "--n", 1, "--out", tmp_path / "r",
+                              "--loop", "closed", "--replan-hz", 5, "--workers", 1,
+                              "--no-progress")
+    assert status == 0, stdout + err
+    run = json.loads((tmp_path / "r" / "run.json").read_text())
+    assert run["loop"] == LoopSettings(Loop.CLOSED, replan_hz=5.0).to_json()
+    [record] = [json.loads(line) for line in (tmp_path / "r" / "trials.jsonl").open()]
+    assert len(record["picks"][0]["repredictions"]) >= 3  # 5 Hz over a ~1.5 s approach
+    status, _, err = gva("trials", "--task", "single", "--n", 1, "--out", tmp_path / "s",
+                         "--replan-hz", 5)
+    assert status == 2
+    assert "--replan-hz = 5.0 is not allowed: only with --loop closed" in err
+    assert not (tmp_path / "s").exists()
