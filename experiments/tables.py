@@ -238,7 +238,7 @@ def dataset_path(out: Path, task: str, stream: SeedStream, size: int, seed: int)
 
 
 def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
-                    stream: SeedStream) -> bool:
+                    stream: SeedStream, approach_hz: float | None = None) -> bool:
     """Whether ``path`` holds the dataset asked for; refuses a file that holds another.
 
     ``task`` is a built-in task's name or a task file's path. Compared: scene, task name,
@@ -246,8 +246,8 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
     with a condition a sample per condition value), seed, seed stream, whether each scene is
     asked every condition
     (:class:`sim.trials.collector.CollectSettings` ``every_condition``, at its default for the
-    stream), the task's definition (a task whose TOML changed since is another dataset) and the
-    scene's camera (other images).
+    stream), the task's definition (a task whose TOML changed since is another dataset), the
+    scene's camera (other images) and the approach images' rate (``approach_hz``, if any).
 
     Raises:
         RunFolderError: ``path`` holds another dataset; the message names what differs.
@@ -262,13 +262,16 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
                        "every_condition": CollectSettings(scene, task, size, seed,
                                                           stream).asks_every_condition,
                        "definition": task_identity(definition),
-                       "camera": asdict(scene_camera(scene))})
+                       "camera": asdict(scene_camera(scene))}
+                      | ({} if approach_hz is None else {"approach_hz": approach_hz}))
     scenes = meta.extra.get("scenes", meta.size)  # a scene may give several samples
     found = {"scene": meta.scene, "task": meta.task, "size": scenes, "seed": meta.seed,
              "stream": meta.extra.get("stream"),
              "every_condition": meta.extra.get("every_condition", False),
              "definition": meta.extra.get("task"),
-             "camera": json_form(asdict(CameraConfig.from_json(meta.camera)))}
+             "camera": json_form(asdict(CameraConfig.from_json(meta.camera)))} | (
+                 {} if "approach_hz" not in meta.extra else
+                 {"approach_hz": meta.extra["approach_hz"]})
     if found != asked:
         raise RunFolderError(f"{path} is not the dataset this run needs "
                              f"({differences(found, asked)}, stored vs asked); remove it to "

@@ -9,6 +9,7 @@ import argparse
 from pathlib import Path
 
 from experiments.commands.arguments import integer
+from perception.interface import ConditionKind
 from sim.tasks.scene_sampling import SeedStream
 from sim.trials.collector import CollectSettings, collect
 
@@ -27,6 +28,9 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         default=CollectSettings.every_condition,
                         help="a sample per condition value of each scene, each labelled with "
                         "the object that value names (default: for the train stream)")
+    parser.add_argument("--approach-hz", type=float, metavar="HZ",
+                        help="yumi: also keep an image every 1/HZ s of each approach, the arm "
+                        "in view, labelled as the pick's (for closed-loop picks)")
     parser.add_argument("--out", type=Path, required=True, help="dataset file to write")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(run=run)
@@ -36,13 +40,18 @@ def run(args: argparse.Namespace) -> int:
     """Collects the dataset and prints what it holds; the exit status."""
     settings = CollectSettings(scene=args.scene, task=args.task, size=args.size, seed=args.seed,
                                stream=SeedStream[args.stream.upper()],
-                               every_condition=args.every_condition)
+                               every_condition=args.every_condition,
+                               approach_hz=args.approach_hz)
     dataset = collect(settings, args.out, progress=not args.no_progress)
     meta = dataset.metadata
     redrawn = meta.extra.get("demonstrations_redrawn")
     scenes = meta.extra.get("scenes", meta.size)
     why = ("one per condition value" if meta.extra.get("every_condition") and meta.targets == 1
-           else "one before each pick")
+           and meta.condition_kind is not ConditionKind.NONE else "one before each pick")
+    approach = sum(record.get("stage") == "approach" for record in dataset.scenes)
+    if approach:
+        why += (f", {approach} along the approaches, one every "
+                f"1/{meta.extra['approach_hz']:g} s")
     images = f" ({meta.size} samples: {why})" if scenes != meta.size else ""
     print(f"{scenes} scenes{images} of {meta.scene} / {meta.task} (seed {meta.seed}, "
           f"{meta.extra.get('stream', args.stream)} stream), "

@@ -43,6 +43,7 @@ from sim.tasks.scene_sampling import (
 from sim.tasks.scene_specs import SCENE_NAMES, SceneSpec, get_scene_spec
 from sim.tasks.task_spec import TaskSpec
 from sim.tasks.task_toml import load_task
+from sim.trials.closed_loop import Loop, LoopSettings
 from sim.trials.records import TrialOutcome
 from sim.trials.trial_runner import TrialRunner
 from sim.world.head_camera import HeadCamera
@@ -71,6 +72,11 @@ class CollectSettings:
             contrast between them, not from the third of the scenes its value was drawn for
             (``docs/decisions/every-condition.md``). None: for the training stream; a test
             set keeps the one drawn value per scene.
+        approach_hz: ``yumi`` only: a demonstration also keeps an image every ``1 /
+            approach_hz`` s of each approach, the arm in view, labelled as the pick's image is
+            (the oracle's closed loop, :mod:`sim.trials.closed_loop`; each such sample's record
+            has ``"stage": "approach"``), so a model learns to predict while the arm moves. None
+            (the default): the image before each pick only.
 
     """
 
@@ -80,6 +86,7 @@ class CollectSettings:
     seed: int = 0
     stream: SeedStream = SeedStream.TRAIN
     every_condition: bool | None = None
+    approach_hz: float | None = None
 
     def __post_init__(self) -> None:
         if self.scene not in SCENE_NAMES:
@@ -95,6 +102,11 @@ class CollectSettings:
         if self.every_condition not in (None, True, False):
             raise InvalidInputError("every_condition", self.every_condition,
                                     "None, True or False")
+        if self.approach_hz is not None:
+            if self.scene != "yumi":
+                raise InvalidInputError("approach_hz", self.approach_hz, "None for the "
+                                        f"{self.scene} scene (it has no robot to approach)")
+            LoopSettings(Loop.CLOSED, self.approach_hz)  # the rate's bounds
 
     @property
     def asks_every_condition(self) -> bool:
@@ -172,6 +184,7 @@ class Stage:
     joint_positions: np.ndarray  # (J,) in the robot's joint order
     labels: np.ndarray  # (q, 12)
     taken: list[int]  # the targets already picked
+    approach: bool = False  # taken during the pick's approach (the arm in view)
 
 
 def _task_json(task: TaskSpec) -> dict[str, Any]:
@@ -243,8 +256,9 @@ class _PickImages:
         taken = [k for k, body in enumerate(self.targets) if body not in on_table]
         labels = np.stack([self.labels[k] for k in range(len(self.targets))])  # (q, 12)
         joints = self.runner.world.robot.joint_positions(self.joint_names)
+        approach = bool(self.stages) and self.stages[-1].taken == taken  # the same pick's
         self.stages.append(Stage(frame, np.array([joints[n] for n in self.joint_names]), labels,
-                                 taken))
+                                 taken, approach))
 
     def stepped(self, world: World) -> None:
         """Nothing to watch between images."""
@@ -256,7 +270,9 @@ def _collect_yumi(
     samples: list[Sample] = []
     redrawn: list[dict[str, Any]] = []
     index = kept = 0
-    with TrialRunner(task) as runner:
+    loop = None if settings.approach_hz is None else LoopSettings(Loop.CLOSED,
+                                                                  settings.approach_hz)
+    with TrialRunner(task, loop=loop) as runner:
         images = _PickImages(runner)
         runner.observer = images
         while kept < settings.size:
@@ -276,7 +292,8 @@ def _collect_yumi(
                 continue
             record = scene.to_record()
             samples += [Sample(stage.frame.rgb, scene.given.vector(), stage.labels,
-                               record | {"taken": stage.taken} if stage.taken else record,
+                               record | ({"taken": stage.taken} if stage.taken else {})
+                               | ({"stage": "approach"} if stage.approach else {}),
                                stage.frame.depth_m, stage.joint_positions)
                         for stage in images.stages]
             first = images.stages[0]
@@ -292,4 +309,6 @@ def _collect_yumi(
              JOINT_NAMES_KEY: list(images.joint_names),
              "demonstrations_redrawn": len(redrawn), "redrawn": redrawn,
              MIRROR_FLAG: mirror_symmetric(task, spec, runner.camera.config)}
+    if settings.approach_hz is not None:
+        extra["approach_hz"] = settings.approach_hz
     return samples, camera, extra

@@ -216,3 +216,26 @@ def test_a_d435_dataset_records_its_sensor_and_keeps_the_calibration(tmp_path):
     assert CameraConfig.from_json(meta.camera) == CameraConfig()
     assert ModelSpec.from_metadata(meta).camera == CameraConfig().pinhole  # the nominal one
     assert data.depths_m is not None and (data.depths_m == 0.0).any()  # the sensor's holes
+
+
+def test_approach_images_keep_the_pick_label_and_see_the_arm_come_in(tmp_path):
+    """``approach_hz``: each approach adds images labelled as the pick's image (issue 36)."""
+    path = tmp_path / "approach.gva"
+    dataset = collect(CollectSettings("yumi", "single", 2, approach_hz=5.0), path,
+                      progress=False)
+    stages = [record.get("stage", "pick") for record in dataset.scenes]
+    assert stages.count("pick") == 2 and stages.count("approach") >= 6  # > 0.6 s an approach
+    assert dataset.metadata.extra["approach_hz"] == 5.0
+    picks = [i for i, stage in enumerate(stages) if stage == "pick"]
+    for start, end in zip(picks, [*picks[1:], len(stages)], strict=True):
+        np.testing.assert_allclose(dataset.labels[start:end], np.broadcast_to(
+            dataset.labels[start], dataset.labels[start:end].shape),
+                                   atol=1e-4)  # the demonstration's target does not move
+        moved = np.abs(dataset.joint_positions[end - 1] - dataset.joint_positions[start])
+        assert moved.max() > 0.3  # the last approach image has the arm well on its way
+        assert not np.array_equal(dataset.images[end - 1], dataset.images[start])
+    with pytest.raises(InvalidInputError, match=r"approach_hz = 5.0 is not allowed: None for "
+                                                 r"the paper-sim scene"):
+        CollectSettings("paper-sim", "single", 2, approach_hz=5.0)
+    with pytest.raises(InvalidInputError, match=r"replan_hz = -1.0 is not allowed"):
+        CollectSettings("yumi", "single", 2, approach_hz=-1.0)
