@@ -84,6 +84,9 @@ class PickPlanner:
 
     def plan(self, request: PickRequest) -> PlanResult:
         """Plans one pick; never raises for an unreachable or blocked grasp."""
+        return self._plan(request, None)
+
+    def _plan(self, request: PickRequest, moving: JointState | None) -> PlanResult:
         started = time.perf_counter()
         self.robot.check_shape(request.q_start)
         if not isinstance(request.T_world_grasp, pin.SE3):
@@ -118,12 +121,14 @@ class PickPlanner:
                     any_ik = True
                     for candidate in candidates:
                         tried += 1
-                        plan, report = self._timed_plan(candidate, q0)
+                        plan, report = self._timed_plan(candidate, q0, moving)
                         if plan is not None:
                             return PlanResult(PlanStatus.SUCCESS, f"arm {arm}, {grasp_name}",
                                               plan, time.perf_counter() - started, tried)
                         reasons.append(f"arm {arm}, {grasp_name}: {report}")
         status = PlanStatus.COLLISION if any_ik else PlanStatus.UNREACHABLE
+        if any_ik and moving is not None:
+            status = PlanStatus.RETARGET_FAILED
         return PlanResult(status, "; ".join(reasons[:4]), None, time.perf_counter() - started,
                           tried)
 
@@ -131,11 +136,12 @@ class PickPlanner:
         """A new pick for the arm in motion, its approach re-targeted from its moving state.
 
         Plans as :meth:`plan` from ``request.q_start`` (the robot's configuration now), for the
-        moving arm only, then replaces the approach, planned from rest, by the jerk-limited
-        motion from ``moving`` to the new pre-grasp (:func:`control.retarget.retarget`), checked
-        at every sample as every segment is. Its first sample is ``moving``: the switch is
-        continuous. No plan (``RETARGET_FAILED``, or why :meth:`plan` found none) tells the
-        caller to keep the plan it follows, or to stop.
+        moving arm only, each candidate's approach the jerk-limited motion from ``moving`` to
+        its pre-grasp (:func:`control.retarget.retarget`) instead of a move from rest, checked
+        at every sample as every segment is; a candidate whose motion collides or leaves a
+        limit gives way to the next. The approach's first sample is ``moving``: the switch is
+        continuous. No plan (``RETARGET_FAILED`` where IK found candidates, ``UNREACHABLE``
+        where not) tells the caller to keep the plan it follows, or to stop.
 
         Raises:
             InvalidInputError: ``moving`` is not the joints of one arm, in order.
@@ -146,26 +152,7 @@ class PickPlanner:
         if arm is None:
             raise InvalidInputError("moving.joint_names", moving.joint_names, "one arm's joints: "
                                     + "; ".join(f"{a}: {s.joints}" for a, s in self.arms.items()))
-        started = time.perf_counter()
-        result = self.plan(replace(request, arms=(arm,)))
-        if result.plan is None:
-            return result
-        plan, q0 = result.plan, self._start(request)
-        q_pre = plan.segment("approach").trajectory.positions[-1]
-        try:
-            approach = retarget(moving, q_pre, self.transit_limits(arm), self.config.dt_s)
-        except RetargetError as error:
-            return replace(result, status=PlanStatus.RETARGET_FAILED, plan=None,
-                           reason=f"arm {arm}: {error.result} ({error.detail or error})",
-                           planning_time_s=time.perf_counter() - started)
-        report = self._check(arm, q0, approach)
-        if report.in_collision:
-            return replace(result, status=PlanStatus.RETARGET_FAILED, plan=None,
-                           reason=f"arm {arm}, re-targeted approach: {report.describe()}",
-                           planning_time_s=time.perf_counter() - started)
-        segments = (PlanSegment("approach", approach, GripperCommand.OPEN), *plan.segments[1:])
-        return replace(result, plan=replace(plan, segments=segments),
-                       planning_time_s=time.perf_counter() - started)
+        return self._plan(replace(request, arms=(arm,)), moving)
 
     def _start(self, request: PickRequest) -> np.ndarray:
         """The start configuration: ``q_start`` within limits, every gripper open as asked."""
@@ -224,11 +211,23 @@ class PickPlanner:
             return None
         return result
 
-    def _timed_plan(self, c: _Candidate, q0: np.ndarray) -> tuple[PickPlan | None, str]:
-        fast = self._limits[(c.arm, self.config.transit_velocity_scale)]
-        approach, blocked = self._transit(c.arm, q0, c.q_pre, fast)
-        if approach is None:
-            return None, f"approach: {blocked.describe()}, and no via pose clears it"
+    def _timed_plan(self, c: _Candidate, q0: np.ndarray, moving: JointState | None
+                    ) -> tuple[PickPlan | None, str]:
+        fast = self.transit_limits(c.arm)
+        approach: JointTrajectory | None
+        if moving is not None:  # from the arm's moving state, no via poses: it cannot wait
+            try:
+                approach = retarget(moving, c.q_pre[self._indices[c.arm]], fast,
+                                    self.config.dt_s)
+            except RetargetError as error:
+                return None, f"re-targeted approach: {error.result} ({error.detail or error})"
+            report = self._check(c.arm, q0, approach)
+            if report.in_collision:
+                return None, f"re-targeted approach: {report.describe()}"
+        else:
+            approach, blocked = self._transit(c.arm, q0, c.q_pre, fast)
+            if approach is None:
+                return None, f"approach: {blocked.describe()}, and no via pose clears it"
         with self.checker.ignoring(self._target_names):  # from here the hand holds the target
             return self._timed_rest(c, q0, approach)
 

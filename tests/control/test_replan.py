@@ -69,7 +69,7 @@ def test_a_re_targeted_approach_carried_into_an_obstacle_is_refused(yumi_planner
     assert yumi_planner.plan(asked).ok  # from rest, the same pick is clear
     result = yumi_planner.replan(asked, state)
     assert (result.status, result.plan) == (PlanStatus.RETARGET_FAILED, None)
-    assert result.reason.startswith(f"arm {old.arm}, re-targeted approach: collision at sample")
+    assert result.reason.startswith(f"arm {old.arm}, grasp: re-targeted approach: collision at")
     assert "wall" in result.reason
 
 
