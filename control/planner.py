@@ -155,11 +155,17 @@ class PickPlanner:
         return self._plan(replace(request, arms=(arm,)), moving)
 
     def _start(self, request: PickRequest) -> np.ndarray:
-        """The start configuration: ``q_start`` within limits, every gripper open as asked."""
-        q0 = self.robot.clip_to_limits(request.q_start, "q_start")
-        for spec in self.arms.values():
-            for finger in spec.finger_joints:
-                q0[self.robot.joint_index(finger)] = request.finger_opening_m
+        """The start configuration: ``q_start`` within limits, every gripper open as asked.
+
+        The fingers' measured values are not checked: they are replaced (a hand opened wider
+        than the URDF's finger limit for a wide grip, mid-approach, is no error).
+        """
+        self.robot.check_shape(request.q_start)
+        fingers = [self.robot.joint_index(f) for s in self.arms.values() for f in s.finger_joints]
+        q = np.array(request.q_start, dtype=float)
+        q[fingers] = self.robot.lower_rad[fingers]
+        q0 = self.robot.clip_to_limits(q, "q_start")
+        q0[fingers] = request.finger_opening_m
         return q0
 
     def transit_limits(self, arm: str) -> JointLimits:

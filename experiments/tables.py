@@ -39,9 +39,10 @@ MODELS = ("kqv", "keypoint-16", "keypoint-min", "dsae-16", "conv-ae", "fcn")
 """The paper's models, in its row order (names :func:`perception.registry.new_model` takes)."""
 TASKS = ("single", "multiple", "selected-type", "selected-position")
 """The paper's tasks (its Table I), in its column order."""
-BEYOND_TASKS = ("selected-type-text", "selected-position-text", "selected-type-image")
+BEYOND_TASKS = ("selected-type-text", "selected-position-text", "selected-type-image",
+                "single-moved", "selected-type-moved")
 """Tasks beyond the paper: its selected tasks with the condition given as a sentence or a
-picture."""
+picture, and targets moved while the arm approaches (issue 36)."""
 ALL_TASKS = TASKS + BEYOND_TASKS
 """Every task the experiments run, in column order."""
 TWO_PHASE_MODELS = ("dsae-16", "conv-ae")
@@ -93,7 +94,9 @@ TASK_TITLES = {"single": "Single Object", "multiple": "Multiple Objects",
                "selected-type": "Selected Type", "selected-position": "Selected Position",
                "selected-type-text": "Selected Type (sentence)",
                "selected-position-text": "Selected Position (sentence)",
-               "selected-type-image": "Selected Type (picture)"}
+               "selected-type-image": "Selected Type (picture)",
+               "single-moved": "Single Object (moved)",
+               "selected-type-moved": "Selected Type (moved)"}
 
 
 def model_config(model: str, seed: int, settings: Mapping[str, Any] | None = None

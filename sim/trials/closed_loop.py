@@ -40,6 +40,9 @@ if TYPE_CHECKING:  # the runner imports this module
     from sim.tasks.scene_sampling import Scene
     from sim.trials.trial_runner import TrialRunner
 
+MOVE_CLEARANCE_M = 0.10
+"""Nearest a moved target's centre comes to another object's [m]: the objects reach 4.5-7 cm
+from their centres (the mug's handle 6.7 cm), so two at 10 cm may touch but do not overlap."""
 MAX_REPLAN_HZ = 60.0
 """Fastest re-prediction rate [Hz]: a quarter of the 240 Hz physics, and above what a cycle
 (render, inference, plan) sustains on one core."""
@@ -219,12 +222,29 @@ class ApproachLoop:
         return plan, False
 
     def _disturb(self, time_s: float) -> None:
-        """Moves the target as drawn: teleported (:meth:`World.move_object`), unsettled."""
+        """Moves the target as drawn: teleported (:meth:`World.move_object`), unsettled.
+
+        Where the drawn direction would bring it within :data:`MOVE_CLEARANCE_M` of another
+        object (or off the table), the move is turned by a quarter, a half, three quarters,
+        the first that keeps clear, so a move never lands on a neighbour; the record says
+        where it went.
+        """
         draw, world = self.disturbance, self.runner.world
         assert draw is not None
         before = world.object_pose(self.body)
+        others = [world.object_pose(b).position[:2] for b in world.objects if b != self.body]
+        shift = np.array([draw.dx_m, draw.dy_m])
+        for quarter in range(4):
+            c, s_ = math.cos(quarter * math.pi / 2), math.sin(quarter * math.pi / 2)
+            turned = np.array([[c, -s_], [s_, c]]) @ shift
+            landing = before.position[:2] + turned
+            if all(np.linalg.norm(landing - o) >= MOVE_CLEARANCE_M for o in others) and \
+                    world.on_table(landing):
+                shift = turned
+                break
         # no settling pause: the arm keeps moving while the target drops its 2 mm
-        after = world.move_object(self.body, draw.dx_m, draw.dy_m, draw.dyaw_rad, settle_s=0.0)
+        after = world.move_object(self.body, float(shift[0]), float(shift[1]), draw.dyaw_rad,
+                                  settle_s=0.0)
         self.moved = Moved(time_s, draw, before, after)
 
     def _repredict(self, time_s: float, state: Any) -> PickPlan | None:

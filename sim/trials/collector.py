@@ -270,8 +270,10 @@ def _collect_yumi(
     samples: list[Sample] = []
     redrawn: list[dict[str, Any]] = []
     index = kept = 0
-    loop = None if settings.approach_hz is None else LoopSettings(Loop.CLOSED,
-                                                                  settings.approach_hz)
+    # A target moved during the pick (a task's disturbance) is followed as the oracle does in
+    # closed loop: it re-reads the truth; without approach_hz only the pick images are kept.
+    loop = None if settings.approach_hz is None and task.disturbance is None else LoopSettings(
+        Loop.CLOSED, settings.approach_hz or LoopSettings.replan_hz)
     with TrialRunner(task, loop=loop) as runner:
         images = _PickImages(runner)
         runner.observer = images
@@ -295,7 +297,8 @@ def _collect_yumi(
                                record | ({"taken": stage.taken} if stage.taken else {})
                                | ({"stage": "approach"} if stage.approach else {}),
                                stage.frame.depth_m, stage.joint_positions)
-                        for stage in images.stages]
+                        for stage in images.stages
+                        if settings.approach_hz is not None or not stage.approach]
             first = images.stages[0]
             samples += [Sample(first.frame.rgb, question.given.vector(),
                                np.stack([images.first[bodies[t]] for t in question.targets]),

@@ -183,11 +183,16 @@ class World:
         self._objects[body] = spec
         return body
 
+    def on_table(self, xy: Any) -> bool:
+        """Whether ``xy`` [m] is where :meth:`add_object` places objects: 5 cm inside the top."""
+        (cx, cy), (hx, hy) = self.config.table_center_xy_m, TABLE_HALF_SIZE_M
+        return bool(abs(xy[0] - cx) <= hx - 0.05 and abs(xy[1] - cy) <= hy - 0.05)
+
     def _check_on_table(self, field: str, value: Any, xy: tuple[float, float],
                         moved: str = "") -> None:
-        """Raises unless ``xy`` is where :meth:`add_object` places objects: 5 cm inside the top."""
+        """Raises unless ``xy`` is :meth:`on_table`."""
         (cx, cy), (hx, hy) = self.config.table_center_xy_m, TABLE_HALF_SIZE_M
-        if not (abs(xy[0] - cx) <= hx - 0.05 and abs(xy[1] - cy) <= hy - 0.05):
+        if not self.on_table(xy):
             raise InvalidInputError(field, value, f"{moved}on the table, x {cx - hx + 0.05}.."
                                     f"{cx + hx - 0.05} m, y {cy - hy + 0.05}..{cy + hy - 0.05} m")
 
