@@ -17,6 +17,7 @@ from experiments.commands.arguments import (
     model_config_files,
     names,
 )
+from experiments.commands.trials import add_loop_options, loop_settings
 from experiments.table3.run import run_reproduce_real
 from experiments.table3.settings import ReproduceRealSettings
 from experiments.tables import BEYOND_TASKS
@@ -70,6 +71,7 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         "trials: d435 (lens distortion, depth noise and holes, hand-eye error; "
                         "docs/decisions/d435-sensor.md) or ideal, an exact pinhole "
                         "(%(default)s)")
+    add_loop_options(parser)
     add_executor_options(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(run=run)
@@ -83,6 +85,7 @@ def run(args: argparse.Namespace) -> int:
                                      robustness=args.robustness,
                                      balance_types=args.balance_types,
                                      sensor=SensorKind(args.sensor), workers=args.workers,
+                                     loop=loop_settings(args),
                                      executor=executor(args), train_threads=args.train_threads,
                                      model_configs=model_config_files(args))
     report = run_reproduce_real(settings, args.out, progress=not args.no_progress)

@@ -183,7 +183,8 @@ def _work(job: Job) -> str:
 
 def _collect(job: CollectJob) -> str:
     settings = CollectSettings(SCENE, str(task_file(job.out, job.task)), job.settings.demos,
-                               job.settings.seed, SeedStream.TRAIN)
+                               job.settings.seed, SeedStream.TRAIN,
+                               approach_hz=job.settings.approach_hz)
     dataset = collect(settings, dataset_file(job.out, job.task, job.settings), progress=False)
     extra = dataset.metadata.extra
     return f"{extra.get('scenes', len(dataset))} demonstrations ({len(dataset)} " \
@@ -288,8 +289,7 @@ def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
                             run_settings.train_identity(u), folder) for u in units]
     collects_todo = [j for j in collects if not dataset_present(
         dataset_file(j.out, j.task, j.settings), SCENE, str(task_file(j.out, j.task)),
-        j.settings.demos,
-        j.settings.seed, SeedStream.TRAIN)]
+        j.settings.demos, j.settings.seed, SeedStream.TRAIN, j.settings.approach_hz)]
     trains_todo = [j for j in trains if not trained_file(j.out, j.unit).exists()]
     skipped = [j.name for j in collects if j not in collects_todo]
     skipped += [j.name for j in trains if j not in trains_todo]

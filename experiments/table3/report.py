@@ -110,6 +110,8 @@ def row_title(model: str, variant: Variant) -> str:
         return f"{model_title(model)}, darker light (brightness {DARK_BRIGHTNESS:g})"
     if variant is Variant.DISTRACTOR:
         return f"{model_title(model)}, + {' + '.join(DISTRACTOR_TYPES)} distractor"
+    if variant is Variant.OPEN_LOOP:
+        return f"{model_title(model)}, open loop (same checkpoint)"
     return model_title(model)
 
 
@@ -136,6 +138,9 @@ def table3_json(sets: Sequence[TrialSetResult]) -> dict[str, Any]:
     for result in sets:
         if result.variant is Variant.PLAIN:
             models.setdefault(result.model, {})[result.task] = result.entry()
+        elif result.variant is Variant.OPEN_LOOP:
+            models.setdefault(result.model, {})[f"{result.task}-{result.variant.value}"] = (
+                result.entry())
         elif result.model == ROBUST_MODEL:
             entry = result.entry()
             if result.variant is Variant.DISTRACTOR:

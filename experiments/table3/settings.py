@@ -32,6 +32,7 @@ from sim.jobs import LOCAL, Executor
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.task_spec import TaskSpec
 from sim.tasks.task_toml import load_task, task_to_toml
+from sim.trials.closed_loop import Loop, LoopSettings
 from sim.trials.execution import ExecutionSettings
 from sim.trials.run_folder import json_form
 from sim.trials.trial_settings import TrialSettings, obstacle_identity, task_identity
@@ -57,6 +58,7 @@ class Variant(enum.Enum):
     PLAIN = "plain"  # the task as trained
     DARK = "dark"  # the same scenes under darker light
     DISTRACTOR = "distractor"  # the same scenes plus a distractor that is never a target
+    OPEN_LOOP = "open-loop"  # a closed-loop run's checkpoint, its picks open-loop (issue 36)
 
 
 def variant_task(task: str, variant: Variant, sensor: SensorKind = SensorKind.IDEAL
@@ -149,6 +151,10 @@ class ReproduceRealSettings:
             MODEL=FILE.toml``), at most one per model. They reach ``new_model`` and the
             model's hyper-parameters in each checkpoint's identity, so a folder trained with
             other settings is refused; with none, identities are as before files existed.
+        loop: Closed (``--loop closed``): the demonstrations keep images along each approach
+            at ``replan_hz`` (the arm in view), every trial set runs closed-loop, and each
+            unit's checkpoint is also tried open-loop on the same scenes (``open-loop``), so
+            the two compare pick by pick (:mod:`sim.trials.closed_loop`). Open: as before.
 
     """
 
@@ -167,6 +173,7 @@ class ReproduceRealSettings:
     executor: Executor = LOCAL
     check: CheckConfig = field(default_factory=CheckConfig)
     model_configs: tuple[ModelConfigFile, ...] = ()
+    loop: LoopSettings = field(default_factory=LoopSettings)
 
     def __post_init__(self) -> None:
         if not isinstance(self.sensor, SensorKind):
@@ -193,9 +200,21 @@ class ReproduceRealSettings:
 
     def trial_sets(self) -> list[TrialSet]:
         """Every set of trials: each unit's, and the robustness variants of kqv's units."""
-        variants = (Variant.PLAIN, Variant.DARK, Variant.DISTRACTOR)
+        variants = (Variant.PLAIN, Variant.OPEN_LOOP, Variant.DARK, Variant.DISTRACTOR)
         return [TrialSet(unit, v) for unit in self.units() for v in variants
-                if v is Variant.PLAIN or (self.robustness and unit.model == ROBUST_MODEL)]
+                if v is Variant.PLAIN or (v is Variant.OPEN_LOOP and self.closed) or (
+                    v in (Variant.DARK, Variant.DISTRACTOR) and self.robustness
+                    and unit.model == ROBUST_MODEL)]
+
+    @property
+    def closed(self) -> bool:
+        """Whether the run's picks close the loop."""
+        return self.loop.loop is Loop.CLOSED
+
+    @property
+    def approach_hz(self) -> float | None:
+        """The rate of the demonstrations' approach images: a closed loop's, else none."""
+        return self.loop.replan_hz if self.closed else None
 
     def run_task(self, trial_set: TrialSet) -> TaskSpec:
         """The task a set's trials run (and, plain, its demonstrations): variant and sensor.
@@ -229,7 +248,8 @@ class ReproduceRealSettings:
         train.pop("seed")  # each seed's own
         sensor = ({} if self.sensor is SensorKind.IDEAL
                   else {"sensor": SensorConfig(self.sensor).to_json()})
-        return sensor | {"format_version": FORMAT_VERSION, "experiment": "reproduce-real",
+        loop = {"loop": self.loop.to_json()} if self.closed else {}
+        return sensor | loop | {"format_version": FORMAT_VERSION, "experiment": "reproduce-real",
                 "scene": SCENE, "demos": self.demos, "n": self.n,
                 "train": train, "settle_s": TrialSettings.settle_s,
                 "execution": asdict(ExecutionSettings()),
@@ -255,7 +275,11 @@ class ReproduceRealSettings:
         """The :class:`~sim.trials.trial_settings.TrialSettings` of a set (checkpoint present)."""
         return TrialSettings(model=str(checkpoint_folder(out, trial_set.unit)),
                              task=str(task_file(out, trial_set.task_name)), n=self.n,
-                             seed=self.seed)
+                             seed=self.seed, loop=self.trial_loop(trial_set))
+
+    def trial_loop(self, trial_set: TrialSet) -> LoopSettings:
+        """The loop a set's picks run: the run's, but open for its ``open-loop`` sets."""
+        return LoopSettings() if trial_set.variant is Variant.OPEN_LOOP else self.loop
 
     def command(self, out: Path) -> str:
         """The ``gva reproduce real`` command line of these settings (workers left out)."""
@@ -273,6 +297,8 @@ class ReproduceRealSettings:
             parts.append("--no-balance-types")
         if self.sensor is not ReproduceRealSettings.sensor:
             parts.append(f"--sensor {self.sensor.value}")
+        if self.closed:
+            parts.append(f"--loop closed --replan-hz {self.loop.replan_hz:g}")
         if self.train_threads != ReproduceRealSettings.train_threads:
             parts.append(f"--train-threads {self.train_threads}")
         if self.check.holdout != CheckConfig.holdout:

@@ -91,7 +91,7 @@ def first_pick_errors_cm(records: Sequence[TrialRecord]) -> list[float]:
 
 def split_task(name: str) -> tuple[str, Variant]:
     """``single-dark`` -> (``single``, DARK); ``single`` -> (``single``, PLAIN)."""
-    for variant in (Variant.DARK, Variant.DISTRACTOR):
+    for variant in (Variant.DARK, Variant.DISTRACTOR, Variant.OPEN_LOOP):
         if name.endswith(f"-{variant.value}"):
             return name[:-len(variant.value) - 1], variant
     return name, Variant.PLAIN

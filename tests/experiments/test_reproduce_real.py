@@ -345,3 +345,24 @@ def test_a_failed_held_out_check_is_named_in_the_table():
     assert checks_markdown([]) == []
     text = table3_markdown([], "Made by x.", checks=checks)
     assert text.index("## Held-out checks") < text.index("## Failure reasons")
+
+
+def test_a_closed_loop_run_tries_each_checkpoint_open_loop_too(tmp_path):
+    """``--loop closed``: approach images in the demonstrations, every set closed-loop, and an
+    ``open-loop`` set per unit on the same checkpoint and scenes (issue 36)."""
+    from experiments.table3.trial_sets import split_task
+    from sim.trials.closed_loop import Loop, LoopSettings
+
+    closed = ReproduceRealSettings(tasks=("single-moved", "single"), robustness=False,
+                                   loop=LoopSettings(Loop.CLOSED, replan_hz=5.0))
+    sets = closed.trial_sets()
+    assert {(s.unit.task, s.variant) for s in sets} == {
+        (t, v) for t in ("single-moved", "single") for v in (Variant.PLAIN, Variant.OPEN_LOOP)}
+    loops = {s.variant: closed.trial_loop(s).loop for s in sets}
+    assert loops == {Variant.PLAIN: Loop.CLOSED, Variant.OPEN_LOOP: Loop.OPEN}
+    assert closed.approach_hz == 5.0 and closed.shared_identity()["loop"]["replan_hz"] == 5.0
+    assert closed.command(tmp_path).endswith("--loop closed --replan-hz 5")
+    assert split_task("single-moved-open-loop") == ("single-moved", Variant.OPEN_LOOP)
+    plain = ReproduceRealSettings(robustness=False)
+    assert plain.approach_hz is None and "loop" not in plain.shared_identity()
+    assert {s.variant for s in plain.trial_sets()} == {Variant.PLAIN}
