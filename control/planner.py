@@ -112,20 +112,24 @@ class PickPlanner:
             for arm in self._arms_by_distance(q0, T_grasp.translation, request.arms):
                 for scale in self.config.pregrasp_scales:
                     distance_m = scale * pregrasp
-                    candidates = self._candidates(arm, T_grasp, q0, distance_m, rng)
-                    if not candidates:
+                    found = False
+                    for attempts in self._attempt_stages(moving):
+                        candidates = self._candidates(arm, T_grasp, q0, distance_m, rng,
+                                                      attempts)
+                        found = found or bool(candidates)
+                        for candidate in candidates:
+                            tried += 1
+                            plan, report = self._timed_plan(candidate, q0, moving)
+                            if plan is not None:
+                                return PlanResult(PlanStatus.SUCCESS,
+                                                  f"arm {arm}, {grasp_name}", plan,
+                                                  time.perf_counter() - started, tried)
+                            reasons.append(f"arm {arm}, {grasp_name}: {report}")
+                    if not found:
                         reasons.append(f"arm {arm}, {grasp_name}: no in-limit IK solution for "
                                        f"pre-grasp ({100 * distance_m:.0f} cm back), grasp and "
                                        "lift")
-                        continue
-                    any_ik = True
-                    for candidate in candidates:
-                        tried += 1
-                        plan, report = self._timed_plan(candidate, q0, moving)
-                        if plan is not None:
-                            return PlanResult(PlanStatus.SUCCESS, f"arm {arm}, {grasp_name}",
-                                              plan, time.perf_counter() - started, tried)
-                        reasons.append(f"arm {arm}, {grasp_name}: {report}")
+                    any_ik = any_ik or found
         status = PlanStatus.COLLISION if any_ik else PlanStatus.UNREACHABLE
         if any_ik and moving is not None:
             status = PlanStatus.RETARGET_FAILED
@@ -180,9 +184,18 @@ class PickPlanner:
 
         return sorted((arm for arm in self.arms if not allowed or arm in allowed), key=distance)
 
+    def _attempt_stages(self, moving: JointState | None) -> tuple[range, ...]:
+        """The IK attempts tried together, in order.
+
+        All at once from rest; mid-motion (a re-plan, where time is short) the one seeded from
+        the configuration now first, which usually serves, the random restarts only if not.
+        """
+        every = range(self.config.ik_solutions_per_grasp)
+        return (every,) if moving is None else (every[:1], every[1:])
+
     def _candidates(
         self, arm: str, T_grasp: pin.SE3, q0: np.ndarray, pregrasp_m: float,
-        rng: np.random.Generator,
+        rng: np.random.Generator, attempts: range,
     ) -> list[_Candidate]:
         ik, index = self._ik[arm], self._indices[arm]
         lift = pin.SE3(np.eye(3), np.array([0.0, 0.0, self.config.lift_height_m]))
@@ -190,7 +203,7 @@ class PickPlanner:
         found: list[_Candidate] = []
         for T_g in (T_grasp, T_grasp * _FLIP):
             T_pre, T_lift = T_g * back_off, lift * T_g
-            for attempt in range(self.config.ik_solutions_per_grasp):
+            for attempt in attempts:
                 q_init = q0.copy()
                 if attempt > 0:
                     lower, upper = self.robot.lower_rad[index], self.robot.upper_rad[index]
