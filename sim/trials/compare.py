@@ -44,7 +44,7 @@ class Comparison:
     model_a: str
     model_b: str
     task: str
-    seed: int
+    seed: int | tuple[int, ...]  # several: runs of several seeds, their pairs pooled
     overall: PairedTest
     outcomes: dict[str, dict[str, int]]
     per_object: dict[str, PairedTest] = field(default_factory=dict)
@@ -67,6 +67,11 @@ class Comparison:
                 "outcomes": self.outcomes,
                 "per_object": {name: test.to_dict() for name, test in self.per_object.items()}}
 
+    def _seeds(self) -> str:
+        if isinstance(self.seed, int):
+            return f"seed {self.seed}"
+        return f"seeds {', '.join(map(str, self.seed))} pooled"
+
     def lines(self, label_a: str | None = None, label_b: str | None = None) -> list[str]:
         """What ``gva compare`` prints: pairs, outcome table, test, interval, per object.
 
@@ -75,7 +80,7 @@ class Comparison:
         counts = self.overall.counts
         lines = [f"A: {counts.successes_a}/{self.n} successes  {label_a or self.model_a}",
                  f"B: {counts.successes_b}/{self.n} successes  {label_b or self.model_b}",
-                 f"{self.n} trials of task {self.task}, seed {self.seed}, paired by index: "
+                 f"{self.n} trials of task {self.task}, {self._seeds()}, paired by index: "
                  f"both succeeded {counts.both}, only A {counts.only_a}, only B "
                  f"{counts.only_b}, neither {counts.neither}",
                  "outcomes (rows: A, columns: B):"]
@@ -109,14 +114,41 @@ def compare_records(a: Sequence[TrialRecord], b: Sequence[TrialRecord]) -> Compa
             whose objects differ (not the same scene): one line naming the trial and field.
 
     """
-    a, b = sorted(a, key=lambda r: r.index), sorted(b, key=lambda r: r.index)
-    if not a or not b:
-        raise InvalidInputError("trials", f"{len(a)} of A, {len(b)} of B",
-                                "at least one trial in each run")
-    _check_same_trials(a, b)
-    overall = PairedTest.of(PairedCounts.of([r.success for r in a], [r.success for r in b]))
-    return Comparison(a[0].model, b[0].model, a[0].task, a[0].seed, overall,
-                      _outcome_table(a, b), _per_object(a, b))
+    return pooled_records([(a, b)])
+
+
+def pooled_records(pairs: Sequence[tuple[Sequence[TrialRecord], Sequence[TrialRecord]]]
+                   ) -> Comparison:
+    """Several (A, B) runs' trials, each pair compared as :func:`compare_records` does, pooled.
+
+    Runs of one task at several seeds (a seed's A and B on the same scenes): the counts of
+    every seed's pairs add up, the McNemar test and interval are over them all (the pairs are
+    independent trials), and the comparison's ``seed`` lists the seeds.
+
+    Raises:
+        InvalidInputError: As :func:`compare_records`, for any pair; or pairs of other tasks.
+
+    """
+    all_a: list[TrialRecord] = []
+    all_b: list[TrialRecord] = []
+    for a, b in pairs:
+        a, b = sorted(a, key=lambda r: r.index), sorted(b, key=lambda r: r.index)
+        if not a or not b:
+            raise InvalidInputError("trials", f"{len(a)} of A, {len(b)} of B",
+                                    "at least one trial in each run")
+        _check_same_trials(a, b)
+        if all_a and a[0].task != all_a[0].task:
+            raise InvalidInputError("task of a later pair", a[0].task,
+                                    f"{all_a[0].task!r}, as in the first: pooled pairs are "
+                                    "runs of one task")
+        all_a += a
+        all_b += b
+    seeds = tuple(dict.fromkeys(r.seed for r in all_a))
+    overall = PairedTest.of(PairedCounts.of([r.success for r in all_a],
+                                            [r.success for r in all_b]))
+    return Comparison(all_a[0].model, all_b[0].model, all_a[0].task,
+                      seeds[0] if len(pairs) == 1 else seeds, overall,
+                      _outcome_table(all_a, all_b), _per_object(all_a, all_b))
 
 
 def _check_same_trials(a: Sequence[TrialRecord], b: Sequence[TrialRecord]) -> None:
@@ -268,7 +300,21 @@ def compare_runs(folder_a: str | Path, folder_b: str | Path) -> Comparison:
             objects).
 
     """
-    run_a, run_b = read_finished_run(folder_a), read_finished_run(folder_b)
-    check_same_trial_list(run_a, run_b)
-    return compare_records(run_a.records, run_b.records)
+    return compare_pooled([(folder_a, folder_b)])
+
+
+def compare_pooled(folders: Sequence[tuple[str | Path, str | Path]]) -> Comparison:
+    """Pairs of runs (A, B), e.g. one per seed, compared and pooled (:func:`pooled_records`).
+
+    Raises:
+        RunFolderError: A folder is not a finished run of trials.
+        InvalidInputError: A pair ran different trials, or the pairs other tasks.
+
+    """
+    pairs = []
+    for folder_a, folder_b in folders:
+        run_a, run_b = read_finished_run(folder_a), read_finished_run(folder_b)
+        check_same_trial_list(run_a, run_b)
+        pairs.append((run_a.records, run_b.records))
+    return pooled_records(pairs)
 

@@ -188,3 +188,26 @@ def test_table3_pairs_each_baseline_with_kqv_per_task_and_seed():
     only_kqv = table3_markdown([kqv], "Made by x.")
     assert "## Baselines against" not in only_kqv
     assert table3_json([kqv])["against_kqv"]["models"] == {}
+
+
+def test_pairs_of_runs_of_several_seeds_pool_their_trials(tmp_path):
+    """``gva compare A0 B0 A1 B1``: one pair per seed, the counts pooled over the seeds."""
+    runs = []
+    for seed, (a, b) in enumerate([([OK] * 30, [OK] * 25 + [FAILED] * 5),
+                                   ([OK] * 30, [OK] * 24 + [FAILED] * 6)]):
+        runs += [write_run(tmp_path / f"a{seed}", trials(a, seed=seed), seed=seed),
+                 write_run(tmp_path / f"b{seed}", trials(b, model="b", seed=seed), seed=seed)]
+    status, stdout, stderr, data = compared(tmp_path, *runs)
+    assert status == 1, stderr  # 11 of 60 pairs only A: significantly worse pooled
+    assert data["pairs"] == {"both": 49, "only_a": 11, "only_b": 0, "neither": 0}
+    assert data["seed"] == [0, 1] and data["n"] == 60
+    assert data["runs"] == [[str(runs[0]), str(runs[1])], [str(runs[2]), str(runs[3])]]
+    assert "60 trials of task single, seeds 0, 1 pooled" in stdout
+    single = compared(tmp_path / "one", runs[0], runs[1])[3]
+    assert single["seed"] == 0 and single["pairs"]["only_a"] == 5  # one pair: as before
+    status, _, stderr, _ = compared(tmp_path, *runs[:3])
+    assert status == 2 and "runs = '3 folders' is not allowed: pairs: RUN_A RUN_B" in stderr
+    other = write_run(tmp_path / "other", trials([OK] * 30, seed=1, task="multiple"),
+                      task="multiple", seed=1)
+    status, _, stderr, _ = compared(tmp_path, runs[0], runs[1], other, other)
+    assert status == 2 and "task of a later pair = 'multiple' is not allowed" in stderr
