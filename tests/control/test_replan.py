@@ -80,3 +80,18 @@ def test_replan_names_a_state_that_is_not_one_arm(yumi_planner, yumi_home):
         yumi_planner.replan(PickRequest(top_down(0.45, 0.0, 0.035), yumi_home), state)
     with pytest.raises(InvalidInputError, match=r"arms = \('x',\) is not allowed: names among"):
         yumi_planner.plan(PickRequest(top_down(0.45, 0.0, 0.035), yumi_home, arms=("x",)))
+
+
+def test_thinned_checks_keep_every_joint_within_the_step():
+    from control.planner import thinned_samples
+
+    rng = np.random.default_rng(0)
+    positions = np.cumsum(rng.uniform(-0.004, 0.004, size=(500, 7)), axis=0)
+    positions[200:210] += np.linspace(0, 0.2, 10)[:, None]  # a fast stretch: 0.022 rad a step
+    kept = thinned_samples(positions, 0.01)
+    assert kept[0] == 0 and kept[-1] == 499 and np.all(np.diff(kept) > 0)
+    for a, b in zip(kept[:-1], kept[1:], strict=True):
+        travel = np.abs(np.diff(positions[a:b + 1], axis=0)).max(axis=1).sum()
+        assert travel <= 0.01 + 1e-12 or b == a + 1  # within the step, or one long step
+    assert len(kept) < 0.6 * len(positions)  # most slow samples are skipped
+    assert set(range(200, 210)) <= set(kept)  # the fast stretch is checked at every sample
