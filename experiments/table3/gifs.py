@@ -38,7 +38,8 @@ def record_gif(model_name: str, trials: TrialSettings, count: int, path: Path
     recorded: list[list[Any]] = []
     shown: list[dict[str, Any]] = []
     with torch_threads(1), TrialRunner(task, model.factory, trials.settle_s, trials.execution,
-                                       observer=recorder, obstacles=trials.obstacles) as runner:
+                                       observer=recorder, obstacles=trials.obstacles,
+                                       loop=trials.loop) as runner:
         for index in range(count):
             scene = sample_scene(task, YUMI_SCENE, trials.seed, SeedStream.TEST, index)
             given = scene.given
