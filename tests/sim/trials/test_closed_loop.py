@@ -5,8 +5,11 @@ from __future__ import annotations
 import dataclasses
 import json
 
+import numpy as np
 import pytest
+from user_models import DOWN, FixedGrasp
 
+from perception.interface import NO_CONDITION, Prediction, Target
 from sim.errors import InvalidInputError
 from sim.tasks.disturbance import Disturbance
 from sim.tasks.task_toml import load_task
@@ -93,3 +96,43 @@ def test_gva_trials_closes_the_loop_and_records_it(tmp_path):
     assert status == 2
     assert "--replan-hz = 5.0 is not allowed: only with --loop closed" in err
     assert not (tmp_path / "s").exists()
+
+
+class _Later(FixedGrasp):
+    """The fixed grasp at the first prediction; what ``later`` says at every one after it."""
+
+    calls = 0
+
+    def predict(self, image, condition=NO_CONDITION):
+        type(self).calls += 1
+        first = super().predict(image, condition)
+        return first if type(self).calls == 1 else self.later(first)
+
+    def later(self, first):
+        return first
+
+
+class _RaisesLater(_Later):
+    def later(self, first):
+        raise RuntimeError("the detector lost the target")
+
+
+class _Unreachable(_Later):
+    def later(self, first):  # a grasp 1.5 m away: no arm reaches it
+        return Prediction((Target(np.array([1.5, 0.0, 0.03]), DOWN.copy()),))
+
+
+@pytest.mark.parametrize(("model", "reaction"), [(_RaisesLater, Reaction.UNSEEN),
+                                                 (_Unreachable, Reaction.KEPT)])
+def test_a_re_prediction_the_arm_cannot_follow_keeps_the_plan_and_says_why(model, reaction):
+    model.calls = 0
+    task = load_task("single")
+    with TrialRunner(task, lambda world, camera: model(),
+                     loop=LoopSettings(Loop.CLOSED)) as runner:
+        record = runner.run(trial_scene(task, 0, 0), 0, 0, "test")
+    [pick] = record.picks
+    assert pick["repredictions"]
+    assert {r["reaction"] for r in pick["repredictions"]} == {reaction.value}
+    assert all(r["reason"] for r in pick["repredictions"])
+    assert "arm" in pick  # the first plan was followed to the end
+    assert record.outcome is not TrialOutcome.ERROR
