@@ -7,7 +7,10 @@ redrawn from the next scene of the training stream, and counted). A demonstratio
 image the camera takes before each of its picks, as a trial sees them: a ``multiple`` scene
 gives three samples, the second without the first target, the third with the last alone; a
 sample's record lists the targets already taken under ``"taken"`` (their labels say where they
-were; :meth:`perception.learning.data.Dataset.target_present` marks them absent). Either way, scene
+were; :meth:`perception.learning.data.Dataset.target_present` marks them absent). With
+``approach_hz`` a demonstration also keeps images along each approach, the arm in view; a task
+that moves its target during the pick is demonstrated by the oracle's closed loop, which follows
+it (:mod:`sim.trials.closed_loop`). Either way, scene
 ``i`` of a dataset comes from the training seed stream, never the test stream the trials use,
 unless the settings ask for the test stream: a ``paper-sim`` test set (Table II scores models
 on 100 test scenes) is collected like a training set, from ``SeedStream.TEST``. Scene ``i``
