@@ -5,7 +5,8 @@ each image a prediction was made from, with the prediction, and calls it after e
 step.
 Every ``frame_every_s`` of simulated time it renders a second, wider camera that looks at the
 robot and the table (:data:`ROBOT_VIEW`), and keeps a frame: the head camera's last image with
-the attention points drawn (numbered by head, :mod:`perception.drawing`) on the left, the robot's
+the predicted grasps (white) and attention points (numbered by head, :mod:`perception.drawing`)
+drawn on the left, the robot's
 view on the right, a caption strip on top::
 
     recorder = TrialRecorder()
@@ -42,6 +43,8 @@ from sim.errors import InvalidInputError
 from sim.world.head_camera import CameraConfig, HeadCamera, Lighting
 from sim.world.yumi_world import World
 
+GRASP_DOT_PX = 2.0
+"""Radius of a predicted grasp's dot on the head camera's panel [px]."""
 ROBOT_VIEW = CameraConfig(position_m=(1.1, -0.5, 0.6), target_m=(0.28, 0.0, 0.2),
                           vertical_fov_deg=52.0, horizontal_fov_deg=None)
 """A camera in front of the robot, to its right, that sees both arms and the workspace."""
@@ -105,12 +108,19 @@ class TrialRecorder:
         self._next_frame_s = 0.0
 
     def saw(self, frame: RgbdFrame, prediction: Prediction | None) -> None:
-        """Takes the image a prediction was made from; draws its attention points on it.
+        """Takes the image a prediction was made from; draws its grasps and attention points.
+
+        Each predicted grasp position is a white dot (where the camera's calibration projects
+        it), each attention point a coloured, numbered one; a closed loop's re-predictions each
+        replace the panel, so the grasp is seen following a moved target.
 
         A prediction the robot could not act on (None) leaves the image without points, so a
         trial that failed in perception still shows what the model saw.
         """
         panel = np.array(frame.rgb, dtype=np.uint8, copy=True)
+        for target in () if prediction is None else prediction.targets:  # the grasps, in white
+            uv = frame.camera.project(np.asarray(target.position_m, dtype=float)[None])[0]
+            draw_dot(panel, tuple(uv), GRASP_DOT_PX, (255, 255, 255), outline_px=1.0)
         points = np.zeros((0, 2)) if prediction is None else np.asarray(
             prediction.attention_px, dtype=float).reshape(-1, 2)  # (p, 2)
         for head, point in enumerate(points):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from PIL import Image
@@ -123,3 +125,27 @@ def test_trials_join_into_one_looping_gif(tmp_path):
         write_gif(tmp_path / "bad.gif", frames, durations[:-1])
     with pytest.raises(InvalidInputError, match="max_frames"):
         RecordingSettings(max_frames=1)
+
+
+def test_a_closed_loop_gif_shows_the_grasp_follow_the_moved_target():
+    """Each re-prediction replaces the panel: its white grasp dot lands on the moved target."""
+    from sim.tasks.disturbance import Disturbance
+    from sim.trials.closed_loop import Loop, LoopSettings
+
+    task = dataclasses.replace(load_task("single"), name="single-moved",
+                               disturbance=Disturbance(move_m=(0.06, 0.06)))
+    scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 0)
+    recorder = CountingRecorder()
+    with TrialRunner(task, observer=recorder, loop=LoopSettings(Loop.CLOSED)) as runner:
+        recorder.start("oracle / single-moved, trial 0")
+        record = runner.run(scene, 0, 0, "oracle")
+        frames = recorder.finish(record.outcome.value)
+    assert record.success, record.reason
+    assert recorder.predictions == 1 + len(record.picks[0]["repredictions"])
+
+    def white_dot(frame):  # the centre of the panel's pure-white pixels
+        v, u = np.nonzero(np.all(frame[CAPTION_PX:, :128] == 255, axis=-1))
+        return np.array([u.mean(), v.mean()])
+
+    moved = np.linalg.norm(white_dot(frames[-1]) - white_dot(frames[0]))
+    assert moved > 5  # px: 6 cm on the table is about 20 px in the 128 px image
