@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from control.pick import PickPlan
-from control.retarget import trajectory_state
+from control.retarget import JointState, trajectory_state
 from perception.catalog import ObjectSpec
 from perception.grasp_judge import GraspVerdict, judge_grasp, yaw_of
 from perception.poses import Pose
@@ -247,7 +247,7 @@ class ApproachLoop:
                                   settle_s=0.0)
         self.moved = Moved(time_s, draw, before, after)
 
-    def _repredict(self, time_s: float, state: Any) -> PickPlan | None:
+    def _repredict(self, time_s: float, state: JointState) -> PickPlan | None:
         """One re-prediction; the new plan to follow if the arm re-targets, else None."""
         runner = self.runner
         sighting = runner.sight(self.body, self_filter=True)
