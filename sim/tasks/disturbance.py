@@ -23,14 +23,11 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from sim.errors import InvalidInputError
-
-if TYPE_CHECKING:  # scene_sampling imports task_spec, which imports this module
-    from sim.tasks.task_spec import TaskSpec
 
 MAX_MOVE_M = 0.15
 """Largest ``disturbance.move_m`` [m]. The ``yumi`` scene's workspace is ~0.15 m x 0.40 m
@@ -161,16 +158,16 @@ def disturbance_rng(seed: int, index: int, stream: int = 1) -> np.random.Generat
         [seed, int(stream), index, DISTURBANCE_STREAM]))
 
 
-def scene_disturbance(task: TaskSpec, seed: int, index: int,
+def scene_disturbance(disturbance: Disturbance | None, seed: int, index: int,
                       stream: int = 1) -> DisturbanceDraw | None:
-    """The disturbance of scene ``index`` of ``stream`` (default TEST) under ``seed``.
+    """What ``disturbance`` (a task's) does in scene ``index`` of ``stream`` (default TEST).
 
     None where the task has none. The scene itself (``sample_scene`` with the same seed,
     stream and index) is unchanged by it: the draw comes from the disturbances' own stream.
     """
-    if task.disturbance is None:
+    if disturbance is None:
         return None
-    return draw_disturbance(task.disturbance, disturbance_rng(seed, index, stream))
+    return draw_disturbance(disturbance, disturbance_rng(seed, index, stream))
 
 
 def disturbance_from_table(table: dict[str, Any], where: str) -> Disturbance:

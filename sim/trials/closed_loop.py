@@ -21,24 +21,30 @@ import math
 import traceback
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from control.pick import PickPlan
 from control.retarget import JointState, trajectory_state
+from perception.camera import RgbdFrame
 from perception.catalog import ObjectSpec
 from perception.grasp_judge import GraspVerdict, judge_grasp, yaw_of
+from perception.interface import PerceptionModel, Prediction
 from perception.poses import Pose
 from robots import yumi
 from sim.errors import InvalidInputError
 from sim.tasks.disturbance import DisturbanceDraw
+from sim.tasks.scene_sampling import Scene
 from sim.trials.execution import StepWatch
-from sim.trials.pick_results import PlannedPick, as_recorded, grasp_angle_rad, pose_json
-
-if TYPE_CHECKING:  # the runner imports this module
-    from sim.tasks.scene_sampling import Scene
-    from sim.trials.trial_runner import TrialRunner
+from sim.trials.pick_results import (
+    PlannedPick,
+    Sighting,
+    as_recorded,
+    grasp_angle_rad,
+    pose_json,
+)
+from sim.world.yumi_world import World
 
 MOVE_CLEARANCE_M = 0.10
 """Nearest a moved target's centre comes to another object's [m]: the objects reach 4.5-7 cm
@@ -149,6 +155,31 @@ class Moved:
                 "after": pose_json(self.after.position, self.after.rotation)}
 
 
+class LoopRunner(Protocol):
+    """What a loop needs of the trial runner (:class:`~sim.trials.trial_runner.TrialRunner`).
+
+    Its world and model, to see again, read and plan as the first image was; declared here so
+    that the runner, which makes the loops, is not imported by them.
+    """
+
+    world: World
+    model: PerceptionModel
+    observer: Any  # a TrialObserver (or None): its ``saw`` gets each re-prediction
+
+    def sight(self, body: int, self_filter: bool = False) -> Sighting:
+        """The head camera's frame now and the referee's note of ``body``."""
+
+    def read_grasp(self, prediction: Prediction, number: int, total: int) -> PlannedPick:
+        """The grasp and grip a prediction states for a pick, or why none."""
+
+    def plan_pick(self, frame: RgbdFrame, prediction: Prediction, number: int, total: int,
+                  moving: JointState | None = None) -> PlannedPick:
+        """The plan phase from a frame and a prediction; ``moving``: re-planned mid-motion."""
+
+    def truth(self, body: int) -> Pose:
+        """The canonical grasp of ``body`` where it lies now (the referee's)."""
+
+
 class ApproachLoop:
     """Tracks a pick's approach with re-predictions and a disturbance: an ``ApproachFollower``.
 
@@ -156,7 +187,7 @@ class ApproachLoop:
     :attr:`followed` (the plan phase of the plan followed last) are read after the pick.
     """
 
-    def __init__(self, runner: TrialRunner, scene: Scene, number: int, total: int, body: int,
+    def __init__(self, runner: LoopRunner, scene: Scene, number: int, total: int, body: int,
                  first: PlannedPick, settings: LoopSettings,
                  disturbance: DisturbanceDraw | None) -> None:
         self.runner, self.scene, self.number, self.total = runner, scene, number, total

@@ -312,7 +312,7 @@ class TrialRunner:
                        planned: PlannedPick) -> ApproachLoop | None:
         """The closed loop of this pick, or its disturbance's (the first pick's only)."""
         draw = None if scene is None or number else scene_disturbance(
-            self.task, scene.seed, scene.index, int(scene.stream))
+            self.task.disturbance, scene.seed, scene.index, int(scene.stream))
         if scene is None or (self.loop.loop is Loop.OPEN and draw is None):
             return None
         return ApproachLoop(self, scene, number, total, body, planned, self.loop, draw)

@@ -1,5 +1,7 @@
 """PickPlanner.replan: a new pick for the moving arm, its approach re-targeted mid-motion."""
 
+import itertools
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -90,7 +92,7 @@ def test_thinned_checks_keep_every_joint_within_the_step():
     positions[200:210] += np.linspace(0, 0.2, 10)[:, None]  # a fast stretch: 0.022 rad a step
     kept = thinned_samples(positions, 0.01)
     assert kept[0] == 0 and kept[-1] == 499 and np.all(np.diff(kept) > 0)
-    for a, b in zip(kept[:-1], kept[1:], strict=True):
+    for a, b in itertools.pairwise(kept):
         travel = np.abs(np.diff(positions[a:b + 1], axis=0)).max(axis=1).sum()
         assert travel <= 0.01 + 1e-12 or b == a + 1  # within the step, or one long step
     assert len(kept) < 0.6 * len(positions)  # most slow samples are skipped

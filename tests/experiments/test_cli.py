@@ -18,6 +18,7 @@ from experiments.table3.settings import ReproduceRealSettings
 from perception.learning.train import TrainConfig
 from perception.learning.validation import CheckConfig
 from sim.jobs import Executor, ExecutorKind
+from sim.trials.closed_loop import Loop, LoopSettings
 from sim.trials.collector import CollectSettings
 from sim.trials.trial_settings import TrialSettings
 from sim.world.sensor import SensorKind
@@ -67,10 +68,13 @@ def test_the_defaults_are_the_settings_dataclasses_defaults():
     assert sim["model_config"] == real["model_config"] == []  # the settings' () of files
     assert ReproduceSimSettings().model_configs == ReproduceRealSettings().model_configs == ()
     for field in dataclasses.fields(ReproduceRealSettings):
-        if field.name not in ("check", "executor", "model_configs"):
+        if field.name not in ("check", "executor", "model_configs", "loop"):
             value = SensorKind(real["sensor"]) if field.name == "sensor" else real[field.name]
             assert value == getattr(ReproduceRealSettings(), field.name), field.name
     assert real["holdout"] == ReproduceRealSettings().check.holdout
+    for parsed in (real, _parsed("trials", "--out", "x")):  # --loop, --replan-hz
+        assert LoopSettings(Loop(parsed["loop"]), parsed["replan_hz"]) == LoopSettings()
+    assert ReproduceRealSettings().loop == TrialSettings("oracle", "single").loop
     for parsed in (sim, real, _parsed("trials", "--out", "x")):
         assert Executor(ExecutorKind(parsed["executor"]), parsed["ray_address"]) == Executor()
     trials = _parsed("trials", "--out", "x")

@@ -33,8 +33,8 @@ yaw_deg = [-90, 90]
 
 def test_the_papers_four_tasks_ship_with_their_text_and_picture_twins():
     assert builtin_tasks() == ("multiple", "selected-position", "selected-position-text",
-                               "selected-type", "selected-type-image", "selected-type-text",
-                               "single")
+                               "selected-type", "selected-type-image", "selected-type-moved",
+                               "selected-type-text", "single", "single-moved")
     multiple = load_task("multiple")
     assert (multiple.objects, multiple.count, multiple.targets) == (
         ObjectChoice.ONE_OF_EACH, 3, TargetSelection.ALL)

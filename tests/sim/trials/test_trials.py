@@ -97,8 +97,8 @@ def test_unknown_model_and_task_are_refused_with_the_allowed_names():
         TrialSettings(model="kqv9", task="single")
     with pytest.raises(InvalidInputError, match=r"task = 'juggle' is not allowed: one of multiple, "
                        r"selected-position, selected-position-text, selected-type, "
-                       r"selected-type-image, selected-type-text, single, or the path of a "
-                       r"\.toml file"):
+                       r"selected-type-image, selected-type-moved, selected-type-text, single, "
+                       r"single-moved, or the path of a \.toml file"):
         TrialSettings(model="oracle", task="juggle")
 
 
