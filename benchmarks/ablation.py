@@ -53,6 +53,7 @@ from perception.registry import load_model
 
 ROWS_DIR = Path(__file__).resolve().parent / "ablation"
 RECIPE = "recipe"
+PAPER = "paper"
 TASKS = ("single", "multiple", "selected-type", "selected-position")
 SIZE = 20
 TEST_SCENES = 100
@@ -209,18 +210,28 @@ def row_summary(folder: Path, file: Path | None, tasks: Sequence[str],
 
 def summarise(out: Path, rows: Mapping[str, Path | None], tasks: Sequence[str],
               seeds: Sequence[int]) -> dict[str, Any]:
-    """Every row's record, each finished task compared with ``out/recipe``'s."""
+    """Every row's record, each finished task compared with ``out/recipe``'s.
+
+    A ``paper-plus-*`` row (the paper's model with one departure restored) is also compared
+    with ``out/paper``'s, where that row is finished: what the one departure buys the paper.
+    """
     recipe = row_summary(out / RECIPE, None, tasks, seeds)
     records = {name: recipe if name == RECIPE else row_summary(out / name, file, tasks, seeds)
                for name, file in rows.items()}
+    paper_file = row_files().get(PAPER)
+    paper = None if paper_file is None else records.get(PAPER) or row_summary(
+        out / PAPER, paper_file, tasks, seeds)
     for name, record in records.items():
+        bases = [("vs_recipe", recipe)] + ([("vs_paper", paper)] if paper is not None
+                                           and name.startswith(f"{PAPER}-plus-") else [])
         for task, entry in record["tasks"].items():
-            base = recipe["tasks"][task]
-            if name != RECIPE and entry["status"] == base["status"] == "finished":
-                difference = paired_difference(
-                    {int(s): e for s, e in entry["error_cm"].items()},
-                    {int(s): e for s, e in base["error_cm"].items()})
-                entry["vs_recipe"] = None if difference is None else asdict(difference)
+            for key, base_record in bases:
+                base = base_record["tasks"][task]
+                if name != RECIPE and entry["status"] == base["status"] == "finished":
+                    difference = paired_difference(
+                        {int(s): e for s, e in entry["error_cm"].items()},
+                        {int(s): e for s, e in base["error_cm"].items()})
+                    entry[key] = None if difference is None else asdict(difference)
     return {"benchmark": "ablation", "out": str(out), "scene": "yumi", "size": SIZE,
             "tasks": list(tasks), "seeds": list(seeds), "rows": records, "machine": machine()}
 
@@ -243,10 +254,11 @@ def markdown(summary: Mapping[str, Any]) -> list[str]:
             pooled = "—" if picked is None else f"{100 * picked['pooled']:.0f} %"
             worst = "—" if picked is None else (f"{100 * picked['worst']:.0f} % "
                                                 f"(s{picked['worst_seed']})")
-            versus = entry.get("vs_recipe")
-            shown = "—" if versus is None else (
+            shown = " ".join(
                 f"{versus['difference_cm']:+.2f} ± {versus['standard_error_cm']:.2f}"
-                + (" *" if versus["beyond_seed_spread"] else ""))
+                + (" *" if versus["beyond_seed_spread"] else "") + label
+                for key, label in (("vs_recipe", ""), ("vs_paper", " (vs paper)"))
+                if (versus := entry.get(key)) is not None) or "—"
             lines.append(f"| {name} | {task} | {error['mean']:.2f}{std} | {error['worst']:.2f} "
                          f"(s{error['worst_seed']}) | {pooled} | {worst} | "
                          f"{entry['median_train_s']:.0f} | {shown} |")

@@ -228,3 +228,19 @@ def test_minus_focus_scores_the_recipe_checkpoints_again(tmp_path: Path) -> None
     summary = ablation.summarise(tmp_path, {"minus-focus": ROWS["minus-focus"]}, ["single"], [0])
     assert summary["rows"]["minus-focus"]["tasks"]["single"]["status"] == "finished"
     assert summary["rows"]["minus-focus"]["tasks"]["single"]["median_train_s"] == 90.0
+
+
+def test_a_paper_plus_row_is_compared_with_the_paper_too(runs: Path) -> None:
+    _write(runs / "paper", [_cell("single", s, 4.0 + s, 80.0, None) for s in range(3)],
+           read_model_config(ROWS["paper"], "kqv"))
+    _write(runs / "paper-plus-point-loss", [_cell("single", s, 2.0 + s, 85.0, None)
+                                            for s in range(3)],
+           read_model_config(ROWS["paper-plus-point-loss"], "kqv"))
+    rows = {"recipe": None, "paper-plus-point-loss": ROWS["paper-plus-point-loss"]}
+    summary = ablation.summarise(runs, rows, ["single"], [0, 1, 2])
+    entry = summary["rows"]["paper-plus-point-loss"]["tasks"]["single"]
+    assert entry["vs_paper"]["difference_cm"] == pytest.approx(-2.0)
+    assert entry["vs_recipe"]["difference_cm"] == pytest.approx(1.0)
+    assert "vs_paper" not in summary["rows"]["recipe"]["tasks"]["single"]
+    lines = ablation.markdown(summary)
+    assert any("+1.00 ± 0.00 * -2.00 ± 0.00 * (vs paper)" in line for line in lines)
