@@ -17,8 +17,9 @@ the grasp judge's predicted picked share pooled over the seeds' targets and at t
 the median training seconds per cell; and the difference of mean errors against ``recipe``
 (row minus recipe: positive, the removed departure helps), flagged *beyond the seed spread*
 when |mean of the paired per-seed differences| > 2 x their standard error (sample std of the
-differences / sqrt(seeds)), over the seeds both rows finished (at least two). A task a row has
-not finished, or whose folder holds another row's settings, is shown as such, with no number.
+differences / sqrt(seeds)), over the seeds both rows finished (at least two); a
+``paper-plus-*`` row also against ``paper``. A task a row has not finished, or whose folder
+holds another row's settings, is shown as such, with no number.
 A row whose settings are the recipe's on a task (:data:`ONLY_TASKS`) is not trained there. A
 row that changes only how a trained network is read (every setting in
 :data:`~perception.models.kqv_config.INFERENCE_FIELDS`, e.g. ``minus-focus``) is not trained at
