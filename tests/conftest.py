@@ -9,12 +9,27 @@ import pytest
 from control.collision import CollisionChecker
 from control.planner import PickPlanner
 from control.robot_model import RobotModel
+from control.trajectory import JointLimits
 from robots import yumi
 
 
 @pytest.fixture(scope="session")
 def yumi_model() -> RobotModel:
     return RobotModel.from_urdf(yumi.URDF_PATH, yumi.SRDF_PATH)
+
+
+@pytest.fixture(scope="module", params=yumi.ARM_SIDES)
+def limits(request: pytest.FixtureRequest, yumi_model: RobotModel) -> JointLimits:
+    """Each arm's trajectory limits in turn (URDF positions and velocities, stated a and j)."""
+    return JointLimits.from_robot(yumi_model, yumi.ARM_JOINTS[request.param],
+                                  yumi.MAX_ACCELERATION_RAD_S2, yumi.MAX_JERK_RAD_S3)
+
+
+@pytest.fixture(scope="session")
+def right(yumi_model: RobotModel) -> JointLimits:
+    """The right arm's trajectory limits."""
+    return JointLimits.from_robot(yumi_model, yumi.ARM_JOINTS["r"],
+                                  yumi.MAX_ACCELERATION_RAD_S2, yumi.MAX_JERK_RAD_S3)
 
 
 @pytest.fixture(scope="session")

@@ -39,23 +39,6 @@ STEP_ABSOLUTE_TOL = 1e-12  # [rad], on top of RELATIVE_TOL
 MAX_REFUSED = CASES_PER_ARM // 100
 
 
-@pytest.fixture(scope="module")
-def robot() -> RobotModel:
-    return RobotModel.from_urdf(yumi.URDF_PATH)
-
-
-@pytest.fixture(scope="module", params=yumi.ARM_SIDES)
-def limits(request: pytest.FixtureRequest, robot: RobotModel) -> JointLimits:
-    return JointLimits.from_robot(robot, yumi.ARM_JOINTS[request.param],
-                                  yumi.MAX_ACCELERATION_RAD_S2, yumi.MAX_JERK_RAD_S3)
-
-
-@pytest.fixture(scope="module")
-def right(robot: RobotModel) -> JointLimits:
-    return JointLimits.from_robot(robot, yumi.ARM_JOINTS["r"],
-                                  yumi.MAX_ACCELERATION_RAD_S2, yumi.MAX_JERK_RAD_S3)
-
-
 def home(limits: JointLimits) -> np.ndarray:
     return np.array([yumi.HOME[name] for name in limits.joint_names])
 
@@ -167,14 +150,14 @@ def test_splice_is_continuous_at_the_seam(limits: JointLimits) -> None:
 
 
 def test_splice_refuses_a_new_that_does_not_start_at_the_sample(
-    right: JointLimits, robot: RobotModel
+    right: JointLimits, yumi_model: RobotModel
 ) -> None:
     executed = plan_segment(home(right), np.zeros(7), right)
     elsewhere = retarget(trajectory_state(executed, 20), np.zeros(7), right)
     seam = r"new\.positions\[0\]\[yumi_joint_\d_r\] = .* is not allowed: equal to executed\[10\]"
     with pytest.raises(InvalidInputError, match=seam):
         splice(executed, 10, elsewhere)
-    left = JointLimits.from_robot(robot, yumi.ARM_JOINTS["l"], yumi.MAX_ACCELERATION_RAD_S2,
+    left = JointLimits.from_robot(yumi_model, yumi.ARM_JOINTS["l"], yumi.MAX_ACCELERATION_RAD_S2,
                                   yumi.MAX_JERK_RAD_S3)
     other_arm = plan_segment(home(left), home(left), left)
     with pytest.raises(InvalidInputError, match=r"new\.joint_names = .* the same joints"):

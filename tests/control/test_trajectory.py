@@ -32,23 +32,6 @@ JERK_RELATIVE_TOL = 1e-6  # of j_max
 LINE_TOL = 1e-9  # [rad], distance of a sample from the start -> goal segment
 
 
-@pytest.fixture(scope="module")
-def robot() -> RobotModel:
-    return RobotModel.from_urdf(yumi.URDF_PATH)
-
-
-@pytest.fixture(scope="module", params=yumi.ARM_SIDES)
-def limits(request: pytest.FixtureRequest, robot: RobotModel) -> JointLimits:
-    return JointLimits.from_robot(robot, yumi.ARM_JOINTS[request.param],
-                                  yumi.MAX_ACCELERATION_RAD_S2, yumi.MAX_JERK_RAD_S3)
-
-
-@pytest.fixture(scope="module")
-def right(robot: RobotModel) -> JointLimits:
-    return JointLimits.from_robot(robot, yumi.ARM_JOINTS["r"],
-                                  yumi.MAX_ACCELERATION_RAD_S2, yumi.MAX_JERK_RAD_S3)
-
-
 def home(limits: JointLimits) -> np.ndarray:
     return np.array([yumi.HOME[name] for name in limits.joint_names])
 
@@ -124,8 +107,8 @@ def test_limits_are_reached_so_the_limit_checks_are_tight(right: JointLimits) ->
     assert np.max(np.abs(jerk)) == pytest.approx(j, rel=1e-9)
 
 
-def test_velocity_scale_slows_the_motion(robot: RobotModel, right: JointLimits) -> None:
-    slow = JointLimits.from_robot(robot, yumi.ARM_JOINTS["r"], yumi.MAX_ACCELERATION_RAD_S2,
+def test_velocity_scale_slows_the_motion(yumi_model: RobotModel, right: JointLimits) -> None:
+    slow = JointLimits.from_robot(yumi_model, yumi.ARM_JOINTS["r"], yumi.MAX_ACCELERATION_RAD_S2,
                                   yumi.MAX_JERK_RAD_S3, velocity_scale=0.5)
     np.testing.assert_allclose(slow.max_velocity, 0.5 * right.max_velocity)
     start, goal = home(right), home(right)
@@ -258,21 +241,22 @@ def test_out_of_limits_and_bad_shapes_name_the_joint(right: JointLimits) -> None
 
 
 @pytest.mark.parametrize("scale", [0.0, 1.5, -0.5, math.nan])
-def test_velocity_scale_outside_zero_one_is_an_error(robot: RobotModel, scale: float) -> None:
+def test_velocity_scale_outside_zero_one_is_an_error(yumi_model: RobotModel, scale: float) -> None:
     message = r"velocity_scale = .* is not allowed: within \(0, 1\]"
     with pytest.raises(InvalidInputError, match=message):
-        JointLimits.from_robot(robot, yumi.ARM_JOINTS["r"], yumi.MAX_ACCELERATION_RAD_S2,
+        JointLimits.from_robot(yumi_model, yumi.ARM_JOINTS["r"], yumi.MAX_ACCELERATION_RAD_S2,
                                yumi.MAX_JERK_RAD_S3, velocity_scale=scale)
 
 
-def test_from_robot_rejects_unknown_joints_and_missing_limits(robot: RobotModel) -> None:
+def test_from_robot_rejects_unknown_joints_and_missing_limits(yumi_model: RobotModel) -> None:
     unknown = "joint = 'elbow' is not allowed: one of the model's joints"
     with pytest.raises(InvalidInputError, match=unknown):
-        JointLimits.from_robot(robot, ["elbow"], yumi.MAX_ACCELERATION_RAD_S2, yumi.MAX_JERK_RAD_S3)
+        JointLimits.from_robot(yumi_model, ["elbow"], yumi.MAX_ACCELERATION_RAD_S2,
+                               yumi.MAX_JERK_RAD_S3)
     missing = ("max_acceleration = 'no value for gripper_r_joint' is not allowed: "
                "a value for every joint in joint_names")
     with pytest.raises(InvalidInputError, match=missing):
-        JointLimits.from_robot(robot, ["yumi_joint_1_r", "gripper_r_joint"],
+        JointLimits.from_robot(yumi_model, ["yumi_joint_1_r", "gripper_r_joint"],
                                yumi.MAX_ACCELERATION_RAD_S2, yumi.MAX_JERK_RAD_S3)
 
 
@@ -297,8 +281,8 @@ def test_joint_limits_validate_every_field(field: str, value: object, message: s
         JointLimits(**fields)  # type: ignore[arg-type]
 
 
-def test_then_rejects_other_joints_and_jumps(robot: RobotModel, right: JointLimits) -> None:
-    left = JointLimits.from_robot(robot, yumi.ARM_JOINTS["l"], yumi.MAX_ACCELERATION_RAD_S2,
+def test_then_rejects_other_joints_and_jumps(yumi_model: RobotModel, right: JointLimits) -> None:
+    left = JointLimits.from_robot(yumi_model, yumi.ARM_JOINTS["l"], yumi.MAX_ACCELERATION_RAD_S2,
                                   yumi.MAX_JERK_RAD_S3)
     q_right, q_left = home(right), home(left)
     first = plan_segment(q_right, q_right + 0.1, right)
