@@ -268,12 +268,20 @@ class CollisionChecker:
                     break
         return CollisionReport(in_collision=True, pairs=tuple(pairs))
 
-    def check_path(self, configurations: Sequence[np.ndarray] | np.ndarray) -> CollisionReport:
-        """Checks every configuration of a sampled path; reports the first colliding sample."""
-        for index, q in enumerate(configurations):
-            report = self.check(np.asarray(q))
+    def check_path(self, configurations: Sequence[np.ndarray] | np.ndarray,
+                   step_rad: float | None = None) -> CollisionReport:
+        """Checks a sampled path; reports the first colliding sample (its index in the path).
+
+        Every configuration, or with ``step_rad`` those :func:`thinned_samples` keeps: no joint
+        moves more than ``step_rad`` between two checked ones.
+        """
+        path = np.asarray(configurations, dtype=float)
+        index = np.arange(len(path)) if step_rad is None or len(path) < 2 else thinned_samples(
+            path, step_rad)
+        for k in index:
+            report = self.check(path[k])
             if report.in_collision:
-                return CollisionReport(True, report.pairs, sample_index=index)
+                return CollisionReport(True, report.pairs, sample_index=int(k))
         return FREE
 
     def clearance_m(self, q: np.ndarray) -> tuple[float, tuple[str, str]]:
@@ -284,3 +292,22 @@ class CollisionChecker:
         best = int(np.argmin(distances))
         pair = self._geom.collisionPairs[best]
         return float(distances[best]), (self._names[pair.first], self._names[pair.second])
+
+
+def thinned_samples(positions: np.ndarray, step_rad: float) -> np.ndarray:
+    """Indices of the samples (N, n) to check, no joint moving ``step_rad`` between them.
+
+    The first, every sample after which the summed largest joint change since the last checked
+    one would pass ``step_rad``, and the last; a single step longer than ``step_rad`` keeps
+    both its samples (every sample is checked there, as without thinning).
+    """
+    moved = np.max(np.abs(np.diff(positions, axis=0)), axis=1)  # (N - 1,)
+    keep, travelled = [0], 0.0
+    for k, step in enumerate(moved, start=1):
+        travelled += float(step)
+        if travelled > step_rad:  # sample k - 1 is the last within the step
+            if keep[-1] != k - 1:
+                keep.append(k - 1)
+            travelled = float(step)
+    last = len(positions) - 1
+    return np.array(keep + ([last] if keep[-1] != last else []), dtype=int)

@@ -46,25 +46,6 @@ samples are apart (0.013 rad on the YuMi's joints 1-3 and 7, 0.029 rad on 4-6), 
 slow descend and lift, sampled every 0.005 rad, are checked at about every other sample."""
 
 
-def thinned_samples(positions: np.ndarray, step_rad: float) -> np.ndarray:
-    """Indices of the samples (N, n) to check, no joint moving ``step_rad`` between them.
-
-    The first, every sample after which the summed largest joint change since the last checked
-    one would pass ``step_rad``, and the last; a single step longer than ``step_rad`` keeps
-    both its samples (every sample is checked there, as without thinning).
-    """
-    moved = np.max(np.abs(np.diff(positions, axis=0)), axis=1)  # (N - 1,)
-    keep, travelled = [0], 0.0
-    for k, step in enumerate(moved, start=1):
-        travelled += float(step)
-        if travelled > step_rad:  # sample k - 1 is the last within the step
-            if keep[-1] != k - 1:
-                keep.append(k - 1)
-            travelled = float(step)
-    last = len(positions) - 1
-    return np.array(keep + ([last] if keep[-1] != last else []), dtype=int)
-
-
 @dataclass
 class _Candidate:
     arm: str
@@ -348,15 +329,10 @@ class PickPlanner:
         return via.q if via.solved else None
 
     def _check(self, arm: str, q0: np.ndarray, trajectory: JointTrajectory) -> CollisionReport:
-        """Checks the trajectory's samples (in a re-plan, thinned: :func:`thinned_samples`)."""
-        index = (np.arange(len(trajectory.times_s)) if self._check_step_rad is None
-                 else thinned_samples(trajectory.positions, self._check_step_rad))
-        full = np.repeat(q0[None, :], index.size, axis=0)  # (N, nq)
-        full[:, self._indices[arm]] = trajectory.positions[index]
-        report = self.checker.check_path(full)
-        if report.sample_index is None:
-            return report
-        return replace(report, sample_index=int(index[report.sample_index]))
+        """Checks the trajectory's samples (in a re-plan, every ``REPLAN_CHECK_STEP_RAD``)."""
+        full = np.repeat(q0[None, :], len(trajectory.times_s), axis=0)  # (N, nq)
+        full[:, self._indices[arm]] = trajectory.positions
+        return self.checker.check_path(full, self._check_step_rad)
 
     def _straight(
         self, arm: str, q_from: np.ndarray, q_to: np.ndarray, limits: JointLimits

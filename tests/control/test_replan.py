@@ -85,7 +85,7 @@ def test_replan_names_a_state_that_is_not_one_arm(yumi_planner, yumi_home):
 
 
 def test_thinned_checks_keep_every_joint_within_the_step():
-    from control.planner import thinned_samples
+    from control.collision import thinned_samples
 
     rng = np.random.default_rng(0)
     positions = np.cumsum(rng.uniform(-0.004, 0.004, size=(500, 7)), axis=0)
