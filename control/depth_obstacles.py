@@ -2,8 +2,10 @@
 
 A robot that plans from its own camera has, instead of object shapes, the points its depth
 image shows. :func:`depth_obstacles` keeps those above the table in the workspace, splits them
-into objects (Euclidean clustering), sets apart the target (the clusters in the open fingers'
-box at the predicted grasp: :class:`~control.pick.PickRequest`'s ``target_obstacles``) and
+into objects (Euclidean clustering), sets apart the target (the clusters in the vertical column
+through the open fingers' box at the predicted grasp: objects do not stand on one another, so
+what is above or below the fingers is the target's, a part of it that the arm, in view, splits
+off included; :class:`~control.pick.PickRequest`'s ``target_obstacles``) and
 raises each part to a :class:`~control.collision.HeightField`, solid from the table up; hidden
 space is free or occupied as :class:`OccludedSpace` says. Why a height field, clusters and free
 hidden space: ``docs/decisions/depth-obstacles.md``.
@@ -98,6 +100,10 @@ class DepthObstacleConfig:
             spacing on a steep face or across an overhang, less than the gap between objects.
         target_margin_m: Grows the fingers' box whose points mark the target's clusters [m].
         occluded: How hidden space is treated.
+        padding_m: Grows the obstacles' (not the target's) outlines by this much [m], rounded
+            to whole cells: what the depth image's outline may fall short of the surface by
+            (a pixel's footprint, the camera's calibration error), which the checker's margin
+            alone does not cover.
 
     """
 
@@ -111,6 +117,7 @@ class DepthObstacleConfig:
     cluster_m: float = 0.02
     target_margin_m: float = 0.005
     occluded: OccludedSpace = OccludedSpace.FREE
+    padding_m: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("x_range_m", "y_range_m"):
@@ -124,8 +131,9 @@ class DepthObstacleConfig:
             raise InvalidInputError("cell_m", self.cell_m, "in (0, 0.1] m")
         if not self.cluster_m > 0.0:
             raise InvalidInputError("cluster_m", self.cluster_m, "> 0 m")
-        if self.target_margin_m < 0.0:
-            raise InvalidInputError("target_margin_m", self.target_margin_m, ">= 0 m")
+        for name in ("target_margin_m", "padding_m"):
+            if not getattr(self, name) >= 0.0:
+                raise InvalidInputError(name, getattr(self, name), ">= 0 m")
         if not isinstance(self.occluded, OccludedSpace):
             allowed = ", ".join(f"OccludedSpace.{member.name}" for member in OccludedSpace)
             raise InvalidInputError("occluded", self.occluded, f"one of {allowed}")
@@ -144,6 +152,10 @@ class DepthObstacles:
         unknown_rays: Rays without a measurement (pixels of depth 0) the caller gave.
         obstacle_cells: Grid vertices of ``obstacles`` above the table.
         target_cells: Grid vertices of ``target_obstacles`` above the table.
+        obstacle_image: (H, W, 3): each pixel's point where it is an obstacle's (in the
+            workspace, not the target's), NaN elsewhere: what a later frame that cannot see
+            there remembers (``depth_obstacles``' ``remembered``).
+        remembered_points: Points remembered from an earlier frame among ``obstacles``.
 
     """
 
@@ -154,17 +166,22 @@ class DepthObstacles:
     unknown_rays: int
     obstacle_cells: int
     target_cells: int
+    obstacle_image: np.ndarray
+    remembered_points: int = 0
 
     def to_record(self) -> dict[str, Any]:
-        """The counts, for a trial record."""
+        """The counts, for a trial record (``remembered_points`` where there were any)."""
         return {"points": self.points, "hidden_points": self.hidden_points,
                 "unknown_rays": self.unknown_rays,
-                "obstacle_cells": self.obstacle_cells, "target_cells": self.target_cells}
+                "obstacle_cells": self.obstacle_cells, "target_cells": self.target_cells,
+                **({"remembered_points": self.remembered_points}
+                   if self.remembered_points else {})}
 
 
 def depth_obstacles(points_world: np.ndarray, camera_position_m: np.ndarray,
                     config: DepthObstacleConfig, grasp: GraspRegion | None = None,
-                    unknown_rays_world: np.ndarray | None = None) -> DepthObstacles:
+                    unknown_rays_world: np.ndarray | None = None,
+                    remembered: np.ndarray | None = None) -> DepthObstacles:
     """Obstacles from a depth image's points (H, W, 3) in the world (NaN: no depth).
 
     With ``grasp``, the clusters its fingers close on are the target's; without, all is
@@ -172,7 +189,10 @@ def depth_obstacles(points_world: np.ndarray, camera_position_m: np.ndarray,
     ``unknown_rays_world`` (K, 3): directions of the pixels without a measurement (a stereo
     shadow, too near): no point comes from them; with hidden space ``FREE`` they are free like
     all unseen space, with ``OCCUPIED`` their stretch through the workspace is an obstacle
-    (never the target's: nothing says what is there).
+    (never the target's: nothing says what is there). ``remembered`` (M, 3): obstacle points an
+    earlier frame saw where this one has no depth (the arm in view hides them; an earlier
+    :attr:`DepthObstacles.obstacle_image`): they stay obstacles, never the target's, as an
+    occupancy map keeps what its sensor cannot see now.
     """
     points = np.asarray(points_world, dtype=float)
     if points.ndim != 3 or points.shape[2] != 3:
@@ -180,7 +200,12 @@ def depth_obstacles(points_world: np.ndarray, camera_position_m: np.ndarray,
     camera = np.asarray(camera_position_m, dtype=float)
     if camera.shape != (3,) or not np.all(np.isfinite(camera)):
         raise InvalidInputError("camera_position_m", camera_position_m, "three finite numbers")
-    seen = points[_in_workspace(points, config)]  # (n, 3)
+    kept = _in_workspace(points, config)  # (H, W)
+    seen = points[kept]  # (n, 3)
+    memory = np.zeros((0, 3)) if remembered is None else np.asarray(remembered, dtype=float)
+    if memory.ndim != 2 or memory.shape[1] != 3 or not np.all(np.isfinite(memory)):
+        raise InvalidInputError("remembered", f"shape {memory.shape}",
+                                "finite points of shape (M, 3)")
     labels = _clusters(seen, config.cluster_m)  # (n,)
     unknown = np.zeros((0, 3)) if unknown_rays_world is None else np.asarray(
         unknown_rays_world, dtype=float)
@@ -194,19 +219,26 @@ def depth_obstacles(points_world: np.ndarray, camera_position_m: np.ndarray,
         dark = _unknown_samples(unknown, camera, config)
         hidden = np.concatenate([hidden, dark])
         hidden_labels = np.concatenate([hidden_labels, np.full(len(dark), -1)])
-    solid = np.concatenate([seen, hidden])  # (n + m, 3)
+    solid = np.concatenate([seen, hidden, memory])  # (n + m + M, 3)
     target = np.zeros(len(solid), dtype=bool)
     if grasp is not None:
         pose, half = config.fingers.box(grasp.T_world_tcp, grasp.opening_m, config.target_margin_m)
-        inside = np.all(np.abs((seen - pose.translation) @ pose.rotation) <= half, axis=1)
-        target = np.isin(np.concatenate([labels, hidden_labels]), labels[inside])
-    others, own = (_height_field(name, solid[mask], config)
-                   for name, mask in (("depth", ~target), ("target", target)))
+        level = seen.copy()  # each point brought to the box's height: the column through it
+        level[:, 2] = pose.translation[2]
+        inside = np.all(np.abs((level - pose.translation) @ pose.rotation) <= half, axis=1)
+        target[:len(seen) + len(hidden)] = np.isin(np.concatenate([labels, hidden_labels]),
+                                                   labels[inside])
+    image = np.full(points.shape, np.nan)
+    image[kept] = np.where(target[:len(seen), None], np.nan, seen)
+    others, own = (_height_field(name, solid[mask], config, padding_m)
+                   for name, mask, padding_m in (("depth", ~target, config.padding_m),
+                                                 ("target", target, 0.0)))
     return DepthObstacles(
         obstacles=() if others is None else (others,),
         target_obstacles=() if own is None else (own,),
         points=len(seen), hidden_points=len(hidden), unknown_rays=len(unknown),
         obstacle_cells=_occupied(others), target_cells=_occupied(own),
+        obstacle_image=image, remembered_points=len(memory),
     )
 
 
@@ -268,23 +300,29 @@ def _unknown_samples(rays: np.ndarray, camera: np.ndarray, config: DepthObstacle
     return samples[_in_workspace(samples, config)]
 
 
-def _height_field(name: str, points: np.ndarray, config: DepthObstacleConfig
-                  ) -> HeightField | None:
+def _height_field(name: str, points: np.ndarray, config: DepthObstacleConfig,
+                  padding_m: float = 0.0) -> HeightField | None:
     """The height field of points (N, 3), or None for no points.
 
     Each point raises the grid vertex nearest it to its height, so an outline stays within half
     a cell of the points; a grey closing over 3 x 3 vertices then fills the vertices a surface's
-    points fell between (they lie up to a cell apart) without growing its outline.
+    points fell between (they lie up to a cell apart) without growing its outline; a grey
+    dilation over a disc of ``padding_m`` (in whole cells) then grows it by that much.
     """
     if not len(points):
         return None
+    pad = round(padding_m / config.cell_m)  # vertices
     nearest = np.rint(points[:, :2] / config.cell_m).astype(np.int64)  # (N, 2) as (x, y)
-    first = nearest.min(axis=0) - 2  # two empty vertices around, for the closing
+    first = nearest.min(axis=0) - 2 - pad  # empty vertices around, for the closing and padding
     index = nearest - first
-    nx, ny = index.max(axis=0) + 3
+    nx, ny = index.max(axis=0) + 3 + pad
     heights = np.zeros((ny, nx))  # (ny, nx) vertices, row = y
     np.maximum.at(heights, (index[:, 1], index[:, 0]), points[:, 2] - config.table_z_m)
     heights = ndimage.grey_closing(heights, size=(3, 3), mode="constant", cval=0.0)
+    if pad:
+        y, x = np.mgrid[-pad:pad + 1, -pad:pad + 1]
+        heights = ndimage.grey_dilation(heights, footprint=x**2 + y**2 <= (pad + 0.5) ** 2,
+                                        mode="constant", cval=0.0)
     origin = first * config.cell_m
     return HeightField(name, (float(origin[0]), float(origin[1])), config.cell_m, heights,
                        config.table_z_m)

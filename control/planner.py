@@ -243,21 +243,10 @@ class PickPlanner:
 
     def _timed_plan(self, c: _Candidate, q0: np.ndarray, moving: JointState | None
                     ) -> tuple[PickPlan | None, str]:
-        fast = self.transit_limits(c.arm)
-        approach: JointTrajectory | None
-        if moving is not None:  # from the arm's moving state, no via poses: it cannot wait
-            try:
-                approach = retarget(moving, c.q_pre[self._indices[c.arm]], fast,
-                                    self.config.dt_s)
-            except RetargetError as error:
-                return None, f"re-targeted approach: {error.result} ({error.detail or error})"
-            report = self._check(c.arm, q0, approach)
-            if report.in_collision:
-                return None, f"re-targeted approach: {report.describe()}"
-        else:
-            approach, blocked = self._transit(c.arm, q0, c.q_pre, fast)
-            if approach is None:
-                return None, f"approach: {blocked.describe()}, and no via pose clears it"
+        approach, blocked = self._transit(c.arm, q0, c.q_pre, self.transit_limits(c.arm),
+                                          moving=moving)
+        if approach is None:
+            return None, f"{'re-targeted ' * (moving is not None)}approach: {blocked}"
         with self.checker.ignoring(self._target_names):  # from here the hand holds the target
             return self._timed_rest(c, q0, approach)
 
@@ -275,7 +264,7 @@ class PickPlanner:
             return None, "lift leaves the straight line and IK cannot follow it"
         retreat, blocked = self._transit(arm, q0, c.q_lift, fast, reverse=True)
         if retreat is None:
-            return None, f"retreat: {blocked.describe()}, and no via pose clears it"
+            return None, f"retreat: {blocked}"
         segments = (
             PlanSegment("approach", approach, GripperCommand.OPEN),
             PlanSegment("descend", descend),
@@ -290,36 +279,49 @@ class PickPlanner:
 
     def _transit(
         self, arm: str, q0: np.ndarray, q_far: np.ndarray, limits: JointLimits,
-        reverse: bool = False,
-    ) -> tuple[JointTrajectory | None, CollisionReport]:
+        reverse: bool = False, moving: JointState | None = None,
+    ) -> tuple[JointTrajectory | None, str]:
         """A checked move between the start and ``q_far``: direct, else through via poses.
 
-        Returns the trajectory (None if every option collides) and the direct path's report.
+        Returns the trajectory, or None and why the direct move and every via option failed.
 
         A straight joint-space line from the start can swing the hand through the robot's own
         body or through the target. The via poses lift the TCP straight up, at the far end, at
         the start, or at both (start first), tried in that order for each height in
-        ``via_heights_m``; the first option whose whole path is clear wins.
+        ``via_heights_m``; the first option whose whole path is clear wins. From rest the arm
+        stops at each via (:func:`plan_through`); from a ``moving`` state (a re-plan, towards
+        ``q_far``) it cannot wait, and passes them moving (:func:`retarget`'s ``vias``).
         """
         index = self._indices[arm]
         ends = (q_far, q0) if reverse else (q0, q_far)
-        direct = plan_segment(ends[0][index], ends[1][index], limits, self.config.dt_s)
+
+        def move(vias: list[np.ndarray]) -> JointTrajectory:
+            if moving is not None:
+                return retarget(moving, q_far[index], limits, self.config.dt_s, vias)
+            return plan_through([ends[0][index], *vias, ends[1][index]], limits,
+                                self.config.dt_s)
+
+        try:
+            direct = move([])
+        except RetargetError as error:
+            return None, f"{error.result} ({error.detail or error})"
         report = self._check(arm, q0, direct)
         if not report.in_collision:
-            return direct, report
+            return direct, ""
         for height_m in self.config.via_heights_m:
             near_via = self._raised(arm, q0, height_m)
             far_via = self._raised(arm, q_far, height_m)
-            options = [[far_via], [near_via], [near_via, far_via]]
-            for vias in options:
+            for vias in ([far_via], [near_via], [near_via, far_via]):
                 if any(v is None for v in vias):
                     continue
                 middle = [v[index] for v in vias if v is not None]
-                points = [ends[0][index], *(middle[::-1] if reverse else middle), ends[1][index]]
-                path = plan_through(points, limits, self.config.dt_s)
+                try:
+                    path = move(middle[::-1] if reverse else middle)
+                except RetargetError:
+                    continue  # no motion passes these vias from this state: the next option
                 if not self._check(arm, q0, path).in_collision:
-                    return path, report
-        return None, report
+                    return path, ""
+        return None, f"{report.describe()}, and no via pose clears it"
 
     def _raised(self, arm: str, q: np.ndarray, height_m: float) -> np.ndarray | None:
         """The configuration with the TCP ``height_m`` straight above where ``q`` puts it."""
@@ -327,6 +329,15 @@ class PickPlanner:
         raised = pin.SE3(np.eye(3), np.array([0.0, 0.0, height_m])) * T_tcp
         via = self._ik[arm].solve(raised, q)  # no jump limit: the path to it is checked
         return via.q if via.solved else None
+
+    def check_ahead(self, arm: str, q_now: np.ndarray, trajectory: JointTrajectory
+                    ) -> CollisionReport:
+        """``arm``'s ``trajectory`` from ``q_now`` against the last plan's or re-plan's obstacles.
+
+        A closed loop whose re-plan failed asks whether the plan it follows still runs clear of
+        what that re-plan's frame shows, the target where it is now among it; if not, it stops.
+        """
+        return self._check(arm, q_now, trajectory)
 
     def _check(self, arm: str, q0: np.ndarray, trajectory: JointTrajectory) -> CollisionReport:
         """Checks the trajectory's samples (in a re-plan, every ``REPLAN_CHECK_STEP_RAD``)."""

@@ -19,7 +19,9 @@ Example:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 import ruckig
@@ -33,6 +35,7 @@ from control.trajectory import (
     _check_dt,
     _joint_vector,
     _sample,
+    plan_segment,
 )
 
 LIMIT_RELATIVE_TOLERANCE = 1e-9
@@ -159,12 +162,14 @@ def _limit_excess(lowest: np.ndarray, highest: np.ndarray, limits: JointLimits) 
 
 
 def _motion(
-    state: JointState, goal: np.ndarray | None, limits: JointLimits, dt_s: float
+    state: JointState, goal: np.ndarray | None, limits: JointLimits, dt_s: float,
+    goal_velocity: np.ndarray | None = None,
 ) -> JointTrajectory:
     """The time-optimal jerk-limited motion (ruckig) from ``state`` to rest, sampled.
 
-    At rest at ``goal`` (position interface), or anywhere (velocity interface, ``goal`` None).
-    The first sample is ``state`` exactly, the last at rest (at ``goal`` exactly if given).
+    At rest at ``goal`` (position interface), or anywhere (velocity interface, ``goal`` None);
+    passing ``goal`` at ``goal_velocity`` instead of resting there, if given. The first sample
+    is ``state`` exactly, the last ``goal`` exactly (if given) at its velocity.
     """
     dofs = len(limits.joint_names)
     inp = ruckig.InputParameter(dofs)
@@ -175,7 +180,9 @@ def _motion(
     # Honoured by ruckig Pro only; the community edition ignores them, hence the checks below.
     inp.min_position = (limits.lower - POSITION_TOLERANCE).tolist()
     inp.max_position = (limits.upper + POSITION_TOLERANCE).tolist()
-    # Target velocity and acceleration stay ruckig's default 0: the motion ends at rest.
+    # Target acceleration stays ruckig's default 0, the velocity too unless passing a via.
+    if goal_velocity is not None:
+        inp.target_velocity = goal_velocity.tolist()
     if goal is None:  # every joint brakes as hard as it may: the shortest way to rest
         inp.control_interface = ruckig.ControlInterface.Velocity
         inp.synchronization = ruckig.Synchronization.No
@@ -198,7 +205,9 @@ def _motion(
         times, states = _sample(trajectory, dt_s)  # (N,), (N, 3, n)
     else:  # at rest at the goal already
         times, states = np.zeros(1), start[None].copy()
-    states[-1, 1:] = 0.0  # exactly at rest at the end, not ruckig's round-off of it
+    states[-1, 1:] = 0.0  # exactly at rest (or the via's velocity) at the end, not round-off
+    if goal_velocity is not None:
+        states[-1, 1] = goal_velocity
     if goal is not None:
         states[-1, 0] = goal
     states[0] = start  # exact start: continuous with what the arm is doing
@@ -210,7 +219,8 @@ def _motion(
 
 
 def retarget(
-    state: JointState, q_goal: np.ndarray, limits: JointLimits, dt_s: float = 1 / 240
+    state: JointState, q_goal: np.ndarray, limits: JointLimits, dt_s: float = 1 / 240,
+    vias: Sequence[np.ndarray] = (),
 ) -> JointTrajectory:
     """The time-optimal jerk-limited motion from the moving ``state`` to ``q_goal`` at rest.
 
@@ -224,6 +234,12 @@ def retarget(
     joints 1, 2, 7 and 3, 0.0291 rad on 4, 5 and 6). A goal equal to a state at rest gives a
     one-sample trajectory.
 
+    ``vias`` are passed on the way, in order, without stopping at any: each is reached moving
+    towards the next at the mean velocity of the rest-to-rest straight move between the two
+    (within every joint's velocity limit), as ruckig reaches a target state with a target
+    velocity. A planner that cannot wait at a via (the arm is moving) goes over an obstacle
+    this way, where a plan from rest stops at its via poses.
+
     When this raises :class:`RetargetError`, the caller falls back to its last good plan (the
     executed trajectory, which stays valid) or stops with :func:`stop`.
 
@@ -233,18 +249,30 @@ def retarget(
         q_goal: Goal positions (n,) in [rad] or [m], within the position limits.
         limits: The joints' limits, in the order of ``state.joint_names``.
         dt_s: Sampling step in [s].
+        vias: Configurations (n,) passed on the way, within the position limits.
 
     Raises:
-        InvalidInputError: Other joints than ``limits``', a state beyond its limits or a goal
-            outside the position limits (naming the field, the joint, its value and its range),
-            or a ``dt_s`` that is not > 0.
+        InvalidInputError: Other joints than ``limits``', a state beyond its limits, a goal
+            or a via outside the position limits (naming the field, the joint, its value and
+            its range), or a ``dt_s`` that is not > 0.
         RetargetError: ruckig returned an error Result, or the motion would leave the position
             limits (``result = "ErrorPositionalLimits"``: too fast to turn within them).
 
     """
     dt = _check_dt(dt_s)
     goal = _check_configuration("q_goal", q_goal, limits)
-    return _motion(_check_state(state, limits), goal, limits, dt)
+    points = [_check_configuration(f"vias[{k}]", q, limits) for k, q in enumerate(vias)]
+    points.append(goal)
+    motion: JointTrajectory | None = None
+    current = _check_state(state, limits)
+    for via, after in pairwise(points):
+        pace = plan_segment(via, after, limits, dt).duration_s
+        velocity = (after - via) / pace if pace > 0.0 else np.zeros_like(via)
+        part = _motion(current, via, limits, dt, velocity)
+        motion = part if motion is None else motion.then(part)
+        current = trajectory_state(part, part.times_s.size - 1)
+    last = _motion(current, goal, limits, dt)
+    return last if motion is None else motion.then(last)
 
 
 def stop(state: JointState, limits: JointLimits, dt_s: float = 1 / 240) -> JointTrajectory:

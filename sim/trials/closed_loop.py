@@ -5,10 +5,12 @@ camera renders every ``1 / replan_hz`` s of the approach (its depth self-filtere
 view), the model predicts again, and when the grasp moved beyond the thresholds the pick is
 planned again for the moving arm and its approach re-targeted from the arm's state as it is
 (:meth:`control.planner.PickPlanner.replan`: ruckig from position, velocity and acceleration,
-every sample collision-checked against the latest depth image's obstacles). A re-plan that
+every sample collision-checked against the latest depth image's obstacles, and where the arm
+now hides what the first image showed, against what was seen there before). A re-plan that
 fails keeps the plan being followed, and the record says so. Once the arm rests at its
-pre-grasp the loop ends: the descent follows the last plan (the hand is over the target and
-hides it from the head camera).
+pre-grasp it looks a last time (a move after the last re-prediction is seen there; a re-target
+from rest follows, at most :data:`MAX_LAST_LOOKS` times), then the loop ends: the descent
+follows the last plan (the hand, over the target, hides it from the head camera).
 
 A task's disturbance (:mod:`sim.tasks.disturbance`) moves the target at a drawn moment of the
 approach, in open and in closed loop alike, so the two are compared on the same picks.
@@ -16,27 +18,27 @@ approach, in open and in closed loop alike, so the two are compared on the same 
 
 from __future__ import annotations
 
-import enum
+import dataclasses
 import math
 import traceback
-from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
 
 from control.pick import PickPlan
-from control.retarget import JointState, trajectory_state
+from control.planner import PickPlanner
+from control.retarget import JointState, stop, trajectory_state
+from control.trajectory import JointTrajectory
 from perception.camera import RgbdFrame
 from perception.catalog import ObjectSpec
 from perception.grasp_judge import GraspVerdict, judge_grasp, yaw_of
 from perception.interface import PerceptionModel, Prediction
 from perception.poses import Pose
 from robots import yumi
-from sim.errors import InvalidInputError
 from sim.tasks.disturbance import DisturbanceDraw
 from sim.tasks.scene_sampling import Scene
-from sim.trials.execution import StepWatch
+from sim.trials.execution import FollowedApproach, StepWatch
+from sim.trials.loop_settings import Loop, LoopSettings, Moved, Reaction, Reprediction
 from sim.trials.pick_results import (
     PlannedPick,
     Sighting,
@@ -44,115 +46,26 @@ from sim.trials.pick_results import (
     grasp_angle_rad,
     pose_json,
 )
+from sim.trials.planner_setup import object_obstacles
+from sim.trials.records import TrialOutcome
 from sim.world.yumi_world import World
 
 MOVE_CLEARANCE_M = 0.10
 """Nearest a moved target's centre comes to another object's [m]: the objects reach 4.5-7 cm
 from their centres (the mug's handle 6.7 cm), so two at 10 cm may touch but do not overlap."""
-MAX_REPLAN_HZ = 60.0
-"""Fastest re-prediction rate [Hz]: a quarter of the 240 Hz physics, and above what a cycle
-(render, inference, plan) sustains on one core."""
-
-
-class Loop(enum.Enum):
-    """Whether a pick looks again while the arm moves."""
-
-    OPEN = "open"  # one image, one plan, run blind (the paper's)
-    CLOSED = "closed"  # re-predict during the approach, re-target when the grasp moved
-
-
-@dataclass(frozen=True)
-class LoopSettings:
-    """How picks close the loop.
-
-    Args:
-        loop: Open (the default) or closed.
-        replan_hz: Re-predictions per second of the approach, closed loop only.
-        move_threshold_m: A new grasp this far [m] from the one followed re-targets the arm;
-            nearer, the arm keeps its plan (the model's frame-to-frame jitter is a few mm).
-        turn_threshold_deg: The same for its turn about the approach axis [deg].
-
-    """
-
-    loop: Loop = Loop.OPEN
-    replan_hz: float = 10.0
-    move_threshold_m: float = 0.01
-    turn_threshold_deg: float = 10.0
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.loop, Loop):
-            raise InvalidInputError("loop", self.loop, "open or closed")
-        if not (math.isfinite(self.replan_hz) and 0.0 < self.replan_hz <= MAX_REPLAN_HZ):
-            raise InvalidInputError("replan_hz", self.replan_hz,
-                                    f"a rate in (0, {MAX_REPLAN_HZ:g}] Hz")
-        for name in ("move_threshold_m", "turn_threshold_deg"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0.0):
-                raise InvalidInputError(name, value, "a finite value >= 0")
-
-    def to_json(self) -> dict[str, Any]:
-        """The settings as a record keeps them (open loop: just that)."""
-        if self.loop is Loop.OPEN:
-            return {"loop": "open"}
-        return {"loop": "closed", "replan_hz": self.replan_hz,
-                "move_threshold_m": self.move_threshold_m,
-                "turn_threshold_deg": self.turn_threshold_deg}
-
-
-class Reaction(enum.Enum):
-    """What the arm did with one re-prediction."""
-
-    HELD = "held"  # the grasp within the thresholds of the one followed: the plan stands
-    RETARGETED = "retargeted"  # re-planned and re-targeted from the moving state
-    KEPT = "kept"  # the grasp moved, but no re-plan was found: the last good plan stands
-    UNSEEN = "unseen"  # the model gave nothing the robot can act on: the last plan stands
-
-
-@dataclass(frozen=True)
-class Reprediction:
-    """One re-prediction of a closed-loop approach, as the pick's record keeps it.
-
-    Args:
-        time_s: Since the approach began [s].
-        reaction: What the arm did.
-        reason: Why, in words (the planner's or the model's reason where it failed).
-        predicted: The grasp the model gave; None where it gave none.
-        truth: The target's true grasp then (the referee's).
-
-    """
-
-    time_s: float
-    reaction: Reaction
-    reason: str
-    predicted: Pose | None
-    truth: Pose
-
-    def to_record(self) -> dict[str, Any]:
-        """JSON-able: time, reaction, reason, the grasp predicted, its error then."""
-        data: dict[str, Any] = {"time_s": round(self.time_s, 4),
-                                "reaction": self.reaction.value, "reason": self.reason}
-        if self.predicted is not None:
-            data["predicted"] = pose_json(self.predicted.position, self.predicted.rotation)
-            data["position_error_m"] = float(np.linalg.norm(
-                self.predicted.position - self.truth.position))
-        return data
-
-
-@dataclass(frozen=True)
-class Moved:
-    """What a disturbance did to the target, as the pick's record keeps it."""
-
-    time_s: float
-    draw: DisturbanceDraw
-    before: Pose
-    after: Pose
-
-    def to_record(self) -> dict[str, Any]:
-        """JSON-able: when, what was drawn, where the target went."""
-        shift = self.after.position - self.before.position
-        return {"time_s": round(self.time_s, 4), "moved_m": round(float(np.hypot(*shift[:2])), 6),
-                "before": pose_json(self.before.position, self.before.rotation),
-                "after": pose_json(self.after.position, self.after.rotation)}
+ROBOT_CLEARANCE_M = 0.02
+"""Nearest a moved target comes to the robot [m]: a person moving an object beside a working
+robot keeps it off the arm, and one put against the fingers (within the planner's 2 mm margin)
+leaves every re-plan starting in collision and the arm pushing it over (issue 36's oracle
+misses). 2 cm is beyond what the planner keeps from what it sees (its 2 mm margin on the 5 mm
+padding of depth obstacles, ``DEPTH_PADDING_M``), so no re-plan starts touching it."""
+REACTION_S = 0.1
+"""How soon a loop sees a move [s]: one re-prediction period at the default 10 Hz. With the
+arm's braking time after it, the window in which no controller could keep the arm off a target
+put in its path; a disturbance keeps out of it (:meth:`ApproachLoop._out_of_reach`)."""
+MAX_LAST_LOOKS = 3
+"""Looks on arrival at the pre-grasp per pick: a target still moving (a slide) is followed by
+at most this many more re-targets from rest before the descent."""
 
 
 class LoopRunner(Protocol):
@@ -164,6 +77,7 @@ class LoopRunner(Protocol):
 
     world: World
     model: PerceptionModel
+    planner: PickPlanner
     observer: Any  # a TrialObserver (or None): its ``saw`` gets each re-prediction
 
     def sight(self, body: int, self_filter: bool = False) -> Sighting:
@@ -173,8 +87,12 @@ class LoopRunner(Protocol):
         """The grasp and grip a prediction states for a pick, or why none."""
 
     def plan_pick(self, frame: RgbdFrame, prediction: Prediction, number: int, total: int,
-                  moving: JointState | None = None) -> PlannedPick:
-        """The plan phase from a frame and a prediction; ``moving``: re-planned mid-motion."""
+                  moving: JointState | None = None, remembered: np.ndarray | None = None,
+                  ) -> PlannedPick:
+        """The plan phase from a frame and a prediction, mid-motion with ``moving``.
+
+        ``remembered``: obstacle points seen before where the frame has no depth.
+        """
 
     def truth(self, body: int) -> Pose:
         """The canonical grasp of ``body`` where it lies now (the referee's)."""
@@ -196,9 +114,10 @@ class ApproachLoop:
         self.repredictions: list[Reprediction] = []
         self.moved: Moved | None = None
         self.end: tuple[Pose, float] | None = None  # the target's grasp and yaw at the end
+        self.halted: PlannedPick | None = None  # the failed re-plan the arm stopped for
 
-    def __call__(self, plan: PickPlan, watch: StepWatch) -> tuple[PickPlan, bool]:
-        """Runs the approach of ``plan``; (the plan followed at its end, stopped by ``watch``)."""
+    def __call__(self, plan: PickPlan, watch: StepWatch) -> FollowedApproach:
+        """Runs the approach of ``plan``; how it ended, with the plan followed then."""
         world = self.runner.world
         dt_s = world.config.time_step_s
         approach = plan.segments[0].trajectory
@@ -229,11 +148,21 @@ class ApproachLoop:
         return judge_grasp(spec, truth, as_recorded(grasp), yaw_rad)
 
     def _follow(self, plan: PickPlan, watch: StepWatch, tick: int, disturb_at: int | None,
-                joints: tuple[str, ...]) -> tuple[PickPlan, bool]:
+                joints: tuple[str, ...]) -> FollowedApproach:
         world, approach = self.runner.world, plan.segments[0].trajectory
         dt_s = world.config.time_step_s
         step = k = 0  # steps since the approach began; the sample of ``approach`` reached
-        while k < len(approach.times_s) - 1:
+        looked, last_looks = -1, 0  # the step of the last re-prediction; looks on arrival
+        while True:
+            if k == len(approach.times_s) - 1:  # at rest (at the pre-grasp): a last look
+                replanned = None
+                if tick and looked != step and last_looks < MAX_LAST_LOOKS:
+                    looked, last_looks = step, last_looks + 1
+                    replanned = self._repredict(step * dt_s, plan, k)
+                if replanned is None:
+                    return self._ended(plan)
+                plan, approach, k = replanned, replanned.segments[0].trajectory, 0
+                continue
             events = [e for e in (disturb_at, (step // tick + 1) * tick if tick else None)
                       if e is not None and e > step]
             run = min([len(approach.times_s) - 1 - k, *(e - step for e in events)])
@@ -242,45 +171,80 @@ class ApproachLoop:
                                        approach.velocities[rows], on_step=watch)
             step, k = step + report.steps, k + report.steps
             if report.stopped_early:
-                return plan, True
+                return FollowedApproach(plan, touched=True)
             if step == disturb_at and self.moved is None and self.disturbance is not None \
                     and self.disturbance.moves:
-                self._disturb(step * dt_s)
+                self._disturb(step * dt_s, plan, k)
             if tick and step % tick == 0 and k < len(approach.times_s) - 1:
-                replanned = self._repredict(step * dt_s, trajectory_state(approach, k))
+                looked = step
+                replanned = self._repredict(step * dt_s, plan, k)
                 if replanned is not None:
                     plan, approach, k = replanned, replanned.segments[0].trajectory, 0
-        return plan, False
 
-    def _disturb(self, time_s: float) -> None:
+    def _disturb(self, time_s: float, plan: PickPlan, k: int) -> None:
         """Moves the target as drawn: teleported (:meth:`World.move_object`), unsettled.
 
         Where the drawn direction would bring it within :data:`MOVE_CLEARANCE_M` of another
-        object (or off the table), the move is turned by a quarter, a half, three quarters,
-        the first that keeps clear, so a move never lands on a neighbour; the record says
-        where it went.
+        object, off the table, or into the arm's reach (:meth:`_out_of_reach`), the move is
+        turned by a quarter, a half, three quarters, the first that keeps clear, so a move never
+        lands on a neighbour or on the arm; where none does, the drawn move stays. The record
+        says where it went.
         """
         draw, world = self.disturbance, self.runner.world
         assert draw is not None
         before = world.object_pose(self.body)
         others = [world.object_pose(b).position[:2] for b in world.objects if b != self.body]
-        shift = np.array([draw.dx_m, draw.dy_m])
+        shift, after = np.array([draw.dx_m, draw.dy_m]), None
         for quarter in range(4):
             c, s_ = math.cos(quarter * math.pi / 2), math.sin(quarter * math.pi / 2)
             turned = np.array([[c, -s_], [s_, c]]) @ shift
             landing = before.position[:2] + turned
             if all(np.linalg.norm(landing - o) >= MOVE_CLEARANCE_M for o in others) and \
                     world.on_table(landing):
-                shift = turned
-                break
-        # no settling pause: the arm keeps moving while the target drops its 2 mm
-        after = world.move_object(self.body, float(shift[0]), float(shift[1]), draw.dyaw_rad,
-                                  settle_s=0.0)
+                # no settling pause: the arm keeps moving while the target drops its 2 mm
+                after = world.move_object_if(self.body, float(turned[0]), float(turned[1]),
+                                             draw.dyaw_rad, lambda: self._out_of_reach(plan, k))
+                if after is not None:
+                    break
+        if after is None:
+            after = world.move_object(self.body, float(shift[0]), float(shift[1]),
+                                      draw.dyaw_rad, settle_s=0.0)
         self.moved = Moved(time_s, draw, before, after)
 
-    def _repredict(self, time_s: float, state: JointState) -> PickPlan | None:
-        """One re-prediction; the new plan to follow if the arm re-targets, else None."""
-        runner = self.runner
+    def _out_of_reach(self, plan: PickPlan, k: int) -> bool:
+        """Whether the target, just moved, is out of the arm's reach: no controller's business.
+
+        :data:`ROBOT_CLEARANCE_M` from the robot now, and clear of where the plan followed takes
+        the arm before any loop could stop it: within :data:`REACTION_S` and then the arm's
+        braking time (ruckig's stop from its state now). A person who moves an object beside a
+        working robot does not put it there; the referee checks the target's true shapes.
+        """
+        world, planner = self.runner.world, self.runner.planner
+        if world.robot_gap_m(self.body, ROBOT_CLEARANCE_M) < ROBOT_CLEARANCE_M:
+            return False
+        approach = plan.segments[0].trajectory
+        state = trajectory_state(approach, k)
+        braking_s = stop(state, planner.transit_limits(plan.arm), approach.dt_s).duration_s
+        until = int(np.searchsorted(approach.times_s, approach.times_s[k] + REACTION_S
+                                    + braking_s)) + 1
+        planner.checker.set_obstacles(object_obstacles(world, [self.body]))
+        q_now = planner.robot.q_from_dict(world.robot.joint_positions())
+        return not planner.check_ahead(plan.arm, q_now, _samples(approach, k, until)).in_collision
+
+    def _ended(self, plan: PickPlan) -> FollowedApproach:
+        """The approach's end: at the pre-grasp, or stopped short where a re-plan failed."""
+        if self.halted is None:
+            return FollowedApproach(plan)
+        outcome = self.halted.outcome or TrialOutcome.PLAN_COLLISION
+        return FollowedApproach(plan, halted=(outcome, f"stopped: {self.halted.reason}"))
+
+    def _repredict(self, time_s: float, plan: PickPlan, k: int) -> PickPlan | None:
+        """One re-prediction at sample ``k`` of ``plan``'s approach.
+
+        Returns the new plan to follow if the arm re-targets or stops, else None.
+        """
+        runner, approach = self.runner, plan.segments[0].trajectory
+        state = trajectory_state(approach, k)
         sighting = runner.sight(self.body, self_filter=True)
         try:
             prediction = runner.model.predict_frame(sighting.frame, self.scene.given)
@@ -302,15 +266,43 @@ class ApproachLoop:
                 turned_deg <= self.settings.turn_threshold_deg:
             return self._note(time_s, Reaction.HELD, f"moved {100 * moved_m:.1f} cm, turned "
                               f"{turned_deg:.0f} deg", read.predicted, sighting.truth)
+        points = sighting.frame.points_world()  # (H, W, 3), NaN where no depth
+        unseen = ~np.isfinite(points).all(axis=-1)
+        memory = self.followed.obstacle_image
+        remembered = None if memory is None else memory[unseen & np.isfinite(memory).all(-1)]
         planned = runner.plan_pick(sighting.frame, prediction, self.number, self.total,
-                                   moving=state)
+                                   moving=state, remembered=remembered)
         if planned.plan is None:
-            return self._note(time_s, Reaction.KEPT, planned.reason, read.predicted,
-                              sighting.truth)
-        self.followed = planned
+            return self._kept_or_stopped(time_s, plan, k, planned, read.predicted,
+                                         sighting.truth)
+        if memory is not None and planned.obstacle_image is not None:  # seen now, else as before
+            planned = dataclasses.replace(planned, obstacle_image=np.where(
+                unseen[..., None], memory, planned.obstacle_image))
+        self.followed, self.halted = planned, None
         self._note(time_s, Reaction.RETARGETED, f"moved {100 * moved_m:.1f} cm, turned "
                    f"{turned_deg:.0f} deg", read.predicted, sighting.truth)
         return planned.plan
+
+    def _kept_or_stopped(self, time_s: float, plan: PickPlan, k: int, failed: PlannedPick,
+                         predicted: Pose | None, truth: Pose) -> PickPlan | None:
+        """No re-plan reaches the moved grasp: keep the plan followed, or brake.
+
+        The plan stands while what the re-plan's frame shows leaves its path clear; else the
+        arm brakes (ruckig's stop from the moving state) and tries again from there.
+        """
+        planner, approach = self.runner.planner, plan.segments[0].trajectory
+        ahead = _samples(approach, k, len(approach.times_s))
+        q_now = planner.robot.q_from_dict(self.runner.world.robot.joint_positions())
+        blocked = planner.check_ahead(plan.arm, q_now, ahead)
+        if not blocked.in_collision:
+            return self._note(time_s, Reaction.KEPT, failed.reason, predicted, truth)
+        self.halted = failed
+        braking = stop(trajectory_state(approach, k), planner.transit_limits(plan.arm),
+                       approach.dt_s)
+        self._note(time_s, Reaction.STOPPED, f"the plan followed: {blocked.describe()}; "
+                   f"{failed.reason}", predicted, truth)
+        return dataclasses.replace(plan, segments=(
+            dataclasses.replace(plan.segments[0], trajectory=braking), *plan.segments[1:]))
 
     def _note(self, time_s: float, reaction: Reaction, reason: str, predicted: Pose | None,
               truth: Pose) -> PickPlan | None:
@@ -339,9 +331,10 @@ class ApproachLoop:
         return data
 
 
-def reactions(records: Sequence[dict[str, Any]]) -> dict[str, int]:
-    """How many re-predictions of ``records`` (picks' ``repredictions``) led to each reaction."""
-    counts = {reaction.value: 0 for reaction in Reaction}
-    for record in records:
-        counts[record["reaction"]] += 1
-    return counts
+def _samples(trajectory: JointTrajectory, start: int, stop_at: int) -> JointTrajectory:
+    """Samples ``start`` to ``stop_at`` (exclusive) of ``trajectory``, timed from the first."""
+    rows = slice(start, stop_at)
+    return JointTrajectory(trajectory.joint_names,
+                           trajectory.times_s[rows] - trajectory.times_s[start],
+                           *(getattr(trajectory, f)[rows]
+                             for f in ("positions", "velocities", "accelerations")))

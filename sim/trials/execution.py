@@ -25,10 +25,27 @@ TOUCH_DISTANCE_M = 1e-4
 StepWatch = Callable[[int], bool]
 """Called after each physics step of a segment; True stops the robot (it touched something)."""
 
-ApproachFollower = Callable[[PickPlan, StepWatch], tuple[PickPlan, bool]]
+@dataclass(frozen=True)
+class FollowedApproach:
+    """How an approach tracked by an :data:`ApproachFollower` ended.
+
+    Args:
+        plan: The plan followed at the approach's end: its later segments are run next.
+        touched: The contact watch stopped the robot.
+        halted: Why the arm stopped short of a pre-grasp it could descend from, the outcome
+            that ends the pick then (e.g. no re-plan reached the moved target); None: it
+            reached one.
+
+    """
+
+    plan: PickPlan
+    touched: bool = False
+    halted: tuple[TrialOutcome, str] | None = None
+
+
+ApproachFollower = Callable[[PickPlan, StepWatch], FollowedApproach]
 """Tracks a plan's approach in its own way (re-targeting it, moving the target; see
-:mod:`sim.trials.closed_loop`): given the plan and the contact watch, returns the plan followed
-from the approach's end on, and whether the watch stopped the robot."""
+:mod:`sim.trials.closed_loop`): given the plan and the contact watch, says how it ended."""
 
 
 @dataclass(frozen=True)
@@ -112,10 +129,12 @@ def execute_pick(
     segments = plan.segments
     if follow is not None:
         robot.open_gripper(arm, opening_m)  # the approach's gripper command
-        plan, stopped = follow(plan, watch)
-        if stopped:
-            return ExecutionResult(TrialOutcome.COLLIDED, f"approach: {watch.hit}",
+        followed = follow(plan, watch)
+        if followed.touched or followed.halted is not None:
+            outcome, why = followed.halted or (TrialOutcome.COLLIDED, str(watch.hit))
+            return ExecutionResult(outcome, f"approach: {why}",
                                    world.object_bottom_z_m(target_body) - start_bottom)
+        plan = followed.plan
         start_bottom, segments = world.object_bottom_z_m(target_body), plan.segments[1:]
     joints = yumi.ARM_JOINTS[arm]
     for segment in segments:

@@ -62,6 +62,8 @@ class PlannedPick:
         plan_status: The planner's answer.
         plan: The plan to run; None when the pick ends here.
         traceback: Where the model's predict raised, as Python prints it; None if it did not.
+        obstacle_image: The frame's obstacle points per pixel (NaN elsewhere), which a closed
+            loop remembers where a later frame cannot see; None without a depth plan.
 
     """
 
@@ -74,6 +76,7 @@ class PlannedPick:
     plan_status: PlanStatus | None = None
     plan: PickPlan | None = None
     traceback: str | None = None
+    obstacle_image: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -192,12 +195,15 @@ class PickObstacles:
         obstacles: Everything the robot must not touch (other objects, unknown shapes).
         target: The target's own shapes: avoided on the approach, ignored from the descent on.
         record: Their source and size, as the pick's record keeps them.
+        image: From depth, the frame's obstacle points per pixel, NaN elsewhere
+            (:attr:`~control.depth_obstacles.DepthObstacles.obstacle_image`); None from truth.
 
     """
 
     obstacles: tuple[AnyObstacle, ...]
     target: tuple[AnyObstacle, ...]
     record: dict[str, Any]
+    image: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

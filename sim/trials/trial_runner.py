@@ -30,7 +30,7 @@ from typing import Protocol
 import numpy as np
 import pinocchio as pin
 
-from control.depth_obstacles import DepthObstacleConfig, GraspRegion, depth_obstacles
+from control.depth_obstacles import DepthObstacleConfig, GraspRegion
 from control.pick import PickPlan, PickRequest, PlanStatus
 from control.planner import PickPlanner
 from control.retarget import JointState
@@ -55,12 +55,12 @@ from sim.errors import InvalidInputError, SimError
 from sim.tasks.disturbance import scene_disturbance
 from sim.tasks.scene_sampling import Scene
 from sim.tasks.task_spec import TaskSpec
-from sim.trials.closed_loop import ApproachLoop, Loop, LoopSettings
+from sim.trials.closed_loop import ApproachLoop
 from sim.trials.execution import ExecutionSettings, execute_pick
+from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.oracle import OraclePerception
 from sim.trials.pick_results import (
     PickAttempt,
-    PickObstacles,
     PlannedPick,
     Sighting,
     TrialResult,
@@ -70,13 +70,12 @@ from sim.trials.pick_results import (
 from sim.trials.planner_setup import (
     ObstacleSource,
     make_yumi_planner,
-    nearest_object,
-    object_obstacles,
+    pick_obstacles,
     table_obstacle,
     yumi_depth_config,
 )
 from sim.trials.records import TrialOutcome, TrialRecord
-from sim.world.grip import Grip, grip_of
+from sim.world.grip import grip_of
 from sim.world.head_camera import HeadCamera
 from sim.world.sensor import SensorSeed
 from sim.world.yumi_world import World, check_wait_s
@@ -340,21 +339,24 @@ class TrialRunner:
             return PlannedPick(TrialOutcome.PERCEPTION_FAILED, str(error), grasp)
 
     def plan_pick(self, frame: RgbdFrame, prediction: Prediction, number: int, total: int,
-                  moving: JointState | None = None) -> PlannedPick:
+                  moving: JointState | None = None, remembered: np.ndarray | None = None,
+                  ) -> PlannedPick:
         """The plan phase: the grip, the obstacles and the plan, from what the robot senses.
 
         Reads the frame, the prediction (:meth:`read_grasp`), the robot's joint state and the
         table, nothing of the objects (unless the runner was made with
         ``ObstacleSource.TRUTH``, for debugging). ``moving``: the arm is in motion (a closed
         loop's re-plan): the plan keeps to it and its approach starts from this state
-        (:meth:`~control.planner.PickPlanner.replan`).
+        (:meth:`~control.planner.PickPlanner.replan`). ``remembered`` (M, 3): obstacle points
+        an earlier frame saw where this one has no depth (the arm hides them).
         """
         read = self.read_grasp(prediction, number, total)
         if read.outcome is not None or read.predicted is None or read.grip is None:
             return read
         grasp, grip = read.predicted, read.grip
         raised, raised_m = clear_of_table(grasp, grip.opening_m)
-        obstacles = self._obstacles(frame, raised, grip)
+        obstacles = pick_obstacles(self.world, self.obstacle_source, self.depth, frame,
+                                   GraspRegion(pin.SE3(raised.matrix), grip.opening_m), remembered)
         request = PickRequest(
             T_world_grasp=pin.SE3(raised.matrix),
             q_start=self.planner.robot.q_from_dict(self.world.robot.joint_positions()),
@@ -367,26 +369,11 @@ class TrialRunner:
         result = (self.planner.plan(request) if moving is None
                   else self.planner.replan(request, moving))
         planned = PlannedPick(None, "", grasp, grip, raised_m, obstacles.record, result.status,
-                              result.plan)
+                              result.plan, obstacle_image=obstacles.image)
         if result.plan is None:
             return dataclasses.replace(planned, outcome=_PLAN_OUTCOMES[result.status],
                                        reason=result.reason)
         return planned
-
-    def _obstacles(self, frame: RgbdFrame, grasp: Pose, grip: Grip) -> PickObstacles:
-        """Obstacles and the target's own, and what the record keeps of them."""
-        if self.obstacle_source is ObstacleSource.DEPTH:
-            seen = depth_obstacles(frame.points_world(), np.asarray(frame.camera.position_m),
-                                   self.depth, GraspRegion(pin.SE3(grasp.matrix), grip.opening_m),
-                                   frame.unknown_rays())
-            return PickObstacles(seen.obstacles, seen.target_obstacles,
-                                 {"source": "depth"} | seen.to_record())
-        world = self.world  # ObstacleSource.TRUTH: the debugging aid reads the true shapes
-        aimed = nearest_object(world, grasp.position)
-        others = object_obstacles(world, [b for b in world.objects if b != aimed])
-        own = object_obstacles(world, [aimed]) if aimed is not None else []
-        return PickObstacles(tuple(others), tuple(own),
-                             {"source": "truth", "shapes": len(others) + len(own)})
 
     def _set_aside(self, body: int, plan: PickPlan) -> None:
         """Takes a picked object off the table, opens the hand and returns the arm to its start."""

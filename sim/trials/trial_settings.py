@@ -32,8 +32,8 @@ from sim.tasks.scene_sampling import (
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_spec import SIDES, TaskSpec
 from sim.tasks.task_toml import TASK_FILES, load_task, with_test_phrases
-from sim.trials.closed_loop import Loop, LoopSettings
 from sim.trials.execution import ExecutionSettings
+from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.oracle import OraclePerception
 from sim.trials.planner_setup import ObstacleSource, yumi_depth_config
 from sim.trials.trial_runner import TRIAL_INPUTS, ModelFactory

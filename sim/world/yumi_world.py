@@ -233,6 +233,29 @@ class World:
         self.step(round(settle_s / self.config.time_step_s))
         return self.object_pose(body_id)
 
+    def robot_gap_m(self, body_id: int, within_m: float) -> float:
+        """How near an object comes to the robot [m]; ``within_m`` where it is no nearer."""
+        self.object_spec(body_id)  # an unknown body is refused, naming it
+        points = self.client.getClosestPoints(body_id, self.robot.body_id, within_m)
+        return min((float(point[8]) for point in points), default=within_m)
+
+    def move_object_if(self, body_id: int, dx_m: float, dy_m: float, dyaw_rad: float,
+                       keep: Callable[[], bool]) -> Pose | None:
+        """:meth:`move_object` without settling, kept only where ``keep()`` says so then.
+
+        Where ``keep()``, asked with the object moved, is False, the object goes back exactly as
+        it was (pose and velocities), and None is returned; else its new pose.
+        """
+        client = self.client
+        position, orientation = client.getBasePositionAndOrientation(body_id)
+        linear, angular = client.getBaseVelocity(body_id)
+        moved = self.move_object(body_id, dx_m, dy_m, dyaw_rad, settle_s=0.0)
+        if keep():
+            return moved
+        client.resetBasePositionAndOrientation(body_id, position, orientation)
+        client.resetBaseVelocity(body_id, linear, angular)
+        return None
+
     def keep_sliding(self, body_id: int, velocity_xy_m_s: tuple[float, float]) -> None:
         """Carries an object across the table at a steady velocity, as a conveyor belt would.
 

@@ -95,6 +95,21 @@ def test_the_object_between_the_fingers_is_the_target_and_its_neighbour_an_obsta
     assert seen.target_cells < seen.obstacle_cells + seen.target_cells
 
 
+def test_a_part_of_the_target_split_off_above_the_fingers_is_still_the_target():
+    """A tall target grasped from the side, its face cut in two by the arm in view (no depth
+    there): the part above the fingers' box is a cluster of its own, and still the target's."""
+    side = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # approach along +x
+    ys = np.arange(-0.02, 0.02 + 1e-9, 0.004)
+    zs = np.concatenate([np.arange(0.01, 0.08, 0.004), np.arange(0.13, 0.17, 0.004)])  # a gap
+    y, z = np.meshgrid(ys, zs)
+    face = np.stack([np.full_like(y, 0.5), y, z], axis=-1)  # the face towards the camera
+    grasp = GraspRegion(pin.SE3(side, np.array([0.5, 0.0, 0.05])), opening_m=0.05)
+    seen = depth_obstacles(face, np.array([0.0, 0.0, 0.3]), CONFIG, grasp)
+    assert seen.obstacles == ()
+    (own,) = seen.target_obstacles
+    assert touches(own, (0.5, 0.0, 0.15))
+
+
 def test_a_grasp_that_closes_on_nothing_leaves_every_object_an_obstacle():
     block = block_surface((0.5, 0.0), (0.03, 0.08), 0.03)
     grasp = GraspRegion(pin.SE3(DOWN, np.array([0.5, 0.2, 0.028])), opening_m=0.05)

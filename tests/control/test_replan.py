@@ -97,3 +97,34 @@ def test_thinned_checks_keep_every_joint_within_the_step():
         assert travel <= 0.01 + 1e-12 or b == a + 1  # within the step, or one long step
     assert len(kept) < 0.6 * len(positions)  # most slow samples are skipped
     assert set(range(200, 210)) <= set(kept)  # the fast stretch is checked at every sample
+
+
+def test_a_re_target_blocked_on_the_way_passes_over_it_by_a_via_without_stopping(
+        yumi_planner, yumi_home):
+    """A post between the moving hand and the new pre-grasp: the direct re-target is refused, a
+    raised via pose clears it, and the arm passes the via moving (it cannot wait at one). The
+    grasp's best IK solution still serves (without vias, another solution swings the arm 4 rad
+    round the post)."""
+    old, q_now, state = moving_state(yumi_planner, yumi_home, top_down(0.45, -0.10, 0.035), 0.6)
+    robot, tcp_frame = yumi_planner.robot, yumi.TCP_FRAME[old.arm]
+    moved = top_down(0.45, -0.24, 0.035)
+    plain = yumi_planner.replan(PickRequest(moved, q_now, obstacles=(TABLE,)), state).plan
+    assert plain is not None
+    direct = plain.segment("approach").trajectory
+    q = q_now.copy()
+    index = robot.joint_indices(yumi.ARM_JOINTS[old.arm])
+    q[index] = direct.positions[len(direct.times_s) // 2]
+    middle = robot.frame_pose(q, tcp_frame).translation  # the direct path's TCP halfway
+    post = Obstacle("post", ShapeKind.BOX, (0.03, 0.03, middle[2] + 0.01),
+                    pin.SE3(np.eye(3), np.array([middle[0], middle[1], (middle[2] + 0.01) / 2])))
+    result = yumi_planner.replan(PickRequest(moved, q_now, obstacles=(TABLE, post)), state)
+    assert result.ok, result.reason
+    np.testing.assert_array_equal(result.plan.q_grasp, plain.q_grasp)
+    approach = result.plan.segment("approach").trajectory
+    speeds = np.abs(approach.velocities[1:-1]).max(axis=1)
+    assert speeds.min() > 0.0  # never at rest before the pre-grasp
+    heights = []
+    for positions in approach.positions:
+        q[index] = positions
+        heights.append(robot.frame_pose(q, tcp_frame).translation[2])
+    assert max(heights) > middle[2] + 0.05  # over the post, not through it

@@ -13,7 +13,8 @@ from perception.interface import NO_CONDITION, Prediction, Target
 from sim.errors import InvalidInputError
 from sim.tasks.disturbance import Disturbance
 from sim.tasks.task_toml import load_task
-from sim.trials.closed_loop import Loop, LoopSettings, Reaction, reactions
+from sim.trials import trial_runner
+from sim.trials.loop_settings import Loop, LoopSettings, Reaction, reactions
 from sim.trials.records import TrialOutcome
 from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
@@ -65,6 +66,20 @@ def test_closed_loop_on_an_unmoved_target_only_holds(single_moved):
     assert pick["repredictions"] and all(
         r["reaction"] == Reaction.HELD.value for r in pick["repredictions"])
     assert "disturbance" not in pick
+
+
+def test_a_move_after_the_last_re_prediction_is_seen_on_arrival(single_moved, monkeypatch):
+    """Moved just before the arm rests at its pre-grasp, after the last tick: the look on
+    arrival sees it, and the arm re-targets from rest."""
+    drawn = trial_runner.scene_disturbance
+    monkeypatch.setattr(trial_runner, "scene_disturbance", lambda *args: dataclasses.replace(
+        drawn(*args), time_fraction=0.999))
+    looked = run(single_moved, Loop.CLOSED, 0)
+    assert looked.outcome is TrialOutcome.SUCCESS, looked.reason
+    [pick] = looked.picks
+    after = [r for r in pick["repredictions"] if r["time_s"] >= pick["disturbance"]["time_s"]]
+    assert after[0]["reaction"] == "retargeted"
+    assert pick["executed"]["position_error_m"] < 0.005
 
 
 def test_loop_settings_are_checked():

@@ -246,6 +246,32 @@ def test_move_object_turns_a_mug_about_its_footprint_centre(fresh: World) -> Non
     assert _yaw(after.rotation) == pytest.approx(_yaw(before.rotation) + math.pi / 2, abs=0.035)
 
 
+def test_a_move_onto_the_arm_is_undone_and_one_clear_of_it_is_made(
+    fresh: World, yumi_model: RobotModel
+) -> None:
+    spec = get_object_spec("sponge")
+    body = fresh.add_object(spec, (0.4, 0.1), 0.2)
+    _settled(fresh)
+    ik = ArmIk(yumi_model, yumi.ARM_JOINTS["l"], yumi.TCP_FRAME["l"])
+    solution = ik.solve(pin.SE3(grasp_pose(spec, fresh.object_pose(body)).matrix),
+                        yumi_model.q_from_dict(dict(yumi.HOME)))
+    assert solution.solved
+    grasp = yumi_model.dict_from_q(solution.q, yumi.ARM_JOINTS["l"])
+    fresh.move_object(body, 0.0, -0.2, 0.0)  # out of the way while the hand comes down
+    fresh.robot.reset(grasp)  # the open fingers where the sponge was
+    before = fresh.object_pose(body)
+    def clear() -> bool:
+        return fresh.robot_gap_m(body, 0.02) >= 0.02
+
+    assert fresh.move_object_if(body, 0.0, 0.2, 0.3, keep=clear) is None
+    assert fresh.object_pose(body).position == pytest.approx(before.position, abs=1e-9)
+    assert fresh.robot_gap_m(body, 0.02) == 0.02  # back where it was, clear of the hand
+    moved = fresh.move_object_if(body, 0.08, 0.0, 0.0, keep=clear)
+    assert moved is not None
+    shifted = before.position[:2] + np.array([0.08, 0.0])
+    assert moved.position[:2] == pytest.approx(shifted, abs=1e-6)
+
+
 def test_a_move_off_the_table_or_not_finite_is_refused(fresh: World) -> None:
     body = fresh.add_object(get_object_spec("sponge"), (0.45, 0.4), 0.0)
     before = fresh.object_pose(body)
