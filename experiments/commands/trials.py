@@ -12,7 +12,7 @@ from pathlib import Path
 
 from experiments.commands.arguments import add_executor_options, executor, integer, resume_command
 from sim.errors import InvalidInputError
-from sim.trials.closed_loop import Loop, LoopSettings
+from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.planner_setup import ObstacleSource
 from sim.trials.records import TrialSummary
 from sim.trials.run_loop import TRIAL_WORKERS, RunStopped, run_trials

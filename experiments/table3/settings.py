@@ -32,8 +32,8 @@ from sim.jobs import LOCAL, Executor
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.task_spec import TaskSpec
 from sim.tasks.task_toml import load_task, task_to_toml
-from sim.trials.closed_loop import Loop, LoopSettings
 from sim.trials.execution import ExecutionSettings
+from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.run_folder import json_form
 from sim.trials.trial_settings import TrialSettings, obstacle_identity, task_identity
 from sim.world.head_camera import CameraConfig
