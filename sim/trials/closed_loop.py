@@ -114,7 +114,7 @@ class ApproachLoop:
         self.repredictions: list[Reprediction] = []
         self.moved: Moved | None = None
         self.end: tuple[Pose, float] | None = None  # the target's grasp and yaw at the end
-        self.halted: PlannedPick | None = None  # the failed re-plan the arm stopped for
+        self.unmet: PlannedPick | None = None  # the failed re-plan of a grasp moved since
 
     def __call__(self, plan: PickPlan, watch: StepWatch) -> FollowedApproach:
         """Runs the approach of ``plan``; how it ended, with the plan followed then."""
@@ -232,11 +232,17 @@ class ApproachLoop:
         return not planner.check_ahead(plan.arm, q_now, _samples(approach, k, until)).in_collision
 
     def _ended(self, plan: PickPlan) -> FollowedApproach:
-        """The approach's end: at the pre-grasp, or stopped short where a re-plan failed."""
-        if self.halted is None:
+        """The approach's end: at the pre-grasp, or halted where the grasp moved unreached.
+
+        Where the last re-prediction's grasp moved from the one followed and no re-plan
+        reached it, the arm does not descend to where the target no longer is (nor from where
+        it braked): the pick ends with the re-plan's outcome and reason.
+        """
+        if self.unmet is None:
             return FollowedApproach(plan)
-        outcome = self.halted.outcome or TrialOutcome.PLAN_COLLISION
-        return FollowedApproach(plan, halted=(outcome, f"stopped: {self.halted.reason}"))
+        outcome = self.unmet.outcome or TrialOutcome.PLAN_COLLISION
+        return FollowedApproach(plan, halted=(
+            outcome, f"the grasp moved and no re-plan reached it: {self.unmet.reason}"))
 
     def _repredict(self, time_s: float, plan: PickPlan, k: int) -> PickPlan | None:
         """One re-prediction at sample ``k`` of ``plan``'s approach.
@@ -264,6 +270,7 @@ class ApproachLoop:
         turned_deg = math.degrees(grasp_angle_rad(followed.rotation, read.predicted.rotation))
         if moved_m <= self.settings.move_threshold_m and \
                 turned_deg <= self.settings.turn_threshold_deg:
+            self.unmet = None
             return self._note(time_s, Reaction.HELD, f"moved {100 * moved_m:.1f} cm, turned "
                               f"{turned_deg:.0f} deg", read.predicted, sighting.truth)
         points = sighting.frame.points_world()  # (H, W, 3), NaN where no depth
@@ -278,7 +285,7 @@ class ApproachLoop:
         if memory is not None and planned.obstacle_image is not None:  # seen now, else as before
             planned = dataclasses.replace(planned, obstacle_image=np.where(
                 unseen[..., None], memory, planned.obstacle_image))
-        self.followed, self.halted = planned, None
+        self.followed, self.unmet = planned, None
         self._note(time_s, Reaction.RETARGETED, f"moved {100 * moved_m:.1f} cm, turned "
                    f"{turned_deg:.0f} deg", read.predicted, sighting.truth)
         return planned.plan
@@ -294,9 +301,9 @@ class ApproachLoop:
         ahead = _samples(approach, k, len(approach.times_s))
         q_now = planner.robot.q_from_dict(self.runner.world.robot.joint_positions())
         blocked = planner.check_ahead(plan.arm, q_now, ahead)
+        self.unmet = failed
         if not blocked.in_collision:
             return self._note(time_s, Reaction.KEPT, failed.reason, predicted, truth)
-        self.halted = failed
         braking = stop(trajectory_state(approach, k), planner.transit_limits(plan.arm),
                        approach.dt_s)
         self._note(time_s, Reaction.STOPPED, f"the plan followed: {blocked.describe()}; "

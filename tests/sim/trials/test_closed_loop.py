@@ -9,7 +9,10 @@ import numpy as np
 import pytest
 from user_models import DOWN, FixedGrasp
 
+from control.collision import CollisionReport
+from control.planner import PickPlanner
 from perception.interface import NO_CONDITION, Prediction, Target
+from robots import yumi
 from sim.errors import InvalidInputError
 from sim.tasks.disturbance import Disturbance
 from sim.tasks.task_toml import load_task
@@ -151,3 +154,27 @@ def test_a_re_prediction_the_arm_cannot_follow_keeps_the_plan_and_says_why(model
     assert all(r["reason"] for r in pick["repredictions"])
     assert "arm" in pick  # the first plan was followed to the end
     assert record.outcome is not TrialOutcome.ERROR
+    if reaction is Reaction.KEPT:  # the arm does not descend to a grasp it knows is stale
+        assert record.outcome is TrialOutcome.IK_UNREACHABLE
+        assert record.reason.startswith("approach: the grasp moved and no re-plan reached it: ")
+
+
+def test_a_failed_re_plan_whose_path_ahead_is_blocked_brakes_the_arm(monkeypatch):
+    """No re-plan, and the plan followed runs into what the frame shows: the arm brakes where
+    it is (never reaching the pre-grasp) and the pick ends with the re-plan's outcome."""
+    blocked = CollisionReport(True, (("gripper_finger", "depth"),), 40)
+    monkeypatch.setattr(PickPlanner, "check_ahead", lambda *args: blocked)
+    _Unreachable.calls = 0
+    task = load_task("single")
+    with TrialRunner(task, lambda world, camera: _Unreachable(),
+                     loop=LoopSettings(Loop.CLOSED)) as runner:
+        record = runner.run(trial_scene(task, 0, 0), 0, 0, "test")
+        [pick] = record.picks
+        tcp = runner.world.robot.link_pose(yumi.TCP_FRAME[pick["arm"]]).position
+    first = pick["repredictions"][0]
+    assert first["reaction"] == Reaction.STOPPED.value
+    assert first["reason"].startswith("the plan followed: collision at sample 40: "
+                                      "gripper_finger vs depth; arm ")
+    assert record.outcome is TrialOutcome.IK_UNREACHABLE
+    assert record.reason.startswith("approach: the grasp moved and no re-plan reached it: ")
+    assert tcp[2] > 0.15  # braked high above the table, never descended
