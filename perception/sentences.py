@@ -108,6 +108,7 @@ class SentenceEncoder:
         self._model = SentenceTransformer(str(path), device="cpu", local_files_only=True)
         self._model.eval()
         self.encode = functools.lru_cache(maxsize=4096)(self._encode)
+        self.tokens = functools.lru_cache(maxsize=4096)(self._tokens)
 
     def _encode(self, sentence: str) -> np.ndarray:
         """The sentence's embedding (float32, unit length); cached per sentence."""
@@ -120,6 +121,24 @@ class SentenceEncoder:
         return vector
 
 
+    def _tokens(self, sentence: str) -> np.ndarray:
+        """The encoder's output per token (n, :data:`EMBEDDING_SIZE`), before pooling; cached.
+
+        What :mod:`perception.sentence_reading` reads: the words one by one, [CLS] and [SEP]
+        included, not averaged into one vector.
+        """
+        if not isinstance(sentence, str) or not sentence.strip():
+            raise InvalidInputError("sentence", sentence, "a non-empty string")
+        import torch
+
+        with torch.inference_mode():
+            out = self._model.encode([sentence], output_value="token_embeddings",
+                                     convert_to_numpy=False, show_progress_bar=False)[0]
+        tokens = out.float().numpy().copy()
+        tokens.flags.writeable = False
+        return tokens
+
+
 @functools.cache
 def shared_encoder() -> SentenceEncoder:
     """The process's one encoder (loaded at the first sentence, about 9 s; then kept)."""
@@ -129,3 +148,8 @@ def shared_encoder() -> SentenceEncoder:
 def embed(sentence: str) -> np.ndarray:
     """``sentence``'s embedding by the process's shared encoder: what a text condition reads."""
     return shared_encoder().encode(sentence)
+
+
+def token_embeddings(sentence: str) -> np.ndarray:
+    """``sentence``'s token embeddings (n, :data:`EMBEDDING_SIZE`) by the shared encoder."""
+    return shared_encoder().tokens(sentence)

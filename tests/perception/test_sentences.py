@@ -62,6 +62,18 @@ def test_sentences_become_unit_vectors_near_for_the_same_meaning(encoder, monkey
         encoder.encode("  ")
 
 
+def test_token_embeddings_are_the_words_before_pooling(encoder, monkeypatch):
+    monkeypatch.setattr(socket.socket, "connect", _no_network)
+    tokens = encoder.tokens("the one on the right")
+    assert tokens.shape == (7, EMBEDDING_SIZE)  # [CLS], five words, [SEP]
+    assert tokens.dtype == np.float32 and encoder.tokens("the one on the right") is tokens
+    pooled = tokens.mean(axis=0)  # the pooled embedding is their mean, made unit length
+    np.testing.assert_allclose(pooled / np.linalg.norm(pooled),
+                               encoder.encode("the one on the right"), atol=1e-5)
+    with pytest.raises(InvalidInputError, match="sentence"):
+        encoder.tokens("")
+
+
 def test_a_text_conditions_vector_is_its_sentences_embedding(encoder, monkeypatch):
     monkeypatch.setattr(socket.socket, "connect", _no_network)
     monkeypatch.setattr(sentences, "shared_encoder", lambda: encoder)

@@ -1,0 +1,160 @@
+"""Reading accuracy of sentence readings on phrasings never trained on (issue 37).
+
+    python benchmarks/bench_sentence_reading.py [--seeds 5] [--out FILE]
+
+(default ``benchmarks/results/sentence_reading.json``).
+
+A reading names the target a sentence means; the trial then attends that target's Query. Each
+candidate learns from the built-in text tasks' training phrasings alone (yumi scene) and reads:
+the tasks' test phrasings (the fifth set, never trained on), the retired test phrasings
+(``examples/phrases/retired-test-phrasings.tsv``) and, for types, the new wordings
+(``examples/phrases/new-wordings.tsv``). Sides (``selected-position-text``) and types
+(``selected-type-text``) are reported apart. Candidates:
+
+- ``prototype``: kqv's reading today: the nearest mean embedding of each target's training
+  phrasings (cosine; no training, no seed).
+- ``probe``: logistic regression on the pooled embedding (scikit-learn, ``C`` = 100).
+- ``tokens``: :class:`perception.sentence_reading.TokenReader`, attention pooling over the
+  frozen encoder's token embeddings and a linear head, trained per seed (0..N-1); each seed's
+  count, their sum, and the worst seed.
+- ``tokens+probe``: the sum of the two readers' probabilities (added after the first three
+  were seen: the token reader reads sides best, the probe types).
+
+Also each reading's misses, so a reader sees which wordings fail.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from sklearn.linear_model import LogisticRegression
+
+from perception.sentence_reading import fit_token_reader, read_target
+from perception.sentences import embed, token_embeddings
+from sim.tasks.scene_sampling import condition_choices
+from sim.tasks.scene_specs import get_scene_spec
+from sim.tasks.task_spec import SIDES
+from sim.tasks.task_toml import load_task, with_test_phrases
+
+PHRASES = Path(__file__).resolve().parents[1] / "examples" / "phrases"
+SETS = {"retired": PHRASES / "retired-test-phrasings.tsv",
+        "new-wordings": PHRASES / "new-wordings.tsv"}
+TASKS = {"sides": "selected-position-text", "types": "selected-type-text"}
+PROBE_C = 100.0
+OUT = Path(__file__).resolve().parent / "results" / "sentence_reading.json"
+
+Pairs = list[tuple[str, int]]
+
+
+def phrase_sets(task_name: str) -> tuple[tuple[str, ...], Pairs, dict[str, Pairs]]:
+    """The task's targets, its training phrasings and each held-out set, as (phrase, target)."""
+    spec = get_scene_spec("yumi")
+    task = load_task(task_name)
+    targets = condition_choices(task, spec)
+    assert task.phrasings is not None
+
+    def pairs(table: Any, split: str) -> Pairs:
+        return [(p, k) for k, t in enumerate(targets) for p in table.of(split, t)]
+
+    held_out = {"fifth": pairs(task.phrasings, "test")}
+    for name, path in SETS.items():
+        phrasings = with_test_phrases(task, path, targets, spec.object_types + SIDES).phrasings
+        found = pairs(phrasings, "test")
+        if found and not (name == "new-wordings" and task_name == TASKS["sides"]):
+            held_out[name] = found
+    return targets, pairs(task.phrasings, "train"), held_out
+
+
+def prototype_reader(train: Pairs, targets: int) -> Callable[[str], int]:
+    vectors, named = np.stack([embed(p) for p, _ in train]), np.array([k for _, k in train])
+    prototypes = np.stack([vectors[named == k].mean(axis=0) for k in range(targets)])
+    return lambda sentence: int(np.argmax(prototypes @ embed(sentence)))
+
+
+def fitted_probe(train: Pairs) -> LogisticRegression:
+    probe = LogisticRegression(C=PROBE_C, fit_intercept=False, max_iter=5000)
+    return probe.fit(np.stack([embed(p) for p, _ in train]), [k for _, k in train])
+
+
+def probe_reader(probe: LogisticRegression) -> Callable[[str], int]:
+    return lambda sentence: int(probe.predict(embed(sentence)[None])[0])
+
+
+def token_reader(train: Pairs, targets: int, seed: int, probe: LogisticRegression | None = None
+                 ) -> Callable[[str], int]:
+    """The token reader of ``seed``; with ``probe``, their probabilities summed."""
+    reader = fit_token_reader(train, targets, token_embeddings, seed)
+    if probe is None:
+        return lambda sentence: read_target(reader, token_embeddings(sentence))
+
+    def both(sentence: str) -> int:
+        with torch.no_grad():
+            logits = reader(torch.as_tensor(np.array(token_embeddings(sentence))))
+        p_tokens = torch.softmax(logits, dim=0).numpy()
+        return int(np.argmax(p_tokens + probe.predict_proba(embed(sentence)[None])[0]))
+
+    return both
+
+
+def score(read: Callable[[str], int], sets: dict[str, Pairs], targets: tuple[str, ...]
+          ) -> dict[str, Any]:
+    """Per held-out set: right of all, and the misses (phrase, named, read)."""
+    out: dict[str, Any] = {}
+    for name, pairs in sets.items():
+        misses = [(p, targets[k], targets[read(p)]) for p, k in pairs if read(p) != k]
+        out[name] = {"right": len(pairs) - len(misses), "of": len(pairs),
+                     "misses": [list(m) for m in misses]}
+    return out
+
+
+def seeded(per_seed: list[dict[str, Any]], held_out: dict[str, Pairs]) -> dict[str, Any]:
+    """Seeds' scores of one candidate: each seed's right, their sum, the worst, the misses."""
+    return {name: {"right_per_seed": [s[name]["right"] for s in per_seed],
+                   "right": sum(s[name]["right"] for s in per_seed),
+                   "of": len(per_seed) * len(held_out[name]),
+                   "worst_seed_right": min(s[name]["right"] for s in per_seed),
+                   "misses": sorted({tuple(m) for s in per_seed for m in s[name]["misses"]})}
+            for name in held_out}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--seeds", type=int, default=5, help="token readers trained (5)")
+    parser.add_argument("--out", type=Path, default=OUT)
+    args = parser.parse_args()
+    record: dict[str, Any] = {"seeds": args.seeds}
+    for kind, task_name in TASKS.items():
+        targets, train, held_out = phrase_sets(task_name)
+        rows: dict[str, Any] = {"training_phrasings": len(train)}
+        rows["prototype"] = score(prototype_reader(train, len(targets)), held_out, targets)
+        probe = fitted_probe(train)
+        rows["probe"] = score(probe_reader(probe), held_out, targets)
+        for candidate, helper in (("tokens", None), ("tokens+probe", probe)):
+            per_seed, fit_s = [], []
+            for seed in range(args.seeds):
+                started = time.perf_counter()
+                read = token_reader(train, len(targets), seed, helper)
+                fit_s.append(time.perf_counter() - started)
+                per_seed.append(score(read, held_out, targets))
+            rows[candidate] = seeded(per_seed, held_out)
+            rows[candidate]["fit_seconds_median"] = float(np.median(fit_s))
+        record[kind] = rows
+        for candidate in ("prototype", "probe", "tokens", "tokens+probe"):
+            cells = [f"{name} {rows[candidate][name]['right']}/{rows[candidate][name]['of']}"
+                     for name in held_out]
+            print(f"{kind:5s} {candidate:12s} " + ", ".join(cells))
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(record, indent=2, default=list) + "\n")
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
