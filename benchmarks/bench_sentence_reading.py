@@ -7,8 +7,9 @@
 A reading names the target a sentence means; the trial then attends that target's Query. Each
 candidate learns from the built-in text tasks' training phrasings alone (yumi scene) and reads:
 the tasks' test phrasings (the fifth set, never trained on), the retired test phrasings
-(``examples/phrases/retired-test-phrasings.tsv``) and, for types, the new wordings
-(``examples/phrases/new-wordings.tsv``). Sides (``selected-position-text``) and types
+(``examples/phrases/retired-test-phrasings.tsv``), for types the new wordings
+(``examples/phrases/new-wordings.tsv``), and the dev half of the wordings written outside the
+project (``examples/phrases/outside-wordings-dev.tsv``, docs/phrase-sources.md). Sides (``selected-position-text``) and types
 (``selected-type-text``) are reported apart. Candidates:
 
 - ``prototype``: kqv's reading today: the nearest mean embedding of each target's training
@@ -45,7 +46,10 @@ from sim.tasks.task_toml import load_task, with_test_phrases
 
 PHRASES = Path(__file__).resolve().parents[1] / "examples" / "phrases"
 SETS = {"retired": PHRASES / "retired-test-phrasings.tsv",
-        "new-wordings": PHRASES / "new-wordings.tsv"}
+        "new-wordings": PHRASES / "new-wordings.tsv",
+        "outside-dev": PHRASES / "outside-wordings-dev.tsv"}
+"""The held-out sets besides the tasks' own test phrasings. The outside wordings' test half
+(``outside-wordings-test.tsv``) is read only at the final measurement, never here."""
 TASKS = {"sides": "selected-position-text", "types": "selected-type-text"}
 PROBE_C = 100.0
 OUT = Path(__file__).resolve().parent / "results" / "sentence_reading.json"
