@@ -26,9 +26,14 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
+import pinocchio as pin
 
+from control.depth_obstacles import GraspRegion
 from control.retarget import trajectory_state
+from perception.catalog import clear_of_table
 from robots import yumi
+from sim.trials.closed_loop import remembered_points
+from sim.trials.planner_setup import pick_obstacles
 from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_settings import TrialSettings, load_trial_model, torch_threads
@@ -68,13 +73,15 @@ def cycle(runner: TrialRunner, index: int, seed: int, rng: np.random.Generator,
     if read.predicted is None or read.grip is None:
         return f"unseen: {read.reason}"
     started = time.perf_counter()
-    replanned = runner.plan_pick(sighting.frame, prediction, 0, 1, moving=state)
+    _, remembered = remembered_points(planned.obstacle_image, sighting.frame)
+    replanned = runner.plan_pick(sighting.frame, prediction, 0, 1, moving=state,
+                                 remembered=remembered)
     whole_ms = (time.perf_counter() - started) * 1e3
     # the obstacles alone, to split the plan phase into perception of space and planning
-    from perception.catalog import clear_of_table
-
     raised, _ = clear_of_table(read.predicted, read.grip.opening_m)
-    timed(times, "depth obstacles", lambda: runner._obstacles(sighting.frame, raised, read.grip))
+    region = GraspRegion(pin.SE3(raised.matrix), read.grip.opening_m)
+    timed(times, "depth obstacles", lambda: pick_obstacles(
+        runner.world, runner.obstacle_source, runner.depth, sighting.frame, region, remembered))
     times["re-plan"].append(max(whole_ms - times["depth obstacles"][-1], 0.0))
     return "retargeted" if replanned.plan is not None else f"kept: {replanned.reason}"
 

@@ -9,8 +9,9 @@ candidate learns from the built-in text tasks' training phrasings alone (yumi sc
 the tasks' test phrasings (the fifth set, never trained on), the retired test phrasings
 (``examples/phrases/retired-test-phrasings.tsv``), for types the new wordings
 (``examples/phrases/new-wordings.tsv``), and the dev half of the wordings written outside the
-project (``examples/phrases/outside-wordings-dev.tsv``, docs/phrase-sources.md). Sides (``selected-position-text``) and types
-(``selected-type-text``) are reported apart. Candidates:
+project (``examples/phrases/outside-wordings-dev.tsv``, docs/phrase-sources.md). Sides
+(``selected-position-text``) and types (``selected-type-text``) are reported apart.
+Candidates:
 
 - ``prototype``: kqv's reading today: the nearest mean embedding of each target's training
   phrasings (cosine; no training, no seed).

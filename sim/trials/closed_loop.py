@@ -273,10 +273,8 @@ class ApproachLoop:
             self.unmet = None
             return self._note(time_s, Reaction.HELD, f"moved {100 * moved_m:.1f} cm, turned "
                               f"{turned_deg:.0f} deg", read.predicted, sighting.truth)
-        points = sighting.frame.points_world()  # (H, W, 3), NaN where no depth
-        unseen = ~np.isfinite(points).all(axis=-1)
         memory = self.followed.obstacle_image
-        remembered = None if memory is None else memory[unseen & np.isfinite(memory).all(-1)]
+        unseen, remembered = remembered_points(memory, sighting.frame)
         planned = runner.plan_pick(sighting.frame, prediction, self.number, self.total,
                                    moving=state, remembered=remembered)
         if planned.plan is None:
@@ -345,3 +343,16 @@ def _samples(trajectory: JointTrajectory, start: int, stop_at: int) -> JointTraj
                            trajectory.times_s[rows] - trajectory.times_s[start],
                            *(getattr(trajectory, f)[rows]
                              for f in ("positions", "velocities", "accelerations")))
+
+
+def remembered_points(memory: np.ndarray | None, frame: RgbdFrame
+                      ) -> tuple[np.ndarray, np.ndarray | None]:
+    """The pixels ``frame`` has no depth at (H, W), and ``memory``'s obstacle points there.
+
+    ``memory`` is an earlier frame's obstacle image (:attr:`PlannedPick.obstacle_image`): what
+    a re-plan keeps as obstacles where the arm now hides the scene. None without one.
+    """
+    unseen = ~np.isfinite(frame.points_world()).all(axis=-1)
+    if memory is None:
+        return unseen, None
+    return unseen, memory[unseen & np.isfinite(memory).all(axis=-1)]
