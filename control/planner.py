@@ -37,6 +37,7 @@ from control.pick import (
 )
 from control.retarget import JointState, RetargetError, retarget
 from control.robot_model import RobotModel
+from control.tcp_line import tcp_deviation_m
 from control.trajectory import JointLimits, JointTrajectory, plan_segment, plan_through
 
 REPLAN_CHECK_STEP_RAD = 0.01
@@ -76,6 +77,7 @@ class PickPlanner:
         self.robot, self.checker, self.arms = robot, checker, dict(arms)
         self._target_names: list[str] = []
         self._check_step_rad: float | None = None  # set while a re-plan checks thinned
+        self._moving_vias = True  # a re-plan's first pass tries no via poses
         self.config = config or PickPlannerConfig()
         options = ik_options or IkOptions()
         self._ik = {name: ArmIk(robot, spec.joints, spec.tcp_frame, options)
@@ -150,9 +152,11 @@ class PickPlanner:
         moving arm only, each candidate's approach the jerk-limited motion from ``moving`` to
         its pre-grasp (:func:`control.retarget.retarget`) instead of a move from rest, checked
         at every sample as every segment is; a candidate whose motion collides or leaves a
-        limit gives way to the next. The approach's first sample is ``moving``: the switch is
-        continuous. No plan (``RETARGET_FAILED`` where IK found candidates, ``UNREACHABLE``
-        where not) tells the caller to keep the plan it follows, or to stop.
+        limit gives way to the next. Every candidate's direct motion is tried before any passes
+        via poses (a second pass, only if none serves: vias cost six checked paths a candidate).
+        The approach's first sample is ``moving``: the switch is continuous. No plan
+        (``RETARGET_FAILED`` where IK found candidates, ``UNREACHABLE`` where not) tells the
+        caller to keep the plan it follows, or to stop.
 
         Raises:
             InvalidInputError: ``moving`` is not the joints of one arm, in order.
@@ -163,11 +167,15 @@ class PickPlanner:
         if arm is None:
             raise InvalidInputError("moving.joint_names", moving.joint_names, "one arm's joints: "
                                     + "; ".join(f"{a}: {s.joints}" for a, s in self.arms.items()))
-        self._check_step_rad = REPLAN_CHECK_STEP_RAD
+        self._check_step_rad, self._moving_vias = REPLAN_CHECK_STEP_RAD, False
         try:
-            return self._plan(replace(request, arms=(arm,)), moving)
+            result = self._plan(replace(request, arms=(arm,)), moving)
+            if result.status is PlanStatus.RETARGET_FAILED:
+                self._moving_vias = True
+                result = self._plan(replace(request, arms=(arm,)), moving)
+            return result
         finally:
-            self._check_step_rad = None
+            self._check_step_rad, self._moving_vias = None, True
 
     def _start(self, request: PickRequest) -> np.ndarray:
         """The start configuration: ``q_start`` within limits, every gripper open as asked.
@@ -283,7 +291,7 @@ class PickPlanner:
     ) -> tuple[JointTrajectory | None, str]:
         """A checked move between the start and ``q_far``: direct, else through via poses.
 
-        Returns the trajectory, or None and why the direct move and every via option failed.
+        Returns the trajectory, or None and why the direct move (and every via option) failed.
 
         A straight joint-space line from the start can swing the hand through the robot's own
         body or through the target. The via poses lift the TCP straight up, at the far end, at
@@ -303,11 +311,14 @@ class PickPlanner:
 
         try:
             direct = move([])
-        except RetargetError as error:
-            return None, f"{error.result} ({error.detail or error})"
-        report = self._check(arm, q0, direct)
-        if not report.in_collision:
-            return direct, ""
+            report = self._check(arm, q0, direct)
+            if not report.in_collision:
+                return direct, ""
+            why = report.describe()
+        except RetargetError as error:  # e.g. a joint overshooting its limit on the way
+            why = f"{error.result} ({error.detail or error})"
+        if moving is not None and not self._moving_vias:
+            return None, why
         for height_m in self.config.via_heights_m:
             near_via = self._raised(arm, q0, height_m)
             far_via = self._raised(arm, q_far, height_m)
@@ -321,7 +332,7 @@ class PickPlanner:
                     continue  # no motion passes these vias from this state: the next option
                 if not self._check(arm, q0, path).in_collision:
                     return path, ""
-        return None, f"{report.describe()}, and no via pose clears it"
+        return None, f"{why}, and no via pose clears it"
 
     def _raised(self, arm: str, q: np.ndarray, height_m: float) -> np.ndarray | None:
         """The configuration with the TCP ``height_m`` straight above where ``q`` puts it."""
@@ -368,7 +379,8 @@ class PickPlanner:
         """Waypoints after ``q_a`` up to ``q_b`` whose joint-space lines stay on the line."""
         index = self._indices[arm]
         direct = plan_segment(q_a[index], q_b[index], limits, self.config.dt_s)
-        if self._deviation_m(arm, q_a, direct, T_a, T_b) <= self.config.max_straight_deviation_m:
+        bend_m = tcp_deviation_m(self.robot, index, self.arms[arm].tcp_frame, q_a, direct, T_a, T_b)
+        if bend_m <= self.config.max_straight_deviation_m:
             return [q_b]
         if depth >= 4:
             return None
@@ -381,20 +393,3 @@ class PickPlanner:
         if first is None or second is None:
             return None
         return first + second
-
-    def _deviation_m(
-        self, arm: str, q_base: np.ndarray, trajectory: JointTrajectory,
-        start: pin.SE3, goal: pin.SE3,
-    ) -> float:
-        index, frame = self._indices[arm], self.arms[arm].tcp_frame
-        a, b = start.translation, goal.translation
-        direction = b - a
-        length_sq = float(direction @ direction) or 1.0
-        q = q_base.copy()
-        worst = 0.0
-        for positions in trajectory.positions[:: max(1, len(trajectory.positions) // 20)]:
-            q[index] = positions
-            p = self.robot.frame_pose(q, frame).translation
-            s = np.clip((p - a) @ direction / length_sq, 0.0, 1.0)
-            worst = max(worst, float(np.linalg.norm(p - (a + s * direction))))
-        return worst

@@ -7,10 +7,11 @@ import pinocchio as pin
 import pytest
 from conftest import top_down
 
+import control.planner as planner_module
 from control.collision import Obstacle, ShapeKind
 from control.errors import InvalidInputError
 from control.pick import PickRequest, PlanStatus
-from control.retarget import JointState, trajectory_state
+from control.retarget import JointState, RetargetError, retarget, trajectory_state
 from control.trajectory import SEAM_TOLERANCE
 from robots import yumi
 
@@ -99,32 +100,34 @@ def test_thinned_checks_keep_every_joint_within_the_step():
     assert set(range(200, 210)) <= set(kept)  # the fast stretch is checked at every sample
 
 
-def test_a_re_target_blocked_on_the_way_passes_over_it_by_a_via_without_stopping(
-        yumi_planner, yumi_home):
-    """A post between the moving hand and the new pre-grasp: the direct re-target is refused, a
-    raised via pose clears it, and the arm passes the via moving (it cannot wait at one). The
-    grasp's best IK solution still serves (without vias, another solution swings the arm 4 rad
-    round the post)."""
-    old, q_now, state = moving_state(yumi_planner, yumi_home, top_down(0.45, -0.10, 0.035), 0.6)
-    robot, tcp_frame = yumi_planner.robot, yumi.TCP_FRAME[old.arm]
-    moved = top_down(0.45, -0.24, 0.035)
-    plain = yumi_planner.replan(PickRequest(moved, q_now, obstacles=(TABLE,)), state).plan
-    assert plain is not None
-    direct = plain.segment("approach").trajectory
-    q = q_now.copy()
-    index = robot.joint_indices(yumi.ARM_JOINTS[old.arm])
-    q[index] = direct.positions[len(direct.times_s) // 2]
-    middle = robot.frame_pose(q, tcp_frame).translation  # the direct path's TCP halfway
-    post = Obstacle("post", ShapeKind.BOX, (0.03, 0.03, middle[2] + 0.01),
-                    pin.SE3(np.eye(3), np.array([middle[0], middle[1], (middle[2] + 0.01) / 2])))
-    result = yumi_planner.replan(PickRequest(moved, q_now, obstacles=(TABLE, post)), state)
+def test_vias_are_tried_only_once_every_direct_re_target_is_refused(yumi_planner, yumi_home,
+                                                                    monkeypatch):
+    """A re-plan tries each candidate's direct motion first (cheap); only where every one is
+    refused does a second pass go over the planner's raised via poses, passing them moving."""
+    _, q_now, state = moving_state(yumi_planner, yumi_home, top_down(0.45, -0.10, 0.035), 0.6)
+    asked = PickRequest(top_down(0.45, -0.24, 0.035), q_now, obstacles=(TABLE,))
+    calls: list[int] = []
+
+    def spy(state, q_goal, limits, dt_s=1 / 240, vias=()):
+        calls.append(len(vias))
+        return retarget(state, q_goal, limits, dt_s, vias)
+
+    monkeypatch.setattr(planner_module, "retarget", spy)
+    assert yumi_planner.replan(asked, state).ok
+    assert calls and set(calls) == {0}  # a direct re-target served: no via was tried
+
+    def refuse_direct(state, q_goal, limits, dt_s=1 / 240, vias=()):
+        calls.append(len(vias))
+        if not vias:
+            raise RetargetError("ErrorExecutionTimeCalculation", state, q_goal)
+        return retarget(state, q_goal, limits, dt_s, vias)
+
+    calls.clear()
+    monkeypatch.setattr(planner_module, "retarget", refuse_direct)
+    result = yumi_planner.replan(asked, state)
     assert result.ok, result.reason
-    np.testing.assert_array_equal(result.plan.q_grasp, plain.q_grasp)
+    first_via = calls.index(next(n for n in calls if n))
+    assert first_via > 0 and not any(calls[:first_via])  # every direct one first
     approach = result.plan.segment("approach").trajectory
     speeds = np.abs(approach.velocities[1:-1]).max(axis=1)
     assert speeds.min() > 0.0  # never at rest before the pre-grasp
-    heights = []
-    for positions in approach.positions:
-        q[index] = positions
-        heights.append(robot.frame_pose(q, tcp_frame).translation[2])
-    assert max(heights) > middle[2] + 0.05  # over the post, not through it
