@@ -306,6 +306,8 @@ class PickPlanner:
         def move(vias: list[np.ndarray]) -> JointTrajectory:
             if moving is not None:
                 return retarget(moving, q_far[index], limits, self.config.dt_s, vias)
+            if not vias:  # the direct move: one straight segment, as every plan from rest has
+                return plan_segment(ends[0][index], ends[1][index], limits, self.config.dt_s)
             return plan_through([ends[0][index], *vias, ends[1][index]], limits,
                                 self.config.dt_s)
 

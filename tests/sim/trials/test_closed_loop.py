@@ -140,14 +140,21 @@ class _Unreachable(_Later):
         return Prediction((Target(np.array([1.5, 0.0, 0.03]), DOWN.copy()),))
 
 
-@pytest.mark.parametrize(("model", "reaction"), [(_RaisesLater, Reaction.UNSEEN),
-                                                 (_Unreachable, Reaction.KEPT)])
-def test_a_re_prediction_the_arm_cannot_follow_keeps_the_plan_and_says_why(model, reaction):
+def run_closed(model: type[_Later]):
+    """A closed-loop trial of ``single`` scene 0 with ``model``; the record and the runner's TCP."""
     model.calls = 0
     task = load_task("single")
     with TrialRunner(task, lambda world, camera: model(),
                      loop=LoopSettings(Loop.CLOSED)) as runner:
         record = runner.run(trial_scene(task, 0, 0), 0, 0, "test")
+        arm = record.picks[0].get("arm", "r")
+        return record, runner.world.robot.link_pose(yumi.TCP_FRAME[arm]).position
+
+
+@pytest.mark.parametrize(("model", "reaction"), [(_RaisesLater, Reaction.UNSEEN),
+                                                 (_Unreachable, Reaction.KEPT)])
+def test_a_re_prediction_the_arm_cannot_follow_keeps_the_plan_and_says_why(model, reaction):
+    record, _ = run_closed(model)
     [pick] = record.picks
     assert pick["repredictions"]
     assert {r["reaction"] for r in pick["repredictions"]} == {reaction.value}
@@ -164,13 +171,8 @@ def test_a_failed_re_plan_whose_path_ahead_is_blocked_brakes_the_arm(monkeypatch
     it is (never reaching the pre-grasp) and the pick ends with the re-plan's outcome."""
     blocked = CollisionReport(True, (("gripper_finger", "depth"),), 40)
     monkeypatch.setattr(PickPlanner, "check_ahead", lambda *args: blocked)
-    _Unreachable.calls = 0
-    task = load_task("single")
-    with TrialRunner(task, lambda world, camera: _Unreachable(),
-                     loop=LoopSettings(Loop.CLOSED)) as runner:
-        record = runner.run(trial_scene(task, 0, 0), 0, 0, "test")
-        [pick] = record.picks
-        tcp = runner.world.robot.link_pose(yumi.TCP_FRAME[pick["arm"]]).position
+    record, tcp = run_closed(_Unreachable)
+    [pick] = record.picks
     first = pick["repredictions"][0]
     assert first["reaction"] == Reaction.STOPPED.value
     assert first["reason"].startswith("the plan followed: collision at sample 40: "
