@@ -291,7 +291,8 @@ def given_as(dataset: Dataset, kind: ConditionKind, rows: np.ndarray,
     scenes = tuple(record | {"condition": {"kind": "object_type", "value": name}}
                    | ({} if query is None else {"query": {"kind": kind.value, "value": query}})
                    for record, name, query in zip(dataset.scenes, names, queries, strict=True))
-    metadata = replace(dataset.metadata, condition_kind=kind)
+    metadata = replace(dataset.metadata, condition_kind=kind,  # the scene's vocabulary, as
+                       extra=dataset.metadata.extra | {"object_types": list(TYPES)})  # collected
     return Dataset(metadata, dataset.images, rows.astype(np.float32), dataset.labels, scenes)
 
 

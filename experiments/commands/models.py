@@ -198,7 +198,9 @@ def run_show_attention(args: argparse.Namespace) -> int:
     model, dataset = _model_and_dataset(args)
     meta, count = dataset.metadata, min(args.count, len(dataset))
     images = dataset.images[:count]  # (n, H, W, 3)
-    own = model.predict_batch(images, dataset.conditions[:count])
+    read_as = model.condition_rows([dataset.condition(i) for i in range(len(dataset))],
+                                   dataset.conditions)  # what the model reads each condition as
+    own = model.predict_batch(images, read_as[:count])
     if own[0].attention_px.shape[0] == 0:
         raise PerceptionError(f"model {model.name} ({args.model}) predicts no attention "
                               "points, so there is nothing to draw (conv-ae and fcn have none; "
@@ -207,14 +209,13 @@ def run_show_attention(args: argparse.Namespace) -> int:
     names = dataset.condition_names()
     # One row per value: its one-hot vector, or the first sentence (picture) that names it.
     asked = [names.index(value) for value in choices if value in names]
-    by_condition = [model.predict_batch(images, np.repeat(dataset.conditions[j:j + 1], count,
-                                                          axis=0)) for j in asked]  # [C][n]
+    by_condition = [model.predict_batch(images, np.repeat(read_as[j:j + 1], count, axis=0))
+                    for j in asked]  # [C][n]
     if choices:
         print("rows: " + ", ".join(f"{c} = {_asked(dataset, names, j)}"
                                    for c, j in enumerate(asked))
               + " (the sample's own condition is the white number)")
-    if isinstance(model, KqvModel) and (read := model.read_sentences(
-            dataset.conditions[asked])) is not None:
+    if isinstance(model, KqvModel) and (read := model.read_sentences(read_as[asked])) is not None:
         for c, weights in enumerate(read):
             print(f"kqv reads row {c}'s sentence as " + ", ".join(
                 f"{choice} {w:.2f}" for choice, w in zip(choices, weights, strict=True)))

@@ -133,8 +133,10 @@ def predict_dataset(model: PerceptionModel, dataset: Dataset, batch_size: int = 
     if isinstance(model, LearnableModel):
         return [prediction for start in range(0, len(dataset), batch_size)
                 for prediction in model.predict_batch(
-                    dataset.images[start:start + batch_size],
-                    dataset.conditions[start:start + batch_size])]
+                    dataset.images[start:start + batch_size], model.condition_rows(
+                        [dataset.condition(i) for i in range(start, min(start + batch_size,
+                                                                         len(dataset)))],
+                        dataset.conditions[start:start + batch_size]))]
     return [model.predict(image, dataset.condition(index))
             for index, image in enumerate(dataset.images)]
 

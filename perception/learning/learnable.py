@@ -197,7 +197,17 @@ class LearnableModel(PerceptionModel):
             over = f" over ({', '.join(wanted)})" if wanted else ""
             raise InvalidInputError("condition", f"{condition.kind.value} {condition.choices}",
                                     f"a {spec.condition_kind.value} condition{over}")
-        return self.predict_batch(image[None], condition.vector()[None])[0]
+        return self.predict_batch(image[None], self.condition_rows([condition],
+                                                                   condition.vector()[None]))[0]
+
+    def condition_rows(self, conditions: Sequence[Condition], rows: np.ndarray) -> np.ndarray:
+        """The condition vectors (B, C) :meth:`predict_batch` is given for ``conditions``.
+
+        ``rows`` are their :meth:`Condition.vector` rows (a dataset's ``conditions``), returned
+        as they are here; a model that reads a condition otherwise (kqv's sentence reading from
+        the words, ``KqvConfig.sentence_reading``) gives the rows its network reads instead.
+        """
+        return rows
 
     def check_batch(self, images: np.ndarray, conditions: np.ndarray) -> None:
         """An error unless ``images`` (B, H, W, 3) uint8 and ``conditions`` (B, C) fit the spec."""

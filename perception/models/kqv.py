@@ -9,6 +9,7 @@ from outside. Its settings are :class:`KqvConfig`; where they depart from the pa
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any, cast
 
@@ -16,16 +17,18 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from perception.interface import InvalidInputError, Prediction
+from perception.interface import Condition, InvalidInputError, Prediction
 from perception.learning.data import Dataset
 from perception.learning.evaluate import evaluate
 from perception.learning.mirror import MIRROR_FLAG, Mirror
 from perception.learning.train import Batch, TrainConfig, TrainReport, train
 from perception.learning.validation import split_scenes
-from perception.models.base import LabelScaler, images_to_tensor, normalised_to_pixels
+from perception.models.base import LabelScaler, images_to_tensor, normalised_to_pixels, unit
 from perception.models.kqv_config import INFERENCE_FIELDS, KqvConfig
 from perception.models.kqv_net import KqvNet
 from perception.models.torch_model import Phase, TorchModel, present_mean
+from perception.sentence_reading import TokenReader, fit_token_reader, read_target
+from perception.sentences import token_embeddings
 
 
 class KqvModel(TorchModel):
@@ -47,6 +50,8 @@ class KqvModel(TorchModel):
         network.scaler = self.scaler
         if network.prototypes is not None and self._prototypes is not None:
             network.prototypes.copy_(self._prototypes)
+        if network.reader is not None and self._reader is not None:  # every start reads alike
+            network.reader.load_state_dict(self._reader.state_dict())
         return network
 
     @classmethod
@@ -59,6 +64,7 @@ class KqvModel(TorchModel):
         return {"sentence_reading": "embedding"} | saved
 
     _prototypes: Tensor | None = None  # (k, C) a sentence task's prototypes, set on first fit
+    _reader: TokenReader | None = None  # what a sentence names, from its words; first fit
     _steps_taken = 0  # training steps of the current fit, for the temperature warm-up
     _mirror: Mirror | None = None  # mirrors training samples (KqvConfig.mirror)
 
@@ -91,6 +97,9 @@ class KqvModel(TorchModel):
             if self.network.prototypes is not None:  # what each target's sentences sound like
                 self._prototypes = torch.from_numpy(dataset.condition_prototypes())
                 self.network.prototypes.copy_(self._prototypes)
+            if self.network.reader is not None:  # which words name which target
+                self._reader = self._fit_reader(dataset)
+                self.network.reader.load_state_dict(self._reader.state_dict())
         named = self._named(dataset)
         try:
             pose = self._fit_pose(dataset, named, fresh, config, progress)
@@ -142,14 +151,39 @@ class KqvModel(TorchModel):
         named = [choices.index(name) for name in dataset.condition_names()]
         return replace(dataset, conditions=units[named].astype(np.float32))
 
+    def _fit_reader(self, dataset: Dataset) -> TokenReader:
+        """A :class:`TokenReader` trained on ``dataset``'s distinct sentences and their targets.
+
+        Seconds on one core, before the starts; the encoder stays frozen and no word is
+        written by hand: what each training sentence names is all it learns from.
+        """
+        choices = self.spec.condition_choices
+        named = dataset.condition_names()
+        phrasings = sorted({(dataset.condition(i).value or "", choices.index(name))
+                            for i, name in enumerate(named) if name is not None})
+        return fit_token_reader(phrasings, len(choices), token_embeddings, self.config.seed)
+
+    def condition_rows(self, conditions: Sequence[Condition], rows: np.ndarray) -> np.ndarray:
+        """Each sentence's row as the network reads it, under the ``"tokens"`` reading.
+
+        The unit prototype of the target the reader reads the sentence as naming (what that
+        target's training sentences become in :meth:`_named`); other readings' rows as given.
+        """
+        reader, prototypes = self.network.reader, self.network.prototypes
+        if reader is None or prototypes is None:
+            return rows
+        units = unit(prototypes, dim=-1).numpy()
+        read = [read_target(reader, token_embeddings(c.value or "")) for c in conditions]
+        return units[read].astype(np.float32)
+
     def phases(self) -> list[Phase]:
         """One phase: the target loss on every parameter but the type head's (see :meth:`fit`)."""
         return [Phase("targets", self.batch_loss, self._pose_parameters())]
 
     def _pose_parameters(self) -> list[nn.Parameter]:
         """The network's parameters that the pose training moves: all but the type head's."""
-        head = self.network.type_head
-        skipped = set() if head is None else {id(p) for p in head.parameters()}
+        apart = [m for m in (self.network.type_head, self.network.reader) if m is not None]
+        skipped = {id(p) for module in apart for p in module.parameters()}
         return [p for p in self.network.parameters() if id(p) not in skipped]
 
     def _best_start(self, dataset: Dataset, config: TrainConfig, progress: bool
@@ -266,7 +300,8 @@ class KqvModel(TorchModel):
                 raise InvalidInputError(name, settings[name], "a training setting; read_with "
                                         f"changes only {', '.join(sorted(INFERENCE_FIELDS))}")
         other = type(self)(self.spec, replace(self.config, **settings), self.scaler)
-        other._prototypes, other.report = self._prototypes, self.report
+        other._prototypes, other._reader = self._prototypes, self._reader
+        other.report = self.report
         other.provenance = dict(self.provenance)
         other.network.load_state_dict(self.network.state_dict())
         return other

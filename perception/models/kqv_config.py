@@ -19,7 +19,7 @@ from perception.models.rotations import ROTATION_CODES
 QUERY_MODES = ("auto", "base", "conditioned", "conditioned+base", "paper")
 READOUTS = ("auto", "mlp", "ray")
 INPUT_NORMS = ("auto", "fixed", "per-image")
-SENTENCE_READINGS = ("nearest", "prototypes", "embedding")
+SENTENCE_READINGS = ("auto", "tokens", "nearest", "prototypes", "embedding")
 INFERENCE_FIELDS = frozenset({"focus_window_px", "focus_box_px"})
 """KqvConfig fields that only change how a trained network is read (``KqvModel.read_with``):
 a checkpoint is scored under other values without training again."""
@@ -105,8 +105,14 @@ class KqvConfig:
             sentence's weights are the softmax of its cosines to them at
             ``sentence_temperature``. ``"nearest"``: the Query of the target it reads most
             likely (a sentence names one target, and a Query between two attends to neither);
-            ``"prototypes"``: the weighted mean of the targets' Queries; ``"embedding"``: the
-            Query MLP reads the 384-d embedding itself (checkpoints from before prototypes).
+            ``"tokens"``: the Query of the target a
+            :class:`~perception.sentence_reading.TokenReader`, trained at the first fit on the
+            training sentences, reads from the encoder's token embeddings (the pooled vector
+            averages a side's one word away); ``"auto"``: ``"nearest"`` where every target is
+            an object type (the noun carries the pooled vector), else ``"tokens"``
+            (docs/decisions/open-conditions.md measures both per kind); ``"prototypes"``: the
+            weighted mean of the targets' Queries; ``"embedding"``: the Query MLP reads the
+            384-d embedding itself (checkpoints from before prototypes).
         sentence_temperature: Divides those cosines before the softmax (the weights
             ``KqvModel.read_sentences`` reports; ``"nearest"`` reads only their largest).
         seed: Seeds the initial weights.
@@ -139,7 +145,7 @@ class KqvConfig:
     rotation_loss_weight: float = 0.1
     type_head: bool | None = None
     type_steps: int = 300
-    sentence_reading: str = "nearest"
+    sentence_reading: str = "auto"
     sentence_temperature: float = 0.02
     seed: int = 0
 

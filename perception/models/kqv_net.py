@@ -33,6 +33,7 @@ from perception.models.kqv_config import KqvConfig
 from perception.models.readout import CameraRays
 from perception.models.rotations import decode_rotation, rotation_size
 from perception.models.torch_model import NetOutput
+from perception.sentence_reading import TokenReader
 
 
 class Attention(NamedTuple):
@@ -62,6 +63,19 @@ def picture_encoder() -> nn.Sequential:
         nn.Conv2d(16, 32, 3, 2, 1), nn.ReLU(),
         nn.Conv2d(32, PICTURE_FEATURES, 3, 2, 1), nn.ReLU(),
         nn.AdaptiveAvgPool2d(1), nn.Flatten())
+
+
+def sentence_reading(spec: ModelSpec, config: KqvConfig) -> str:
+    """The :attr:`KqvConfig.sentence_reading` a model of ``spec`` uses, ``"auto"`` resolved.
+
+    A sentence naming an object type is read by its pooled embedding's nearest prototype (the
+    noun carries it); one naming a side by its token embeddings, where a side's one word is not
+    averaged away (docs/decisions/open-conditions.md).
+    """
+    if config.sentence_reading != "auto":
+        return config.sentence_reading
+    choices = spec.condition_choices
+    return "nearest" if choices and set(choices) <= set(spec.object_types) else "tokens"
 
 
 class KqvNet(nn.Module):
@@ -118,8 +132,9 @@ class KqvNet(nn.Module):
         # A sentence is read by its likeness to each named target's training sentences
         # (KqvConfig.sentence_reading); the prototypes come from the first fit's dataset.
         self.sentence_temperature = c.sentence_temperature
-        self.nearest_sentence = c.sentence_reading == "nearest"
-        if spec.condition_kind is ConditionKind.TEXT and c.sentence_reading != "embedding":
+        reading = sentence_reading(spec, c)
+        self.nearest_sentence = reading in ("nearest", "tokens")  # "tokens": the model reads
+        if spec.condition_kind is ConditionKind.TEXT and reading != "embedding":  # the target
             self.register_buffer("prototypes", torch.zeros(len(spec.condition_choices),
                                                            spec.condition_size))  # (k, C)
             condition_in = len(spec.condition_choices)
@@ -173,6 +188,10 @@ class KqvNet(nn.Module):
                                                                  len(types)))) if wanted else None
         # An image condition's picture is read by a small CNN trained with the rest (last, too).
         self.picture_net = picture_encoder() if pictured else None
+        # What target a sentence names, read from its words (KqvModel.condition_rows); trained
+        # at the first fit on the training sentences, apart from the rest, and saved with it.
+        self.reader = TokenReader(len(spec.condition_choices)) \
+            if spec.condition_kind is ConditionKind.TEXT and reading == "tokens" else None
 
     def queries(self, conditions: Tensor) -> Tensor:
         """The Query vectors for condition vectors (B, C): (B, q, Ck + 2)."""

@@ -2,17 +2,27 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
+from user_models import TYPES, given_as, synthetic_dataset
 
 from perception.errors import InvalidInputError
+from perception.interface import Condition, ConditionKind
+from perception.learning.data import Dataset
+from perception.learning.learnable import ModelSpec
+from perception.learning.train import TrainConfig
+from perception.models.kqv import KqvConfig, KqvModel
+from perception.models.kqv_net import KqvNet, sentence_reading
 from perception.sentence_reading import (
     TokenReader,
     TokenReaderConfig,
     fit_token_reader,
     read_target,
 )
+from perception.sentences import EMBEDDING_SIZE
 
 WIDTH = 32
 _RNG = np.random.default_rng(37)
@@ -61,3 +71,66 @@ def test_bad_input_is_named():
     with pytest.raises(InvalidInputError, match=r"learning_rate = 0\.0 is not allowed: a "
                                                 r"finite number > 0"):
         TokenReaderConfig(learning_rate=0.0)
+
+
+# kqv's "tokens" reading: the reader trains at the first fit and decides each sentence's Query.
+SCENE_WORDS = {word: _RNG.normal(size=EMBEDDING_SIZE) for word in (
+    "red green blue the square please pick up grab that one hand me over there").split()}
+
+
+def scene_tokens(sentence: str) -> np.ndarray:
+    """Made-up (n, 384) token embeddings for the synthetic scenes' sentences."""
+    return np.stack([SCENE_WORDS[w] for w in sentence.split()]).astype(np.float32)
+
+
+def _worded_scenes(size: int, seed: int, fillers: tuple[str, ...]) -> Dataset:
+    """Synthetic selected-type scenes, each naming its colour in a sentence; the sentence's
+    pooled 'embedding' is random, unrelated to what it names, as a pooled vector can be."""
+    base = synthetic_dataset(size=size, conditioned=True, seed=seed, image_px=48)
+    rng = np.random.default_rng(seed)
+    names = base.conditions.argmax(axis=1)
+    sentences = [f"{rng.choice(fillers)} the {TYPES[k]} square" for k in names]
+    rows = rng.normal(size=(size, EMBEDDING_SIZE))
+    return given_as(base, ConditionKind.TEXT, rows / np.linalg.norm(rows, axis=1,
+                                                                       keepdims=True),
+                    sentences)
+
+
+def test_auto_reads_types_by_prototype_and_other_targets_by_tokens():
+    types = given_as(synthetic_dataset(4, conditioned=True), ConditionKind.TEXT,
+                     np.eye(4, EMBEDDING_SIZE), ["the red square"] * 4)
+    spec = ModelSpec.from_metadata(types.metadata)
+    assert sentence_reading(spec, KqvConfig()) == "nearest"
+    sides = replace(spec, condition_choices=("left", "right"))
+    assert sentence_reading(sides, KqvConfig()) == "tokens"
+    assert sentence_reading(sides, KqvConfig(sentence_reading="nearest")) == "nearest"
+    assert KqvNet(spec, KqvConfig()).reader is None and \
+        KqvNet(sides, KqvConfig()).reader is not None
+
+
+def test_kqv_reads_a_new_wording_by_its_words_where_the_pooled_vector_says_nothing(
+        tmp_path, monkeypatch):
+    monkeypatch.setattr("perception.models.kqv.token_embeddings", scene_tokens)
+    train = _worded_scenes(24, seed=1, fillers=("pick up", "grab"))
+    model = KqvModel.for_dataset(train, KqvConfig(seed=0, sentence_reading="tokens"))
+    model.fit(train, TrainConfig(steps=2, batch_size=4, threads=1), progress=False)
+    new = [Condition(ConditionKind.TEXT, f"hand me the {colour} square over there")
+           for colour in TYPES]  # fillers never trained on
+    rows = np.zeros((len(new), EMBEDDING_SIZE), np.float32)  # the pooled rows: not read
+    read = model.condition_rows(new, rows)
+    units = model.network.prototypes / model.network.prototypes.norm(dim=1, keepdim=True)
+    np.testing.assert_allclose(read, units.numpy(), atol=1e-6)  # each colour its own Query
+    image = train.images[0]
+    monkeypatch.setattr("perception.interface.embed", lambda s: np.zeros(EMBEDDING_SIZE,
+                                                                          np.float32))
+    for k, condition in enumerate(new):  # predict() reads the words, as the rows say
+        np.testing.assert_allclose(
+            model.predict(image, condition).targets[0].position_m,
+            model.predict_batch(image[None], read[k:k + 1])[0].targets[0].position_m)
+    loaded = KqvModel.load(model.save(tmp_path / "ckpt"))
+    np.testing.assert_array_equal(loaded.condition_rows(new, rows), read)
+    for mine, theirs in zip(model.network.reader.parameters(),
+                            loaded.network.reader.parameters(), strict=True):
+        assert bool((mine == theirs).all())
+    assert {id(p) for p in model.network.reader.parameters()}.isdisjoint(
+        id(p) for p in model._pose_parameters())  # trained apart, before the pose
