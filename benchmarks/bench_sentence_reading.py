@@ -1,6 +1,6 @@
 """Reading accuracy of sentence readings on phrasings never trained on (issue 37).
 
-    python benchmarks/bench_sentence_reading.py [--seeds 5] [--out FILE]
+    python benchmarks/bench_sentence_reading.py [--seeds 5] [--out FILE] [--final]
 
 (default ``benchmarks/results/sentence_reading.json``).
 
@@ -9,7 +9,8 @@ candidate learns from the built-in text tasks' training phrasings alone (yumi sc
 the tasks' test phrasings (the fifth set, never trained on), the retired test phrasings
 (``examples/phrases/retired-test-phrasings.tsv``), for types the new wordings
 (``examples/phrases/new-wordings.tsv``), and the dev half of the wordings written outside the
-project (``examples/phrases/outside-wordings-dev.tsv``, docs/phrase-sources.md). Sides
+project (``examples/phrases/outside-wordings-dev.tsv``, docs/phrase-sources.md); with
+``--final``, once a reading was chosen, their test half too. Sides
 (``selected-position-text``) and types (``selected-type-text``) are reported apart.
 Candidates:
 
@@ -55,8 +56,10 @@ PHRASES = Path(__file__).resolve().parents[1] / "examples" / "phrases"
 SETS = {"retired": PHRASES / "retired-test-phrasings.tsv",
         "new-wordings": PHRASES / "new-wordings.tsv",
         "outside-dev": PHRASES / "outside-wordings-dev.tsv"}
-"""The held-out sets besides the tasks' own test phrasings. The outside wordings' test half
-(``outside-wordings-test.tsv``) is read only at the final measurement, never here."""
+"""The held-out sets besides the tasks' own test phrasings, which chose among the readings."""
+FINAL = {"outside-test": PHRASES / "outside-wordings-test.tsv"}
+"""The outside wordings' test half: read only with ``--final``, once the reading was chosen
+(docs/decisions/open-conditions.md), never to choose."""
 TASKS = {"sides": "selected-position-text", "types": "selected-type-text"}
 PROBE_C = 100.0
 DEMOS = 20
@@ -66,8 +69,12 @@ OUT = Path(__file__).resolve().parent / "results" / "sentence_reading.json"
 Pairs = list[tuple[str, int]]
 
 
-def phrase_sets(task_name: str) -> tuple[tuple[str, ...], Pairs, dict[str, Pairs]]:
-    """The task's targets, its training phrasings and each held-out set, as (phrase, target)."""
+def phrase_sets(task_name: str, final: bool = False
+                ) -> tuple[tuple[str, ...], Pairs, dict[str, Pairs]]:
+    """The task's targets, its training phrasings and each held-out set, as (phrase, target).
+
+    With ``final``, the outside wordings' test half too.
+    """
     spec = get_scene_spec("yumi")
     task = load_task(task_name)
     targets = condition_choices(task, spec)
@@ -77,7 +84,7 @@ def phrase_sets(task_name: str) -> tuple[tuple[str, ...], Pairs, dict[str, Pairs
         return [(p, k) for k, t in enumerate(targets) for p in table.of(split, t)]
 
     held_out = {"fifth": pairs(task.phrasings, "test")}
-    for name, path in SETS.items():
+    for name, path in (SETS | FINAL if final else SETS).items():
         phrasings = with_test_phrases(task, path, targets, spec.object_types + SIDES).phrasings
         found = pairs(phrasings, "test")
         if found and not (name == "new-wordings" and task_name == TASKS["sides"]):
@@ -163,10 +170,12 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--seeds", type=int, default=5, help="token readers trained (5)")
     parser.add_argument("--out", type=Path, default=OUT)
+    parser.add_argument("--final", action="store_true",
+                        help="also read the outside wordings' test half (once a reading is chosen)")
     args = parser.parse_args()
-    record: dict[str, Any] = {"seeds": args.seeds}
+    record: dict[str, Any] = {"seeds": args.seeds, "final": args.final}
     for kind, task_name in TASKS.items():
-        targets, train, held_out = phrase_sets(task_name)
+        targets, train, held_out = phrase_sets(task_name, args.final)
         rows: dict[str, Any] = {"training_phrasings": len(train)}
         rows["prototype"] = score(prototype_reader(train, len(targets)), held_out, targets)
         probe = fitted_probe(train)
