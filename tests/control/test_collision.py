@@ -64,3 +64,36 @@ def test_duplicate_obstacle_names_are_refused(yumi_checker):
     twice = [box("cup", (0.1, 0.1, 0.1), (0.5, 0, 0)), box("cup", (0.1, 0.1, 0.1), (0.6, 0, 0))]
     with pytest.raises(InvalidInputError, match="obstacle names"):
         yumi_checker.set_obstacles(twice)
+
+
+def test_the_broad_phase_answers_as_the_distances_do_margin_included(yumi_checker, yumi_model,
+                                                                     yumi_home):
+    """The broad phase culls pairs by their boxes: a configuration closer than the margin to a
+    box, or to itself, must still count, and one just outside it must not."""
+    rng = np.random.default_rng(5)
+    yumi_checker.set_obstacles(
+        [box("table", (1.2, 1.2, 0.04), (0.6, 0.0, -0.02))]
+        + [box(f"box{k}", tuple(rng.uniform(0.03, 0.1, 3)),
+               (rng.uniform(0.3, 0.6), rng.uniform(-0.3, 0.3), rng.uniform(0.05, 0.3)))
+           for k in range(6)])
+    lower, upper = yumi_model.model.lowerPositionLimit, yumi_model.model.upperPositionLimit
+    counted = {"within the margin": 0, "free": 0, "touching": 0}
+    for _ in range(3000):
+        q = np.clip(yumi_home + rng.normal(scale=0.6, size=yumi_model.nq), lower, upper)
+        distance_m, _ = yumi_checker.clearance_m(q)
+        if abs(distance_m - yumi_checker.margin_m) < 1e-5 or abs(distance_m) < 1e-5:
+            continue  # on a boundary, where the two computations may round apart
+        assert yumi_checker.check(q).in_collision == (distance_m < yumi_checker.margin_m)
+        counted["touching" if distance_m < 0 else "within the margin"
+                if distance_m < yumi_checker.margin_m else "free"] += 1
+    assert min(counted.values()) >= 20, counted  # each case was met
+
+
+def test_the_broad_phase_skips_what_ignoring_skips(yumi_checker, yumi_model, yumi_home):
+    tcp = yumi_model.frame_pose(yumi_home, yumi.TCP_FRAME["r"]).translation
+    yumi_checker.set_obstacles([box("crate", (0.1, 0.1, 0.1), tcp), box("far", (0.1, 0.1, 0.1),
+                                                                          (0.5, 0.0, 0.8))])
+    assert yumi_checker.check(yumi_home).in_collision
+    with yumi_checker.ignoring(["crate"]):
+        assert not yumi_checker.check(yumi_home).in_collision
+    assert yumi_checker.check(yumi_home).pairs[0][1] == "crate"
