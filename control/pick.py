@@ -7,7 +7,7 @@ robot's driver) needs only this module to run a plan.
 from __future__ import annotations
 
 import enum
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import KW_ONLY, dataclass
 
 import numpy as np
@@ -16,6 +16,7 @@ import pinocchio as pin
 from control.collision import AnyObstacle
 from control.errors import InvalidInputError
 from control.trajectory import JointTrajectory
+from robots.description import RobotDescription
 
 
 class PlanStatus(enum.Enum):
@@ -190,17 +191,10 @@ class PlanResult:
         return self.status is PlanStatus.SUCCESS
 
 
-def build_arm_specs(
-    arm_joints: Mapping[str, Sequence[str]],
-    tcp_frames: Mapping[str, str],
-    finger_joints: Mapping[str, Sequence[str]],
-    max_acceleration: Mapping[str, float],
-    max_jerk: Mapping[str, float],
-    shoulder_frames: Mapping[str, str],
-) -> dict[str, ArmSpec]:
-    """Arm specs from per-arm name mappings (e.g. those of :mod:`robots.yumi`)."""
+def build_arm_specs(robot: RobotDescription) -> dict[str, ArmSpec]:
+    """The planner's view of each of ``robot``'s arms, by arm name."""
     return {
-        arm: ArmSpec(tuple(joints), tcp_frames[arm], tuple(finger_joints[arm]),
-                     max_acceleration, max_jerk, shoulder_frames[arm])
-        for arm, joints in arm_joints.items()
+        arm.name: ArmSpec(arm.joints, arm.tcp_frame, arm.gripper.finger_joints,
+                          arm.max_acceleration_rad_s2, arm.max_jerk_rad_s3, arm.shoulder_frame)
+        for arm in robot.arms
     }

@@ -16,19 +16,19 @@ import numpy as np
 
 from perception.errors import InvalidInputError
 from perception.poses import Pose, rot_rpy
-from robots.yumi import specs as yumi_specs
+from robots.yumi import YUMI
 
-FINGERTIP_BEYOND_TCP_M = (
-    yumi_specs.FINGER_JOINT_Z_M + yumi_specs.FINGER_BOX.size[2] - yumi_specs.TCP_Z_M
-)
+GRIPPER = YUMI.arms[0].gripper
+"""The gripper grasps are stated for and checked against: the YuMi's Smart Gripper."""
+FINGERTIP_BEYOND_TCP_M = GRIPPER.fingers.tip_beyond_tcp_m
 """How far the fingertips reach past the TCP along the approach axis [m] (about 21.5 mm)."""
-FINGER_HALF_WIDTH_M = 0.5 * yumi_specs.FINGER_BOX.size[1]
-FINGER_THICKNESS_M = yumi_specs.FINGER_BOX.size[0]
-FINGER_LENGTH_M = yumi_specs.FINGER_BOX.size[2]
-MAX_OPENING_M = 2.0 * yumi_specs.FINGER_TRAVEL_M
+FINGER_HALF_WIDTH_M = GRIPPER.fingers.half_width_m
+FINGER_THICKNESS_M = GRIPPER.fingers.thickness_m
+FINGER_LENGTH_M = GRIPPER.fingers.length_m
+MAX_OPENING_M = GRIPPER.max_opening_m
 MIN_FINGERTIP_HEIGHT_M = 0.005
 """Fingertips must stay this far above the table at the grasp [m]."""
-MAX_PAYLOAD_KG = 0.5
+MAX_PAYLOAD_KG = GRIPPER.max_payload_kg
 MAX_PRIMITIVES = 16
 """PyBullet builds at most 16 shapes into one compound (``MAX_COMPOUND_COLLISION_SHAPES``)."""
 

@@ -1,1 +1,29 @@
-"""Robot descriptions: URDF files and the small facts a planner needs about them."""
+"""Robot descriptions: URDF files and the small facts a planner needs about them.
+
+Each robot is a :class:`~robots.description.RobotDescription`; :func:`get_robot` finds one by
+name (``gva`` records name the robot a run used).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from robots.errors import InvalidInputError
+
+if TYPE_CHECKING:
+    from robots.description import RobotDescription
+
+ROBOT_NAMES = ("yumi",)
+"""The robots gva describes."""
+
+
+def get_robot(name: str) -> RobotDescription:
+    """The description of the robot called ``name`` (one of :data:`ROBOT_NAMES`)."""
+    if name == "yumi":
+        from robots.yumi import YUMI
+
+        return YUMI
+    raise InvalidInputError("robot", name, f"one of {', '.join(ROBOT_NAMES)}")
+
+
+__all__ = ["ROBOT_NAMES", "get_robot"]

@@ -18,6 +18,12 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Literal
 
+from robots.description import (
+    ArmDescription,
+    FingerGeometry,
+    GripperDescription,
+    RobotDescription,
+)
 from robots.yumi import specs
 
 ArmSide = Literal["r", "l"]
@@ -82,9 +88,32 @@ def _home() -> dict[str, float]:
 HOME: MappingProxyType[str, float] = MappingProxyType(_home())
 """ABB's calibration pose (facts §4) with closed grippers, in [rad] and [m], keyed by joint name."""
 
+FINGERS = FingerGeometry(
+    tip_beyond_tcp_m=specs.FINGER_JOINT_Z_M + specs.FINGER_BOX.size[2] - specs.TCP_Z_M,
+    length_m=specs.FINGER_BOX.size[2], half_width_m=0.5 * specs.FINGER_BOX.size[1],
+    thickness_m=specs.FINGER_BOX.size[0])
+"""The YuMi's fingers in its TCP frame; the tips reach about 21.5 mm past the TCP."""
+
+YUMI = RobotDescription(
+    name="yumi", urdf_path=URDF_PATH, srdf_path=SRDF_PATH, base_link="yumi_body",
+    arms=tuple(ArmDescription(
+        name=side, joints=ARM_JOINTS[side], tcp_frame=TCP_FRAME[side],
+        flange_frame=FLANGE_FRAME[side], shoulder_frame=specs.arm_link_name(2, side),
+        gripper=GripperDescription(
+            finger_joints=GRIPPER_JOINTS[side], max_opening_m=2.0 * FINGER_TRAVEL_M,
+            max_force_n=FINGER_MAX_FORCE_N, max_speed_m_s=FINGER_MAX_SPEED_M_S,
+            max_payload_kg=specs.PAYLOAD_KG, fingers=FINGERS),
+        max_acceleration_rad_s2={j: MAX_ACCELERATION_RAD_S2[j] for j in ARM_JOINTS[side]},
+        max_jerk_rad_s3={j: MAX_JERK_RAD_S3[j] for j in ARM_JOINTS[side]},
+    ) for side in ARM_SIDES),
+    home=HOME)
+"""The YuMi as the pick stack reads it (:class:`~robots.description.RobotDescription`): the two
+arms, right first, each with its Smart Gripper; the names above are its parts."""
+
 __all__ = [
     "ARM_JOINTS",
     "ARM_SIDES",
+    "FINGERS",
     "FINGER_MAX_FORCE_N",
     "FINGER_MAX_SPEED_M_S",
     "FINGER_TRAVEL_M",
@@ -96,5 +125,6 @@ __all__ = [
     "SRDF_PATH",
     "TCP_FRAME",
     "URDF_PATH",
+    "YUMI",
     "ArmSide",
 ]

@@ -142,6 +142,7 @@ FINGER_JOINT_Y_M = 0.0065
 FINGER_TRAVEL_M = 0.025  # per finger: gap 0..50 mm (facts §2.2, ABB travel limit 25 mm)
 FINGER_MAX_FORCE_N = 20.0  # ABB max grip force (facts §2.2 [TROBSG])
 FINGER_MAX_SPEED_M_S = 0.025  # ABB max speed 25 mm/s (facts §2.2)
+PAYLOAD_KG = 0.5  # per arm, ABB IRB 14000 data sheet as usually quoted (facts, table of §6: M)
 # Finger shape in the finger-joint frame: the gripping face is x = 0, thickness 11 mm,
 # y -0.0045..0.0167, length 52 mm (facts §2.3). 15 g per set (facts §2.3 [TROBSG]).
 FINGER_BOX = Box((-0.011, -0.0045, 0.0), (0.0, 0.0167, 0.052))

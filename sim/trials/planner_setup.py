@@ -31,6 +31,7 @@ from perception.catalog import (
     obstacle_shapes,
 )
 from robots import yumi
+from robots.description import RobotDescription
 from sim.trials.pick_results import PickObstacles
 from sim.world.yumi_world import ROBOT_FOOTPRINT_M, TABLE_HALF_SIZE_M, World, WorldConfig
 
@@ -51,15 +52,17 @@ class ObstacleSource(enum.Enum):
 PLANNER_IK_OPTIONS = IkOptions(max_restarts=3)
 
 
+def make_planner(robot: RobotDescription = yumi.YUMI, config: PickPlannerConfig | None = None
+                 ) -> PickPlanner:
+    """A pick planner for every arm of ``robot`` (the YuMi's two), nearer arm first."""
+    model = RobotModel.from_urdf(robot.urdf_path, robot.srdf_path)
+    checker = CollisionChecker(model, robot.urdf_path, robot.srdf_path)
+    return PickPlanner(model, checker, build_arm_specs(robot), config, PLANNER_IK_OPTIONS)
+
+
 def make_yumi_planner(config: PickPlannerConfig | None = None) -> PickPlanner:
     """A pick planner for both YuMi arms, nearer arm first."""
-    robot = RobotModel.from_urdf(yumi.URDF_PATH, yumi.SRDF_PATH)
-    checker = CollisionChecker(robot, yumi.URDF_PATH, yumi.SRDF_PATH)
-    arms = build_arm_specs(
-        yumi.ARM_JOINTS, yumi.TCP_FRAME, yumi.GRIPPER_JOINTS, yumi.MAX_ACCELERATION_RAD_S2,
-        yumi.MAX_JERK_RAD_S3, {side: f"yumi_link_2_{side}" for side in yumi.ARM_SIDES},
-    )
-    return PickPlanner(robot, checker, arms, config, PLANNER_IK_OPTIONS)
+    return make_planner(yumi.YUMI, config)
 
 
 DEPTH_PADDING_M = 0.005
