@@ -129,6 +129,8 @@ class RobotDescription:
         urdf_path: Its URDF, loaded with a fixed base at the world origin, on the table top.
         srdf_path: Its SRDF (``disable_collisions`` pairs), or None.
         base_link: The URDF's root link, which stands on the table.
+        footprint_m: The x and y ranges its base covers on the table [m]: the table must be
+            under it, and what a depth camera sees there is the robot, not an obstacle.
         arms: Its arms; a planner picks among them.
         home: Every arm and finger joint's home position [rad] or [m], by joint name.
 
@@ -138,12 +140,18 @@ class RobotDescription:
     urdf_path: Path
     srdf_path: Path | None
     base_link: str
+    footprint_m: tuple[tuple[float, float], tuple[float, float]]
     arms: tuple[ArmDescription, ...]
     home: Mapping[str, float] = field(repr=False)
 
     def __post_init__(self) -> None:
         if not self.name or not isinstance(self.name, str):
             raise InvalidInputError("robot.name", self.name, "a non-empty name")
+        ranges = self.footprint_m
+        if len(ranges) != 2 or not all(len(r) == 2 and math.isfinite(r[0]) and
+                                       math.isfinite(r[1]) and r[0] < r[1] for r in ranges):
+            raise InvalidInputError(f"robot {self.name!r} footprint_m", ranges,
+                                    "((x_low, x_high), (y_low, y_high)) [m], each low < high")
         if not self.arms:
             raise InvalidInputError(f"robot {self.name!r} arms", self.arms, "at least one arm")
         _names(f"robot {self.name!r} arm names", self.arm_names)

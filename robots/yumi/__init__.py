@@ -88,6 +88,14 @@ def _home() -> dict[str, float]:
 HOME: MappingProxyType[str, float] = MappingProxyType(_home())
 """ABB's calibration pose (facts §4) with closed grippers, in [rad] and [m], keyed by joint name."""
 
+def _footprint() -> tuple[tuple[float, float], tuple[float, float]]:
+    """The x and y ranges of the body's boxes (the base slab, the torso, the feet) [m]."""
+    boxes = specs.BODY_BOXES
+    x = (min(b.lower[0] for b in boxes), max(b.upper[0] for b in boxes))
+    y = (min(b.lower[1] for b in boxes), max(b.upper[1] for b in boxes))
+    return x, y
+
+
 FINGERS = FingerGeometry(
     tip_beyond_tcp_m=specs.FINGER_JOINT_Z_M + specs.FINGER_BOX.size[2] - specs.TCP_Z_M,
     length_m=specs.FINGER_BOX.size[2], half_width_m=0.5 * specs.FINGER_BOX.size[1],
@@ -96,6 +104,7 @@ FINGERS = FingerGeometry(
 
 YUMI = RobotDescription(
     name="yumi", urdf_path=URDF_PATH, srdf_path=SRDF_PATH, base_link="yumi_body",
+    footprint_m=_footprint(),
     arms=tuple(ArmDescription(
         name=side, joints=ARM_JOINTS[side], tcp_frame=TCP_FRAME[side],
         flange_frame=FLANGE_FRAME[side], shoulder_frame=specs.arm_link_name(2, side),

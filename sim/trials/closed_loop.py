@@ -34,7 +34,6 @@ from perception.catalog import ObjectSpec
 from perception.grasp_judge import GraspVerdict, judge_grasp, yaw_of
 from perception.interface import PerceptionModel, Prediction
 from perception.poses import Pose
-from robots import yumi
 from sim.tasks.disturbance import DisturbanceDraw
 from sim.tasks.scene_sampling import Scene
 from sim.trials.execution import FollowedApproach, StepWatch
@@ -125,7 +124,7 @@ class ApproachLoop:
         tick = max(1, round(1.0 / (self.settings.replan_hz * dt_s))) if closed else 0
         disturb_at = None if self.disturbance is None else round(
             self.disturbance.time_fraction * (len(approach.times_s) - 1))
-        joints = yumi.ARM_JOINTS[plan.arm]
+        joints = world.description.arm(plan.arm).joints
         if self.disturbance is not None and self.disturbance.slides:  # from the image on
             world.keep_sliding(self.body, self.disturbance.velocity_xy_m_s)
         try:

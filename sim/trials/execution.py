@@ -14,7 +14,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from control.pick import GripperCommand, PickPlan
-from robots import yumi
 from sim.errors import InvalidInputError
 from sim.trials.records import TrialOutcome
 from sim.world.yumi_world import MAX_WAIT_S, World
@@ -101,7 +100,8 @@ class _ContactWatch:
                       if p[8] < TOUCH_DISTANCE_M]
             if points:
                 index = points[0][3]
-                link = "yumi_body" if index < 0 else client.getJointInfo(robot, index)[12].decode()
+                link = self.world.description.base_link if index < 0 else \
+                    client.getJointInfo(robot, index)[12].decode()
                 self.hit = f"{link} touched {name}"
                 return True
         return False
@@ -136,7 +136,7 @@ def execute_pick(
                                    world.object_bottom_z_m(target_body) - start_bottom)
         plan = followed.plan
         start_bottom, segments = world.object_bottom_z_m(target_body), plan.segments[1:]
-    joints = yumi.ARM_JOINTS[arm]
+    joints = world.description.arm(arm).joints
     for segment in segments:
         if segment.name == "retreat":
             break

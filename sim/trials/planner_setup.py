@@ -22,25 +22,13 @@ from control.pick import PickPlannerConfig, build_arm_specs
 from control.planner import PickPlanner
 from control.robot_model import RobotModel
 from perception.camera import RgbdFrame
-from perception.catalog import (
-    FINGER_HALF_WIDTH_M,
-    FINGER_LENGTH_M,
-    FINGER_THICKNESS_M,
-    FINGERTIP_BEYOND_TCP_M,
-    PrimitiveKind,
-    obstacle_shapes,
-)
+from perception.catalog import PrimitiveKind, obstacle_shapes
 from robots import yumi
 from robots.description import RobotDescription
 from sim.trials.pick_results import PickObstacles
-from sim.world.yumi_world import ROBOT_FOOTPRINT_M, TABLE_HALF_SIZE_M, World, WorldConfig
+from sim.world.yumi_world import TABLE_HALF_SIZE_M, World, WorldConfig
 
 TABLE_THICKNESS_M = 0.05  # table/table.urdf's top slab
-
-YUMI_FINGERS = FingerBox(FINGERTIP_BEYOND_TCP_M, FINGER_LENGTH_M, FINGER_HALF_WIDTH_M,
-                         FINGER_THICKNESS_M)
-"""The YuMi gripper's open fingers, which mark the target's columns in a depth image."""
-
 
 class ObstacleSource(enum.Enum):
     """What a pick is planned around, besides the table."""
@@ -74,16 +62,25 @@ docs/decisions/d435-sensor.md) shifts what it sees by 2.6 mm at the table; with 
 the depth image placed 2 mm away, and touched it (issue 36)."""
 
 
-def yumi_depth_config(config: WorldConfig | None = None) -> DepthObstacleConfig:
-    """Depth obstacles over the table top in front of the robot's base.
+def depth_config(robot: RobotDescription = yumi.YUMI, config: WorldConfig | None = None
+                 ) -> DepthObstacleConfig:
+    """Depth obstacles over the table top in front of ``robot``'s base.
 
-    The robot's own body stands behind ``x = ROBOT_FOOTPRINT_M`` and is left out; the camera
-    sees no arm link at the start of a pick (the arms rest at HOME, out of its view).
+    The robot's own body stands behind the front of its footprint and is left out; the camera
+    sees no arm link at the start of a pick (the arms rest at home, out of its view). The open
+    fingers that mark the target's columns are its first arm's gripper's.
     """
     config = config or WorldConfig()
     (cx, cy), (hx, hy) = config.table_center_xy_m, TABLE_HALF_SIZE_M
-    return DepthObstacleConfig(YUMI_FINGERS, x_range_m=(ROBOT_FOOTPRINT_M[0][1], cx + hx),
+    f = robot.arms[0].gripper.fingers
+    fingers = FingerBox(f.tip_beyond_tcp_m, f.length_m, f.half_width_m, f.thickness_m)
+    return DepthObstacleConfig(fingers, x_range_m=(robot.footprint_m[0][1], cx + hx),
                                y_range_m=(cy - hy, cy + hy), padding_m=DEPTH_PADDING_M)
+
+
+def yumi_depth_config(config: WorldConfig | None = None) -> DepthObstacleConfig:
+    """:func:`depth_config` of the YuMi."""
+    return depth_config(yumi.YUMI, config)
 
 
 def table_obstacle(world: World) -> Obstacle:

@@ -50,7 +50,6 @@ from perception.interface import (
 )
 from perception.learning.labels import nearest_rotation
 from perception.poses import Pose
-from robots import yumi
 from sim.errors import InvalidInputError, SimError
 from sim.tasks.disturbance import scene_disturbance
 from sim.tasks.scene_sampling import Scene
@@ -69,10 +68,10 @@ from sim.trials.pick_results import (
 )
 from sim.trials.planner_setup import (
     ObstacleSource,
-    make_yumi_planner,
+    depth_config,
+    make_planner,
     pick_obstacles,
     table_obstacle,
-    yumi_depth_config,
 )
 from sim.trials.records import TrialOutcome, TrialRecord
 from sim.world.grip import grip_of
@@ -153,14 +152,14 @@ class TrialRunner:
         self.loop = loop or LoopSettings()
         self.obstacle_source = obstacles
         self.world = World()
-        self.depth = depth or yumi_depth_config(self.world.config)
+        self.depth = depth or depth_config(self.world.description, self.world.config)
         self.camera = HeadCamera(sensor=task.camera)
         self.frame_seed = SensorSeed()  # the next frame's; setup names the scene, sight counts
         self.lighting = dataclasses.replace(self.camera.config.lighting,
                                             brightness=task.brightness)
         self.model: PerceptionModel = model(self.world, self.camera)
         check_inputs(self.model, TRIAL_INPUTS, getattr(self.model, "name", repr(self.model)))
-        self.planner = planner or make_yumi_planner()
+        self.planner = planner or make_planner(self.world.description)
         self.observer = observer
         if observer is not None:
             self.world.step_hook = observer.stepped
@@ -176,7 +175,7 @@ class TrialRunner:
         self.close()
 
     def setup(self, scene: Scene) -> list[int]:
-        """Puts the robot at HOME and the scene's objects on the table; their body ids.
+        """Puts the robot at home and the scene's objects on the table; their body ids.
 
         The physics starts afresh (:meth:`World.rebuild`): a trial's record depends only on
         its task, model, seed and index, never on the trials run before it in this process;
@@ -185,7 +184,7 @@ class TrialRunner:
         world = self.world
         self.frame_seed = SensorSeed(scene.seed, int(scene.stream), scene.index)
         world.rebuild()
-        world.reset_scene(yumi.HOME)
+        world.reset_scene()
         bodies = [world.add_object(get_object_spec(o.object_type), o.position_xy_m, o.yaw_rad)
                   for o in scene.objects]
         world.step(round(self.settle_s / world.config.time_step_s))
@@ -381,7 +380,8 @@ class TrialRunner:
         world.remove_object(body)
         world.robot.open_gripper(plan.arm)
         retreat = plan.segment("retreat").trajectory
-        world.robot.track(yumi.ARM_JOINTS[plan.arm], retreat.positions, retreat.velocities)
+        world.robot.track(world.description.arm(plan.arm).joints, retreat.positions,
+                          retreat.velocities)
         world.robot.close_gripper(plan.arm)
         world.step(round(0.25 / world.config.time_step_s))
         world.sleep_resting_objects()  # what the pick brushed against has stopped again

@@ -1,4 +1,4 @@
-"""The simulated YuMi: joints by name, position-controlled arms, force-limited grippers."""
+"""A simulated robot (the YuMi): joints by name, position-controlled arms, force-limited grips."""
 
 from __future__ import annotations
 
@@ -11,12 +11,13 @@ import pybullet
 
 from perception.poses import Pose
 from robots import yumi
+from robots.description import GripperDescription, RobotDescription
 from sim.errors import InvalidInputError
 
 
 @dataclass(frozen=True)
 class RobotConfig:
-    """Joint controllers and finger contact of the simulated YuMi.
+    """Joint controllers and finger contact of the simulated robot.
 
     Attributes:
         position_gain: PyBullet's ``positionGain`` for the arm motors: the share of a position
@@ -24,8 +25,10 @@ class RobotConfig:
             forward, :meth:`SimRobot.track` follows a trajectory to ~5e-5 rad at 1 rad/s;
             0.5 removes a disturbance within a few steps without ringing.
         velocity_gain: PyBullet's ``velocityGain`` for the arm motors.
-        finger_max_force_n: Grip force limit of each finger [N] (ABB SmartGripper: 20 N).
-        finger_max_speed_m_s: Speed limit of each finger [m/s] (ABB: 25 mm/s).
+        finger_max_force_n: Grip force limit of each finger [N]; None: the gripper's rated
+            force (:class:`~robots.description.GripperDescription`; the YuMi's 20 N).
+        finger_max_speed_m_s: Speed limit of each finger [m/s]; None: the gripper's rated speed
+            (the YuMi's 25 mm/s).
         finger_lateral_friction: Coulomb coefficient of the finger pads (rubber-like).
         finger_spinning_friction_m: Torsional friction of the pads [m]; keeps a pinched object
             from swinging about the closing axis.
@@ -34,8 +37,8 @@ class RobotConfig:
 
     position_gain: float = 0.5
     velocity_gain: float = 1.0
-    finger_max_force_n: float = yumi.FINGER_MAX_FORCE_N
-    finger_max_speed_m_s: float = yumi.FINGER_MAX_SPEED_M_S
+    finger_max_force_n: float | None = None
+    finger_max_speed_m_s: float | None = None
     finger_lateral_friction: float = 1.0
     finger_spinning_friction_m: float = 0.003
 
@@ -46,13 +49,12 @@ class RobotConfig:
         ):
             if not 0.0 < value <= upper:
                 raise InvalidInputError(field, value, f"in (0, {upper}]")
-        for field, value in (
-            ("finger_max_force_n", self.finger_max_force_n),
-            ("finger_max_speed_m_s", self.finger_max_speed_m_s),
-            ("finger_lateral_friction", self.finger_lateral_friction),
-        ):
-            if value <= 0.0:
-                raise InvalidInputError(field, value, "> 0")
+        for name, rating in (("finger_max_force_n", self.finger_max_force_n),
+                             ("finger_max_speed_m_s", self.finger_max_speed_m_s)):
+            if rating is not None and rating <= 0.0:
+                raise InvalidInputError(name, rating, "> 0, or None for the gripper's rating")
+        if self.finger_lateral_friction <= 0.0:
+            raise InvalidInputError("finger_lateral_friction", self.finger_lateral_friction, "> 0")
         if self.finger_spinning_friction_m < 0.0:
             raise InvalidInputError(
                 "finger_spinning_friction_m", self.finger_spinning_friction_m, ">= 0 m"
@@ -101,24 +103,35 @@ StepCallback = Callable[[int], bool | None]
 
 
 class SimRobot:
-    """The YuMi body in one PyBullet world, addressed by joint and link names.
+    """A robot's body in one PyBullet world, addressed by joint and link names.
+
+    Its arms and grippers go by the names its :class:`~robots.description.RobotDescription`
+    gives them.
 
     Args:
         client: The world's ``BulletClient``.
-        body_id: The loaded YuMi's body id.
+        body_id: The loaded robot's body id.
         config: Controller and finger settings.
         step: Advances the physics one step and must call :meth:`before_step` first (the world's
             ``step``, which also keeps the clock); when None the robot steps the client itself.
+        robot: What the body is (the YuMi by default): its grippers and home pose.
 
     """
 
     def __init__(
         self, client: Any, body_id: int, config: RobotConfig | None = None,
-        step: Callable[[], None] | None = None,
+        step: Callable[[], None] | None = None, robot: RobotDescription = yumi.YUMI,
     ) -> None:
         self.client = client
         self.body_id = body_id
+        self.description = robot
         self.config = RobotConfig() if config is None else config
+        self._grippers = {arm.name: arm.gripper for arm in robot.arms}
+        # Each finger's force and speed: the config's, else the gripper's rating (per arm).
+        self._finger_force_n = {arm: self.config.finger_max_force_n or g.max_force_n
+                                for arm, g in self._grippers.items()}
+        self._finger_speed_m_s = {arm: self.config.finger_max_speed_m_s or g.max_speed_m_s
+                                  for arm, g in self._grippers.items()}
         self._step = self._step_alone if step is None else step
         self._time_step_s = float(client.getPhysicsEngineParameters()["fixedTimeStep"])
         # Per side, each finger's position [m]: where the last command sends it, and the motor
@@ -137,14 +150,14 @@ class SimRobot:
                 self._effort[info[1].decode()] = float(info[10])
                 self._limits[info[1].decode()] = (float(info[8]), float(info[9]))
         self.joint_names: tuple[str, ...] = tuple(self._joint)
-        self._fingers = {name for side in yumi.ARM_SIDES for name in yumi.GRIPPER_JOINTS[side]}
+        self._fingers = {name for g in self._grippers.values() for name in g.finger_joints}
         for name in self._fingers:
             client.changeDynamics(
                 body_id, self._joint[name],
                 lateralFriction=self.config.finger_lateral_friction,
                 spinningFriction=self.config.finger_spinning_friction_m,
             )
-        self.reset(dict(yumi.HOME))
+        self.reset(dict(robot.home))
 
     def joint_index(self, name: str) -> int:
         """PyBullet index of a movable joint."""
@@ -169,9 +182,9 @@ class SimRobot:
         arm = [n for n in self.joint_names if n not in self._fingers]
         current = self.joint_positions()
         self.command(arm, np.array([current[n] for n in arm]))
-        for side in yumi.ARM_SIDES:
-            fingers = yumi.GRIPPER_JOINTS[side]
-            self._finger_target_m[side] = 0.5 * (current[fingers[0]] + current[fingers[1]])
+        for side, gripper in self._grippers.items():
+            fingers = gripper.finger_joints
+            self._finger_target_m[side] = sum(current[f] for f in fingers) / len(fingers)
             self._finger_goal_m[side] = self._finger_target_m[side]
             self._set_finger_motors(side)
 
@@ -250,7 +263,7 @@ class SimRobot:
         return TrackingReport(steps, worst, worst_joint, final, stopped)
 
     def link_pose(self, name: str) -> Pose:
-        """World pose of a link's URDF frame, e.g. ``link_pose(yumi.TCP_FRAME["r"])``."""
+        """World pose of a link's URDF frame, e.g. an arm's ``tcp_frame``."""
         index = self.link_index(name)
         if index == -1:
             position, quaternion = self.client.getBasePositionAndOrientation(self.body_id)
@@ -260,14 +273,19 @@ class SimRobot:
         state = self.client.getLinkState(self.body_id, index, computeForwardKinematics=True)
         return Pose(np.array(state[4], dtype=float), _matrix(self.client, state[5]))
 
-    def open_gripper(self, side: str, opening_m: float = 2 * yumi.FINGER_TRAVEL_M) -> None:
-        """Drive both fingers of ``side`` apart to a gap of ``opening_m`` [m] (at most 0.05)."""
-        if not 0.0 <= opening_m <= 2 * yumi.FINGER_TRAVEL_M:
-            raise InvalidInputError("opening_m", opening_m, f"in [0, {2 * yumi.FINGER_TRAVEL_M}] m")
+    def open_gripper(self, side: str, opening_m: float | None = None) -> None:
+        """Drive the fingers of arm ``side`` apart to a gap of ``opening_m`` [m].
+
+        None opens them fully, to the gripper's ``max_opening_m``.
+        """
+        widest = self._gripper(side).max_opening_m
+        opening_m = widest if opening_m is None else opening_m
+        if not 0.0 <= opening_m <= widest:
+            raise InvalidInputError("opening_m", opening_m, f"in [0, {widest}] m")
         self._drive_fingers(side, opening_m)
 
     def close_gripper(self, side: str) -> None:
-        """Close both fingers of ``side``; each then squeezes whatever it meets with 20 N."""
+        """Close the fingers of ``side``; each then squeezes what it meets with its force limit."""
         self._drive_fingers(side, 0.0)
 
     def gripper_opening_m(self, side: str) -> float:
@@ -290,18 +308,21 @@ class SimRobot:
             found.append(frozenset(int(p[2]) for p in points if p[2] != self.body_id))
         return GripperContacts((found[0], found[1]))
 
-    def _finger_joints(self, side: str) -> tuple[str, str]:
-        if side not in yumi.ARM_SIDES:
-            raise InvalidInputError("side", side, f"one of {', '.join(map(repr, yumi.ARM_SIDES))}")
-        return yumi.GRIPPER_JOINTS[side]
+    def _gripper(self, side: str) -> GripperDescription:
+        if side not in self._grippers:
+            raise InvalidInputError("side", side, f"one of {', '.join(map(repr, self._grippers))}")
+        return self._grippers[side]
+
+    def _finger_joints(self, side: str) -> tuple[str, ...]:
+        return self._gripper(side).finger_joints
 
     def before_step(self) -> None:
         """Move the finger targets on by one step; called before every physics step."""
-        for side in yumi.ARM_SIDES:
+        for side in self._grippers:
             goal = self._finger_goal_m[side]
             target = self._finger_target_m[side]
             if target != goal:
-                reach = self.config.finger_max_speed_m_s * self._time_step_s
+                reach = self._finger_speed_m_s[side] * self._time_step_s
                 self._finger_target_m[side] = min(max(goal, target - reach), target + reach)
                 self._set_finger_motors(side)
 
@@ -316,13 +337,14 @@ class SimRobot:
     def _set_finger_motors(self, side: str) -> None:
         # The target ramps at the rated speed and the motor lands on it each step (kp = 1). Once
         # an object stops the fingers, the target runs on into it and the motor pushes with its
-        # force limit: a 20 N squeeze. (PyBullet's own maxVelocity clamp would cap the push far
-        # below 20 N: its solver adds only about 0.04 N per iteration to a 7.5 g finger.)
+        # force limit (the YuMi's: a 20 N squeeze). (PyBullet's own maxVelocity clamp would cap
+        # the push far below it: its solver adds only about 0.04 N per iteration to a 7.5 g
+        # finger.)
         for joint in self._finger_joints(side):
             self.client.setJointMotorControl2(
                 self.body_id, self._joint[joint], pybullet.POSITION_CONTROL,
                 targetPosition=self._finger_target_m[side], targetVelocity=0.0,
-                force=self.config.finger_max_force_n, positionGain=1.0, velocityGain=1.0,
+                force=self._finger_force_n[side], positionGain=1.0, velocityGain=1.0,
             )
 
 

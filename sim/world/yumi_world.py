@@ -1,4 +1,4 @@
-"""The YuMi scene in headless PyBullet: checker floor, wooden table, robot and catalog objects."""
+"""The headless PyBullet scene: checker floor, wooden table, a robot (the YuMi), catalog objects."""
 
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ from pybullet_utils import bullet_client
 from perception.catalog import ObjectSpec, PrimitiveKind
 from perception.poses import Pose, rot_z
 from robots import yumi
+from robots.description import RobotDescription
 from sim.errors import InvalidInputError, SimulationError
 from sim.world.quiet import silenced_output
 from sim.world.sim_robot import RobotConfig, SimRobot
@@ -24,8 +25,6 @@ TABLE_TOP_Z_IN_URDF_M = 0.625
 """Height of ``table/table.urdf``'s top surface in its own frame [m]."""
 TABLE_HALF_SIZE_M = (0.75, 0.5)
 """Half the table top along x and y [m]: 1.5 m x 1.0 m."""
-ROBOT_FOOTPRINT_M = ((-0.36, 0.135), (-0.2, 0.2))
-"""x and y ranges the YuMi's base covers on the table [m] (robots/yumi/specs.py BODY_BOXES)."""
 StepHook = Callable[["World"], None]
 """Called with the world after each physics step (see :attr:`World.step_hook`)."""
 REST_SPEED_M_S, REST_SPEED_RAD_S = 1e-3, 1e-2
@@ -78,27 +77,34 @@ class WorldConfig:
             raise InvalidInputError("solver_iterations", self.solver_iterations, ">= 1")
         if not isinstance(self.object_sleeping, bool):
             raise InvalidInputError("object_sleeping", self.object_sleeping, "True or False")
-        (x_lo, x_hi), (y_lo, y_hi) = ROBOT_FOOTPRINT_M
+
+    def check_robot(self, robot: RobotDescription) -> None:
+        """Raises unless the table stands under all of ``robot``'s base."""
+        (x_lo, x_hi), (y_lo, y_hi) = robot.footprint_m
         cx, cy = self.table_center_xy_m
         hx, hy = TABLE_HALF_SIZE_M
         if not (cx - hx <= x_lo and x_hi <= cx + hx and cy - hy <= y_lo and y_hi <= cy + hy):
             raise InvalidInputError(
                 "table_center_xy_m", self.table_center_xy_m,
-                f"a table ({2 * hx} x {2 * hy} m) under the robot's base, x {x_lo}..{x_hi} m, "
-                f"y {y_lo}..{y_hi} m",
+                f"a table ({2 * hx} x {2 * hy} m) under the {robot.name}'s base, x "
+                f"{x_lo}..{x_hi} m, y {y_lo}..{y_hi} m",
             )
 
 
 class World:
-    """One headless PyBullet world with the YuMi at the origin on a table top at z = 0.
+    """One headless PyBullet world with a robot (the YuMi) at the origin on a table top at z = 0.
 
     Use it as a context manager, or call :meth:`close`. :meth:`reset_scene` keeps the client
     and the robot and only removes the objects; :meth:`rebuild` starts the physics afresh (a
     trial does, so that it depends on no earlier one).
     """
 
-    def __init__(self, config: WorldConfig | None = None) -> None:
+    def __init__(self, config: WorldConfig | None = None,
+                 robot: RobotDescription = yumi.YUMI) -> None:
         self.config = WorldConfig() if config is None else config
+        self.config.check_robot(robot)
+        self.description = robot
+        """The robot standing at the origin."""
         self.step_hook: StepHook | None = None
         """Called after every physics step (e.g. to record frames); None, the default, costs
         nothing."""
@@ -120,14 +126,15 @@ class World:
             "table/table.urdf", [cx, cy, -TABLE_TOP_Z_IN_URDF_M], useFixedBase=True
         ))
         robot_id = int(client.loadURDF(
-            str(yumi.URDF_PATH), [0.0, 0.0, 0.0], useFixedBase=True,
+            str(self.description.urdf_path), [0.0, 0.0, 0.0], useFixedBase=True,
             flags=pybullet.URDF_USE_INERTIA_FROM_FILE,
         ))
         self.steps = 0
         self._objects: dict[int, ObjectSpec] = {}
         self._shapes: dict[ObjectSpec, tuple[int, int]] = {}
         self._sliding: dict[int, tuple[float, float]] = {}
-        self.robot = SimRobot(client, robot_id, self.config.robot, step=self.step)
+        self.robot = SimRobot(client, robot_id, self.config.robot, step=self.step,
+                              robot=self.description)
 
     def rebuild(self) -> None:
         """Starts the physics afresh, as :meth:`__init__` made it (the step hook is kept).
@@ -345,11 +352,11 @@ class World:
         self.object_spec(body_id)
         return float(self.client.getAABB(body_id)[0][2])
 
-    def reset_scene(self, q_by_name: Mapping[str, float] = yumi.HOME) -> None:
-        """Remove every object and teleport the robot to ``q_by_name`` (HOME) at rest."""
+    def reset_scene(self, q_by_name: Mapping[str, float] | None = None) -> None:
+        """Remove every object and teleport the robot to ``q_by_name`` (None: home) at rest."""
         for body in list(self._objects):
             self.remove_object(body)
-        self.robot.reset(q_by_name)
+        self.robot.reset(self.description.home if q_by_name is None else q_by_name)
         self.steps = 0
 
     def close(self) -> None:

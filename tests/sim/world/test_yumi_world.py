@@ -40,8 +40,9 @@ def _seconds(world: World, duration_s: float) -> int:
 def test_config_errors_name_field_value_and_allowed() -> None:
     with pytest.raises(InvalidInputError, match=r"time_step_s = 0.1 is not allowed: in \(0, 0.01"):
         WorldConfig(time_step_s=0.1)
-    with pytest.raises(InvalidInputError, match=r"table_center_xy_m = .* under the robot's base"):
-        WorldConfig(table_center_xy_m=(0.6, 0.0))
+    with pytest.raises(InvalidInputError, match=r"table_center_xy_m = .* under the yumi's base, "
+                                                r"x -0.36..0.135 m"):
+        World(WorldConfig(table_center_xy_m=(0.6, 0.0)))  # refused before PyBullet starts
     with pytest.raises(SimError):  # the package's base catches it too
         WorldConfig(solver_iterations=0)
     with pytest.raises(InvalidInputError, match=r"object_sleeping = 'yes' is not allowed: True "):
