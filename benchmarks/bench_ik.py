@@ -1,16 +1,19 @@
-"""Benchmark: our IK (control.ik) against PyBullet's calculateInverseKinematics on the YuMi.
+"""Benchmark: our IK (control.ik) against PyBullet's calculateInverseKinematics, per robot.
 
 Both solvers get the same targets (the TCP poses of random in-limit arm configurations, seeded),
-the same start (robots.yumi.HOME) and the same bar: position error <= 0.5 mm, rotation error
+the same start (the robot's home: the YuMi's by default, ``--robot panda`` the Panda's) and the
+same bar: position error <= 0.5 mm, rotation error
 <= 0.01 rad and every joint within its limits, all checked with Pinocchio's forward kinematics.
 PyBullet gets target position and orientation, the joint limits and ranges for its null space,
-restPoses = HOME, 200 iterations and a 1e-6 residual threshold. Its timing covers the
+restPoses = home, 200 iterations and a 1e-6 residual threshold. Its timing covers the
 calculateInverseKinematics call only (resetting the start state is not counted); ours covers
 the whole ArmIk.solve. ``--pink`` adds pin-pink's QP IK (pip install pin-pink quadprog) wrapped
 in the same restart policy, for the comparison that chose the method.
 
 Usage:
-    python benchmarks/bench_ik.py --n 1000 --seed 0 [--out benchmarks/results/ik.json] [--pink]
+    python benchmarks/bench_ik.py --n 1000 --seed 0 [--robot panda] [--out FILE] [--pink]
+
+(default record ``benchmarks/results/ik.json``, for the Panda ``ik-panda.json``).
 """
 
 from __future__ import annotations
@@ -30,7 +33,8 @@ import pybullet
 
 from control.ik import ArmIk, IkOptions
 from control.robot_model import RobotModel
-from robots import yumi
+from robots import ROBOT_NAMES, get_robot
+from robots.description import ArmDescription, RobotDescription
 
 POSITION_OK_M = 5e-4
 ROTATION_OK_RAD = 0.01
@@ -39,26 +43,27 @@ BULLET_SETTINGS = {"maxNumIterations": 200, "residualThreshold": 1e-6}
 Solver = Callable[[pin.SE3], np.ndarray]  # target -> full configuration (nq,)
 
 
-def random_targets(robot: RobotModel, side: str, n: int, seed: int) -> list[pin.SE3]:
-    """TCP poses of ``n`` random in-limit configurations of one arm, the other joints at HOME."""
+def random_targets(robot: RobotModel, arm: ArmDescription, home: np.ndarray, n: int, seed: int
+                   ) -> list[pin.SE3]:
+    """TCP poses of ``n`` random in-limit configurations of one arm, the other joints at home."""
     rng = np.random.default_rng(seed)
-    index = robot.joint_indices(yumi.ARM_JOINTS[side])
-    q = robot.q_from_dict(yumi.HOME)
+    index = robot.joint_indices(arm.joints)
+    q = home.copy()
     targets = []
     for _ in range(n):
         q[index] = rng.uniform(robot.lower_rad[index], robot.upper_rad[index])
-        targets.append(robot.frame_pose(q, yumi.TCP_FRAME[side]))
+        targets.append(robot.frame_pose(q, arm.tcp_frame))
     return targets
 
 
 class BulletIk:
-    """PyBullet's IK on the same URDF, every call started from HOME."""
+    """PyBullet's IK on the same URDF, every call started from home."""
 
-    def __init__(self, robot: RobotModel) -> None:
+    def __init__(self, robot: RobotModel, description: RobotDescription) -> None:
         self.robot = robot
         self.client = pybullet.connect(pybullet.DIRECT)
         self.body = pybullet.loadURDF(
-            str(yumi.URDF_PATH), useFixedBase=True, physicsClientId=self.client
+            str(description.urdf_path), useFixedBase=True, physicsClientId=self.client
         )
         self.link_of: dict[str, int] = {}
         self.joint_of: dict[str, int] = {}
@@ -68,8 +73,8 @@ class BulletIk:
             if info[2] != pybullet.JOINT_FIXED:
                 self.joint_of[info[1].decode()] = index
         # PyBullet's IK answers for every movable joint, in joint index order.
-        self.dof_index = robot.joint_indices(self.joint_of)  # (18,) pybullet -> Pinocchio q
-        self.home = robot.q_from_dict(yumi.HOME)
+        self.dof_index = robot.joint_indices(self.joint_of)  # (nq,) pybullet -> Pinocchio q
+        self.home = robot.q_from_dict(description.home)
         self.null_space = {
             "lowerLimits": robot.lower_rad[self.dof_index].tolist(),
             "upperLimits": robot.upper_rad[self.dof_index].tolist(),
@@ -78,12 +83,12 @@ class BulletIk:
         }
         self.elapsed_s = 0.0
 
-    def solver(self, side: str) -> Solver:
+    def solver(self, arm: ArmDescription) -> Solver:
         """Return the IK of one arm's TCP; ``elapsed_s`` then holds each call's time in [s]."""
-        link = self.link_of[yumi.TCP_FRAME[side]]
+        link = self.link_of[arm.tcp_frame]
 
         def solve(T_world_target: pin.SE3) -> np.ndarray:
-            # Start from HOME through the simulation state: passing currentPositions instead
+            # Start from home through the simulation state: passing currentPositions instead
             # puts the answer off by the base link's inertial offset (0.28 m on this URDF).
             for name, index in self.joint_of.items():
                 pybullet.resetJointState(self.body, index, self.home[self.robot.joint_index(name)],
@@ -102,14 +107,14 @@ class BulletIk:
         return solve
 
 
-def pink_solver(robot: RobotModel, side: str) -> Solver:
+def pink_solver(robot: RobotModel, arm_spec: ArmDescription, home: np.ndarray) -> Solver:
     """pin-pink's differential IK iterated to the target, with ArmIk's restart policy."""
     import pink  # optional: pip install pin-pink quadprog
     from pink.limits import ConfigurationLimit
     from pink.tasks import FrameTask
 
-    opts, frame, home = IkOptions(), yumi.TCP_FRAME[side], robot.q_from_dict(yumi.HOME)
-    arm = set(yumi.ARM_JOINTS[side])
+    opts, frame = IkOptions(), arm_spec.tcp_frame
+    arm = set(arm_spec.joints)
     locked = [j for j in range(1, robot.model.njoints) if robot.model.names[j] not in arm]
     model = pin.buildReducedModel(robot.model, locked, home)
     index = robot.joint_indices(model.names[j] for j in range(1, model.njoints))
@@ -169,7 +174,7 @@ def ours_solver(ik: ArmIk, q_start: np.ndarray) -> Solver:
     return lambda T_world_target: ik.solve(T_world_target, q_start).q
 
 
-def measure(robot: RobotModel, side: str, solve: Solver, targets: list[pin.SE3],
+def measure(robot: RobotModel, frame: str, solve: Solver, targets: list[pin.SE3],
             clock: Callable[[], float] | None = None) -> dict[str, float]:
     """Success rate, error percentiles and time per solve of one solver on one arm."""
     position_m, rotation_rad, within, times_s = [], [], [], []
@@ -177,7 +182,7 @@ def measure(robot: RobotModel, side: str, solve: Solver, targets: list[pin.SE3],
         started = time.perf_counter()
         q = solve(T_target)
         times_s.append(clock() if clock is not None else time.perf_counter() - started)
-        T_reached = robot.frame_pose(q, yumi.TCP_FRAME[side])
+        T_reached = robot.frame_pose(q, frame)
         position_m.append(float(np.linalg.norm(T_reached.translation - T_target.translation)))
         R_reached_target = T_reached.rotation.T @ T_target.rotation
         rotation_rad.append(float(np.linalg.norm(pin.log3(R_reached_target))))
@@ -197,7 +202,7 @@ def measure(robot: RobotModel, side: str, solve: Solver, targets: list[pin.SE3],
 
 def print_table(results: dict[str, dict[str, dict[str, float]]]) -> None:
     """One row per arm and solver, errors in [mm] and [mrad], times in [ms]."""
-    print(f"{'arm':4} {'solver':9} {'success':>8} {'in-lim':>7} {'pos med':>9} {'pos p95':>9} "
+    print(f"{'arm':5} {'solver':9} {'success':>8} {'in-lim':>7} {'pos med':>9} {'pos p95':>9} "
           f"{'rot med':>9} {'rot p95':>9} {'t med':>8} {'t p95':>8} {'t/pyb':>6}")
     for side, by_solver in results.items():
         bullet_s = by_solver["pybullet"]["median_time_s"]
@@ -205,50 +210,59 @@ def print_table(results: dict[str, dict[str, dict[str, float]]]) -> None:
             mm = [s[f"{k}_position_error_m"] * 1e3 for k in ("median", "p95")]
             mrad = [s[f"{k}_rotation_error_rad"] * 1e3 for k in ("median", "p95")]
             ms = [s[f"{k}_time_s"] * 1e3 for k in ("median", "p95")]
-            print(f"{side:4} {name:9} {s['success_rate']:8.1%} {s['within_limits_rate']:7.1%} "
+            print(f"{side:5} {name:9} {s['success_rate']:8.1%} {s['within_limits_rate']:7.1%} "
                   f"{mm[0]:7.4f}mm {mm[1]:7.3f}mm {mrad[0]:6.3f}mrd {mrad[1]:6.3f}mrd "
                   f"{ms[0]:6.3f}ms {ms[1]:6.2f}ms {s['median_time_s'] / bullet_s:6.3f}")
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=1000, help="target poses per arm")
     parser.add_argument("--seed", type=int, default=0, help="seed of the target poses")
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/ik.json"))
+    parser.add_argument("--robot", choices=ROBOT_NAMES, default="yumi")
+    parser.add_argument("--out", type=Path, help="the record (default "
+                        "benchmarks/results/ik.json; ik-<robot>.json for another robot)")
     parser.add_argument("--pink", action="store_true", help="also run pin-pink (optional)")
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
 
-    robot = RobotModel.from_urdf(yumi.URDF_PATH, yumi.SRDF_PATH)
-    home = robot.q_from_dict(yumi.HOME)
-    bullet = BulletIk(robot)
+    description = get_robot(args.robot)
+    out = args.out or Path("benchmarks/results") / (
+        "ik.json" if args.robot == "yumi" else f"ik-{args.robot}.json")
+    robot = RobotModel.from_urdf(description.urdf_path, description.srdf_path)
+    home = robot.q_from_dict(description.home)
+    bullet = BulletIk(robot, description)
     results: dict[str, dict[str, dict[str, float]]] = {}
-    for side in yumi.ARM_SIDES:
-        targets = random_targets(robot, side, args.n, args.seed)
-        ik = ArmIk(robot, yumi.ARM_JOINTS[side], yumi.TCP_FRAME[side])
-        results[side] = {
-            "ours": measure(robot, side, ours_solver(ik, home), targets),
-            "pybullet": measure(robot, side, bullet.solver(side), targets,
+    for arm in description.arms:
+        targets = random_targets(robot, arm, home, args.n, args.seed)
+        ik = ArmIk(robot, arm.joints, arm.tcp_frame)
+        frame = arm.tcp_frame
+        results[arm.name] = {
+            "ours": measure(robot, frame, ours_solver(ik, home), targets),
+            "pybullet": measure(robot, frame, bullet.solver(arm), targets,
                                 clock=lambda: bullet.elapsed_s),
         }
         if args.pink:
-            results[side]["pink"] = measure(robot, side, pink_solver(robot, side), targets)
+            results[arm.name]["pink"] = measure(robot, frame, pink_solver(robot, arm, home),
+                                                targets)
     print_table(results)
     report = {
         "benchmark": "ik",
+        "robot": args.robot,
         "n_per_arm": args.n,
         "seed": args.seed,
         "success_bar": {"position_m": POSITION_OK_M, "rotation_rad": ROTATION_OK_RAD,
                         "within_limits": True},
         "ours_options": {k: v for k, v in vars(IkOptions()).items()},
-        "pybullet_settings": {**BULLET_SETTINGS, "null_space": "limits, ranges, restPoses=HOME"},
+        "pybullet_settings": {**BULLET_SETTINGS, "null_space": "limits, ranges, restPoses=home"},
         "machine": {"platform": platform.platform(), "cpus": os.cpu_count(),
                     "python": platform.python_version(), "pinocchio": pin.__version__},
         "results": results,
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(report, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(report, indent=2) + "\n")
+    print(f"wrote {out}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

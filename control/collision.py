@@ -182,6 +182,13 @@ class CollisionChecker:
         self._robot_geom = pin.buildGeomFromUrdf(
             robot.model, str(urdf_path), pin.GeometryType.COLLISION
         )
+        for geometry_object in self._robot_geom.geometryObjects:
+            # A mesh becomes its convex hull: coal collides no mesh with a depth height field,
+            # and a hull is what PyBullet collides the same mesh as. (The YuMi has none.)
+            shape = geometry_object.geometry
+            if type(shape).__name__.startswith("BVHModel"):
+                shape.buildConvexRepresentation(False)
+                geometry_object.geometry = shape.convex
         self._robot_geom.addAllCollisionPairs()
         if srdf_path is not None:
             pin.removeCollisionPairs(robot.model, self._robot_geom, str(srdf_path))

@@ -13,7 +13,7 @@ from robots.errors import InvalidInputError
 if TYPE_CHECKING:
     from robots.description import RobotDescription
 
-ROBOT_NAMES = ("yumi",)
+ROBOT_NAMES = ("yumi", "panda")
 """The robots gva describes."""
 
 
@@ -23,6 +23,10 @@ def get_robot(name: str) -> RobotDescription:
         from robots.yumi import YUMI
 
         return YUMI
+    if name == "panda":  # example-robot-data, and so Pinocchio, loads only here
+        from robots.panda import panda
+
+        return panda()
     raise InvalidInputError("robot", name, f"one of {', '.join(ROBOT_NAMES)}")
 
 

@@ -40,8 +40,9 @@ def test_a_bad_description_is_refused_by_name():
     with pytest.raises(InvalidInputError, match=r"robot 'yumi' arms = \(\) is not allowed: at "
                                                 r"least one arm"):
         replace(robot, arms=())
-    with pytest.raises(InvalidInputError, match=r"robot 'yumi' home = .* a position for every "
-                                                r"arm and finger joint \(missing \['yumi_joint_1_r'"):
+    with pytest.raises(InvalidInputError, match=r"robot 'yumi' home = .* a position for "
+                                                r"every arm and finger joint \(missing "
+                                                r"\['yumi_joint_1_r'"):
         replace(robot, home={k: v for k, v in robot.home.items() if k != "yumi_joint_1_r"})
     arm = robot.arm("r")
     with pytest.raises(InvalidInputError, match=r"robot 'yumi' arm names = \('r', 'r'\)"):
