@@ -13,5 +13,5 @@ class InvalidInputError(ControlError, robots_errors.InvalidInputError):
     """A caller passed a value the control stack cannot use.
 
     The message names the field, the value and what is allowed, e.g.
-    ``frame = 'tcp' is not allowed: expected one of gripper_l_tcp, gripper_r_tcp``.
+    ``frame = 'tcp' is not allowed: one of the model's frames: ...``.
     """

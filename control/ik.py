@@ -132,7 +132,7 @@ class ArmIk:
     Args:
         robot: The robot.
         joints: Names of the joints that move, all on the chain from the root to ``frame``.
-        frame: Name of the frame to place, e.g. ``"gripper_r_tcp"``.
+        frame: Name of the frame to place, e.g. an arm's tool frame.
         options: Tolerances and effort; ``IkOptions()`` when None.
 
     """

@@ -126,7 +126,8 @@ class PickRequest:
         alternatives: Other TCP poses that pick the target as well (e.g. a rotationally
             symmetric object's grasp turned about its axis), tried in order when the primary
             grasp fails on every arm.
-        finger_opening_m: Finger joint value while approaching [m] (gap = 2 x this).
+        finger_opening_m: Finger joint value while approaching [m] (gap = 2 x this); None:
+            each finger's upper limit, the hand fully open.
         pregrasp_distance_m: Back-off for this grasp; None takes the planner's default.
         arms: The arms that may pick (empty: every arm, nearer first); a re-plan mid-motion
             keeps to the arm that moves.
@@ -139,7 +140,7 @@ class PickRequest:
     obstacles: tuple[AnyObstacle, ...] = ()
     target_obstacles: tuple[AnyObstacle, ...] = ()
     alternatives: tuple[pin.SE3, ...] = ()
-    finger_opening_m: float = 0.025
+    finger_opening_m: float | None = None
     pregrasp_distance_m: float | None = None
     arms: tuple[str, ...] = ()
 

@@ -188,7 +188,8 @@ class PickPlanner:
         q = np.array(request.q_start, dtype=float)
         q[fingers] = self.robot.lower_rad[fingers]
         q0 = self.robot.clip_to_limits(q, "q_start")
-        q0[fingers] = request.finger_opening_m
+        opening = request.finger_opening_m
+        q0[fingers] = self.robot.upper_rad[fingers] if opening is None else opening
         return q0
 
     def transit_limits(self, arm: str) -> JointLimits:

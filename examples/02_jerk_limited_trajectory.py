@@ -22,10 +22,8 @@ limits = JointLimits.from_robot(
 )
 
 q_home = np.array([yumi.HOME[name] for name in limits.joint_names])  # (7,) [rad]
-reach = {  # a reach forward over the table, keyed by joint name [rad]
-    "yumi_joint_1_r": 0.6, "yumi_joint_2_r": -1.2, "yumi_joint_7_r": -1.0,
-    "yumi_joint_3_r": 0.2, "yumi_joint_4_r": 1.5, "yumi_joint_5_r": 1.2, "yumi_joint_6_r": -2.0,
-}
+# a reach forward over the table, keyed by joint name [rad] (the arm's joints in chain order)
+reach = dict(zip(yumi.ARM_JOINTS["r"], (0.6, -1.2, -1.0, 0.2, 1.5, 1.2, -2.0), strict=True))
 q_reach = np.array([reach[name] for name in limits.joint_names])  # (7,) [rad]
 
 out = plan_segment(q_home, q_reach, limits)
