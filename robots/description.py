@@ -121,6 +121,29 @@ class ArmDescription:
 
 
 @dataclass(frozen=True)
+class CameraMount:
+    """Where the robot's RGB-D camera sits and what it looks at, in the world frame [m].
+
+    Args:
+        position_m: The optical centre.
+        target_m: A point on the optical axis (the workspace's middle, on the table).
+
+    """
+
+    position_m: tuple[float, float, float]
+    target_m: tuple[float, float, float]
+
+    def __post_init__(self) -> None:
+        for name in ("position_m", "target_m"):
+            value = getattr(self, name)
+            if len(value) != 3 or not all(math.isfinite(v) for v in value):
+                raise InvalidInputError(f"camera.{name}", value, "three finite coordinates [m]")
+        if self.position_m == self.target_m:
+            raise InvalidInputError("camera.target_m", self.target_m, "a point other than the "
+                                    "camera's position")
+
+
+@dataclass(frozen=True)
 class RobotDescription:
     """A robot as the pick stack reads it.
 
@@ -131,6 +154,7 @@ class RobotDescription:
         base_link: The URDF's root link, which stands on the table.
         footprint_m: The x and y ranges its base covers on the table [m]: the table must be
             under it, and what a depth camera sees there is the robot, not an obstacle.
+        camera: The RGB-D camera the robot sees its workspace through.
         arms: Its arms; a planner picks among them.
         home: Every arm and finger joint's home position [rad] or [m], by joint name.
 
@@ -141,6 +165,7 @@ class RobotDescription:
     srdf_path: Path | None
     base_link: str
     footprint_m: tuple[tuple[float, float], tuple[float, float]]
+    camera: CameraMount
     arms: tuple[ArmDescription, ...]
     home: Mapping[str, float] = field(repr=False)
 
@@ -179,4 +204,5 @@ class RobotDescription:
                                 f"(the {self.name}'s arms)")
 
 
-__all__ = ["ArmDescription", "FingerGeometry", "GripperDescription", "RobotDescription"]
+__all__ = ["ArmDescription", "CameraMount", "FingerGeometry", "GripperDescription",
+           "RobotDescription"]

@@ -21,6 +21,7 @@ from pathlib import Path
 
 from robots.description import (
     ArmDescription,
+    CameraMount,
     FingerGeometry,
     GripperDescription,
     RobotDescription,
@@ -54,6 +55,9 @@ FINGERS = FingerGeometry(tip_beyond_tcp_m=0.0095, length_m=0.0545, half_width_m=
                          thickness_m=0.015)
 """The fingers in the grasp frame (the URDF's finger collision boxes: the pads end about
 9.5 mm past ``panda_hand_tcp``)."""
+STAND_CAMERA = CameraMount(position_m=(0.95, 0.0, 0.55), target_m=(0.475, 0.0, 0.0))
+"""A camera on a stand across the workspace, looking back at it and the robot (a Panda's hand
+at home is where the YuMi's head camera sits)."""
 FOOTPRINT_M = ((-0.16, 0.08), (-0.10, 0.10))
 """x and y ranges of ``panda_link0`` on the table [m] (its collision mesh's box)."""
 
@@ -106,7 +110,7 @@ def panda() -> RobotDescription:
         max_acceleration_rad_s2=MAX_ACCELERATION_RAD_S2, max_jerk_rad_s3=MAX_JERK_RAD_S3)
     return RobotDescription(
         name="panda", urdf_path=urdf, srdf_path=srdf, base_link="panda_link0",
-        footprint_m=FOOTPRINT_M, arms=(arm,),
+        footprint_m=FOOTPRINT_M, camera=STAND_CAMERA, arms=(arm,),
         home=HOME_RAD | dict.fromkeys(FINGER_JOINTS, 0.0))
 
 

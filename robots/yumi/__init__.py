@@ -20,6 +20,7 @@ from typing import Literal
 
 from robots.description import (
     ArmDescription,
+    CameraMount,
     FingerGeometry,
     GripperDescription,
     RobotDescription,
@@ -96,6 +97,10 @@ def _footprint() -> tuple[tuple[float, float], tuple[float, float]]:
     return x, y
 
 
+HEAD_CAMERA = CameraMount(position_m=(0.09, 0.0, 0.52), target_m=(0.49, 0.0, 0.0))
+"""The head camera: 5 cm above the front edge of the body's top, between the shoulders, tilted
+down toward x = 0.49 m on the table (why there: ``sim.world.head_camera.CameraConfig``)."""
+
 FINGERS = FingerGeometry(
     tip_beyond_tcp_m=specs.FINGER_JOINT_Z_M + specs.FINGER_BOX.size[2] - specs.TCP_Z_M,
     length_m=specs.FINGER_BOX.size[2], half_width_m=0.5 * specs.FINGER_BOX.size[1],
@@ -105,6 +110,7 @@ FINGERS = FingerGeometry(
 YUMI = RobotDescription(
     name="yumi", urdf_path=URDF_PATH, srdf_path=SRDF_PATH, base_link="yumi_body",
     footprint_m=_footprint(),
+    camera=HEAD_CAMERA,
     arms=tuple(ArmDescription(
         name=side, joints=ARM_JOINTS[side], tcp_frame=TCP_FRAME[side],
         flange_frame=FLANGE_FRAME[side], shoulder_frame=specs.arm_link_name(2, side),

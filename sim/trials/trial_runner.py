@@ -50,6 +50,8 @@ from perception.interface import (
 )
 from perception.learning.labels import nearest_rotation
 from perception.poses import Pose
+from robots.description import RobotDescription
+from robots.yumi import YUMI
 from sim.errors import InvalidInputError, SimError
 from sim.tasks.disturbance import scene_disturbance
 from sim.tasks.scene_sampling import Scene
@@ -75,7 +77,7 @@ from sim.trials.planner_setup import (
 )
 from sim.trials.records import TrialOutcome, TrialRecord
 from sim.world.grip import grip_of
-from sim.world.head_camera import HeadCamera
+from sim.world.head_camera import HeadCamera, camera_config
 from sim.world.sensor import SensorSeed
 from sim.world.yumi_world import World, check_wait_s
 
@@ -127,6 +129,7 @@ class TrialRunner:
             default), or the simulator's true shapes (for debugging the planner only).
         depth: How depth points become obstacles; the YuMi workcell's when None.
         loop: Whether picks re-predict while the arm approaches; open when None.
+        robot: The robot that picks (the YuMi by default), seen through its workcell's camera.
 
     """
 
@@ -141,6 +144,7 @@ class TrialRunner:
         obstacles: ObstacleSource = ObstacleSource.DEPTH,
         depth: DepthObstacleConfig | None = None,
         loop: LoopSettings | None = None,
+        robot: RobotDescription = YUMI,
     ) -> None:
         if not isinstance(obstacles, ObstacleSource):
             allowed = ", ".join(f"ObstacleSource.{s.name}" for s in ObstacleSource)
@@ -151,9 +155,9 @@ class TrialRunner:
         self.execution = execution or ExecutionSettings()
         self.loop = loop or LoopSettings()
         self.obstacle_source = obstacles
-        self.world = World()
+        self.world = World(robot=robot)
         self.depth = depth or depth_config(self.world.description, self.world.config)
-        self.camera = HeadCamera(sensor=task.camera)
+        self.camera = HeadCamera(camera_config(robot), sensor=task.camera)
         self.frame_seed = SensorSeed()  # the next frame's; setup names the scene, sight counts
         self.lighting = dataclasses.replace(self.camera.config.lighting,
                                             brightness=task.brightness)

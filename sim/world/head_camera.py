@@ -19,6 +19,8 @@ from scipy import ndimage
 
 from perception.camera import PinholeCamera, RgbdFrame
 from perception.interface import InvalidInputError as PerceptionInputError
+from robots import yumi
+from robots.description import RobotDescription
 from sim.errors import InvalidInputError
 from sim.world.d435 import (
     CalibrationError,
@@ -106,8 +108,8 @@ class CameraConfig:
     height_px: int = 128
     vertical_fov_deg: float = 37.0
     horizontal_fov_deg: float | None = 58.0
-    position_m: tuple[float, float, float] = (0.09, 0.0, 0.52)
-    target_m: tuple[float, float, float] = (0.49, 0.0, 0.0)
+    position_m: tuple[float, float, float] = yumi.HEAD_CAMERA.position_m
+    target_m: tuple[float, float, float] = yumi.HEAD_CAMERA.target_m
     up: tuple[float, float, float] = (0.0, 0.0, 1.0)
     near_m: float = 0.05
     far_m: float = 3.0
@@ -157,6 +159,16 @@ class CameraConfig:
             return self.width_px / self.height_px
         return math.tan(math.radians(self.horizontal_fov_deg) / 2) / math.tan(
             math.radians(self.vertical_fov_deg) / 2)
+
+
+def camera_config(robot: RobotDescription = yumi.YUMI) -> CameraConfig:
+    """The camera settings of ``robot``'s workcell.
+
+    Its camera mount; every other setting the head camera's (the D435-like crop, the image
+    size, the light).
+    """
+    mount = robot.camera
+    return replace(CameraConfig(), position_m=mount.position_m, target_m=mount.target_m)
 
 
 class HeadCamera:
