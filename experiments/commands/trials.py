@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from experiments.commands.arguments import add_executor_options, executor, integer, resume_command
+from robots import ROBOT_NAMES
 from sim.errors import InvalidInputError
 from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.planner_setup import ObstacleSource
@@ -47,9 +48,17 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         help="run a checkpoint under the task's camera sensor even when its "
                         "datasets were rendered by another (refused by default, naming both)")
     add_loop_options(parser)
+    add_robot_option(parser)
     add_executor_options(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(run=run)
+
+
+def add_robot_option(parser: argparse.ArgumentParser) -> None:
+    """``--robot``: which robot picks (its own camera, arm and hand)."""
+    parser.add_argument("--robot", choices=ROBOT_NAMES, default=TrialSettings.robot,
+                        help="the robot that picks, seen through its workcell's camera "
+                        "(default %(default)s; docs/decisions/robots.md)")
 
 
 def add_loop_options(parser: argparse.ArgumentParser) -> None:
@@ -76,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
                              obstacles=ObstacleSource(args.obstacles),
                              phrases=None if args.phrases is None else str(args.phrases),
                              allow_sensor_change=args.allow_sensor_change,
-                             loop=loop_settings(args))
+                             loop=loop_settings(args), robot=args.robot)
     check = held_out_check(settings)
     if check is not None and not check.passed:
         print(f"WARNING: checkpoint {args.model} failed its training's held-out check "

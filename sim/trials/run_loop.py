@@ -157,7 +157,7 @@ def run_trial_job(job: TrialJob) -> TrialRecord:
         model = load_trial_model(settings)
         _WORKER_RUNNER[:] = [(settings, TrialRunner(
             settings.task_spec, model.factory, settings.settle_s, settings.execution,
-            obstacles=settings.obstacles, loop=settings.loop))]
+            obstacles=settings.obstacles, loop=settings.loop, robot=settings.description()))]
     runner = _WORKER_RUNNER[0][1]
     scene = trial_scene(runner.task, settings.seed, job.index)
     return runner.run(scene, job.index, settings.seed, settings.model)

@@ -18,11 +18,16 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from perception.checks import check_inputs
 from perception.interface import LabelKind, PerceptionModel
 from perception.learning.learnable import LearnableModel, ModelSpec
 from perception.learning.validation import HeldOutCheck, read_check
 from perception.plugins import build_plugin, installed_models, is_class_path, plugin_class
+from robots import ROBOT_NAMES, get_robot
+from robots.description import RobotDescription
+from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import (
     check_task_fits,
@@ -37,7 +42,7 @@ from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.oracle import OraclePerception
 from sim.trials.planner_setup import ObstacleSource, yumi_depth_config
 from sim.trials.trial_runner import TRIAL_INPUTS, ModelFactory
-from sim.world.head_camera import CameraConfig
+from sim.world.head_camera import CameraConfig, camera_config
 from sim.world.sensor import SensorConfig, sensor_from_table
 from sim.world.yumi_world import check_wait_s
 
@@ -118,6 +123,8 @@ class TrialSettings:
             were rendered by (``gva trials --allow-sensor-change``); refused otherwise.
         loop: Whether picks re-predict while the arm approaches (``--loop closed``,
             ``--replan-hz``; :mod:`sim.trials.closed_loop`); open by default.
+        robot: The robot that picks, one of :data:`robots.ROBOT_NAMES` (``--robot``), seen
+            through its workcell's camera; the YuMi by default.
 
     """
 
@@ -132,8 +139,11 @@ class TrialSettings:
     phrases: str | None = None
     allow_sensor_change: bool = False
     loop: LoopSettings = field(default_factory=LoopSettings)
+    robot: str = "yumi"
 
     def __post_init__(self) -> None:
+        if self.robot not in ROBOT_NAMES:
+            raise InvalidInputError("robot", self.robot, f"one of {', '.join(ROBOT_NAMES)}")
         if not isinstance(self.obstacles, ObstacleSource):
             allowed = ", ".join(repr(s.value) for s in ObstacleSource)
             raise InvalidInputError("obstacles", self.obstacles, f"one of {allowed}")
@@ -160,13 +170,23 @@ class TrialSettings:
     def identity(self) -> dict[str, Any]:
         """What identifies a run: a folder is only resumed by a run with the same identity.
 
-        An open loop adds nothing: folders from before closed loops resume.
+        An open loop adds nothing, nor does the YuMi: folders from before closed loops and
+        before other robots resume.
         """
         return {"model": self.model, "task": task_identity(self.task_spec), "seed": self.seed,
-                "scene": YUMI_SCENE.name, "camera": asdict(CameraConfig()),
+                "scene": YUMI_SCENE.name, "camera": asdict(self.camera_config()),
                 "settle_s": self.settle_s, "execution": asdict(self.execution),
                 "obstacles": obstacle_identity(self.obstacles)} | self._model_identity() | (
-                    {} if self.loop.loop is Loop.OPEN else {"loop": self.loop.to_json()})
+                    {} if self.loop.loop is Loop.OPEN else {"loop": self.loop.to_json()}) | (
+                    {} if self.robot == "yumi" else {"robot": self.robot})
+
+    def description(self) -> RobotDescription:
+        """The robot that picks."""
+        return get_robot(self.robot)
+
+    def camera_config(self) -> CameraConfig:
+        """The camera the trials see through: the robot's workcell's."""
+        return camera_config(self.description())
 
     def inputs(self) -> dict[str, Path | None]:
         """The files the run reads, for its provenance: the task file and the checkpoint's."""
@@ -243,19 +263,21 @@ def load_trial_model(settings: TrialSettings) -> TrialModel:
         label = model.name
     check_inputs(model, TRIAL_INPUTS, settings.model)
     check_model_fits_task(model, settings.task_spec, settings.model,
-                          settings.allow_sensor_change)
+                          settings.allow_sensor_change, settings.description())
     return TrialModel(lambda world, camera: model, label, one_torch_thread="torch" in sys.modules)
 
 
 def check_model_fits_task(model: PerceptionModel, task: TaskSpec, where: str,
-                          allow_sensor_change: bool = False) -> None:
+                          allow_sensor_change: bool = False,
+                          robot: RobotDescription = YUMI) -> None:
     """Raises unless ``model`` predicts grasp poses for what ``task`` asks in the yumi scene.
 
     A model with a :class:`~perception.learning.learnable.ModelSpec` must have been trained on
     the yumi scene with the task's condition (kind and choices), target count and the head camera's
     image size, and (unless ``allow_sensor_change``) under the task's sensor
-    (:func:`trained_sensor`). Its task may have another name (e.g. the same task under dimmer
-    light).
+    (:func:`trained_sensor`), through ``robot``'s camera (where its spec records the camera:
+    one robot's images are not another's). Its task may have another name (e.g. the same task
+    under dimmer light).
     """
     kind = getattr(model, "label_kind", None)
     if kind is not LabelKind.GRASP_POSE:
@@ -266,7 +288,8 @@ def check_model_fits_task(model: PerceptionModel, task: TaskSpec, where: str,
     if not isinstance(model, LearnableModel) or not isinstance(model.spec, ModelSpec):
         return
     spec = model.spec
-    camera = CameraConfig()
+    camera = camera_config(robot)
+    check_camera(spec, robot, where)
     needed = (YUMI_SCENE.name, task.model_condition.value, condition_choices(task, YUMI_SCENE),
               target_count(task), camera.height_px, camera.width_px)
     trained = (spec.scene, spec.condition_kind.value, tuple(spec.condition_choices),
@@ -281,6 +304,22 @@ def check_model_fits_task(model: PerceptionModel, task: TaskSpec, where: str,
                                 f"{sensor.describe()}", f"a checkpoint trained under trial task "
                                 f"{task.name}'s sensor {task.camera.describe()}, or "
                                 "--allow-sensor-change to try it under another")
+
+
+def check_camera(spec: ModelSpec, robot: RobotDescription, where: str) -> None:
+    """Raises where ``spec`` records a camera placed elsewhere than ``robot``'s, naming both."""
+    if spec.camera is None:
+        return  # older checkpoints record no camera: they were all the YuMi's
+    seen = tuple(float(v) for v in spec.camera.position_m)
+    if np.allclose(seen, robot.camera.position_m, atol=1e-9):
+        return
+    others = [name for name in ROBOT_NAMES
+              if np.allclose(seen, get_robot(name).camera.position_m, atol=1e-9)]
+    through = f"the {others[0]}'s camera" if others else "a camera"
+    raise InvalidInputError(f"model {where}", f"trained through {through} at {seen} m",
+                            f"a checkpoint trained through the {robot.name}'s camera at "
+                            f"{robot.camera.position_m} m (train on the {robot.name}'s "
+                            "demonstrations)")
 
 
 def trained_sensor(spec: ModelSpec, where: str) -> SensorConfig:

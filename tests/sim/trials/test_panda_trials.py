@@ -5,11 +5,15 @@ from __future__ import annotations
 
 import pytest
 
+from perception.interface import ConditionKind, LabelKind
+from perception.learning.learnable import ModelSpec
 from robots import get_robot, yumi
+from sim.errors import InvalidInputError
 from sim.tasks.task_toml import load_task
 from sim.trials.records import TrialOutcome
 from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
+from sim.trials.trial_settings import TrialSettings, check_camera
 from sim.world.head_camera import CameraConfig, camera_config
 
 
@@ -32,3 +36,25 @@ def test_the_panda_picks_with_the_oracle(task):
         record = runner.run(trial_scene(spec, 0, 0), 0, 0, "oracle")
     assert record.outcome is TrialOutcome.SUCCESS, record.reason
     assert {pick["arm"] for pick in record.picks} == {"panda"}
+
+
+def test_a_run_names_its_robot_unless_it_is_the_yumi():
+    yumi_run = TrialSettings(model="oracle", task="single")
+    assert "robot" not in yumi_run.identity()  # folders from before other robots resume
+    panda_run = TrialSettings(model="oracle", task="single", robot="panda")
+    assert panda_run.identity()["robot"] == "panda"
+    assert panda_run.identity()["camera"] != yumi_run.identity()["camera"]
+    with pytest.raises(InvalidInputError, match=r"robot = 'ur5' is not allowed: one of yumi, "
+                                                r"panda"):
+        TrialSettings(model="oracle", task="single", robot="ur5")
+
+
+def test_a_checkpoint_trained_through_one_robots_camera_is_refused_on_the_other():
+    spec = ModelSpec("yumi", "single", LabelKind.GRASP_POSE, 1, ConditionKind.NONE, (), 128, 128,
+                     camera=camera_config(yumi.YUMI).pinhole)
+    check_camera(spec, yumi.YUMI, "ckpt")  # its own robot
+    with pytest.raises(InvalidInputError, match=r"model ckpt = \"trained through the yumi's "
+                                                r"camera at \(0.09, 0.0, 0.52\) m\" is not "
+                                                r"allowed: a checkpoint trained through the "
+                                                r"panda's camera"):
+        check_camera(spec, get_robot("panda"), "ckpt")
