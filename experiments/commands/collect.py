@@ -10,6 +10,7 @@ from pathlib import Path
 
 from experiments.commands.arguments import integer
 from perception.interface import ConditionKind
+from robots import ROBOT_NAMES
 from sim.tasks.scene_sampling import SeedStream
 from sim.trials.collector import CollectSettings, collect
 
@@ -31,6 +32,9 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--approach-hz", type=float, metavar="HZ",
                         help="yumi: also keep an image every 1/HZ s of each approach, the arm "
                         "in view, labelled as the pick's (for closed-loop picks)")
+    parser.add_argument("--robot", choices=ROBOT_NAMES, default=CollectSettings.robot,
+                        help="yumi scene: the robot whose demonstrations these are, seen "
+                        "through its workcell's camera (%(default)s)")
     parser.add_argument("--out", type=Path, required=True, help="dataset file to write")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(run=run)
@@ -41,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     settings = CollectSettings(scene=args.scene, task=args.task, size=args.size, seed=args.seed,
                                stream=SeedStream[args.stream.upper()],
                                every_condition=args.every_condition,
-                               approach_hz=args.approach_hz)
+                               approach_hz=args.approach_hz, robot=args.robot)
     dataset = collect(settings, args.out, progress=not args.no_progress)
     meta = dataset.metadata
     redrawn = meta.extra.get("demonstrations_redrawn")

@@ -34,6 +34,7 @@ from perception.learning.data import JOINT_NAMES_KEY, Dataset, DatasetMetadata
 from perception.learning.dataset_file import save_dataset
 from perception.learning.labels import label_vector
 from perception.learning.mirror import MIRROR_FLAG
+from robots import ROBOT_NAMES, get_robot
 from sim.errors import InvalidInputError, SimError
 from sim.tasks.mirror_symmetry import mirror_symmetric
 from sim.tasks.scene_sampling import (
@@ -80,6 +81,9 @@ class CollectSettings:
             (the oracle's closed loop, :mod:`sim.trials.closed_loop`; each such sample's record
             has ``"stage": "approach"``), so a model learns to predict while the arm moves. None
             (the default): the image before each pick only.
+        robot: ``yumi`` scene only: the robot whose demonstrations these are, seen through its
+            workcell's camera (one of :data:`robots.ROBOT_NAMES`; the YuMi by default). The
+            metadata names it (``extra["robot"]``) where it is not the YuMi.
 
     """
 
@@ -90,8 +94,14 @@ class CollectSettings:
     stream: SeedStream = SeedStream.TRAIN
     every_condition: bool | None = None
     approach_hz: float | None = None
+    robot: str = "yumi"
 
     def __post_init__(self) -> None:
+        if self.robot not in ROBOT_NAMES:
+            raise InvalidInputError("robot", self.robot, f"one of {', '.join(ROBOT_NAMES)}")
+        if self.robot != "yumi" and self.scene != "yumi":
+            raise InvalidInputError("robot", self.robot, f"'yumi' for the {self.scene} scene "
+                                    "(it has no robot); another robot only in the yumi scene")
         if self.scene not in SCENE_NAMES:
             raise InvalidInputError("scene", self.scene, f"one of {', '.join(SCENE_NAMES)}")
         check_task_fits(load_task(self.task), get_scene_spec(self.scene))
@@ -148,7 +158,8 @@ def collect(settings: CollectSettings, out_path: str | Path, progress: bool = Tr
         label_kind=spec.label_kind, targets=first.labels.shape[0],
         condition_kind=task.model_condition, condition_choices=condition_choices(task, spec),
         camera=camera,
-        extra=extra | {"task": _task_json(task), "object_types": list(spec.object_types)},
+        extra=extra | {"task": _task_json(task), "object_types": list(spec.object_types)} | (
+            {} if settings.robot == "yumi" else {"robot": settings.robot}),
     )
     def stacked(name: str) -> np.ndarray | None:  # None where the scene gives none
         arrays = [getattr(s, name) for s in samples]
@@ -277,7 +288,7 @@ def _collect_yumi(
     # closed loop: it re-reads the truth; without approach_hz only the pick images are kept.
     loop = None if settings.approach_hz is None and task.disturbance is None else LoopSettings(
         Loop.CLOSED, settings.approach_hz or LoopSettings.replan_hz)
-    with TrialRunner(task, loop=loop) as runner:
+    with TrialRunner(task, loop=loop, robot=get_robot(settings.robot)) as runner:
         images = _PickImages(runner)
         runner.observer = images
         while kept < settings.size:

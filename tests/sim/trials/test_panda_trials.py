@@ -10,6 +10,7 @@ from perception.learning.learnable import ModelSpec
 from robots import get_robot, yumi
 from sim.errors import InvalidInputError
 from sim.tasks.task_toml import load_task
+from sim.trials.collector import CollectSettings, collect
 from sim.trials.records import TrialOutcome
 from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
@@ -58,3 +59,14 @@ def test_a_checkpoint_trained_through_one_robots_camera_is_refused_on_the_other(
                                                 r"allowed: a checkpoint trained through the "
                                                 r"panda's camera"):
         check_camera(spec, get_robot("panda"), "ckpt")
+
+
+@pytest.mark.slow
+def test_the_pandas_demonstrations_name_it_and_its_camera(tmp_path):
+    dataset = collect(CollectSettings(scene="yumi", task="single", size=1, robot="panda"),
+                      tmp_path / "panda.gva", progress=False)
+    assert dataset.metadata.extra["robot"] == "panda"
+    assert tuple(dataset.metadata.camera["position_m"]) == get_robot("panda").camera.position_m
+    with pytest.raises(InvalidInputError, match=r"robot = 'panda' is not allowed: 'yumi' for "
+                                                r"the paper-sim scene"):
+        CollectSettings(scene="paper-sim", task="single", size=1, robot="panda")
