@@ -26,6 +26,7 @@ from perception.learning.dataset_file import read_metadata
 from perception.model_config_file import ModelConfigFile
 from perception.registry import MODELS as REGISTERED
 from perception.registry import PRESETS, trainable
+from robots import get_robot
 from sim.errors import InvalidInputError, RunFolderError
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import scene_camera
@@ -33,7 +34,7 @@ from sim.tasks.task_toml import load_task
 from sim.trials.collector import CollectSettings
 from sim.trials.run_folder import differences, json_form
 from sim.trials.trial_settings import task_identity
-from sim.world.head_camera import CameraConfig
+from sim.world.head_camera import CameraConfig, camera_config
 
 MODELS = ("kqv", "keypoint-16", "keypoint-min", "dsae-16", "conv-ae", "fcn")
 """The paper's models, in its row order (names :func:`perception.registry.new_model` takes)."""
@@ -241,7 +242,8 @@ def dataset_path(out: Path, task: str, stream: SeedStream, size: int, seed: int)
 
 
 def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
-                    stream: SeedStream, approach_hz: float | None = None) -> bool:
+                    stream: SeedStream, approach_hz: float | None = None,
+                    robot: str = "yumi") -> bool:
     """Whether ``path`` holds the dataset asked for; refuses a file that holds another.
 
     ``task`` is a built-in task's name or a task file's path. Compared: scene, task name,
@@ -250,7 +252,8 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
     asked every condition
     (:class:`sim.trials.collector.CollectSettings` ``every_condition``, at its default for the
     stream), the task's definition (a task whose TOML changed since is another dataset), the
-    scene's camera (other images) and the approach images' rate (``approach_hz``, if any).
+    scene's camera (other images; in the yumi scene, ``robot``'s), the robot where it is not
+    the YuMi, and the approach images' rate (``approach_hz``, if any).
 
     Raises:
         RunFolderError: ``path`` holds another dataset; the message names what differs.
@@ -265,8 +268,10 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
                        "every_condition": CollectSettings(scene, task, size, seed,
                                                           stream).asks_every_condition,
                        "definition": task_identity(definition),
-                       "camera": asdict(scene_camera(scene))}
-                      | ({} if approach_hz is None else {"approach_hz": approach_hz}))
+                       "camera": asdict(scene_camera(scene) if scene != "yumi" else
+                                        camera_config(get_robot(robot)))}
+                      | ({} if approach_hz is None else {"approach_hz": approach_hz})
+                      | ({} if robot == "yumi" else {"robot": robot}))
     scenes = meta.extra.get("scenes", meta.size)  # a scene may give several samples
     found = {"scene": meta.scene, "task": meta.task, "size": scenes, "seed": meta.seed,
              "stream": meta.extra.get("stream"),
@@ -274,7 +279,8 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
              "definition": meta.extra.get("task"),
              "camera": json_form(asdict(CameraConfig.from_json(meta.camera)))} | (
                  {} if "approach_hz" not in meta.extra else
-                 {"approach_hz": meta.extra["approach_hz"]})
+                 {"approach_hz": meta.extra["approach_hz"]}) | (
+                 {} if "robot" not in meta.extra else {"robot": meta.extra["robot"]})
     if found != asked:
         raise RunFolderError(f"{path} is not the dataset this run needs "
                              f"({differences(found, asked)}, stored vs asked); remove it to "

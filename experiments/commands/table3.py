@@ -17,7 +17,7 @@ from experiments.commands.arguments import (
     model_config_files,
     names,
 )
-from experiments.commands.trials import add_loop_options, loop_settings
+from experiments.commands.trials import add_loop_options, add_robot_option, loop_settings
 from experiments.table3.run import run_reproduce_real
 from experiments.table3.settings import ReproduceRealSettings
 from experiments.tables import BEYOND_TASKS
@@ -72,6 +72,7 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         "docs/decisions/d435-sensor.md) or ideal, an exact pinhole "
                         "(%(default)s)")
     add_loop_options(parser)
+    add_robot_option(parser)
     add_executor_options(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(run=run)
@@ -85,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
                                      robustness=args.robustness,
                                      balance_types=args.balance_types,
                                      sensor=SensorKind(args.sensor), workers=args.workers,
-                                     loop=loop_settings(args),
+                                     loop=loop_settings(args), robot=args.robot,
                                      executor=executor(args), train_threads=args.train_threads,
                                      model_configs=model_config_files(args))
     report = run_reproduce_real(settings, args.out, progress=not args.no_progress)

@@ -184,7 +184,7 @@ def _work(job: Job) -> str:
 def _collect(job: CollectJob) -> str:
     settings = CollectSettings(SCENE, str(task_file(job.out, job.task)), job.settings.demos,
                                job.settings.seed, SeedStream.TRAIN,
-                               approach_hz=job.settings.approach_hz)
+                               approach_hz=job.settings.approach_hz, robot=job.settings.robot)
     dataset = collect(settings, dataset_file(job.out, job.task, job.settings), progress=False)
     extra = dataset.metadata.extra
     return f"{extra.get('scenes', len(dataset))} demonstrations ({len(dataset)} " \
@@ -289,7 +289,8 @@ def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
                             run_settings.train_identity(u), folder) for u in units]
     collects_todo = [j for j in collects if not dataset_present(
         dataset_file(j.out, j.task, j.settings), SCENE, str(task_file(j.out, j.task)),
-        j.settings.demos, j.settings.seed, SeedStream.TRAIN, j.settings.approach_hz)]
+        j.settings.demos, j.settings.seed, SeedStream.TRAIN, j.settings.approach_hz,
+        j.settings.robot)]
     trains_todo = [j for j in trains if not trained_file(j.out, j.unit).exists()]
     skipped = [j.name for j in collects if j not in collects_todo]
     skipped += [j.name for j in trains if j not in trains_todo]

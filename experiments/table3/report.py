@@ -210,15 +210,20 @@ def successes_table(sets: Sequence[TrialSetResult]) -> str:
     return "\n".join(lines)
 
 
+ROBOT_TITLES = {"yumi": "a simulated ABB YuMi", "panda": "a simulated Franka Panda"}
+"""How ``table3.md`` names the robot of a run."""
+
+
 def table3_markdown(sets: Sequence[TrialSetResult], made_by: str,
                     gifs: Mapping[str, Mapping[str, Any]] | None = None,
                     failed: Sequence[Mapping[str, Any]] = (),
-                    checks: Sequence[Mapping[str, Any]] = ()) -> str:
+                    checks: Sequence[Mapping[str, Any]] = (), robot: str = "yumi") -> str:
     """``table3.md``: the paper's row, ours, the robustness rows, then why trials failed."""
     by_key = {(s.model, s.variant, s.task): s for s in sets}
     lines = [
         "# Table III in simulation: successful picks out of 30", "",
-        "Scene `yumi` (a simulated ABB YuMi in PyBullet): each model trained on oracle-verified "
+        f"Scene `yumi` ({ROBOT_TITLES.get(robot, robot)} in PyBullet): each model trained on "
+        "oracle-verified "
         "demonstrations of each task, then closed-loop pick trials at untrained positions with "
         "the model in the loop. A pick succeeds when the target's lowest point rose 5 cm and "
         "stayed pinched for 1 s; `multiple` needs all three picks. The paper's row is its real "
@@ -373,7 +378,7 @@ def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float
         "checks": checks, "provenance": session}
     paths = [out / "table3.json", out / "table3.md"]
     write_json(paths[0], table)
-    text = table3_markdown(sets, made_by, gifs, failed, checks)
+    text = table3_markdown(sets, made_by, gifs, failed, checks, settings.robot)
     write_text(paths[1], text)
     notes = [] if sets else ["no trials in this folder yet: the tables are empty"]
     notes += [f"WARNING: {c['model']} {c['task']} seed {c['seed']} failed its held-out check: "

@@ -27,6 +27,7 @@ from experiments.tables import (
 from perception.learning.train import TrainConfig, available_threads
 from perception.learning.validation import CheckConfig
 from perception.model_config_file import ModelConfigFile
+from robots import ROBOT_NAMES, get_robot
 from sim.errors import InvalidInputError
 from sim.jobs import LOCAL, Executor
 from sim.tasks.scene_sampling import SeedStream
@@ -36,7 +37,7 @@ from sim.trials.execution import ExecutionSettings
 from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.run_folder import json_form
 from sim.trials.trial_settings import TrialSettings, obstacle_identity, task_identity
-from sim.world.head_camera import CameraConfig
+from sim.world.head_camera import CameraConfig, camera_config
 from sim.world.sensor import SensorConfig, SensorKind
 
 SCENE = "yumi"
@@ -155,6 +156,9 @@ class ReproduceRealSettings:
             at ``replan_hz`` (the arm in view), every trial set runs closed-loop, and each
             unit's checkpoint is also tried open-loop on the same scenes (``open-loop``), so
             the two compare pick by pick (:mod:`sim.trials.closed_loop`). Open: as before.
+        robot: The robot that demonstrates and picks, through its workcell's camera (one of
+            :data:`robots.ROBOT_NAMES`, ``--robot``); named in the identity only where it is
+            not the YuMi, so earlier folders resume.
 
     """
 
@@ -174,8 +178,11 @@ class ReproduceRealSettings:
     check: CheckConfig = field(default_factory=CheckConfig)
     model_configs: tuple[ModelConfigFile, ...] = ()
     loop: LoopSettings = field(default_factory=LoopSettings)
+    robot: str = "yumi"
 
     def __post_init__(self) -> None:
+        if self.robot not in ROBOT_NAMES:
+            raise InvalidInputError("robot", self.robot, f"one of {', '.join(ROBOT_NAMES)}")
         if not isinstance(self.sensor, SensorKind):
             raise InvalidInputError("sensor", self.sensor,
                                     f"one of {', '.join(k.value for k in SensorKind)}")
@@ -249,7 +256,9 @@ class ReproduceRealSettings:
         sensor = ({} if self.sensor is SensorKind.IDEAL
                   else {"sensor": SensorConfig(self.sensor).to_json()})
         loop = {"loop": self.loop.to_json()} if self.closed else {}
-        return sensor | loop | {"format_version": FORMAT_VERSION, "experiment": "reproduce-real",
+        robot = {} if self.robot == "yumi" else {"robot": self.robot}
+        return sensor | loop | robot | {
+                "format_version": FORMAT_VERSION, "experiment": "reproduce-real",
                 "scene": SCENE, "demos": self.demos, "n": self.n,
                 "train": train, "settle_s": TrialSettings.settle_s,
                 "execution": asdict(ExecutionSettings()),
@@ -263,8 +272,12 @@ class ReproduceRealSettings:
                           "model_config": model_config(unit.model, self.seed,
                                                        self.model_settings(unit.model)),
                           "task": task_identity(self.run_task(TrialSet(unit))), "demos": self.demos,
-                          "camera": asdict(CameraConfig()), "seed": self.seed,
+                          "camera": asdict(self.camera_config()), "seed": self.seed,
                           "train": self.train_config(), "check": asdict(self.check)})
+
+    def camera_config(self) -> CameraConfig:
+        """The camera the run's demonstrations and trials see through: its robot's."""
+        return camera_config(get_robot(self.robot))
 
     def model_settings(self, model: str) -> dict[str, Any]:
         """The settings ``model_configs`` give ``model`` (``new_model``'s keywords); {}: none."""
@@ -275,7 +288,8 @@ class ReproduceRealSettings:
         """The :class:`~sim.trials.trial_settings.TrialSettings` of a set (checkpoint present)."""
         return TrialSettings(model=str(checkpoint_folder(out, trial_set.unit)),
                              task=str(task_file(out, trial_set.task_name)), n=self.n,
-                             seed=self.seed, loop=self.trial_loop(trial_set))
+                             seed=self.seed, loop=self.trial_loop(trial_set),
+                             robot=self.robot)
 
     def trial_loop(self, trial_set: TrialSet) -> LoopSettings:
         """The loop a set's picks run: the run's, but open for its ``open-loop`` sets."""
@@ -299,6 +313,8 @@ class ReproduceRealSettings:
             parts.append(f"--sensor {self.sensor.value}")
         if self.closed:
             parts.append(f"--loop closed --replan-hz {self.loop.replan_hz:g}")
+        if self.robot != ReproduceRealSettings.robot:
+            parts.append(f"--robot {self.robot}")
         if self.train_threads != ReproduceRealSettings.train_threads:
             parts.append(f"--train-threads {self.train_threads}")
         if self.check.holdout != CheckConfig.holdout:

@@ -366,3 +366,24 @@ def test_a_closed_loop_run_tries_each_checkpoint_open_loop_too(tmp_path):
     plain = ReproduceRealSettings(robustness=False)
     assert plain.approach_hz is None and "loop" not in plain.shared_identity()
     assert {s.variant for s in plain.trial_sets()} == {Variant.PLAIN}
+
+
+@pytest.mark.slow
+def test_a_panda_run_demonstrates_trains_and_picks_through_its_own_camera(tmp_path):
+    """``--robot panda`` (issue 39): the run, its datasets and its table name the robot, the
+    checkpoint sees through the Panda's camera, and a YuMi run refuses the folder."""
+    out = tmp_path / "panda"
+    status, stdout, stderr = gva("reproduce", "real", "--out", out, "--robot", "panda",
+                                 "--no-robustness", *TINY)
+    assert status == 0, stderr
+    assert "4 job(s) run (0 failed)" in stdout
+    settings = ReproduceRealSettings(tasks=("single",), demos=2, n=2, steps=3, workers=1,
+                                     robustness=False, robot="panda")
+    assert settings.shared_identity()["robot"] == "panda"
+    assert "robot" not in TINY_SETTINGS.shared_identity()  # YuMi folders resume as before
+    assert settings.command(out).endswith("--robot panda")
+    meta = read_metadata(next((out / "s0" / "datasets").glob("*.gva")))
+    assert meta.extra["robot"] == "panda"
+    assert "a simulated Franka Panda" in (out / "table3.md").read_text()
+    status, _, stderr = gva("reproduce", "real", "--out", out, "--no-robustness", *TINY)
+    assert status != 0 and "robot" in stderr
