@@ -3,8 +3,10 @@
 Where the camera sits on that plane (the yumi head camera), the image flipped left to right is
 its view of the scene mirrored (y -> -y), and the labels follow: a position's y negated, a grasp
 rotation ``R`` turned into ``M R M`` with ``M = diag(1, -1, 1)``, a side condition's left and
-right swapped. Only for tasks whose collector allows it (``metadata.extra[MIRROR_FLAG]``,
-:mod:`sim.tasks.mirror_symmetry`); why and what it gains: ``docs/decisions/kqv.md#mirror-flip``.
+right swapped (a one-hot side's entries; a sentence's row, for a model that trains each sentence
+as the row of the side it names, by the other side's row). Only for tasks whose collector
+allows it (``metadata.extra[MIRROR_FLAG]``, :mod:`sim.tasks.mirror_symmetry`); why and what it
+gains: ``docs/decisions/kqv.md#mirror-flip``.
 """
 
 from __future__ import annotations
@@ -31,10 +33,13 @@ class Mirror:
     Args:
         spec: The model's spec; its camera must sit on the world's xz-plane (checked).
         seed: Seeds which samples are mirrored.
+        named_rows: For a sentence task over sides: the (k, C) condition row each named side
+            trains with (kqv's unit prototypes), in ``spec.condition_choices`` order; a mirrored
+            sample gets the other side's row. None for other tasks.
 
     """
 
-    def __init__(self, spec: ModelSpec, seed: int) -> None:
+    def __init__(self, spec: ModelSpec, seed: int, named_rows: np.ndarray | None = None) -> None:
         camera = spec.camera
         if camera is None:
             raise InvalidInputError("mirror", True, "False for a dataset that records no camera")
@@ -58,7 +63,13 @@ class Mirror:
                                        dtype=torch.long)  # (W,)
         self.grasps = spec.label_kind is LabelKind.GRASP_POSE
         self.swap: Tensor | None = None
-        if spec.condition_kind is ConditionKind.SIDE:
+        self.rows: Tensor | None = None  # (k, C) a sentence task's named rows
+        if spec.condition_kind is ConditionKind.TEXT:
+            if named_rows is None or np.shape(named_rows)[0] != len(spec.condition_choices):
+                raise InvalidInputError("mirror", True, "False for a sentence task unless each "
+                                        "named side's condition row is given (named_rows)")
+            self.rows = torch.as_tensor(np.asarray(named_rows, dtype=np.float32))
+        if spec.condition_kind in (ConditionKind.SIDE, ConditionKind.TEXT):
             choices = list(spec.condition_choices)
             if any(SIDE_PAIRS.get(c) not in choices for c in choices):
                 raise InvalidInputError("mirror", True, f"False for side choices {choices} "
@@ -82,6 +93,10 @@ class Mirror:
             mirrored[..., 3:] = (m @ mirrored[..., 3:].unflatten(-1, (3, 3)) @ m).flatten(-2)
         labels[flip] = mirrored
         conditions = batch.conditions.clone()
-        if self.swap is not None:
+        if self.rows is not None and self.swap is not None:  # each row by the other side's
+            rows = self.rows.to(conditions)
+            named = (conditions[flip] @ rows.T).argmax(dim=-1)  # (b,) which side it names
+            conditions[flip] = rows[self.swap.to(conditions.device)[named]]
+        elif self.swap is not None:
             conditions[flip] = conditions[flip][:, self.swap.to(conditions.device)]
         return batch._replace(images=images, conditions=conditions, labels=labels)  # types stay

@@ -34,7 +34,7 @@ from typing import Any, ClassVar, NamedTuple
 import torch
 from torch import Tensor, nn
 
-from perception.interface import InvalidInputError
+from perception.interface import ConditionKind, InvalidInputError
 from perception.learning.data import Dataset
 from perception.learning.learnable import ModelSpec, check_choices
 from perception.learning.mirror import MIRROR_FLAG, Mirror
@@ -234,8 +234,9 @@ class BaselineModel(TorchModel):
         """
         config = config or TrainConfig()
         mirror = self.config.mirror
-        if mirror is None:
-            mirror = dataset.metadata.extra.get(MIRROR_FLAG) is True
+        if mirror is None:  # a baseline reads a sentence's embedding: it cannot swap its side
+            mirror = dataset.metadata.extra.get(MIRROR_FLAG) is True and \
+                self.spec.condition_kind is not ConditionKind.TEXT
         self._mirror = Mirror(self.spec, config.seed) if mirror else None
         if self.scaler is None:
             self.spec.check_dataset(dataset)

@@ -17,7 +17,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from perception.interface import Condition, InvalidInputError, Prediction
+from perception.interface import Condition, ConditionKind, InvalidInputError, Prediction
 from perception.learning.data import Dataset
 from perception.learning.evaluate import evaluate
 from perception.learning.mirror import MIRROR_FLAG, Mirror
@@ -85,10 +85,6 @@ class KqvModel(TorchModel):
         targets'. A dataset that names no target's type trains no type phase.
         """
         config = config or TrainConfig()
-        mirror = self.config.mirror
-        if mirror is None:
-            mirror = dataset.metadata.extra.get(MIRROR_FLAG) is True
-        self._mirror = Mirror(self.spec, config.seed) if mirror else None
         fresh = self.scaler is None  # a first fit may try several starts; a later one not
         if fresh:
             self.spec.check_dataset(dataset)
@@ -100,6 +96,7 @@ class KqvModel(TorchModel):
             if self.network.reader is not None:  # which words name which target
                 self._reader = self._fit_reader(dataset)
                 self.network.reader.load_state_dict(self._reader.state_dict())
+        self._mirror = self._mirror_for(dataset, config.seed)
         named = self._named(dataset)
         try:
             pose = self._fit_pose(dataset, named, fresh, config, progress)
@@ -150,6 +147,22 @@ class KqvModel(TorchModel):
         choices = dataset.metadata.condition_choices
         named = [choices.index(name) for name in dataset.condition_names()]
         return replace(dataset, conditions=units[named].astype(np.float32))
+
+    def _mirror_for(self, dataset: Dataset, seed: int) -> Mirror | None:
+        """The mirror :attr:`KqvConfig.mirror` asks for (None: where the dataset allows it).
+
+        A sentence task mirrors only where each sentence trains as its named target's row (the
+        prototype readings): the mirrored sample gets the other side's row. One that reads the
+        embedding itself cannot say which side a sentence names, so it is not mirrored.
+        """
+        prototypes = self.network.prototypes
+        rows = None if prototypes is None else unit(prototypes, dim=-1).numpy()
+        mirror = self.config.mirror
+        if mirror is None:
+            mirror = dataset.metadata.extra.get(MIRROR_FLAG) is True and (
+                self.spec.condition_kind is not ConditionKind.TEXT or rows is not None)
+        return Mirror(self.spec, seed, rows if self.spec.condition_kind is
+                      ConditionKind.TEXT else None) if mirror else None
 
     def _fit_reader(self, dataset: Dataset) -> TokenReader:
         """A :class:`TokenReader` trained on ``dataset``'s distinct sentences and their targets.

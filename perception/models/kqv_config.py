@@ -69,9 +69,9 @@ class KqvConfig:
             steps.
         query_mode: ``"base"`` (learned vectors), ``"conditioned"`` (MLP of the one-hot
             condition), ``"conditioned+base"`` (their sum, the condition's MLP started at zero)
-            or ``"auto"``: base without a condition, conditioned+base for an object type,
-            conditioned for a side; ``"paper"``: base without a condition, conditioned with
-            one (the paper's Sec. IV-B).
+            or ``"auto"``: base without a condition, conditioned+base for an object type
+            (one-hot, a sentence or a picture), conditioned for a side (one-hot or a sentence);
+            ``"paper"``: base without a condition, conditioned with one (the paper's Sec. IV-B).
         head_features: Whether the head MLP reads ``a_feat`` besides ``a_coord``. None: for
             grasp labels and the ray readout; coordinates only for positions read by the MLP.
         head_coords: Whether the ray readout's head reads ``a_coord`` too (the MLP readout

@@ -74,8 +74,13 @@ def sentence_reading(spec: ModelSpec, config: KqvConfig) -> str:
     """
     if config.sentence_reading != "auto":
         return config.sentence_reading
+    return "nearest" if names_object_types(spec) else "tokens"
+
+
+def names_object_types(spec: ModelSpec) -> bool:
+    """Whether every target ``spec``'s condition may name is an object type (else: sides)."""
     choices = spec.condition_choices
-    return "nearest" if choices and set(choices) <= set(spec.object_types) else "tokens"
+    return bool(choices) and set(choices) <= set(spec.object_types)
 
 
 class KqvNet(nn.Module):
@@ -117,10 +122,12 @@ class KqvNet(nn.Module):
         if mode == "paper":  # Base Queries without a condition, Conditioned ones with one
             mode = "base" if spec.condition_kind is ConditionKind.NONE else "conditioned"
         if mode == "auto":
-            # A sentence or a picture may name a type: it refines the shared Base Query too.
+            # A picture names a type: it refines the shared Base Query too, as a type's one-hot
+            # does. A sentence takes its one-hot twin's form: a type's, or a side's (alone).
             mode = {ConditionKind.NONE: "base", ConditionKind.OBJECT_TYPE: "conditioned+base",
-                    ConditionKind.SIDE: "conditioned", ConditionKind.TEXT: "conditioned+base",
-                    ConditionKind.IMAGE: "conditioned+base"}[spec.condition_kind]
+                    ConditionKind.SIDE: "conditioned", ConditionKind.IMAGE: "conditioned+base",
+                    ConditionKind.TEXT: "conditioned+base" if names_object_types(spec)
+                    else "conditioned"}[spec.condition_kind]
         if "conditioned" in mode and not spec.condition_size:
             raise InvalidInputError("query_mode", c.query_mode, "'base' or 'auto' for a task "
                                     "without a condition")

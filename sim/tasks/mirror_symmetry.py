@@ -21,10 +21,9 @@ from __future__ import annotations
 import numpy as np
 
 from perception.catalog import ObjectSpec, PrimitiveKind, get_object_spec
-from perception.interface import ConditionKind
 from sim.tasks.scene_sampling import target_count
 from sim.tasks.scene_specs import SceneSpec
-from sim.tasks.task_spec import ConditionForm, ObjectChoice, TaskSpec
+from sim.tasks.task_spec import ObjectChoice, TaskSpec
 from sim.world.head_camera import CameraConfig
 
 TOLERANCE = 1e-9
@@ -58,9 +57,8 @@ def mirror_symmetric(task: TaskSpec, scene: SceneSpec, camera: CameraConfig) -> 
     y_low, y_high = task.workspace_y_m or scene.workspace_y_m
     types = set(scene.object_types) | set(task.distractors)
     ordered_by_type = target_count(task) == 1 or task.objects is ObjectChoice.ONE_OF_EACH
-    # A one-hot side is swapped with the image; a sentence that names a side cannot be.
-    names_side_in_words = task.condition is ConditionKind.SIDE and \
-        task.given_as is not ConditionForm.ONE_HOT
-    return (on_plane and not names_side_in_words and abs(y_low + y_high) < TOLERANCE
+    # A one-hot side is swapped with the image; a sentence by what it names, by a model that
+    # trains each sentence as its named side's row (kqv); one reading the embedding does not.
+    return (on_plane and abs(y_low + y_high) < TOLERANCE
             and ordered_by_type
             and all(object_is_mirror_symmetric(get_object_spec(t)) for t in types))

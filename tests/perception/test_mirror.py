@@ -64,6 +64,26 @@ def test_half_the_samples_are_mirrored_and_a_side_condition_swaps():
     assert torch.equal(mirrored.images[~flipped], batch.images[~flipped])
 
 
+def test_a_sentence_naming_a_side_is_swapped_by_the_row_of_the_side_it_names():
+    """A sentence task trains each sentence as its named side's row (kqv's unit prototypes): a
+    mirrored sample gets the other side's row, as a one-hot side gets the other entry."""
+    dataset = synthetic_dataset(64, kind=LabelKind.POSITION, seed=9, camera=CAMERA)
+    sentences = replace(ModelSpec.from_metadata(dataset.metadata),
+                        condition_kind=ConditionKind.TEXT, condition_choices=("left", "right"))
+    rows = np.linalg.qr(np.random.default_rng(2).normal(size=(384, 2)))[0].T  # (2, 384) unit
+    batch = batch_of(dataset)._replace(conditions=torch.as_tensor(
+        rows[np.arange(64) % 2], dtype=torch.float32))  # left, right, left, ...
+    mirrored = Mirror(sentences, seed=3, named_rows=rows)(batch)
+    flipped = mirrored.labels[:, 0, 1] != batch.labels[:, 0, 1]  # (64,)
+    assert 16 < int(flipped.sum()) < 48
+    expected = np.where(flipped.numpy()[:, None], rows[(np.arange(64) + 1) % 2],
+                        rows[np.arange(64) % 2])
+    np.testing.assert_allclose(mirrored.conditions.numpy(), expected, atol=1e-6)
+    with pytest.raises(InvalidInputError, match=r"mirror = True .* unless each named side's "
+                                                r"condition row is given"):
+        Mirror(sentences, seed=3)
+
+
 def test_a_camera_off_the_mirror_plane_is_refused():
     dataset = synthetic_dataset(2, kind=LabelKind.GRASP_POSE, seed=1, camera=CAMERA)
     aside = PinholeCamera((0.0, 0.05, 0.6), (0.45, 0.0, 0.0), (0.0, 0.0, 1.0), 40.0, None, 64, 64)

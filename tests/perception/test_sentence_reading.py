@@ -134,3 +134,21 @@ def test_kqv_reads_a_new_wording_by_its_words_where_the_pooled_vector_says_nothi
         assert bool((mine == theirs).all())
     assert {id(p) for p in model.network.reader.parameters()}.isdisjoint(
         id(p) for p in model._pose_parameters())  # trained apart, before the pose
+
+
+def test_a_sentence_task_trains_and_predicts_as_its_one_hot_twin(monkeypatch):
+    """Each training sentence trains as its named target's row and the Query form is the
+    one-hot twin's: read right, a sentence model is the one-hot model (up to float rounding)."""
+    monkeypatch.setattr("perception.models.kqv.token_embeddings", scene_tokens)
+    text = _worded_scenes(16, seed=4, fillers=("pick up", "grab"))
+    onehot = synthetic_dataset(16, conditioned=True, seed=4, image_px=48)
+    train = TrainConfig(steps=30, batch_size=4, threads=1)
+    twins = []
+    for dataset in (onehot, text):
+        config = KqvConfig(seed=0, starts=1, sentence_reading="tokens")
+        model = KqvModel.for_dataset(dataset, config)
+        model.fit(dataset, train, progress=False)
+        rows = model.condition_rows([dataset.condition(i) for i in range(len(dataset))],
+                                    dataset.conditions)
+        twins.append([p.targets[0].position_m for p in model.predict_batch(dataset.images, rows)])
+    np.testing.assert_allclose(twins[0], twins[1], atol=1e-4)
