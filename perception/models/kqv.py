@@ -55,13 +55,20 @@ class KqvModel(TorchModel):
         return network
 
     @classmethod
-    def hyperparameters_from(cls, saved: dict[str, Any]) -> dict[str, Any]:
+    def hyperparameters_from(cls, saved: dict[str, Any], tensors: frozenset[str] = frozenset()
+                             ) -> dict[str, Any]:
         """The saved hyper-parameters, with older checkpoints' settings made explicit.
 
         A checkpoint from before sentence prototypes reads the sentence embedding itself, as
-        it was trained to.
+        it was trained to. One whose ``"auto"`` Query form kept Base Queries beside the
+        condition's (a sentence naming a side, before it took its one-hot twin's form) keeps
+        them.
         """
-        return {"sentence_reading": "embedding"} | saved
+        values = {"sentence_reading": "embedding"} | saved
+        if values.get("query_mode", "auto") == "auto" and "base_queries" in tensors and \
+                "query_mlp.0.weight" in tensors:
+            values["query_mode"] = "conditioned+base"
+        return values
 
     _prototypes: Tensor | None = None  # (k, C) a sentence task's prototypes, set on first fit
     _reader: TokenReader | None = None  # what a sentence names, from its words; first fit

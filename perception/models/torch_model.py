@@ -245,7 +245,8 @@ class TorchModel(LearnableModel):
         data = checkpoint.config
         try:
             model = cls(ModelSpec.from_json(data["spec"]),
-                        cls.config_class(**cls.hyperparameters_from(data["hyperparameters"])),
+                        cls.config_class(**cls.hyperparameters_from(
+                            data["hyperparameters"], frozenset(checkpoint.tensors))),
                         LabelScaler.from_json(data["label_scaler"]))
         except (KeyError, TypeError, ValueError) as error:
             raise CheckpointError(checkpoint.folder / CONFIG_FILE, f"cannot rebuild the model "
@@ -255,11 +256,13 @@ class TorchModel(LearnableModel):
         return model
 
     @classmethod
-    def hyperparameters_from(cls, saved: dict[str, Any]) -> dict[str, Any]:
+    def hyperparameters_from(cls, saved: dict[str, Any], tensors: frozenset[str] = frozenset()
+                             ) -> dict[str, Any]:
         """The keyword arguments of :attr:`config_class` a checkpoint's saved values give.
 
-        A model whose later versions add a setting that changes older checkpoints' networks
-        names here the value those checkpoints were trained with; by default, as saved.
+        A model whose later versions add a setting (or resolve ``"auto"`` otherwise) that
+        changes older checkpoints' networks names here the value those checkpoints were trained
+        with, from the saved values and the names of the saved ``tensors``; by default, as saved.
         """
         return saved
 

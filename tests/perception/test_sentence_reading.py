@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 
 import numpy as np
@@ -11,6 +12,7 @@ from user_models import TYPES, given_as, synthetic_dataset
 
 from perception.errors import InvalidInputError
 from perception.interface import Condition, ConditionKind
+from perception.learning.checkpoint import save_checkpoint
 from perception.learning.data import Dataset
 from perception.learning.learnable import ModelSpec
 from perception.learning.train import TrainConfig
@@ -152,3 +154,22 @@ def test_a_sentence_task_trains_and_predicts_as_its_one_hot_twin(monkeypatch):
                                     dataset.conditions)
         twins.append([p.targets[0].position_m for p in model.predict_batch(dataset.images, rows)])
     np.testing.assert_allclose(twins[0], twins[1], atol=1e-4)
+
+
+def test_a_side_sentence_checkpoint_from_before_the_twin_form_keeps_its_base_queries(
+        tmp_path, monkeypatch):
+    monkeypatch.setattr("perception.models.kqv.token_embeddings", scene_tokens)
+    text = _worded_scenes(8, seed=4, fillers=("pick up", "grab"))
+    sides = replace(text.metadata, extra={})  # no object types: its targets read as sides
+    text = replace(text, metadata=sides)
+    old = KqvModel.for_dataset(text, KqvConfig(seed=0, starts=1, query_mode="conditioned+base"))
+    old.fit(text, TrainConfig(steps=2, batch_size=4, threads=1), progress=False)
+    folder = old.save(tmp_path / "old")
+    config = json.loads((folder / "config.json").read_text())
+    config["hyperparameters"]["query_mode"] = "auto"  # as such a checkpoint was saved
+    save_checkpoint(folder, "kqv", {k: v for k, v in config.items() if k not in (
+        "format_version", "model", "weights_sha256", "config_sha256")},
+        old.network.state_dict())
+    loaded = KqvModel.load(folder)
+    assert loaded.config.query_mode == "conditioned+base"
+    assert KqvNet(loaded.spec, KqvConfig()).base_queries is None  # today's auto: a side's form
