@@ -64,12 +64,16 @@ class Mirror:
         self.grasps = spec.label_kind is LabelKind.GRASP_POSE
         self.swap: Tensor | None = None
         self.rows: Tensor | None = None  # (k, C) a sentence task's named rows
-        if spec.condition_kind is ConditionKind.TEXT:
+        names_sides = spec.condition_kind is ConditionKind.SIDE or (
+            spec.condition_kind is ConditionKind.TEXT and
+            bool(set(spec.condition_choices) & set(SIDE_PAIRS)))  # a type stays in the mirror
+        if names_sides and spec.condition_kind is ConditionKind.TEXT:
             if named_rows is None or np.shape(named_rows)[0] != len(spec.condition_choices):
-                raise InvalidInputError("mirror", True, "False for a sentence task unless each "
-                                        "named side's condition row is given (named_rows)")
+                raise InvalidInputError("mirror", True, "False for a sentence task over sides "
+                                        "unless each named side's condition row is given "
+                                        "(named_rows)")
             self.rows = torch.as_tensor(np.asarray(named_rows, dtype=np.float32))
-        if spec.condition_kind in (ConditionKind.SIDE, ConditionKind.TEXT):
+        if names_sides:
             choices = list(spec.condition_choices)
             if any(SIDE_PAIRS.get(c) not in choices for c in choices):
                 raise InvalidInputError("mirror", True, f"False for side choices {choices} "

@@ -82,6 +82,10 @@ def test_a_sentence_naming_a_side_is_swapped_by_the_row_of_the_side_it_names():
     with pytest.raises(InvalidInputError, match=r"mirror = True .* unless each named side's "
                                                 r"condition row is given"):
         Mirror(sentences, seed=3)
+    types = replace(sentences, condition_choices=("sponge", "mug"))  # a type stays a type
+    kept = Mirror(types, seed=3, named_rows=rows)(batch)
+    torch.testing.assert_close(kept.conditions, batch.conditions)
+    assert not torch.equal(kept.labels, batch.labels)
 
 
 def test_a_camera_off_the_mirror_plane_is_refused():

@@ -8,13 +8,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import torch
-from user_models import TYPES, given_as, synthetic_dataset
+from user_models import CAMERA, TYPES, given_as, synthetic_dataset
 
 from perception.errors import InvalidInputError
 from perception.interface import Condition, ConditionKind
 from perception.learning.checkpoint import save_checkpoint
 from perception.learning.data import Dataset
 from perception.learning.learnable import ModelSpec
+from perception.learning.mirror import MIRROR_FLAG
 from perception.learning.train import TrainConfig
 from perception.models.kqv import KqvConfig, KqvModel
 from perception.models.kqv_net import KqvNet, sentence_reading
@@ -173,3 +174,18 @@ def test_a_side_sentence_checkpoint_from_before_the_twin_form_keeps_its_base_que
     loaded = KqvModel.load(folder)
     assert loaded.config.query_mode == "conditioned+base"
     assert KqvNet(loaded.spec, KqvConfig()).base_queries is None  # today's auto: a side's form
+
+
+def test_a_sentence_task_over_types_trains_mirrored_where_its_dataset_allows(monkeypatch):
+    """The mirror flips the image and keeps the sentence: a type is the same in the mirror."""
+    base = synthetic_dataset(8, conditioned=True, seed=4, camera=CAMERA)  # on the mirror plane
+    names = base.conditions.argmax(axis=1)
+    rows = np.random.default_rng(4).normal(size=(8, EMBEDDING_SIZE))
+    text = given_as(base, ConditionKind.TEXT, rows / np.linalg.norm(rows, axis=1, keepdims=True),
+                    [f"grab the {TYPES[k]} square" for k in names])
+    text = replace(text, metadata=replace(text.metadata,
+                                          extra=text.metadata.extra | {MIRROR_FLAG: True}))
+    monkeypatch.setattr("perception.models.kqv.token_embeddings", scene_tokens)
+    model = KqvModel.for_dataset(text, KqvConfig(seed=0, starts=1))
+    model.fit(text, TrainConfig(steps=2, batch_size=4, threads=1), progress=False)
+    assert model._mirror is not None and model._mirror.rows is None
