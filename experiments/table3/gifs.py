@@ -39,7 +39,7 @@ def record_gif(model_name: str, trials: TrialSettings, count: int, path: Path
     shown: list[dict[str, Any]] = []
     with torch_threads(1), TrialRunner(task, model.factory, trials.settle_s, trials.execution,
                                        observer=recorder, obstacles=trials.obstacles,
-                                       loop=trials.loop) as runner:
+                                       loop=trials.loop, robot=trials.description()) as runner:
         for index in range(count):
             scene = sample_scene(task, YUMI_SCENE, trials.seed, SeedStream.TEST, index)
             given = scene.given

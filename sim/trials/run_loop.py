@@ -126,7 +126,8 @@ def _run_todo(settings: TrialSettings, model: TrialModel, log: TrialLog, todo: l
             return
         threads = torch_threads(1) if model.one_torch_thread else contextlib.nullcontext()
         with threads, TrialRunner(task, model.factory, settings.settle_s, settings.execution,
-                                  obstacles=settings.obstacles, loop=settings.loop) as runner:
+                                  obstacles=settings.obstacles, loop=settings.loop,
+                                  robot=settings.description()) as runner:
             for scene in todo:
                 done(runner.run(scene, scene.index, settings.seed, settings.model))
 

@@ -385,5 +385,7 @@ def test_a_panda_run_demonstrates_trains_and_picks_through_its_own_camera(tmp_pa
     meta = read_metadata(next((out / "s0" / "datasets").glob("*.gva")))
     assert meta.extra["robot"] == "panda"
     assert "a simulated Franka Panda" in (out / "table3.md").read_text()
+    trials = next((out / "s0" / "trials").rglob("trials.jsonl")).read_text().splitlines()
+    assert {pick["arm"] for line in trials for pick in json.loads(line)["picks"]} == {"panda"}
     status, _, stderr = gva("reproduce", "real", "--out", out, "--no-robustness", *TINY)
     assert status != 0 and "robot" in stderr

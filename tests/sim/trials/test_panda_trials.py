@@ -3,6 +3,8 @@ own stand camera, and the YuMi's camera is what it was."""
 
 from __future__ import annotations
 
+import json
+
 import pytest
 
 from perception.interface import ConditionKind, LabelKind
@@ -12,7 +14,7 @@ from sim.errors import InvalidInputError
 from sim.tasks.task_toml import load_task
 from sim.trials.collector import CollectSettings, collect
 from sim.trials.records import TrialOutcome
-from sim.trials.run_loop import trial_scene
+from sim.trials.run_loop import run_trials, trial_scene
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_settings import TrialSettings, check_camera
 from sim.world.head_camera import CameraConfig, camera_config
@@ -70,3 +72,13 @@ def test_the_pandas_demonstrations_name_it_and_its_camera(tmp_path):
     with pytest.raises(InvalidInputError, match=r"robot = 'panda' is not allowed: 'yumi' for "
                                                 r"the paper-sim scene"):
         CollectSettings(scene="paper-sim", task="single", size=1, robot="panda")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_run_of_trials_picks_with_the_robot_it_names(tmp_path, workers):
+    """In one process or in a pool, the trials run the run's robot (not the YuMi)."""
+    settings = TrialSettings(model="oracle", task="single", n=2, robot="panda")
+    run_trials(settings, tmp_path / "run", progress=False, workers=workers)
+    records = [json.loads(line) for line in (tmp_path / "run" / "trials.jsonl").open()]
+    assert {pick["arm"] for record in records for pick in record["picks"]} == {"panda"}
