@@ -84,11 +84,9 @@ class WorldConfig:
         cx, cy = self.table_center_xy_m
         hx, hy = TABLE_HALF_SIZE_M
         if not (cx - hx <= x_lo and x_hi <= cx + hx and cy - hy <= y_lo and y_hi <= cy + hy):
-            raise InvalidInputError(
-                "table_center_xy_m", self.table_center_xy_m,
-                f"a table ({2 * hx} x {2 * hy} m) under the {robot.name}'s base, x "
-                f"{x_lo}..{x_hi} m, y {y_lo}..{y_hi} m",
-            )
+            raise InvalidInputError("table_center_xy_m", self.table_center_xy_m,
+                                    f"a table ({2 * hx} x {2 * hy} m) under the {robot.name}'s "
+                                    f"base, x {x_lo}..{x_hi} m, y {y_lo}..{y_hi} m")
 
 
 class World:
@@ -103,8 +101,7 @@ class World:
                  robot: RobotDescription = yumi.YUMI) -> None:
         self.config = WorldConfig() if config is None else config
         self.config.check_robot(robot)
-        self.description = robot
-        """The robot standing at the origin."""
+        self.description = robot  # the robot standing at the origin
         self.step_hook: StepHook | None = None
         """Called after every physics step (e.g. to record frames); None, the default, costs
         nothing."""
