@@ -31,7 +31,7 @@ from sim.errors import InvalidInputError, RunFolderError
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import scene_camera
 from sim.tasks.task_toml import load_task
-from sim.trials.collector import CollectSettings
+from sim.trials.collector import APPROACH_MASKED_KEY, CollectSettings
 from sim.trials.run_folder import differences, json_form
 from sim.trials.trial_settings import task_identity
 from sim.world.head_camera import CameraConfig, camera_config
@@ -253,7 +253,8 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
     (:class:`sim.trials.collector.CollectSettings` ``every_condition``, at its default for the
     stream), the task's definition (a task whose TOML changed since is another dataset), the
     scene's camera (other images; in the yumi scene, ``robot``'s), the robot where it is not
-    the YuMi, and the approach images' rate (``approach_hz``, if any).
+    the YuMi, and the approach images' rate (``approach_hz``, if any) and whether the arm is
+    masked out of them (datasets from before the mask have it in view: another dataset).
 
     Raises:
         RunFolderError: ``path`` holds another dataset; the message names what differs.
@@ -270,7 +271,8 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
                        "definition": task_identity(definition),
                        "camera": asdict(scene_camera(scene) if scene != "yumi" else
                                         camera_config(get_robot(robot)))}
-                      | ({} if approach_hz is None else {"approach_hz": approach_hz})
+                      | ({} if approach_hz is None else {"approach_hz": approach_hz,
+                                                         APPROACH_MASKED_KEY: True})
                       | ({} if robot == "yumi" else {"robot": robot}))
     scenes = meta.extra.get("scenes", meta.size)  # a scene may give several samples
     found = {"scene": meta.scene, "task": meta.task, "size": scenes, "seed": meta.seed,
@@ -279,7 +281,8 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
              "definition": meta.extra.get("task"),
              "camera": json_form(asdict(CameraConfig.from_json(meta.camera)))} | (
                  {} if "approach_hz" not in meta.extra else
-                 {"approach_hz": meta.extra["approach_hz"]}) | (
+                 {"approach_hz": meta.extra["approach_hz"],
+                  APPROACH_MASKED_KEY: meta.extra.get(APPROACH_MASKED_KEY, False)}) | (
                  {} if "robot" not in meta.extra else {"robot": meta.extra["robot"]})
     if found != asked:
         raise RunFolderError(f"{path} is not the dataset this run needs "

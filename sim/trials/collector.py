@@ -8,7 +8,8 @@ image the camera takes before each of its picks, as a trial sees them: a ``multi
 gives three samples, the second without the first target, the third with the last alone; a
 sample's record lists the targets already taken under ``"taken"`` (their labels say where they
 were; :meth:`perception.learning.data.Dataset.target_present` marks them absent). With
-``approach_hz`` a demonstration also keeps images along each approach, the arm in view; a task
+``approach_hz`` a demonstration also keeps images along each approach, the arm masked out of
+them as in a closed-loop trial's re-predictions (the self filter); a task
 that moves its target during the pick is demonstrated by the oracle's closed loop, which follows
 it (:mod:`sim.trials.closed_loop`). Either way, scene
 ``i`` of a dataset comes from the training seed stream, never the test stream the trials use,
@@ -55,6 +56,10 @@ from sim.world.yumi_world import World
 
 MAX_REDRAW_FACTOR = 3
 """A yumi collection gives up after this many times ``size`` failed demonstrations."""
+
+APPROACH_MASKED_KEY = "approach_robot_masked"
+"""A dataset's note that its approach images have the robot masked out (the self filter of
+:meth:`~sim.world.head_camera.HeadCamera.render_rgbd`); datasets from before it lack it."""
 
 
 @dataclass(frozen=True)
@@ -326,6 +331,6 @@ def _collect_yumi(
              JOINT_NAMES_KEY: list(images.joint_names),
              "demonstrations_redrawn": len(redrawn), "redrawn": redrawn,
              MIRROR_FLAG: mirror_symmetric(task, spec, runner.camera.config)}
-    if settings.approach_hz is not None:
-        extra["approach_hz"] = settings.approach_hz
+    if settings.approach_hz is not None:  # the arm masked out of them (self-filtered frames)
+        extra |= {"approach_hz": settings.approach_hz, APPROACH_MASKED_KEY: True}
     return samples, camera, extra

@@ -255,17 +255,19 @@ class HeadCamera:
         bilinear, depth nearest), the stereo shadow and noise added, 0.0 where it has no depth;
         ``seed`` is required (the noise is drawn per frame, never from a global generator).
 
-        ``self_body``: the robot's body, whose own pixels get no depth (0: no measurement), grown
-        by :data:`SELF_FILTER_PADDING_PX`, so a frame taken while the arm is in view gives the
-        planner no obstacle where the arm is. A real robot does the same by rendering its model
-        at the measured joints through the calibrated camera (e.g. ``realtime_urdf_filter``);
-        here PyBullet's segmentation of that model stands in for it.
+        ``self_body``: the robot's body, whose own pixels (grown by
+        :data:`SELF_FILTER_PADDING_PX`) get no depth (0: no measurement) and the colour of the
+        rest of the image (its per-channel median, the table's), so a frame taken while the arm
+        is in view gives the planner no obstacle and the model no arm where the arm is. A real
+        robot does the same by rendering its model at the measured joints through the
+        calibrated camera (e.g. ``realtime_urdf_filter``); here PyBullet's segmentation of that
+        model stands in for it.
         """
         c, light = self.config, self.config.lighting if lighting is None else lighting
         if self.sensor.kind is SensorKind.IDEAL:
             rgb, depth, bodies = self._render(client, c.width_px, c.height_px,
                                               self.view_matrix, self.projection_matrix, light)
-            return RgbdFrame(rgb, _self_filtered(depth, bodies, self_body), self.pinhole)
+            return RgbdFrame(*_self_filtered(rgb, depth, bodies, self_body), self.pinhole)
         if not isinstance(seed, SensorSeed):
             raise InvalidInputError("seed", seed, "a SensorSeed: a D435 draws its noise per "
                                     "frame and its mount per run seed")
@@ -285,7 +287,7 @@ class HeadCamera:
         depth = depth_noise(depth, true, rng, sensor)
         if self_body is not None:  # the body ids registered as the depth is (nearest)
             bodies = distort_depth(bodies_wide.astype(np.float32), wide, true).astype(int)
-            depth = _self_filtered(depth, bodies, self_body)
+            rgb, depth = _self_filtered(rgb, depth, bodies, self_body)
         return RgbdFrame(rgb, depth, self.pinhole)
 
     def _render(self, client: Any, width_px: int, height_px: int, view: Any, projection: Any,
@@ -326,13 +328,20 @@ class HeadCamera:
         return self.pinhole.project(points_world)
 
 
-def _self_filtered(depth_m: np.ndarray, bodies: np.ndarray, self_body: int | None
-                   ) -> np.ndarray:
-    """``depth_m`` without its measurements (0) where ``bodies`` shows ``self_body``.
+def _self_filtered(rgb: np.ndarray, depth_m: np.ndarray, bodies: np.ndarray,
+                   self_body: int | None) -> tuple[np.ndarray, np.ndarray]:
+    """``rgb`` and ``depth_m`` without the robot, whose pixels get no depth and the rest's colour.
 
-    The robot's pixels grown by :data:`SELF_FILTER_PADDING_PX`; None: ``depth_m`` unchanged.
+    The robot's pixels: where ``bodies`` shows ``self_body``, grown by
+    :data:`SELF_FILTER_PADDING_PX`; they get depth 0 and the per-channel median colour of the
+    others. The median of what is not the robot is the table's colour (the table fills most of the
+    view), set per frame so no colour is chosen by hand; None: both unchanged.
     """
     if self_body is None:
-        return depth_m
+        return rgb, depth_m
     own = ndimage.binary_dilation(bodies == self_body, iterations=SELF_FILTER_PADDING_PX)
-    return np.where(own, np.float32(0.0), depth_m).astype(np.float32)
+    if own.all():
+        return np.zeros_like(rgb), np.zeros_like(depth_m)
+    masked = rgb.copy()
+    masked[own] = np.median(rgb[~own], axis=0).astype(rgb.dtype)
+    return masked, np.where(own, np.float32(0.0), depth_m).astype(np.float32)

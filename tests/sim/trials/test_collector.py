@@ -13,7 +13,7 @@ from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import get_scene_spec
 from sim.tasks.task_toml import load_task, task_to_toml
-from sim.trials.collector import CollectSettings, collect
+from sim.trials.collector import APPROACH_MASKED_KEY, CollectSettings, collect
 from sim.world.head_camera import CameraConfig
 from sim.world.sensor import SensorConfig, SensorKind
 
@@ -218,14 +218,22 @@ def test_a_d435_dataset_records_its_sensor_and_keeps_the_calibration(tmp_path):
     assert data.depths_m is not None and (data.depths_m == 0.0).any()  # the sensor's holes
 
 
-def test_approach_images_keep_the_pick_label_and_see_the_arm_come_in(tmp_path):
-    """``approach_hz``: each approach adds images labelled as the pick's image (issue 36)."""
+def test_approach_images_keep_the_pick_label_and_mask_the_arm_coming_in(tmp_path):
+    """``approach_hz``: each approach adds images labelled as the pick's image, the arm masked
+    out of them as a closed-loop trial's re-predictions have it (issue 36)."""
     path = tmp_path / "approach.gva"
     dataset = collect(CollectSettings("yumi", "single", 2, approach_hz=5.0), path,
                       progress=False)
     stages = [record.get("stage", "pick") for record in dataset.scenes]
     assert stages.count("pick") == 2 and stages.count("approach") >= 6  # > 0.6 s an approach
     assert dataset.metadata.extra["approach_hz"] == 5.0
+    assert dataset.metadata.extra[APPROACH_MASKED_KEY] is True
+    last = len(stages) - 1  # an approach image: the arm in view, no depth and one colour on it
+    assert stages[last] == "approach" and dataset.depths_m is not None
+    arm = dataset.depths_m[last] == 0.0
+    assert arm.sum() > 100
+    colours = np.unique(dataset.images[last][arm].reshape(-1, 3), axis=0)
+    assert len(colours) == 1
     picks = [i for i, stage in enumerate(stages) if stage == "pick"]
     for start, end in zip(picks, [*picks[1:], len(stages)], strict=True):
         np.testing.assert_allclose(dataset.labels[start:end], np.broadcast_to(
