@@ -317,12 +317,16 @@ class RgbdFrame:
             along that ray is unknown), inf is nothing within the camera's range (the ray is
             free as far as it reaches).
         camera: The camera's geometry (intrinsics and pose in the world).
+        robot_mask: (H, W) bool, the pixels that show the robot itself, which a self-filtered
+            frame blanked (no depth, the table's colour): what the robot knows its own body
+            hides. None: a frame not self-filtered.
 
     """
 
     rgb: np.ndarray  # (H, W, 3) uint8
     depth_m: np.ndarray  # (H, W) float32
     camera: PinholeCamera
+    robot_mask: np.ndarray | None = None  # (H, W) bool
 
     def __post_init__(self) -> None:
         size = (self.camera.height_px, self.camera.width_px)
@@ -334,6 +338,11 @@ class RgbdFrame:
         if np.shape(self.depth_m) != size:
             raise InvalidInputError("depth_m", f"shape {np.shape(self.depth_m)}",
                                     f"shape {size}")
+        if self.robot_mask is not None and (
+                np.shape(self.robot_mask) != size
+                or getattr(self.robot_mask, "dtype", None) != np.bool_):
+            raise InvalidInputError("robot_mask", f"{getattr(self.robot_mask, 'dtype', '')} "
+                                    f"{np.shape(self.robot_mask)}", f"None or bool of shape {size}")
 
     def points_world(self) -> np.ndarray:
         """The depth image's points in the world, (H, W, 3); NaN where no depth."""

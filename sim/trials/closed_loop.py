@@ -1,8 +1,10 @@
 """Closed-loop picks (issue 36): the model re-predicts while the arm approaches.
 
 An open-loop pick plans once from the first image and runs blind. In closed loop the head
-camera renders every ``1 / replan_hz`` s of the approach (its depth self-filtered: the arm is in
-view), the model predicts again, and when the grasp moved beyond the thresholds the pick is
+camera renders every ``1 / replan_hz`` s of the approach, self-filtered (the arm is in view: its
+pixels get no depth and the table's colour), the model predicts again, and when the camera sees
+the footprint of the target followed (:func:`hidden_share`) and the grasp moved beyond the
+thresholds the pick is
 planned again for the moving arm and its approach re-targeted from the arm's state as it is
 (:meth:`control.planner.PickPlanner.replan`: ruckig from position, velocity and acceleration,
 every sample collision-checked against the latest depth image's obstacles, and where the arm
@@ -265,6 +267,10 @@ class ApproachLoop:
                               sighting.truth)
         followed = self.followed.predicted
         assert followed is not None  # a followed plan was planned from a grasp
+        hidden = hidden_share(sighting.frame, followed.position, self.settings.footprint_radius_m)
+        if hidden > 0.0:  # the model cannot see whether the target is still there
+            return self._note(time_s, Reaction.HIDDEN, f"the arm hides {100 * hidden:.0f} % of "
+                              "the target's footprint", read.predicted, sighting.truth)
         moved_m = float(np.linalg.norm(read.predicted.position - followed.position))
         turned_deg = math.degrees(grasp_angle_rad(followed.rotation, read.predicted.rotation))
         if moved_m <= self.settings.move_threshold_m and \
@@ -355,3 +361,28 @@ def remembered_points(memory: np.ndarray | None, frame: RgbdFrame
     if memory is None:
         return unseen, None
     return unseen, memory[unseen & np.isfinite(memory).all(axis=-1)]
+
+
+_DISK = np.array([(r * math.cos(a), r * math.sin(a)) for r, n in ((0.0, 1), (1 / 3, 8),
+                                                                 (2 / 3, 16), (1.0, 24))
+                  for a in np.linspace(0.0, 2 * math.pi, n, endpoint=False)])
+"""Points of the unit disk (49: its centre and three rings), where a footprint is looked at."""
+
+
+def hidden_share(frame: RgbdFrame, center_m: np.ndarray, radius_m: float) -> float:
+    """The share of the level disk of ``radius_m`` about ``center_m`` that ``frame`` cannot see.
+
+    Hidden: behind the robot's own pixels (``frame.robot_mask``) or outside the image. 0 for a
+    frame without a robot mask (not self-filtered: the arm at rest, out of the way).
+    """
+    if frame.robot_mask is None:
+        return 0.0
+    points = np.column_stack([np.asarray(center_m)[:2] + radius_m * _DISK,
+                              np.full(len(_DISK), float(center_m[2]))])
+    height, width = frame.robot_mask.shape
+    uv = np.nan_to_num(np.round(frame.camera.project(points)), nan=-1.0)  # NaN: behind it
+    inside = (uv[:, 0] >= 0) & (uv[:, 0] < width) & (uv[:, 1] >= 0) & (uv[:, 1] < height)
+    u, v = uv[inside].astype(int).T
+    hidden = (~inside).sum() + frame.robot_mask[v, u].sum()
+    return float(hidden / len(_DISK))
+

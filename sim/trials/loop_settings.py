@@ -41,6 +41,12 @@ class LoopSettings:
         move_threshold_m: A new grasp this far [m] from the one followed re-targets the arm;
             nearer, the arm keeps its plan (the model's frame-to-frame jitter is a few mm).
         turn_threshold_deg: The same for its turn about the approach axis [deg].
+        footprint_radius_m: A re-prediction counts only while the camera sees all of the
+            disk this wide [m] about the grasp followed: where the arm hides any of it, the
+            model cannot see whether the target is still there, and the plan stands
+            (``hidden``). 4.5 cm: below the reach of every task's target from its centre
+            (the sponge's corners 4.8 cm, the spray bottle's 4.7, the mug's handle 6.7;
+            ``perception.catalog``), so the disk is where any target shows itself.
 
     """
 
@@ -48,6 +54,7 @@ class LoopSettings:
     replan_hz: float = 10.0
     move_threshold_m: float = 0.01
     turn_threshold_deg: float = 10.0
+    footprint_radius_m: float = 0.045
 
     def __post_init__(self) -> None:
         if not isinstance(self.loop, Loop):
@@ -55,7 +62,7 @@ class LoopSettings:
         if not (math.isfinite(self.replan_hz) and 0.0 < self.replan_hz <= MAX_REPLAN_HZ):
             raise InvalidInputError("replan_hz", self.replan_hz,
                                     f"a rate in (0, {MAX_REPLAN_HZ:g}] Hz")
-        for name in ("move_threshold_m", "turn_threshold_deg"):
+        for name in ("move_threshold_m", "turn_threshold_deg", "footprint_radius_m"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise InvalidInputError(name, value, "a finite value >= 0")
@@ -66,7 +73,8 @@ class LoopSettings:
             return {"loop": "open"}
         return {"loop": "closed", "replan_hz": self.replan_hz,
                 "move_threshold_m": self.move_threshold_m,
-                "turn_threshold_deg": self.turn_threshold_deg}
+                "turn_threshold_deg": self.turn_threshold_deg,
+                "footprint_radius_m": self.footprint_radius_m}
 
 
 class Reaction(enum.Enum):
@@ -77,6 +85,7 @@ class Reaction(enum.Enum):
     KEPT = "kept"  # the grasp moved, no re-plan was found, the plan followed runs clear: it stands
     STOPPED = "stopped"  # no re-plan, and the plan followed runs into what is seen: the arm brakes
     UNSEEN = "unseen"  # the model gave nothing the robot can act on: the last plan stands
+    HIDDEN = "hidden"  # the arm hides the target followed: what the model says of it is not heeded
 
 
 @dataclass(frozen=True)

@@ -258,7 +258,8 @@ class HeadCamera:
         ``self_body``: the robot's body, whose own pixels (grown by
         :data:`SELF_FILTER_PADDING_PX`) get no depth (0: no measurement) and the colour of the
         rest of the image (its per-channel median, the table's), so a frame taken while the arm
-        is in view gives the planner no obstacle and the model no arm where the arm is. A real
+        is in view gives the planner no obstacle and the model no arm where the arm is; the
+        frame's ``robot_mask`` says which pixels those are. A real
         robot does the same by rendering its model at the measured joints through the
         calibrated camera (e.g. ``realtime_urdf_filter``); here PyBullet's segmentation of that
         model stands in for it.
@@ -267,7 +268,7 @@ class HeadCamera:
         if self.sensor.kind is SensorKind.IDEAL:
             rgb, depth, bodies = self._render(client, c.width_px, c.height_px,
                                               self.view_matrix, self.projection_matrix, light)
-            return RgbdFrame(*_self_filtered(rgb, depth, bodies, self_body), self.pinhole)
+            return _self_filtered(RgbdFrame(rgb, depth, self.pinhole), bodies, self_body)
         if not isinstance(seed, SensorSeed):
             raise InvalidInputError("seed", seed, "a SensorSeed: a D435 draws its noise per "
                                     "frame and its mount per run seed")
@@ -285,10 +286,11 @@ class HeadCamera:
         rgb = colour_noise(distort_image(rgb_wide, wide, true), rng, sensor)
         depth = invalid_depth_edges(distort_depth(depth_wide, wide, true), true, sensor)
         depth = depth_noise(depth, true, rng, sensor)
-        if self_body is not None:  # the body ids registered as the depth is (nearest)
-            bodies = distort_depth(bodies_wide.astype(np.float32), wide, true).astype(int)
-            rgb, depth = _self_filtered(rgb, depth, bodies, self_body)
-        return RgbdFrame(rgb, depth, self.pinhole)
+        frame = RgbdFrame(rgb, depth, self.pinhole)
+        if self_body is None:
+            return frame
+        bodies = distort_depth(bodies_wide.astype(np.float32), wide, true).astype(int)
+        return _self_filtered(frame, bodies, self_body)  # ids registered as the depth (nearest)
 
     def _render(self, client: Any, width_px: int, height_px: int, view: Any, projection: Any,
                 light: Lighting) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -328,20 +330,18 @@ class HeadCamera:
         return self.pinhole.project(points_world)
 
 
-def _self_filtered(rgb: np.ndarray, depth_m: np.ndarray, bodies: np.ndarray,
-                   self_body: int | None) -> tuple[np.ndarray, np.ndarray]:
-    """``rgb`` and ``depth_m`` without the robot, whose pixels get no depth and the rest's colour.
+def _self_filtered(frame: RgbdFrame, bodies: np.ndarray, self_body: int | None) -> RgbdFrame:
+    """``frame`` without the robot, whose pixels get no depth and the rest's colour.
 
     The robot's pixels: where ``bodies`` shows ``self_body``, grown by
-    :data:`SELF_FILTER_PADDING_PX`; they get depth 0 and the per-channel median colour of the
-    others. The median of what is not the robot is the table's colour (the table fills most of the
-    view), set per frame so no colour is chosen by hand; None: both unchanged.
+    :data:`SELF_FILTER_PADDING_PX`; they get depth 0, the per-channel median colour of the
+    others (the table's: it fills most of the view; set per frame, so no colour is chosen by
+    hand) and the frame's ``robot_mask``. None: ``frame`` unchanged.
     """
     if self_body is None:
-        return rgb, depth_m
+        return frame
     own = ndimage.binary_dilation(bodies == self_body, iterations=SELF_FILTER_PADDING_PX)
-    if own.all():
-        return np.zeros_like(rgb), np.zeros_like(depth_m)
-    masked = rgb.copy()
-    masked[own] = np.median(rgb[~own], axis=0).astype(rgb.dtype)
-    return masked, np.where(own, np.float32(0.0), depth_m).astype(np.float32)
+    rgb = frame.rgb.copy()
+    rgb[own] = np.median(frame.rgb[~own], axis=0).astype(rgb.dtype) if (~own).any() else 0
+    depth = np.where(own, np.float32(0.0), frame.depth_m).astype(np.float32)
+    return RgbdFrame(rgb, depth, frame.camera, robot_mask=own)

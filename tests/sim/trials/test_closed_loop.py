@@ -11,16 +11,19 @@ from user_models import DOWN, FixedGrasp
 
 from control.collision import CollisionReport
 from control.planner import PickPlanner
+from perception.camera import RgbdFrame
 from perception.interface import NO_CONDITION, Prediction, Target
 from robots import yumi
 from sim.errors import InvalidInputError
 from sim.tasks.disturbance import Disturbance
 from sim.tasks.task_toml import load_task
 from sim.trials import trial_runner
+from sim.trials.closed_loop import hidden_share
 from sim.trials.loop_settings import Loop, LoopSettings, Reaction, reactions
 from sim.trials.records import TrialOutcome
 from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
+from sim.world.head_camera import CameraConfig
 
 MOVED = Disturbance(move_m=(0.05, 0.07), turn_deg=(-30.0, 30.0))
 """Farther than a pick tolerates (a sponge is 3.5 cm wide): an open-loop pick closes on air."""
@@ -56,18 +59,20 @@ def test_the_oracle_misses_a_moved_target_open_loop_and_picks_it_closed_loop(sin
     moved_at = pick["disturbance"]["time_s"]
     retargeted = [r for r in pick["repredictions"] if r["reaction"] == "retargeted"]
     assert retargeted[0]["time_s"] >= moved_at  # it re-targets after the move, not before
-    assert all(r["reaction"] == "held" for r in pick["repredictions"]
+    assert all(r["reaction"] in ("held", "hidden") for r in pick["repredictions"]
                if r["time_s"] < moved_at)
     assert pick["executed"]["position_error_m"] < 0.005  # the oracle re-read the moved target
     assert pick["judge"]["predicted_success"] is True
 
 
 def test_closed_loop_on_an_unmoved_target_only_holds(single_moved):
+    """The oracle's grasp does not move; where the arm hides the target it is not heeded."""
     looked = run(load_task("single"), Loop.CLOSED, 1)
     assert looked.outcome is TrialOutcome.SUCCESS, looked.reason
     [pick] = looked.picks
-    assert pick["repredictions"] and all(
-        r["reaction"] == Reaction.HELD.value for r in pick["repredictions"])
+    assert pick["repredictions"] and {r["reaction"] for r in pick["repredictions"]} <= {
+        Reaction.HELD.value, Reaction.HIDDEN.value}
+    assert pick["repredictions"][0]["reaction"] == Reaction.HELD.value  # the arm far off
     assert "disturbance" not in pick
 
 
@@ -85,12 +90,35 @@ def test_a_move_after_the_last_re_prediction_is_seen_on_arrival(single_moved, mo
     assert pick["executed"]["position_error_m"] < 0.005
 
 
+def test_the_share_of_a_footprint_the_arm_hides():
+    """A footprint is hidden where the robot's pixels or the image's edge cover it."""
+    camera = CameraConfig().pinhole
+    size = (camera.height_px, camera.width_px)
+    rgb, depth = np.zeros((*size, 3), np.uint8), np.ones(size, np.float32)
+    center = np.array([0.45, 0.0, 0.03])
+    u, v = np.round(camera.project(center[None])[0]).astype(int)
+    clear = np.zeros(size, bool)
+    assert hidden_share(RgbdFrame(rgb, depth, camera), center, 0.045) == 0.0  # no mask: at rest
+    assert hidden_share(RgbdFrame(rgb, depth, camera, robot_mask=clear), center, 0.045) == 0.0
+    left = clear.copy()
+    left[:, :u] = True  # the arm over the left half of the view
+    share = hidden_share(RgbdFrame(rgb, depth, camera, robot_mask=left), center, 0.045)
+    assert 0.35 < share < 0.65
+    spot = clear.copy()
+    spot[v, u] = True  # one pixel, on the footprint's centre
+    assert hidden_share(RgbdFrame(rgb, depth, camera, robot_mask=spot), center, 0.045) > 0.0
+    assert hidden_share(RgbdFrame(rgb, depth, camera, robot_mask=clear),
+                        np.array([0.45, 2.0, 0.03]), 0.045) == 1.0  # out of view
+
+
 def test_loop_settings_are_checked():
     with pytest.raises(InvalidInputError, match=r"replan_hz = 0.0 is not allowed: a rate in "
                                                  r"\(0, 60\] Hz"):
         LoopSettings(Loop.CLOSED, replan_hz=0.0)
     with pytest.raises(InvalidInputError, match=r"move_threshold_m = -0.01 .* >= 0"):
         LoopSettings(move_threshold_m=-0.01)
+    with pytest.raises(InvalidInputError, match=r"footprint_radius_m = nan .* >= 0"):
+        LoopSettings(footprint_radius_m=float("nan"))
     with pytest.raises(InvalidInputError, match=r"loop = 'closed' is not allowed: open or "
                                                  r"closed"):
         LoopSettings("closed")  # type: ignore[arg-type]
@@ -157,7 +185,8 @@ def test_a_re_prediction_the_arm_cannot_follow_keeps_the_plan_and_says_why(model
     record, _ = run_closed(model)
     [pick] = record.picks
     assert pick["repredictions"]
-    assert {r["reaction"] for r in pick["repredictions"]} == {reaction.value}
+    assert {r["reaction"] for r in pick["repredictions"]} - {Reaction.HIDDEN.value} == {
+        reaction.value}  # and, where the arm hides the target followed, not heeded
     assert all(r["reason"] for r in pick["repredictions"])
     assert "arm" in pick  # the first plan was followed to the end
     assert record.outcome is not TrialOutcome.ERROR

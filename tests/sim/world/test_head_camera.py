@@ -9,7 +9,7 @@ import numpy as np
 import pybullet
 import pytest
 
-from perception.camera import PinholeCamera
+from perception.camera import PinholeCamera, RgbdFrame
 from perception.catalog import get_object_spec
 from perception.interface import InvalidInputError as PerceptionInputError
 from sim.errors import InvalidInputError
@@ -215,6 +215,18 @@ def test_points_from_depth_inverts_the_projection() -> None:
     assert np.isnan(np.delete(points.reshape(-1, 3), flat, axis=0)).all()  # no depth: NaN
     with pytest.raises(PerceptionInputError, match=r"depth_m = 'shape \(4, 4\)' is not allowed"):
         camera.points_from_depth(np.zeros((4, 4)))
+
+
+def test_a_frame_s_robot_mask_is_a_bool_image_of_its_size() -> None:
+    camera = CameraConfig().pinhole
+    size = (camera.height_px, camera.width_px)
+    rgb, depth = np.zeros((*size, 3), np.uint8), np.full(size, np.inf, np.float32)
+    assert RgbdFrame(rgb, depth, camera).robot_mask is None
+    assert RgbdFrame(rgb, depth, camera, robot_mask=np.zeros(size, bool)).robot_mask.shape == size
+    for wrong in (np.zeros(size, np.uint8), np.zeros((4, 4), bool)):
+        with pytest.raises(PerceptionInputError, match=r"robot_mask = .* is not allowed: None or "
+                                                       r"bool of shape \(128, 128\)"):
+            RgbdFrame(rgb, depth, camera, robot_mask=wrong)
 
 
 @pytest.mark.parametrize("config", [CameraConfig(), CameraConfig(horizontal_fov_deg=None)])

@@ -24,6 +24,8 @@ def test_the_arm_in_view_leaves_no_depth_and_no_colour_of_itself(yumi_planner, y
         plain = camera.render_rgbd(world.client, seed=seed)
         filtered = camera.render_rgbd(world.client, seed=seed, self_body=world.robot.body_id)
         removed = (filtered.depth_m == 0.0) & (plain.depth_m != 0.0)
+        assert plain.robot_mask is None and filtered.robot_mask is not None
+        np.testing.assert_array_equal(removed, filtered.robot_mask & (plain.depth_m != 0.0))
         assert removed.sum() > 100  # the hand and forearm over the table
         kept = filtered.depth_m != 0.0
         np.testing.assert_array_equal(filtered.depth_m[kept], plain.depth_m[kept])

@@ -1,0 +1,136 @@
+"""Whether a model holds its answer while the arm comes into view, judged offline (issue 36).
+
+    python benchmarks/check_arm_mask_offline.py \
+        --case unmasked runs/t36/s0/checkpoints/kqv/single runs/t36-mask/single-test-unmasked.gva \
+        --case masked runs/t36-mask/kqv-single-masked runs/t36-mask/single-test-masked.gva \
+        [--json benchmarks/results/arm_mask_offline.json]
+
+A closed-loop pick re-targets the arm when a re-prediction's grasp lies more than
+``LoopSettings.move_threshold_m`` from the one it follows, or turns more than
+``turn_threshold_deg``. On a target that does not move, every such re-target is noise. A test
+dataset collected with ``gva collect --stream test --approach-hz HZ`` holds, per scene, the
+pick's first image and the images along the oracle's approach, all labelled with the same
+grasp: this script predicts them all and reports, per case, how far each approach image's
+grasp lies from the scene's first one (the re-targets the loop would make) and from the truth.
+Offline, in minutes, before any closed-loop trial; the trials have the last word.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from perception.learning.dataset_file import load_dataset
+from perception.learning.evaluate import predict_dataset
+from perception.learning.labels import split_label
+from perception.registry import load_model
+from sim.trials.loop_settings import LoopSettings
+from sim.trials.pick_results import grasp_angle_rad
+
+
+@dataclass(frozen=True)
+class HoldResult:
+    """One case: a checkpoint's predictions on one test dataset's pick and approach images.
+
+    Shifts are from the scene's first (pick) image's grasp; errors from the truth [cm, deg].
+    """
+
+    case: str
+    checkpoint: str
+    dataset: str
+    scenes: int
+    approach_images: int
+    pick_mean_error_cm: float
+    approach_median_error_cm: float
+    approach_p90_error_cm: float
+    approach_median_shift_cm: float
+    approach_p95_shift_cm: float
+    moved_beyond_threshold_fraction: float
+    turned_beyond_threshold_fraction: float
+    retarget_fraction: float
+    scenes_with_a_retarget: int
+
+    def line(self) -> str:
+        """One line of the table this script prints."""
+        return (f"{self.case:<12} pick error {self.pick_mean_error_cm:5.2f} cm | approach: "
+                f"error median {self.approach_median_error_cm:5.2f}, p90 "
+                f"{self.approach_p90_error_cm:5.2f} cm; shift median "
+                f"{self.approach_median_shift_cm:5.2f}, p95 {self.approach_p95_shift_cm:5.2f} cm; "
+                f"re-target {100 * self.retarget_fraction:4.1f} % of {self.approach_images} "
+                f"images (moved {100 * self.moved_beyond_threshold_fraction:4.1f} %, turned "
+                f"{100 * self.turned_beyond_threshold_fraction:4.1f} %), in "
+                f"{self.scenes_with_a_retarget}/{self.scenes} scenes")
+
+
+def hold(case: str, checkpoint: Path, dataset_path: Path) -> HoldResult:
+    """How ``checkpoint``'s grasp moves along the approaches of ``dataset_path``'s scenes."""
+    dataset = load_dataset(dataset_path)
+    predictions = predict_dataset(load_model(checkpoint), dataset)
+    loop = LoopSettings()
+    truth = split_label(dataset.labels[:, 0].astype(np.float64)).position_m
+    pick_errors, errors, shifts, turns, retarget_scenes = [], [], [], [], set()
+    first: tuple[np.ndarray, np.ndarray] | None = None
+    for index, (record, prediction) in enumerate(zip(dataset.scenes, predictions, strict=True)):
+        target = prediction.targets[0]
+        position, rotation = np.asarray(target.position_m), np.asarray(target.rotation)
+        error_cm = 100 * float(np.linalg.norm(position - truth[index]))
+        if record.get("stage", "pick") == "pick":
+            first = (position, rotation)
+            pick_errors.append(error_cm)
+            continue
+        if first is None:
+            raise ValueError(f"{dataset_path}: approach image {index} before any pick image")
+        errors.append(error_cm)
+        shifts.append(100 * float(np.linalg.norm(position - first[0])))
+        turns.append(math.degrees(grasp_angle_rad(first[1], rotation)))
+        if (shifts[-1] > 100 * loop.move_threshold_m or turns[-1] > loop.turn_threshold_deg):
+            retarget_scenes.add(record["index"])
+    if not errors:
+        raise ValueError(f"{dataset_path} has no approach images: collect it with --approach-hz")
+    shift, turn = np.asarray(shifts), np.asarray(turns)
+    moved = shift > 100 * loop.move_threshold_m
+    turned = turn > loop.turn_threshold_deg
+    return HoldResult(
+        case=case, checkpoint=str(checkpoint), dataset=str(dataset_path),
+        scenes=len(pick_errors), approach_images=len(errors),
+        pick_mean_error_cm=float(np.mean(pick_errors)),
+        approach_median_error_cm=float(np.median(errors)),
+        approach_p90_error_cm=float(np.percentile(errors, 90)),
+        approach_median_shift_cm=float(np.median(shift)),
+        approach_p95_shift_cm=float(np.percentile(shift, 95)),
+        moved_beyond_threshold_fraction=float(moved.mean()),
+        turned_beyond_threshold_fraction=float(turned.mean()),
+        retarget_fraction=float((moved | turned).mean()),
+        scenes_with_a_retarget=len(retarget_scenes))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Prints each case's line; with ``--json``, writes them with the command."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[1],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--case", nargs=3, action="append", required=True,
+                        metavar=("NAME", "CHECKPOINT", "DATASET"),
+                        help="a name, a checkpoint folder and a test dataset with approach images")
+    parser.add_argument("--json", type=Path, help="file to write the results to")
+    args = parser.parse_args(argv)
+    results = [hold(name, Path(checkpoint), Path(data)) for name, checkpoint, data in args.case]
+    for result in results:
+        print(result.line())
+    if args.json is not None:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(
+            {"command": "python benchmarks/check_arm_mask_offline.py " + " ".join(
+                sys.argv[1:] if argv is None else argv),
+             "loop": LoopSettings().to_json(),
+             "results": [asdict(r) for r in results]}, indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
