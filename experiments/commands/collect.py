@@ -55,7 +55,8 @@ def run(args: argparse.Namespace) -> int:
     approach = sum(record.get("stage") == "approach" for record in dataset.scenes)
     if approach:
         why += (f", {approach} along the approaches, one every "
-                f"1/{meta.extra['approach_hz']:g} s")
+                f"1/{meta.extra['approach_hz']:g} s where the arm hides no target; "
+                f"{meta.extra.get('approach_images_hidden', 0)} where it does left out")
     images = f" ({meta.size} samples: {why})" if scenes != meta.size else ""
     print(f"{scenes} scenes{images} of {meta.scene} / {meta.task} (seed {meta.seed}, "
           f"{meta.extra.get('stream', args.stream)} stream), "

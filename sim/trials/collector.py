@@ -9,7 +9,8 @@ gives three samples, the second without the first target, the third with the las
 sample's record lists the targets already taken under ``"taken"`` (their labels say where they
 were; :meth:`perception.learning.data.Dataset.target_present` marks them absent). With
 ``approach_hz`` a demonstration also keeps images along each approach, the arm masked out of
-them as in a closed-loop trial's re-predictions (the self filter); a task
+them as in a closed-loop trial's re-predictions (the self filter), those that show every target's
+footprint (the ones a closed loop heeds); a task
 that moves its target during the pick is demonstrated by the oracle's closed loop, which follows
 it (:mod:`sim.trials.closed_loop`). Either way, scene
 ``i`` of a dataset comes from the training seed stream, never the test stream the trials use,
@@ -48,6 +49,7 @@ from sim.tasks.scene_sampling import (
 from sim.tasks.scene_specs import SCENE_NAMES, SceneSpec, get_scene_spec
 from sim.tasks.task_spec import TaskSpec
 from sim.tasks.task_toml import load_task
+from sim.trials.closed_loop import hidden_share
 from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.records import TrialOutcome
 from sim.trials.trial_runner import TrialRunner
@@ -82,10 +84,11 @@ class CollectSettings:
             (``docs/decisions/every-condition.md``). None: for the training stream; a test
             set keeps the one drawn value per scene.
         approach_hz: ``yumi`` only: a demonstration also keeps an image every ``1 /
-            approach_hz`` s of each approach, the arm in view, labelled as the pick's image is
-            (the oracle's closed loop, :mod:`sim.trials.closed_loop`; each such sample's record
-            has ``"stage": "approach"``), so a model learns to predict while the arm moves. None
-            (the default): the image before each pick only.
+            approach_hz`` s of each approach, the arm masked out, labelled as the pick's image
+            is, where it shows every target's footprint (the oracle's closed loop,
+            :mod:`sim.trials.closed_loop`; each such sample's record has ``"stage":
+            "approach"``), so a model learns to predict while the arm moves. None (the
+            default): the image before each pick only.
         robot: ``yumi`` scene only: the robot whose demonstrations these are, seen through its
             workcell's camera (one of :data:`robots.ROBOT_NAMES`; the YuMi by default). The
             metadata names it (``extra["robot"]``) where it is not the YuMi.
@@ -249,12 +252,17 @@ class _PickImages:
 
     A :class:`~sim.trials.trial_runner.TrialObserver`; ``saw`` comes after the image is taken
     and before the plan, so the world is as the image shows it. A target already set aside keeps
-    the label it had when it was last on the table.
+    the label it had when it was last on the table. An approach image in which the arm hides
+    any of a target's footprint is left out (counted): a closed loop does not heed such a
+    re-prediction (``LoopSettings.footprint_radius_m``), and a label the image cannot show
+    teaches the model to guess.
     """
 
     def __init__(self, runner: TrialRunner) -> None:
         self.runner = runner
         self.joint_names = tuple(runner.world.robot.joint_names)
+        self.footprint_radius_m = runner.loop.footprint_radius_m
+        self.hidden = 0  # approach images left out: the arm hid a target's footprint
         self.start([])
 
     def start(self, targets: list[int]) -> None:
@@ -276,6 +284,10 @@ class _PickImages:
         labels = np.stack([self.labels[k] for k in range(len(self.targets))])  # (q, 12)
         joints = self.runner.world.robot.joint_positions(self.joint_names)
         approach = bool(self.stages) and self.stages[-1].taken == taken  # the same pick's
+        if approach and any(hidden_share(frame, on_table[body][:3], self.footprint_radius_m)
+                            for body in self.targets if body in on_table):
+            self.hidden += 1  # a target the arm hides: the loop would not heed it, nor learn it
+            return
         self.stages.append(Stage(frame, np.array([joints[n] for n in self.joint_names]), labels,
                                  taken, approach))
 
@@ -332,5 +344,6 @@ def _collect_yumi(
              "demonstrations_redrawn": len(redrawn), "redrawn": redrawn,
              MIRROR_FLAG: mirror_symmetric(task, spec, runner.camera.config)}
     if settings.approach_hz is not None:  # the arm masked out of them (self-filtered frames)
-        extra |= {"approach_hz": settings.approach_hz, APPROACH_MASKED_KEY: True}
+        extra |= {"approach_hz": settings.approach_hz, APPROACH_MASKED_KEY: True,
+                  "approach_images_hidden": images.hidden}
     return samples, camera, extra

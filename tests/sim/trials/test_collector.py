@@ -5,6 +5,7 @@ import pytest
 from user_models import synthetic_dataset
 
 from experiments.cli import main
+from perception.camera import RgbdFrame
 from perception.interface import ConditionKind, LabelKind
 from perception.learning.dataset_file import DatasetError, load_dataset
 from perception.learning.labels import split_label
@@ -13,6 +14,7 @@ from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import get_scene_spec
 from sim.tasks.task_toml import load_task, task_to_toml
+from sim.trials.closed_loop import hidden_share
 from sim.trials.collector import APPROACH_MASKED_KEY, CollectSettings, collect
 from sim.world.head_camera import CameraConfig
 from sim.world.sensor import SensorConfig, SensorKind
@@ -234,6 +236,12 @@ def test_approach_images_keep_the_pick_label_and_mask_the_arm_coming_in(tmp_path
     assert arm.sum() > 100
     colours = np.unique(dataset.images[last][arm].reshape(-1, 3), axis=0)
     assert len(colours) == 1
+    camera = ModelSpec.from_metadata(dataset.metadata).camera
+    for index in [i for i, stage in enumerate(stages) if stage == "approach"]:
+        frame = RgbdFrame(dataset.images[index], dataset.depths_m[index], camera,
+                          robot_mask=dataset.depths_m[index] == 0.0)  # the ideal camera's
+        assert hidden_share(frame, dataset.labels[index, 0, :3], 0.045) == 0.0  # seen
+    assert dataset.metadata.extra["approach_images_hidden"] > 0  # and those not, left out
     picks = [i for i, stage in enumerate(stages) if stage == "pick"]
     for start, end in zip(picks, [*picks[1:], len(stages)], strict=True):
         np.testing.assert_allclose(dataset.labels[start:end], np.broadcast_to(
