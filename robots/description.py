@@ -66,6 +66,9 @@ class GripperDescription:
         max_speed_m_s: Each finger's speed limit [m/s].
         max_payload_kg: The heaviest object the arm may lift with it [kg].
         fingers: The fingers' shape, for grasp checks and the depth obstacles.
+        neighbour_spacing_m: The least distance between object centres a scene keeps for
+            this hand [m], where its body beside a target reaches neighbours a task's own
+            spacing allows; None: the task's spacing serves.
 
     """
 
@@ -75,11 +78,14 @@ class GripperDescription:
     max_speed_m_s: float
     max_payload_kg: float
     fingers: FingerGeometry
+    neighbour_spacing_m: float | None = None
 
     def __post_init__(self) -> None:
         _names("gripper.finger_joints", self.finger_joints)
         _positive("gripper", max_opening_m=self.max_opening_m, max_force_n=self.max_force_n,
                   max_speed_m_s=self.max_speed_m_s, max_payload_kg=self.max_payload_kg)
+        if self.neighbour_spacing_m is not None:
+            _positive("gripper", neighbour_spacing_m=self.neighbour_spacing_m)
 
 
 @dataclass(frozen=True)
@@ -194,6 +200,13 @@ class RobotDescription:
     def arm_names(self) -> tuple[str, ...]:
         """The arms' names, in the order :attr:`arms` gives them."""
         return tuple(arm.name for arm in self.arms)
+
+    @property
+    def neighbour_spacing_m(self) -> float | None:
+        """The least distance between object centres its hands need [m]; None: any task's."""
+        needs = [a.gripper.neighbour_spacing_m for a in self.arms
+                 if a.gripper.neighbour_spacing_m is not None]
+        return max(needs) if needs else None
 
     def arm(self, name: str) -> ArmDescription:
         """The arm called ``name``."""

@@ -31,7 +31,7 @@ from robots import ROBOT_NAMES, get_robot
 from sim.errors import InvalidInputError
 from sim.jobs import LOCAL, Executor
 from sim.tasks.scene_sampling import SeedStream
-from sim.tasks.task_spec import TaskSpec
+from sim.tasks.task_spec import TaskSpec, spaced_for
 from sim.tasks.task_toml import load_task, task_to_toml
 from sim.trials.execution import ExecutionSettings
 from sim.trials.loop_settings import Loop, LoopSettings
@@ -226,9 +226,11 @@ class ReproduceRealSettings:
     def run_task(self, trial_set: TrialSet) -> TaskSpec:
         """The task a set's trials run (and, plain, its demonstrations): variant and sensor.
 
-        Its training scenes take the types in turn where ``balance_types`` says so.
+        Its training scenes take the types in turn where ``balance_types`` says so; its objects
+        are spaced for the robot's hand (:func:`~sim.tasks.task_spec.spaced_for`).
         """
-        task = variant_task(trial_set.unit.task, trial_set.variant, self.sensor)
+        task = spaced_for(variant_task(trial_set.unit.task, trial_set.variant, self.sensor),
+                          get_robot(self.robot).neighbour_spacing_m)
         if self.balance_types and task.draws_one_type and not task.balance_types:
             task = replace(task, balance_types=True)
         return task

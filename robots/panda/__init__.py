@@ -55,6 +55,12 @@ FINGERS = FingerGeometry(tip_beyond_tcp_m=0.0095, length_m=0.0545, half_width_m=
                          thickness_m=0.015)
 """The fingers in the grasp frame (the URDF's finger collision boxes: the pads end about
 9.5 mm past ``panda_hand_tcp``)."""
+NEIGHBOUR_SPACING_M = 0.16
+"""Object centres a scene keeps apart for the Panda's hand [m]: its collision hull reaches
+0.104 m from the TCP along the closing axis (``panda_hand``'s y), 77 mm above the TCP, so at a
+sponge's grasp it passes a spray bottle (170 mm tall, 4.7 cm from its centre to its farthest
+corner) nearer than 0.151 m; rounded up to the centimetre. The YuMi's hand fits the tasks'
+own 0.12 m (docs/decisions/robots.md)."""
 STAND_CAMERA = CameraMount(position_m=(0.95, 0.0, 0.55), target_m=(0.475, 0.0, 0.0))
 """A camera on a stand across the workspace, looking back at it and the robot (a Panda's hand
 at home is where the YuMi's head camera sits)."""
@@ -103,7 +109,7 @@ def panda() -> RobotDescription:
     gripper = GripperDescription(
         finger_joints=FINGER_JOINTS, max_opening_m=2 * FINGER_TRAVEL_M,
         max_force_n=FINGER_MAX_FORCE_N, max_speed_m_s=FINGER_MAX_SPEED_M_S,
-        max_payload_kg=PAYLOAD_KG, fingers=FINGERS)
+        max_payload_kg=PAYLOAD_KG, fingers=FINGERS, neighbour_spacing_m=NEIGHBOUR_SPACING_M)
     arm = ArmDescription(
         name="panda", joints=ARM_JOINTS, tcp_frame=GRASP_FRAME, flange_frame="panda_link8",
         shoulder_frame="panda_link2", gripper=gripper,

@@ -286,6 +286,17 @@ class TaskSpec:
                 ConditionForm.IMAGE: ConditionKind.IMAGE}[self.given_as]
 
 
+def spaced_for(task: TaskSpec, spacing_m: float | None) -> TaskSpec:
+    """``task`` with its objects at least ``spacing_m`` apart, as a robot's hand needs them.
+
+    Unchanged where the task keeps them as far apart already or ``spacing_m`` is None (the
+    YuMi's hand fits every task's own spacing); its identity then records the wider spacing.
+    """
+    if spacing_m is None or task.min_spacing_m >= spacing_m:
+        return task
+    return replace(task, min_spacing_m=spacing_m)
+
+
 def _check_per_scene(per_scene: Any, types: tuple[str, ...], count: int,
                      bad: Callable[[str, Any, str], InvalidInputError]) -> None:
     """Refuses a ``distractors.per_scene`` that is not ``[low, high]`` of the listed types."""

@@ -27,6 +27,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from control.depth_obstacles import DepthObstacleConfig
 from control.pick import PickPlan
 from control.planner import PickPlanner
 from control.retarget import JointState, stop, trajectory_state
@@ -40,6 +41,7 @@ from sim.tasks.disturbance import DisturbanceDraw
 from sim.tasks.scene_sampling import Scene
 from sim.trials.execution import FollowedApproach, StepWatch
 from sim.trials.loop_settings import Loop, LoopSettings, Moved, Reaction, Reprediction
+from sim.trials.oracle import OraclePerception
 from sim.trials.pick_results import (
     PlannedPick,
     Sighting,
@@ -267,10 +269,13 @@ class ApproachLoop:
                               sighting.truth)
         followed = self.followed.predicted
         assert followed is not None  # a followed plan was planned from a grasp
-        hidden = hidden_share(sighting.frame, followed.position, self.settings.footprint_radius_m)
-        if hidden > 0.0:  # the model cannot see whether the target is still there
+        hidden = 0.0 if isinstance(runner.model, OraclePerception) else hidden_share(
+            sighting.frame, followed.position, self.settings.footprint_radius_m)  # truth: no view
+        if hidden > 0.0 and not in_plain_view(sighting.frame, read.predicted.position,
+                                              self.settings.footprint_radius_m):
             return self._note(time_s, Reaction.HIDDEN, f"the arm hides {100 * hidden:.0f} % of "
-                              "the target's footprint", read.predicted, sighting.truth)
+                              "the target's footprint, and nothing stands in plain view where "
+                              "the grasp now is", read.predicted, sighting.truth)
         moved_m = float(np.linalg.norm(read.predicted.position - followed.position))
         turned_deg = math.degrees(grasp_angle_rad(followed.rotation, read.predicted.rotation))
         if moved_m <= self.settings.move_threshold_m and \
@@ -367,6 +372,29 @@ _DISK = np.array([(r * math.cos(a), r * math.sin(a)) for r, n in ((0.0, 1), (1 /
                                                                  (2 / 3, 16), (1.0, 24))
                   for a in np.linspace(0.0, 2 * math.pi, n, endpoint=False)])
 """Points of the unit disk (49: its centre and three rings), where a footprint is looked at."""
+
+
+STANDING_RADIUS_M = 0.015
+"""How near a grasp's point the depth image must show something standing [m]: within the
+narrowest target's half-width about its grasp (the sponge's 17.5 mm), so a target there shows."""
+STANDING_HEIGHT_M = DepthObstacleConfig.table_z_m + DepthObstacleConfig.min_height_m
+"""How high above the table a point must be to stand there [m]: the depth obstacles' (lower is
+the table)."""
+
+
+def in_plain_view(frame: RgbdFrame, grasp_m: np.ndarray, radius_m: float) -> bool:
+    """Whether ``frame`` shows all of the footprint about ``grasp_m`` and something stands there.
+
+    Something: a depth point above :data:`STANDING_HEIGHT_M` within :data:`STANDING_RADIUS_M`
+    of the grasp (level distance). Where the arm hides the target followed, a grasp named in
+    plain view over an object is one the camera can vouch for (a target moved out from under
+    the arm); one named on bare table or behind the arm is a guess.
+    """
+    if hidden_share(frame, grasp_m, radius_m) > 0.0:
+        return False
+    points = frame.points_world().reshape(-1, 3)
+    near = np.hypot(points[:, 0] - grasp_m[0], points[:, 1] - grasp_m[1]) < STANDING_RADIUS_M
+    return bool((points[near, 2] > STANDING_HEIGHT_M).any())  # NaN (no depth) compares False
 
 
 def hidden_share(frame: RgbdFrame, center_m: np.ndarray, radius_m: float) -> float:

@@ -47,7 +47,7 @@ from sim.tasks.scene_sampling import (
     sample_scene,
 )
 from sim.tasks.scene_specs import SCENE_NAMES, SceneSpec, get_scene_spec
-from sim.tasks.task_spec import TaskSpec
+from sim.tasks.task_spec import TaskSpec, spaced_for
 from sim.tasks.task_toml import load_task
 from sim.trials.closed_loop import hidden_share
 from sim.trials.loop_settings import Loop, LoopSettings
@@ -112,7 +112,7 @@ class CollectSettings:
                                     "(it has no robot); another robot only in the yumi scene")
         if self.scene not in SCENE_NAMES:
             raise InvalidInputError("scene", self.scene, f"one of {', '.join(SCENE_NAMES)}")
-        check_task_fits(load_task(self.task), get_scene_spec(self.scene))
+        check_task_fits(self.task_spec, get_scene_spec(self.scene))
         if self.size < 1:
             raise InvalidInputError("size", self.size, "an integer >= 1")
         if self.seed < 0:
@@ -128,6 +128,11 @@ class CollectSettings:
                 raise InvalidInputError("approach_hz", self.approach_hz, "None for the "
                                         f"{self.scene} scene (it has no robot to approach)")
             LoopSettings(Loop.CLOSED, self.approach_hz)  # the rate's bounds
+
+    @property
+    def task_spec(self) -> TaskSpec:
+        """The task, its objects spaced for the robot's hand (:func:`spaced_for`)."""
+        return spaced_for(load_task(self.task), get_robot(self.robot).neighbour_spacing_m)
 
     @property
     def asks_every_condition(self) -> bool:
@@ -146,7 +151,7 @@ def asked(task: TaskSpec, scene: Scene, every_condition: bool) -> tuple[Scene, .
 
 def collect(settings: CollectSettings, out_path: str | Path, progress: bool = True) -> Dataset:
     """Collects the dataset ``settings`` describes and writes it to ``out_path``."""
-    task, spec = load_task(settings.task), get_scene_spec(settings.scene)
+    task, spec = settings.task_spec, get_scene_spec(settings.scene)
     # Every scene is drawn first (a millisecond each): a task that random placement cannot
     # fill is refused, naming its packing, before a world is built. (A yumi collection redraws
     # failed demonstrations from later scenes: those are drawn when needed.)

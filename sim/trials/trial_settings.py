@@ -35,7 +35,7 @@ from sim.tasks.scene_sampling import (
     target_count,
 )
 from sim.tasks.scene_specs import YUMI_SCENE
-from sim.tasks.task_spec import SIDES, TaskSpec
+from sim.tasks.task_spec import SIDES, TaskSpec, spaced_for
 from sim.tasks.task_toml import TASK_FILES, load_task, with_test_phrases
 from sim.trials.execution import ExecutionSettings
 from sim.trials.loop_settings import Loop, LoopSettings
@@ -160,8 +160,12 @@ class TrialSettings:
 
     @property
     def task_spec(self) -> TaskSpec:
-        """The task, read from its name or file (its test phrasings from ``phrases``, if set)."""
-        task = load_task(self.task)
+        """The task, read from its name or file, spaced for the robot's hand.
+
+        Its test phrasings come from ``phrases``, if set; its objects keep the distance the
+        robot's hand needs (:func:`~sim.tasks.task_spec.spaced_for`).
+        """
+        task = spaced_for(load_task(self.task), self.description().neighbour_spacing_m)
         if self.phrases is None:
             return task
         return with_test_phrases(task, self.phrases, condition_choices(task, YUMI_SCENE),

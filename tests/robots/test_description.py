@@ -53,6 +53,9 @@ def test_a_bad_description_is_refused_by_name():
     with pytest.raises(InvalidInputError, match=r"gripper.max_opening_m = -0.05 is not allowed: "
                                                 r"a finite number > 0"):
         replace(arm.gripper, max_opening_m=-0.05)
+    with pytest.raises(InvalidInputError, match=r"gripper.neighbour_spacing_m = 0.0 is not "
+                                                r"allowed: a finite number > 0"):
+        replace(arm.gripper, neighbour_spacing_m=0.0)
     with pytest.raises(InvalidInputError, match=r"arm = 'x' is not allowed: one of r, l \(the "
                                                 r"yumi's arms\)"):
         robot.arm("x")

@@ -4,13 +4,18 @@ own stand camera, and the YuMi's camera is what it was."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
+import numpy as np
 import pytest
 
 from perception.interface import ConditionKind, LabelKind
 from perception.learning.learnable import ModelSpec
 from robots import get_robot, yumi
 from sim.errors import InvalidInputError
+from sim.tasks.scene_sampling import SeedStream, sample_scene
+from sim.tasks.scene_specs import get_scene_spec
+from sim.tasks.task_spec import spaced_for
 from sim.tasks.task_toml import load_task
 from sim.trials.collector import CollectSettings, collect
 from sim.trials.records import TrialOutcome
@@ -82,3 +87,19 @@ def test_a_run_of_trials_picks_with_the_robot_it_names(tmp_path, workers):
     run_trials(settings, tmp_path / "run", progress=False, workers=workers)
     records = [json.loads(line) for line in (tmp_path / "run" / "trials.jsonl").open()]
     assert {pick["arm"] for record in records for pick in record["picks"]} == {"panda"}
+
+
+def test_a_panda_scene_keeps_its_objects_apart_for_the_hand():
+    """The Panda's hand needs 16 cm between object centres; the YuMi's tasks keep their own."""
+    assert get_robot("panda").neighbour_spacing_m == 0.16
+    assert get_robot("yumi").neighbour_spacing_m is None
+    for task in ("single", "multiple", "selected-type", "selected-position"):
+        assert TrialSettings("oracle", task=task, robot="panda").task_spec.min_spacing_m == 0.16
+        assert TrialSettings("oracle", task=task).task_spec == load_task(task)  # the YuMi: as is
+        assert CollectSettings("yumi", task, 2, robot="panda").task_spec.min_spacing_m == 0.16
+    wide = replace(load_task("multiple"), min_spacing_m=0.2)
+    assert spaced_for(wide, 0.16) is wide  # a task that keeps them farther apart already
+    scene = sample_scene(TrialSettings("oracle", task="multiple", robot="panda").task_spec,
+                         get_scene_spec("yumi"), 0, SeedStream.TEST, 0)
+    xy = np.array([o.position_xy_m for o in scene.objects])
+    assert min(np.linalg.norm(a - b) for i, a in enumerate(xy) for b in xy[i + 1:]) >= 0.16
