@@ -25,7 +25,6 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-from perception.catalog import MAX_OPENING_M
 from perception.interface import (
     MAX_SENTENCE_CHARS,
     PICTURE_PX,
@@ -34,10 +33,11 @@ from perception.interface import (
     Target,
     condition_size,
 )
+from robots import ROBOT_NAMES, get_robot
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import condition_choices
 from sim.tasks.scene_specs import YUMI_SCENE
-from sim.tasks.task_spec import TaskSpec
+from sim.tasks.task_spec import TaskSpec, spaced_for
 from sim.tasks.task_toml import load_task
 from sim.trials.execution import ExecutionSettings
 from sim.trials.pick_results import PickAttempt, Sighting, trial_result
@@ -62,6 +62,9 @@ class PickEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
         first_index: The test-scene index of the first episode after a seeded reset.
         index_step: How far each unseeded reset moves the index (N in a vector env of N).
         execution: How picks are executed and judged; the trials' default when None.
+        robot: The robot that picks (one of :data:`robots.ROBOT_NAMES`), seen through its
+            workcell's camera, its task's objects spaced for its hand, as ``gva trials
+            --robot`` runs it.
 
     Observation (a dict): ``rgb`` (H, W, 3) uint8; ``depth_m`` (H, W) float32, depth along the
     optical axis [m], 0 or inf where none; ``K`` (3, 3) intrinsics (OpenCV's convention);
@@ -86,16 +89,22 @@ class PickEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
 
     def __init__(self, task: str | Path | TaskSpec = "single", render_mode: str | None = None,
                  first_index: int = 0, index_step: int = 1,
-                 execution: ExecutionSettings | None = None) -> None:
+                 execution: ExecutionSettings | None = None, robot: str = "yumi") -> None:
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise InvalidInputError("render_mode", render_mode, "None or 'rgb_array'")
         for name, value, least in (("first_index", first_index, 0), ("index_step", index_step, 1)):
             if isinstance(value, bool) or not isinstance(value, int) or value < least:
                 raise InvalidInputError(name, value, f"an integer >= {least}")
-        self.task = task if isinstance(task, TaskSpec) else load_task(task)
+        if robot not in ROBOT_NAMES:
+            raise InvalidInputError("robot", robot, f"one of {', '.join(ROBOT_NAMES)}")
+        description = get_robot(robot)
+        self.task = spaced_for(task if isinstance(task, TaskSpec) else load_task(task),
+                               description.neighbour_spacing_m)
         self.render_mode = render_mode
         self.first_index, self.index_step = first_index, index_step
-        self._runner = TrialRunner(self.task, execution=execution)  # its model: the oracle
+        self._runner = TrialRunner(self.task, execution=execution,
+                                   robot=description)  # its model: the oracle
+        self.max_opening_m = max(a.gripper.max_opening_m for a in description.arms)
         self.object_types: tuple[str, ...] = YUMI_SCENE.object_types
         self.joint_names: tuple[str, ...] = tuple(self._runner.world.robot.joint_names)
         self.observation_space = self._observation_space()
@@ -103,7 +112,7 @@ class PickEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
             "position_m": spaces.Box(-WORKSPACE_BOUND_M, WORKSPACE_BOUND_M, (3,), np.float64),
             "rotation_6d": spaces.Box(-1.0, 1.0, (6,), np.float64),
             "object_type": spaces.Discrete(len(self.object_types) + 1),
-            "opening_m": spaces.Box(0.0, MAX_OPENING_M, (1,), np.float64),
+            "opening_m": spaces.Box(0.0, self.max_opening_m, (1,), np.float64),
         })
         self._seed, self._next_index = 0, first_index
         self._scene: Any = None
@@ -258,8 +267,8 @@ class PickEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
             raise InvalidInputError("action['object_type']", kind,
                                     f"0 (not stated) to {len(self.object_types)}")
         opening = float(np.asarray(action.get("opening_m", 0.0)).reshape(-1)[0])
-        if not (math.isfinite(opening) and 0.0 <= opening <= MAX_OPENING_M):
+        if not (math.isfinite(opening) and 0.0 <= opening <= self.max_opening_m):
             raise InvalidInputError("action['opening_m']", opening,
-                                    f"0 (not stated) or a gap in (0, {MAX_OPENING_M}] m")
+                                    f"0 (not stated) or a gap in (0, {self.max_opening_m}] m")
         return Target(position, rotation, self.object_types[kind - 1] if kind else None,
                       opening or None)

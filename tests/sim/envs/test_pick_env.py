@@ -11,6 +11,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 from gymnasium.vector import AsyncVectorEnv, AutoresetMode
 
+from robots import get_robot
 from sim.envs.episodes import oracle_policy, run_episode
 from sim.errors import InvalidInputError
 from sim.tasks.task_toml import builtin_tasks, load_task
@@ -123,4 +124,25 @@ def test_a_grasp_far_off_is_a_recorded_failure_not_a_crash() -> None:
     assert (reward, terminated) == (0.0, True)
     assert info["outcome"] != "success" and info["reason"] and info["trial_outcome"]
     assert info["judge"]["predicted_success"] is False
+    env.close()
+
+
+def test_the_panda_env_gets_the_panda_trials_outcomes() -> None:
+    """``robot="panda"``: its camera, its joints, its spaced scenes; a grasp gets there what
+    it gets in ``gva trials --robot panda``."""
+    env = make(task="single", robot="panda")
+    panda = get_robot("panda")
+    assert env.unwrapped.joint_names == tuple(TrialRunner(load_task("single"), robot=panda)
+                                              .world.robot.joint_names)
+    assert env.unwrapped.task.min_spacing_m == panda.neighbour_spacing_m
+    assert env.action_space["opening_m"].high[0] == 0.08  # the Panda's hand opens 80 mm
+    spec = env.unwrapped.task
+    with TrialRunner(spec, robot=panda) as runner:
+        trials = {i: runner.run(trial_scene(spec, 0, i), i, 0, "oracle") for i in range(2)}
+    for index, record in trials.items():
+        episode = run_episode(env, oracle_policy(env), 0, index)
+        assert (episode.outcome, episode.reason) == (record.outcome.value, record.reason)
+    with pytest.raises(InvalidInputError, match=r"robot = 'ur5' is not allowed: one of yumi, "
+                                                r"panda"):
+        make(task="single", robot="ur5")
     env.close()
