@@ -12,9 +12,10 @@ import pytest
 from perception.camera import PinholeCamera, RgbdFrame
 from perception.catalog import get_object_spec
 from perception.interface import InvalidInputError as PerceptionInputError
+from robots import get_robot
 from sim.errors import InvalidInputError
 from sim.tasks.scene_specs import YUMI_SCENE
-from sim.world.head_camera import CameraConfig, HeadCamera, Lighting
+from sim.world.head_camera import CameraConfig, HeadCamera, Lighting, camera_config
 from sim.world.paper_world import PaperWorldConfig
 from sim.world.yumi_world import World
 
@@ -96,6 +97,30 @@ def test_workspace_is_framed_and_not_hidden_by_the_arms_at_home(
     eye = list(camera.config.position_m)
     hits = world.client.rayTestBatch([eye] * len(points), points.tolist())
     assert not [p for p, hit in zip(points, hits, strict=True) if hit[0] == world.robot.body_id]
+
+
+def test_the_pandas_stand_camera_frames_the_workspace_as_densely_and_the_arm_hides_none():
+    """The Panda's workcell camera (issue 39): every part of any object in view with a margin,
+    none behind the arm at home, at 85-90 % of the head camera's pixels per cm."""
+    panda = get_robot("panda")
+    stand, head = HeadCamera(camera_config(panda)), HeadCamera()
+    points = np.array([[x + reach * np.cos(angle), y + reach * np.sin(angle), z]
+                       for x in np.linspace(*YUMI_SCENE.workspace_x_m, 7)
+                       for y in np.linspace(*YUMI_SCENE.workspace_y_m, 9)
+                       for angle in np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
+                       for reach, z in OBJECT_EXTENTS_M])
+    pixels = stand.project(points)
+    assert pixels.min() >= 3 and pixels.max() <= 125
+    with World(robot=panda) as world:
+        world.reset_scene()
+        hits = world.client.rayTestBatch([list(stand.config.position_m)] * len(points),
+                                         points.tolist())
+        assert not [p for p, hit in zip(points, hits, strict=True)
+                    if hit[0] == world.robot.body_id]
+    centre = np.array([[0.475, 0.0, 0.0], [0.485, 0.0, 0.0], [0.475, 0.01, 0.0]])  # 1 cm steps
+    density = [np.linalg.norm(np.diff(c.project(centre)[[0, k]], axis=0)) for c in (stand, head)
+               for k in (1, 2)]
+    assert 0.8 < density[0] / density[2] < 0.95 and 0.8 < density[1] / density[3] < 0.95
 
 
 def test_each_object_shows_its_colours_where_it_stands(world: World, camera: HeadCamera) -> None:
