@@ -3,8 +3,10 @@
 For each of ``--n`` test scenes of ``--task`` (seed ``--seed``), the pick is planned from the
 first image as a trial plans it, the arm is put at a drawn sample of its approach (moving), the
 target is moved 5 cm, and one cycle runs as :class:`sim.trials.closed_loop.ApproachLoop` runs
-it, on one thread: the head camera's frame (rendered through the task's sensor, depth
-self-filtered), the model's prediction, reading the grasp, the depth obstacles, and the re-plan
+it, on one thread: the head camera's frame (rendered through the task's sensor, self-filtered:
+the arm masked out), the model's prediction, reading the grasp, the view check (the footprint
+of the grasp followed, and whether the grasp named is in plain view: both, the worst case), the
+depth obstacles, and the re-plan
 for the moving arm (IK, every segment's checks, the re-targeted approach:
 ``PickPlanner.replan``). The record gives each part's median and 95th percentile [ms] and the
 rate the whole cycle sustains.
@@ -32,14 +34,15 @@ from control.depth_obstacles import GraspRegion
 from control.retarget import trajectory_state
 from perception.catalog import clear_of_table
 from robots import yumi
-from sim.trials.closed_loop import remembered_points
+from sim.trials.closed_loop import hidden_share, in_plain_view, remembered_points
+from sim.trials.loop_settings import LoopSettings
 from sim.trials.planner_setup import pick_obstacles
 from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_settings import TrialSettings, load_trial_model, torch_threads
 
 T = TypeVar("T")
-PARTS = ("render", "predict", "read grasp", "depth obstacles", "re-plan")
+PARTS = ("render", "predict", "read grasp", "view", "depth obstacles", "re-plan")
 
 
 def timed(times: dict[str, list[float]], part: str, call: Callable[[], T]) -> T:
@@ -72,6 +75,10 @@ def cycle(runner: TrialRunner, index: int, seed: int, rng: np.random.Generator,
     read = timed(times, "read grasp", lambda: runner.read_grasp(prediction, 0, 1))
     if read.predicted is None or read.grip is None:
         return f"unseen: {read.reason}"
+    followed, named, radius_m = planned.predicted, read.predicted, LoopSettings.footprint_radius_m
+    assert followed is not None  # a plan was made from a grasp
+    timed(times, "view", lambda: (hidden_share(sighting.frame, followed.position, radius_m),
+                                  in_plain_view(sighting.frame, named.position, radius_m)))
     started = time.perf_counter()
     _, remembered = remembered_points(planned.obstacle_image, sighting.frame)
     replanned = runner.plan_pick(sighting.frame, prediction, 0, 1, moving=state,
