@@ -34,12 +34,13 @@ from control.depth_obstacles import GraspRegion
 from control.retarget import trajectory_state
 from perception.catalog import clear_of_table
 from robots import yumi
-from sim.trials.closed_loop import hidden_share, in_plain_view, remembered_points
+from sim.trials.closed_loop import remembered_points
 from sim.trials.loop_settings import LoopSettings
 from sim.trials.planner_setup import pick_obstacles
 from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_settings import TrialSettings, load_trial_model, torch_threads
+from sim.trials.view import hidden_share, in_plain_view
 
 T = TypeVar("T")
 PARTS = ("render", "predict", "read grasp", "view", "depth obstacles", "re-plan")

@@ -49,10 +49,10 @@ from sim.tasks.scene_sampling import (
 from sim.tasks.scene_specs import SCENE_NAMES, SceneSpec, get_scene_spec
 from sim.tasks.task_spec import TaskSpec, spaced_for
 from sim.tasks.task_toml import load_task
-from sim.trials.closed_loop import hidden_share
 from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.records import TrialOutcome
 from sim.trials.trial_runner import TrialRunner
+from sim.trials.view import hidden_share
 from sim.world.head_camera import HeadCamera
 from sim.world.yumi_world import World
 

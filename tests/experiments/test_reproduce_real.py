@@ -21,13 +21,10 @@ from experiments.table3.settings import (
     trained_file,
 )
 from experiments.table3.trial_sets import TrialSetResult
-from experiments.tables import dataset_path, dataset_present
-from perception.learning.dataset_file import read_metadata, save_dataset
+from perception.learning.dataset_file import read_metadata
 from perception.registry import load_model
 from sim.errors import InvalidInputError, RunFolderError
-from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.task_toml import load_task
-from sim.trials.collector import APPROACH_MASKED_KEY, CollectSettings, collect
 from sim.trials.records import TrialOutcome, TrialRecord
 from sim.trials.trial_settings import check_model_fits_task
 from sim.world.sensor import SensorConfig, SensorKind
@@ -395,15 +392,3 @@ def test_a_panda_run_demonstrates_trains_and_picks_through_its_own_camera(tmp_pa
     status, _, stderr = gva("reproduce", "real", "--out", out, "--no-robustness", *TINY)
     assert status != 0 and "robot" in stderr
 
-
-def test_approach_images_from_before_the_arm_mask_are_another_dataset(tmp_path):
-    """A run needs approach images with the arm masked out; a file from before the mask (its
-    arm in view, as the first closed-loop runs had it) is refused, naming what differs."""
-    path = dataset_path(tmp_path, "single", SeedStream.TRAIN, 1, 0)
-    dataset = collect(CollectSettings("yumi", "single", 1, approach_hz=5.0), path, progress=False)
-    assert dataset_present(path, "yumi", "single", 1, 0, SeedStream.TRAIN, approach_hz=5.0)
-    extra = {k: v for k, v in dataset.metadata.extra.items() if k != APPROACH_MASKED_KEY}
-    save_dataset(replace(dataset, metadata=replace(dataset.metadata, extra=extra)), path)
-    with pytest.raises(RunFolderError, match=r"not the dataset this run needs \(\{'"
-                                             r"approach_robot_masked': \(False, True\)\}"):
-        dataset_present(path, "yumi", "single", 1, 0, SeedStream.TRAIN, approach_hz=5.0)

@@ -19,11 +19,11 @@ from sim.errors import InvalidInputError
 from sim.tasks.disturbance import Disturbance
 from sim.tasks.task_toml import load_task
 from sim.trials import trial_runner
-from sim.trials.closed_loop import hidden_share, in_plain_view
 from sim.trials.loop_settings import Loop, LoopSettings, Reaction, reactions
 from sim.trials.records import TrialOutcome
 from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
+from sim.trials.view import hidden_share, in_plain_view
 from sim.world.head_camera import CameraConfig, HeadCamera
 from sim.world.yumi_world import World
 

@@ -14,8 +14,8 @@ from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import get_scene_spec
 from sim.tasks.task_toml import load_task, task_to_toml
-from sim.trials.closed_loop import hidden_share
 from sim.trials.collector import APPROACH_MASKED_KEY, CollectSettings, collect
+from sim.trials.view import hidden_share
 from sim.world.head_camera import CameraConfig
 from sim.world.sensor import SensorConfig, SensorKind
 
