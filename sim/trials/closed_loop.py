@@ -51,7 +51,7 @@ from sim.trials.pick_results import (
 )
 from sim.trials.planner_setup import object_obstacles
 from sim.trials.records import TrialOutcome
-from sim.trials.view import hidden_share, in_plain_view
+from sim.trials.view import unheeded_reason
 from sim.world.yumi_world import World
 
 MOVE_CLEARANCE_M = 0.10
@@ -118,6 +118,7 @@ class ApproachLoop:
         self.repredictions: list[Reprediction] = []
         self.moved: Moved | None = None
         self.end: tuple[Pose, float] | None = None  # the target's grasp and yaw at the end
+        self.plain_view: np.ndarray | None = None  # a grasp seen in plain view once, unconfirmed
         self.unmet: PlannedPick | None = None  # the failed re-plan of a grasp moved since
 
     def __call__(self, plan: PickPlan, watch: StepWatch) -> FollowedApproach:
@@ -270,13 +271,13 @@ class ApproachLoop:
                               sighting.truth)
         followed = self.followed.predicted
         assert followed is not None  # a followed plan was planned from a grasp
-        hidden = 0.0 if isinstance(runner.model, OraclePerception) else hidden_share(
-            sighting.frame, followed.position, self.settings.footprint_radius_m)  # truth: no view
-        if hidden > 0.0 and not in_plain_view(sighting.frame, read.predicted.position,
-                                              self.settings.footprint_radius_m):
-            return self._note(time_s, Reaction.HIDDEN, f"the arm hides {100 * hidden:.0f} % of "
-                              "the target's footprint, and nothing stands in plain view where "
-                              "the grasp now is", read.predicted, sighting.truth)
+        if not isinstance(runner.model, OraclePerception):  # the truth needs no view
+            unheeded, self.plain_view = unheeded_reason(
+                sighting.frame, followed.position, read.predicted.position,
+                self.settings.footprint_radius_m, self.plain_view, self.settings.move_threshold_m)
+            if unheeded is not None:
+                return self._note(time_s, Reaction.HIDDEN, unheeded, read.predicted,
+                                  sighting.truth)
         moved_m = float(np.linalg.norm(read.predicted.position - followed.position))
         turned_deg = math.degrees(grasp_angle_rad(followed.rotation, read.predicted.rotation))
         if moved_m <= self.settings.move_threshold_m and \

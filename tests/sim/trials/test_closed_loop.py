@@ -23,7 +23,7 @@ from sim.trials.loop_settings import Loop, LoopSettings, Reaction, reactions
 from sim.trials.records import TrialOutcome
 from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
-from sim.trials.view import hidden_share, in_plain_view
+from sim.trials.view import hidden_share, in_plain_view, unheeded_reason
 from sim.world.head_camera import CameraConfig, HeadCamera
 from sim.world.yumi_world import World
 
@@ -127,6 +127,21 @@ def test_a_grasp_in_plain_view_has_its_footprint_seen_and_something_standing_the
     hidden = frame.robot_mask.copy()
     hidden[v, u] = True  # the arm over the bottle
     assert not in_plain_view(dataclasses.replace(frame, robot_mask=hidden), bottle, 0.045)
+    # the loop's verdict: the target followed at the bare spot, the arm over it
+    u, v = np.round(frame.camera.project(bare[None])[0]).astype(int)
+    over_bare = frame.robot_mask.copy()
+    over_bare[v - 2:v + 3, u - 2:u + 3] = True
+    arm_over = dataclasses.replace(frame, robot_mask=over_bare)
+    assert unheeded_reason(frame, bare, bottle, 0.045, None, 0.01) == (None, None)  # seen
+    reason, once = unheeded_reason(arm_over, bare, bottle, 0.045, None, 0.01)
+    assert reason is not None and reason.endswith("the next look must confirm it")
+    assert once is not None and np.array_equal(once, bottle)
+    assert unheeded_reason(arm_over, bare, bottle + 0.004, 0.045, once, 0.01) == (None, None)
+    step = np.array([0.0, 0.05, 0.0])
+    assert unheeded_reason(arm_over, bare, bottle + step, 0.045, once, 0.01)[0] \
+        .startswith("the arm hides ")  # another place: not the one seen
+    reason, once = unheeded_reason(arm_over, bare, bare + 0.4 * step, 0.045, None, 0.01)
+    assert reason is not None and "nothing stands in plain view" in reason and once is None
 
 
 def test_loop_settings_are_checked():
