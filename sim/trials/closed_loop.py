@@ -3,9 +3,8 @@
 An open-loop pick plans once from the first image and runs blind. In closed loop the head
 camera renders every ``1 / replan_hz`` s of the approach, self-filtered (the arm is in view: its
 pixels get no depth and the table's colour), the model predicts again, and when the camera sees
-the footprint of the target followed (:func:`~sim.trials.view.hidden_share`) and the grasp
-moved beyond the
-thresholds the pick is
+what it names (:func:`~sim.trials.view.unheeded_reason`: the footprint of the target followed,
+or the new grasp in plain view twice) and the grasp moved beyond the thresholds the pick is
 planned again for the moving arm and its approach re-targeted from the arm's state as it is
 (:meth:`control.planner.PickPlanner.replan`: ruckig from position, velocity and acceleration,
 every sample collision-checked against the latest depth image's obstacles, and where the arm
