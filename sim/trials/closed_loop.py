@@ -255,6 +255,7 @@ class ApproachLoop:
         """
         runner, approach = self.runner, plan.segments[0].trajectory
         state = trajectory_state(approach, k)
+        once, self.plain_view = self.plain_view, None  # kept only by this look's verdict
         sighting = runner.sight(self.body, self_filter=True)
         try:
             prediction = runner.model.predict_frame(sighting.frame, self.scene.given)
@@ -273,7 +274,7 @@ class ApproachLoop:
         if not isinstance(runner.model, OraclePerception):  # the truth needs no view
             unheeded, self.plain_view = unheeded_reason(
                 sighting.frame, followed.position, read.predicted.position,
-                self.settings.footprint_radius_m, self.plain_view, self.settings.move_threshold_m)
+                self.settings.footprint_radius_m, once, self.settings.move_threshold_m)
             if unheeded is not None:
                 return self._note(time_s, Reaction.HIDDEN, unheeded, read.predicted,
                                   sighting.truth)

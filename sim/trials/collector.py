@@ -61,7 +61,8 @@ MAX_REDRAW_FACTOR = 3
 
 APPROACH_MASKED_KEY = "approach_robot_masked"
 """A dataset's note that its approach images have the robot masked out (the self filter of
-:meth:`~sim.world.head_camera.HeadCamera.render_rgbd`); datasets from before it lack it."""
+:meth:`~sim.world.head_camera.HeadCamera.render_rgbd`) and show every target's footprint;
+datasets from before it lack it."""
 
 
 @dataclass(frozen=True)

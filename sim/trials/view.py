@@ -19,8 +19,6 @@ _DISK = np.array([(r * math.cos(a), r * math.sin(a)) for r, n in ((0.0, 1), (1 /
                                                                  (2 / 3, 16), (1.0, 24))
                   for a in np.linspace(0.0, 2 * math.pi, n, endpoint=False)])
 """Points of the unit disk (49: its centre and three rings), where a footprint is looked at."""
-
-
 STANDING_RADIUS_M = 0.015
 """How near a grasp's point the depth image must show something standing [m]: within the
 narrowest target's half-width about its grasp (the sponge's 17.5 mm), so a target there shows."""
