@@ -143,7 +143,7 @@ def build_parser() -> argparse.ArgumentParser:
     commands = parser.add_subparsers(dest="command", required=True, parser_class=_Command)
     commands.add_parser(
         "trials", options=_trials,
-        help="closed-loop pick trials at untrained positions",
+        help="pick trials at untrained positions",
         description="Runs pick trials: reset a scene from the seed, predict, plan, execute, "
         "judge by physics. Appends each trial to OUT/trials.jsonl; re-running resumes.",
     )
@@ -222,7 +222,7 @@ def build_parser() -> argparse.ArgumentParser:
         "real", options=_table3,
         help="Table III: YuMi pick trials out of 30 with trained models in the loop",
         description="Per task on the yumi scene: collects oracle-verified demonstrations, "
-        "trains each model on them, runs closed-loop pick trials at untrained positions with "
+        "trains each model on them, runs pick trials at untrained positions with "
         "the trained model in the loop (kqv also under darker light and with a distractor), "
         "each seed in OUT/s<seed>/, and writes OUT/table3.md and table3.json over the seeds "
         "and OUT/s<seed>/gifs/<model>-<task>.gif. Re-running skips what is finished.",

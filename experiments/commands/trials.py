@@ -1,4 +1,4 @@
-"""``gva trials``: closed-loop pick trials at untrained positions, appended to a run folder.
+"""``gva trials``: pick trials at untrained positions, appended to a run folder.
 
 Defaults are :class:`~sim.trials.trial_settings.TrialSettings`'. No torch here: ``gva trials --model
 oracle`` never loads it.

@@ -224,7 +224,7 @@ def table3_markdown(sets: Sequence[TrialSetResult], made_by: str,
         "# Table III in simulation: successful picks out of 30", "",
         f"Scene `yumi` ({ROBOT_TITLES.get(robot, robot)} in PyBullet): each model trained on "
         "oracle-verified "
-        "demonstrations of each task, then closed-loop pick trials at untrained positions with "
+        "demonstrations of each task, then pick trials at untrained positions with "
         "the model in the loop. A pick succeeds when the target's lowest point rose 5 cm and "
         "stayed pinched for 1 s; `multiple` needs all three picks. The paper's row is its real "
         "YuMi (20 demonstrations per task). Over several seeds (each moves the "

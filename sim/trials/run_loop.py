@@ -1,4 +1,4 @@
-"""Runs of closed-loop pick trials: the resumable loop, side by side or not, and the summary.
+"""Runs of pick trials: the resumable loop, side by side or not, and the summary.
 
 Trial ``i`` of a run with seed ``s`` runs test scene ``i`` of seed ``s`` (see
 :mod:`sim.tasks.scene_sampling`), so the same seed gives the same trials, and no trial runs on a
