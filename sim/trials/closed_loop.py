@@ -12,7 +12,8 @@ now hides what the first image showed, against what was seen there before). A re
 fails keeps the plan being followed, and the record says so. Once the arm rests at its
 pre-grasp it looks a last time (a move after the last re-prediction is seen there; a re-target
 from rest follows, at most :data:`MAX_LAST_LOOKS` times), then the loop ends: the descent
-follows the last plan (the hand, over the target, hides it from the head camera).
+follows the last plan (the hand, over the target, hides it from the head camera). An approach
+that has not settled within :data:`MAX_APPROACH_S` stops looking and runs its last plan.
 
 A task's disturbance (:mod:`sim.tasks.disturbance`) moves the target at a drawn moment of the
 approach, in open and in closed loop alike, so the two are compared on the same picks.
@@ -69,6 +70,12 @@ put in its path; a disturbance keeps out of it (:meth:`ApproachLoop._out_of_reac
 MAX_LAST_LOOKS = 3
 """Looks on arrival at the pre-grasp per pick: a target still moving (a slide) is followed by
 at most this many more re-targets from rest before the descent."""
+MAX_APPROACH_S = 10.0
+"""Longest a pick's approach looks again [s]: past it the loop stops re-predicting and the plan
+followed runs to its end (``timed_out``). A model whose grasp keeps moving beyond the thresholds
+(an attention that jumps between objects in plain view) re-targets at every look and would never
+reach its pre-grasp. 10 s is 2.5 times the longest approach of the 352 closed-loop picks of
+issue 36's runs (3.9 s; at most 4 re-targets), so no pick that settles is cut short."""
 
 
 class LoopRunner(Protocol):
@@ -179,6 +186,11 @@ class ApproachLoop:
             if step == disturb_at and self.moved is None and self.disturbance is not None \
                     and self.disturbance.moves:
                 self._disturb(step * dt_s, plan, k)
+            if tick and step * dt_s >= MAX_APPROACH_S:  # a loop that never settles ends
+                tick = 0
+                self._note(step * dt_s, Reaction.TIMED_OUT, f"the approach passed "
+                           f"{MAX_APPROACH_S:g} s: the loop stops looking, the plan followed "
+                           "runs to its end", None, self.runner.truth(self.body))
             if tick and step % tick == 0 and k < len(approach.times_s) - 1:
                 looked = step
                 replanned = self._repredict(step * dt_s, plan, k)

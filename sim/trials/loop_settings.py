@@ -86,6 +86,7 @@ class Reaction(enum.Enum):
     STOPPED = "stopped"  # no re-plan, and the plan followed runs into what is seen: the arm brakes
     UNSEEN = "unseen"  # the model gave nothing the robot can act on: the last plan stands
     HIDDEN = "hidden"  # the arm hides the target followed: what the model says of it is not heeded
+    TIMED_OUT = "timed_out"  # the approach ran past its time: no more looks, the plan followed runs
 
 
 @dataclass(frozen=True)

@@ -18,8 +18,9 @@ from robots import yumi
 from sim.errors import InvalidInputError
 from sim.tasks.disturbance import Disturbance
 from sim.tasks.task_toml import load_task
-from sim.trials import trial_runner
+from sim.trials import closed_loop, trial_runner
 from sim.trials.loop_settings import Loop, LoopSettings, Reaction, reactions
+from sim.trials.oracle import OraclePerception
 from sim.trials.records import TrialOutcome
 from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
@@ -247,3 +248,32 @@ def test_a_failed_re_plan_whose_path_ahead_is_blocked_brakes_the_arm(monkeypatch
     assert record.outcome is TrialOutcome.IK_UNREACHABLE
     assert record.reason.startswith("approach: the grasp moved and no re-plan reached it: ")
     assert tcp[2] > 0.15  # braked high above the table, never descended
+
+
+class _Wandering(OraclePerception):
+    """The oracle's grasp, 2 cm to one side and then the other at each look: never settles."""
+
+    looks = 0
+
+    def predict(self, image, condition=NO_CONDITION):
+        told = super().predict(image, condition)
+        self.looks += 1
+        shift = np.array([0.0, 0.02 if self.looks % 2 else -0.02, 0.0])
+        return dataclasses.replace(told, targets=tuple(
+            dataclasses.replace(t, position_m=t.position_m + shift) for t in told.targets))
+
+
+def test_an_approach_that_never_settles_stops_looking_and_the_trial_ends(monkeypatch):
+    """A grasp that moves beyond the threshold at every look re-targets at every look; past
+    MAX_APPROACH_S the loop stops looking, says so, and the pick runs its last plan."""
+    monkeypatch.setattr(closed_loop, "MAX_APPROACH_S", 1.0)
+    task = load_task("single")
+    with TrialRunner(task, _Wandering, loop=LoopSettings(Loop.CLOSED)) as runner:
+        record = runner.run(trial_scene(task, 0, 1), 1, 0, "wandering")
+    [pick] = record.picks
+    looks = pick["repredictions"]
+    assert reactions(looks)["retargeted"] >= 5  # it kept re-targeting until the limit
+    timed_out = [i for i, r in enumerate(looks) if r["reaction"] == Reaction.TIMED_OUT.value]
+    assert len(timed_out) == 1 and timed_out[0] == len(looks) - 1  # no look after it
+    assert looks[-1]["time_s"] >= 1.0 and "passed 1 s" in looks[-1]["reason"]
+    assert record.outcome is not TrialOutcome.ERROR, record.reason
