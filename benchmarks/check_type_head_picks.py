@@ -24,6 +24,7 @@ import os
 import platform
 import time
 from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
@@ -113,8 +114,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     jobs = [(args.run, seed, args.model, task, args.keep_types)
             for task in args.tasks for seed in args.seeds]
-    with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        sets = list(pool.map(_run_set, jobs))
+    if args.workers == 1:
+        sets = [_run_set(job) for job in jobs]
+    else:  # spawned, not forked: a fork of a process that has run torch can hang in its pool
+        with ProcessPoolExecutor(args.workers, mp_context=get_context("spawn")) as pool:
+            sets = list(pool.map(_run_set, jobs))
     for s in sets:
         print(f"{s['task']} seed {s['seed']}: typed {sum(s['typed'])}/{len(s['typed'])}, "
               f"untyped {sum(s['untyped'])}/{len(s['untyped'])} ({s['wall_s']} s)")
