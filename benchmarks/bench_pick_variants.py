@@ -28,7 +28,7 @@ from typing import Any
 from tqdm import tqdm
 
 from control.depth_obstacles import OccludedSpace
-from perception.interface import NO_CONDITION, Condition, Prediction, Target
+from perception.interface import NO_CONDITION, Condition, Prediction
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_toml import load_task
@@ -45,9 +45,7 @@ class UntypedOracle(OraclePerception):
 
     def predict(self, image: Any, condition: Condition = NO_CONDITION) -> Prediction:
         """The oracle's prediction with ``object_type`` left out."""
-        told = super().predict(image, condition)
-        return dataclasses.replace(told, targets=tuple(
-            Target(t.position_m, t.rotation) for t in told.targets))
+        return super().predict(image, condition).without_types()
 
 
 def run(variant: str, task_name: str, n: int, seed: int) -> dict[str, Any]:

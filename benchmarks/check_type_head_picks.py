@@ -18,19 +18,20 @@ condition names the type, and the head is off there.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 import platform
 import time
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
-from perception.interface import NO_CONDITION, Condition, Prediction, RgbdFrame, Target
+from perception.interface import NO_CONDITION, Condition, Prediction, RgbdFrame
 from sim.trials.paired_statistics import PairedCounts, mcnemar_exact_p, newcombe_paired_interval
-from sim.trials.run_folder import json_form
+from sim.trials.records import RECORD_FORMAT_VERSION
+from sim.trials.run_folder import PROVENANCE_KEY, differences, json_form
 from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_settings import TrialSettings, load_trial_model
@@ -49,20 +50,33 @@ class Untyped:
 
     def predict_frame(self, frame: RgbdFrame, condition: Condition = NO_CONDITION) -> Prediction:
         """The model's prediction with each target's ``object_type`` left out."""
-        told = self._model.predict_frame(frame, condition)
-        return dataclasses.replace(told, targets=tuple(
-            Target(t.position_m, t.rotation) for t in told.targets))
+        return self._model.predict_frame(frame, condition).without_types()
 
 
-def typed_record(run: Path, seed: int, model: str, task: str
-                 ) -> tuple[dict[str, Any], dict[int, bool]]:
-    """The run's ``run.json`` of a trial set and each trial's success, by index."""
+@dataclass(frozen=True)
+class RunSet:
+    """A trial set of the run as it ran.
+
+    Args:
+        stored: Its ``run.json``, provenance left out.
+        successes: Each trial's success, by index.
+
+    """
+
+    stored: dict[str, Any]
+    successes: dict[int, bool]
+
+
+def run_set_record(run: Path, seed: int, model: str, task: str) -> RunSet:
+    """The run's record of one trial set."""
     folder = run / f"s{seed}" / "trials" / model / task
     successes = {}
     for line in (folder / "trials.jsonl").read_text().splitlines():
         record = json.loads(line)
         successes[record["index"]] = record["outcome"] == "success"
-    return json.loads((folder / "run.json").read_text()), successes
+    stored = json.loads((folder / "run.json").read_text())
+    stored.pop(PROVENANCE_KEY, None)
+    return RunSet(stored, successes)
 
 
 def run_set(run: Path, seed: int, model: str, task: str, keep_types: bool = False
@@ -71,13 +85,14 @@ def run_set(run: Path, seed: int, model: str, task: str, keep_types: bool = Fals
 
     ``keep_types``: replay the trials as they ran (a check that the replay is the run's).
     """
-    settings_json, typed = typed_record(run, seed, model, task)
+    ran = run_set_record(run, seed, model, task)
+    typed = ran.successes
     settings = TrialSettings(model=str(run / f"s{seed}" / "checkpoints" / model / task),
                              task=str(run / f"s{seed}" / "tasks" / f"{task}.toml"),
-                             n=len(typed), seed=seed)
-    identity = json_form(settings.identity())
-    differ = sorted(k for k in identity if identity[k] != settings_json.get(k))
-    if differ:  # the replay must be the run's trial but for the types
+                             n=len(typed), seed=seed, robot=ran.stored.get("robot", "yumi"))
+    differ = differences(ran.stored, {"format_version": RECORD_FORMAT_VERSION,
+                                      **json_form(settings.identity())})
+    if differ:  # the replay must be the run's trials but for the types (an open loop)
         raise SystemExit(f"{run}/s{seed} {model}/{task}: the run's trials differ from a replay "
                          f"in {', '.join(differ)}; check out the run's commit")
     loaded = load_trial_model(settings)
@@ -86,7 +101,8 @@ def run_set(run: Path, seed: int, model: str, task: str, keep_types: bool = Fals
     started = time.perf_counter()
     successes = {}
     with TrialRunner(settings.task_spec, lambda world, camera: untyped, settings.settle_s,
-                     settings.execution, obstacles=settings.obstacles) as runner:
+                     settings.execution, obstacles=settings.obstacles,
+                     robot=settings.description()) as runner:
         for index in sorted(typed):
             record = runner.run(trial_scene(settings.task_spec, seed, index), index, seed,
                                 f"{model}-untyped")

@@ -28,7 +28,7 @@ import abc
 import enum
 import hashlib
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import ClassVar
 
 import numpy as np
@@ -228,6 +228,14 @@ class Prediction:
         if self.heatmaps is not None and np.ndim(self.heatmaps) != 3:
             raise InvalidInputError("heatmaps", np.shape(self.heatmaps),
                                     "shape (p, h, w): a map per attention head, or None")
+
+    def without_types(self) -> Prediction:
+        """The same prediction with no target's ``object_type`` stated.
+
+        Every pick then takes the default grip: what a stated type is worth is measured
+        against this.
+        """
+        return replace(self, targets=tuple(replace(t, object_type=None) for t in self.targets))
 
 
 class ModelInput(enum.Enum):

@@ -284,11 +284,12 @@ class ApproachLoop:
         followed = self.followed.predicted
         assert followed is not None  # a followed plan was planned from a grasp
         if not isinstance(runner.model, OraclePerception):  # the truth needs no view
-            unheeded, self.plain_view = unheeded_reason(
+            verdict = unheeded_reason(
                 sighting.frame, followed.position, read.predicted.position,
                 self.settings.footprint_radius_m, once, self.settings.move_threshold_m)
-            if unheeded is not None:
-                return self._note(time_s, Reaction.HIDDEN, unheeded, read.predicted,
+            self.plain_view = verdict.unconfirmed_m
+            if verdict.unheeded is not None:
+                return self._note(time_s, Reaction.HIDDEN, verdict.unheeded, read.predicted,
                                   sighting.truth)
         moved_m = float(np.linalg.norm(read.predicted.position - followed.position))
         turned_deg = math.degrees(grasp_angle_rad(followed.rotation, read.predicted.rotation))

@@ -9,6 +9,7 @@ demonstration keeps only the approach images that show every target (:mod:`sim.t
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -60,25 +61,39 @@ def hidden_share(frame: RgbdFrame, center_m: np.ndarray, radius_m: float) -> flo
     return float(hidden / len(_DISK))
 
 
+@dataclass(frozen=True)
+class ViewVerdict:
+    """Whether a closed loop heeds a re-prediction, by what the frame shows.
+
+    Args:
+        unheeded: Why it is not heeded, in words; None: it is.
+        unconfirmed_m: A grasp named in plain view once, to be confirmed by the next look
+            (None: nothing waits for confirmation).
+
+    """
+
+    unheeded: str | None
+    unconfirmed_m: np.ndarray | None = None
+
 
 def unheeded_reason(frame: RgbdFrame, followed_m: np.ndarray, named_m: np.ndarray,
-                    radius_m: float, once_m: np.ndarray | None, same_m: float
-                    ) -> tuple[str | None, np.ndarray | None]:
-    """Why a closed loop does not heed a re-prediction (None: it does), and what to remember.
+                    radius_m: float, once_m: np.ndarray | None, same_m: float) -> ViewVerdict:
+    """Why a closed loop does not heed a re-prediction (heeded: none), and what to remember.
 
     Heeded where ``frame`` shows the footprint about the grasp followed (``followed_m``).
     Where the arm hides any of it, heeded only if the grasp named (``named_m``) stands in plain
     view (:func:`in_plain_view`) two looks in a row, within ``same_m`` of the look before
     (``once_m``): a target moved out from under the arm stays where it went, a guess at what
-    the arm hides does not hold still. The second value is the plain-view grasp to hand the
-    next look as ``once_m`` (None: nothing waits for confirmation).
+    the arm hides does not hold still. The verdict's ``unconfirmed_m`` is the plain-view grasp
+    to hand the next look as ``once_m``.
     """
     hidden = hidden_share(frame, followed_m, radius_m)
     if hidden == 0.0:
-        return None, None
+        return ViewVerdict(None)
     share = f"the arm hides {100 * hidden:.0f} % of the target's footprint"
     if not in_plain_view(frame, named_m, radius_m):
-        return f"{share}, and nothing stands in plain view where the grasp now is", None
+        return ViewVerdict(f"{share}, and nothing stands in plain view where the grasp now is")
     if once_m is not None and float(np.linalg.norm(named_m - once_m)) <= same_m:
-        return None, None
-    return f"{share}; the grasp named stands in plain view, the next look must confirm it", named_m
+        return ViewVerdict(None)
+    return ViewVerdict(f"{share}; the grasp named stands in plain view, the next look must "
+                       "confirm it", named_m)

@@ -24,7 +24,7 @@ from sim.trials.oracle import OraclePerception
 from sim.trials.records import TrialOutcome
 from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
-from sim.trials.view import hidden_share, in_plain_view, unheeded_reason
+from sim.trials.view import ViewVerdict, hidden_share, in_plain_view, unheeded_reason
 from sim.world.head_camera import CameraConfig, HeadCamera
 from sim.world.yumi_world import World
 
@@ -133,16 +133,19 @@ def test_a_grasp_in_plain_view_has_its_footprint_seen_and_something_standing_the
     over_bare = frame.robot_mask.copy()
     over_bare[v - 2:v + 3, u - 2:u + 3] = True
     arm_over = dataclasses.replace(frame, robot_mask=over_bare)
-    assert unheeded_reason(frame, bare, bottle, 0.045, None, 0.01) == (None, None)  # seen
-    reason, once = unheeded_reason(arm_over, bare, bottle, 0.045, None, 0.01)
-    assert reason is not None and reason.endswith("the next look must confirm it")
+    assert unheeded_reason(frame, bare, bottle, 0.045, None, 0.01) == ViewVerdict(None)  # seen
+    verdict = unheeded_reason(arm_over, bare, bottle, 0.045, None, 0.01)
+    once = verdict.unconfirmed_m
+    assert verdict.unheeded is not None
+    assert verdict.unheeded.endswith("the next look must confirm it")
     assert once is not None and np.array_equal(once, bottle)
-    assert unheeded_reason(arm_over, bare, bottle + 0.004, 0.045, once, 0.01) == (None, None)
+    assert unheeded_reason(arm_over, bare, bottle + 0.004, 0.045, once, 0.01) == ViewVerdict(None)
     step = np.array([0.0, 0.05, 0.0])
-    assert unheeded_reason(arm_over, bare, bottle + step, 0.045, once, 0.01)[0] \
-        .startswith("the arm hides ")  # another place: not the one seen
-    reason, once = unheeded_reason(arm_over, bare, bare + 0.4 * step, 0.045, None, 0.01)
-    assert reason is not None and "nothing stands in plain view" in reason and once is None
+    unheeded = unheeded_reason(arm_over, bare, bottle + step, 0.045, once, 0.01).unheeded
+    assert unheeded is not None and unheeded.startswith("the arm hides ")  # not the one seen
+    verdict = unheeded_reason(arm_over, bare, bare + 0.4 * step, 0.045, None, 0.01)
+    assert verdict.unheeded is not None and "nothing stands in plain view" in verdict.unheeded
+    assert verdict.unconfirmed_m is None
 
 
 def test_loop_settings_are_checked():
