@@ -133,17 +133,35 @@ class CameraMount:
     Args:
         position_m: The optical centre.
         target_m: A point on the optical axis (the workspace's middle, on the table).
+        focus_window_px: The attention heatmap's focus in this camera's 128 x 128 px images
+            (``KqvConfig.focus_window_px``: a model reads each heatmap within this half-width of
+            its densest part): the reach of an object's farthest part from its densest square
+            plus half that square, derived from how this camera sees the catalog objects
+            (docs/decisions/distractor.md). 0: none derived for this camera; models read the
+            whole heatmap, as the paper.
+        focus_box_px: The side of that densest square (``KqvConfig.focus_box_px``): one
+            object's span in these images; 0 where no focus is derived.
 
     """
 
     position_m: tuple[float, float, float]
     target_m: tuple[float, float, float]
+    focus_window_px: int = 0
+    focus_box_px: int = 0
 
     def __post_init__(self) -> None:
         for name in ("position_m", "target_m"):
             value = getattr(self, name)
             if len(value) != 3 or not all(math.isfinite(v) for v in value):
                 raise InvalidInputError(f"camera.{name}", value, "three finite coordinates [m]")
+        for name in ("focus_window_px", "focus_box_px"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+                raise InvalidInputError(f"camera.{name}", value, "an integer >= 0 [px]")
+        if (self.focus_window_px == 0) != (self.focus_box_px == 0):
+            raise InvalidInputError("camera.focus_box_px", self.focus_box_px,
+                                    "0 with no focus window, >= 1 with one (focus_window_px "
+                                    f"is {self.focus_window_px})")
         if self.position_m == self.target_m:
             raise InvalidInputError("camera.target_m", self.target_m, "a point other than the "
                                     "camera's position")

@@ -64,6 +64,11 @@ class ModelSpec:
         sensor: The sensor that rendered the training images, as the dataset's camera record
             names it (``{"sensor": "d435", ...}``); None: the ideal camera (every checkpoint
             from before sensors were recorded). Trials under another sensor are refused.
+        focus_window_px: The heatmap focus derived for that camera, as its record states it
+            (``KqvConfig.focus_window_px`` reads it; 0: none derived, the whole heatmap); None:
+            the record does not state one (a dataset from before cameras recorded it, or a
+            scene without one).
+        focus_box_px: The focus's densest square [px], beside it; None likewise.
 
     """
 
@@ -78,6 +83,8 @@ class ModelSpec:
     camera: PinholeCamera | None = None
     object_types: tuple[str, ...] = ()
     sensor: dict[str, Any] | None = None
+    focus_window_px: int | None = None
+    focus_box_px: int | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.label_kind, LabelKind):
@@ -96,6 +103,11 @@ class ModelSpec:
                 len(types):
             raise InvalidInputError("object_types", types, "distinct non-empty strings")
         object.__setattr__(self, "object_types", tuple(types))
+        for name in ("focus_window_px", "focus_box_px"):
+            value = getattr(self, name)
+            if value is not None and (not isinstance(value, int) or isinstance(value, bool) or
+                                      value < 0):
+                raise InvalidInputError(name, value, "None or an integer >= 0 [px]")
 
     @property
     def label_dim(self) -> int:
@@ -112,20 +124,26 @@ class ModelSpec:
         """The spec of a model trained on a dataset with ``metadata``."""
         values = {f.name: getattr(metadata, f.name) for f in fields(cls)
                   if f.name not in _RECORDED}
-        sensor = metadata.camera.get("sensor")
-        return cls(**values, camera=PinholeCamera.from_record(metadata.camera),
+        record = metadata.camera
+        sensor = record.get("sensor")
+        return cls(**values, camera=PinholeCamera.from_record(record),
                    object_types=tuple(metadata.extra.get("object_types", ())),
-                   sensor=None if sensor in (None, IDEAL_SENSOR) else sensor)
+                   sensor=None if sensor in (None, IDEAL_SENSOR) else sensor,
+                   focus_window_px=record.get("focus_window_px"),
+                   focus_box_px=record.get("focus_box_px"))
 
     def check_dataset(self, dataset: Dataset) -> None:
         """An error naming every field in which ``dataset`` differs from this spec.
 
-        Scene and task names may differ. Object types are compared only where both sides name
-        them: () means unknown, not none (a dataset or checkpoint from before gva kept them).
+        Scene and task names may differ. Object types and the focus are compared only where
+        both sides state them: () and None mean unknown, not none (a dataset or checkpoint from
+        before gva kept them).
         """
         other = ModelSpec.from_metadata(dataset.metadata)
         skipped = {"scene", "task"} | ({"object_types"} if not (
-            self.object_types and other.object_types) else set())
+            self.object_types and other.object_types) else set()) | {
+            name for name in _FOCUS if getattr(self, name) is None or
+            getattr(other, name) is None}
         wrong = [f"{f.name} is {_shown(getattr(other, f.name))!r}, the model's is "
                  f"{_shown(getattr(self, f.name))!r}" for f in fields(self)
                  if f.name not in skipped and getattr(other, f.name) != getattr(self, f.name)]
@@ -141,6 +159,9 @@ class ModelSpec:
                  "object_types": list(self.object_types)}
         if self.sensor is None:  # the ideal camera: a checkpoint as before sensors were kept
             del data["sensor"]
+        for name in _FOCUS:  # unstated: a checkpoint as before cameras recorded their focus
+            if data[name] is None:
+                del data[name]
         return data
 
     @classmethod
@@ -148,6 +169,7 @@ class ModelSpec:
         """The spec :meth:`to_json` wrote."""
         values = {f.name: data[f.name] for f in fields(cls) if f.name not in _RECORDED}
         values["sensor"] = data.get("sensor")  # absent: the ideal camera
+        values |= {name: data.get(name) for name in _FOCUS}  # absent: unstated
         camera = data.get("camera")  # absent from checkpoints older than the field
         values["camera"] = None if camera is None else PinholeCamera.from_json(camera)
         values["object_types"] = tuple(data.get("object_types", ()))  # absent: older, too
@@ -157,7 +179,8 @@ class ModelSpec:
         return cls(**values)
 
 
-_RECORDED = ("camera", "object_types", "sensor")  # what a spec reads from records, not fields
+_FOCUS = ("focus_window_px", "focus_box_px")
+_RECORDED = ("camera", "object_types", "sensor", *_FOCUS)  # read from records, not fields
 IDEAL_SENSOR = {"sensor": "ideal"}
 """A dataset camera record's ``sensor`` for the ideal camera; a spec keeps it as None."""
 

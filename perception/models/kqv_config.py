@@ -51,10 +51,13 @@ class KqvConfig:
             cell whose ``focus_box_px`` square holds the most attention), the heatmap
             renormalised there: attention split between a target and a look-alike reads the
             one holding more of it, not a point between them (docs/decisions/distractor.md).
-            Training reads the whole heatmap. None: 24 px for grasp-pose labels (the robot's
-            scene), 0 for positions; 0: the whole heatmap, as the paper.
+            Training reads the whole heatmap. None: for grasp-pose labels (the robot's scene)
+            the focus derived for the dataset's camera (its record's ``focus_window_px``: the
+            YuMi head camera's 24 px; none for the Panda's stand camera), 0 for positions; 0:
+            the whole heatmap, as the paper.
         focus_box_px: Side of the square [image px] whose attention mass finds that part:
-            about one object's size in the image.
+            about one object's size in the image. None: the camera record's (18 px where it
+            states none).
         warmup_temperature: The temperature at the first training step; it falls linearly to
             ``temperature`` over ``warmup_steps`` steps, so every Query finds its objects before
             its heatmap can saturate.
@@ -127,7 +130,7 @@ class KqvConfig:
     similarity: str = "cosine"
     temperature: float = 0.1
     focus_window_px: int | None = None
-    focus_box_px: int = 18
+    focus_box_px: int | None = None
     warmup_temperature: float = 0.3
     warmup_steps: int = 300
     starts: int = 3
@@ -155,16 +158,16 @@ class KqvConfig:
             raise InvalidInputError("channels", self.channels, "two integers >= 1")
         object.__setattr__(self, "channels", channels)  # a JSON list reads back as the tuple
         for name in ("key_dim", "value_dim", "head_width", "warmup_steps", "starts",
-                     "start_steps", "type_steps", "focus_box_px"):
+                     "start_steps", "type_steps"):
             value = getattr(self, name)
             least = 0 if name == "warmup_steps" else 1
             if not isinstance(value, int) or isinstance(value, bool) or value < least:
                 raise InvalidInputError(name, value, f"an integer >= {least}")
-        if self.focus_window_px is not None and (
-                not isinstance(self.focus_window_px, int) or
-                isinstance(self.focus_window_px, bool) or self.focus_window_px < 0):
-            raise InvalidInputError("focus_window_px", self.focus_window_px,
-                                    "None or an integer >= 0")
+        for name, least in (("focus_window_px", 0), ("focus_box_px", 1)):
+            value = getattr(self, name)
+            if value is not None and (not isinstance(value, int) or isinstance(value, bool) or
+                                      value < least):
+                raise InvalidInputError(name, value, f"None or an integer >= {least}")
         if self.start_batch_size is not None and (
                 not isinstance(self.start_batch_size, int) or
                 isinstance(self.start_batch_size, bool) or self.start_batch_size < 1):

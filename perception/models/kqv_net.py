@@ -34,6 +34,7 @@ from perception.models.readout import CameraRays
 from perception.models.rotations import decode_rotation, rotation_size
 from perception.models.torch_model import NetOutput
 from perception.sentence_reading import TokenReader
+from robots.yumi import HEAD_CAMERA
 
 
 class Attention(NamedTuple):
@@ -44,8 +45,35 @@ class Attention(NamedTuple):
     features: Tensor  # (B, q, Cv) a_feat
 
 
-FOCUS_WINDOW_PX = 24
-"""KqvConfig.focus_window_px's value for grasp-pose labels (docs/decisions/distractor.md)."""
+FOCUS_WINDOW_PX = HEAD_CAMERA.focus_window_px
+"""KqvConfig.focus_window_px's value for grasp-pose labels whose dataset's camera record states
+no focus: such datasets are the YuMi head camera's, from before records stated it."""
+FOCUS_BOX_PX = HEAD_CAMERA.focus_box_px
+"""KqvConfig.focus_box_px's value where neither the config nor the camera's record states one."""
+
+
+class FocusPx(NamedTuple):
+    """A heatmap focus's sizes in image pixels (``KqvConfig.focus_window_px``, ``focus_box_px``)."""
+
+    window_px: int  # 0: the whole heatmap
+    box_px: int
+
+
+def focus_px(spec: ModelSpec, config: KqvConfig) -> FocusPx:
+    """The heatmap focus a model of ``spec`` reads with under ``config``.
+
+    None in the config takes the camera's record: its focus for grasp-pose labels (the robot's
+    scene, each camera its own, :class:`robots.description.CameraMount`), none for positions
+    (the paper's scene, read whole).
+    """
+    window_px, box_px = config.focus_window_px, config.focus_box_px
+    if window_px is None:
+        grasp = spec.label_kind is LabelKind.GRASP_POSE
+        recorded = FOCUS_WINDOW_PX if spec.focus_window_px is None else spec.focus_window_px
+        window_px = recorded if grasp else 0
+    if box_px is None:
+        box_px = spec.focus_box_px or FOCUS_BOX_PX
+    return FocusPx(window_px, box_px)
 
 PICTURE_FEATURES = 32
 """What the picture encoder makes of an image condition: 32 numbers, as a one-hot has a few."""
@@ -103,10 +131,8 @@ class KqvNet(nn.Module):
             norm = "per-image" if spec.label_kind is LabelKind.GRASP_POSE else "fixed"
         self.per_image = norm == "per-image"
         self.temperature = c.temperature
-        window_px = c.focus_window_px
-        if window_px is None:
-            window_px = FOCUS_WINDOW_PX if spec.label_kind is LabelKind.GRASP_POSE else 0
-        self.focus_cells = (round(window_px / self.stride), round(c.focus_box_px / self.stride))
+        window_px, box_px = focus_px(spec, c)
+        self.focus_cells = (round(window_px / self.stride), round(box_px / self.stride))
         self.similarity = c.similarity
         self.key_net = nn.Sequential(  # FCN1 with CoordConv: (B, 3, H, W) -> (B, Ck + 2, h, w)
             CoordConv(3, wide1, 5, first),

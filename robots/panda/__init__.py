@@ -63,7 +63,10 @@ corner) nearer than 0.151 m; rounded up to the centimetre. The YuMi's hand fits 
 own 0.12 m (docs/decisions/robots.md)."""
 STAND_CAMERA = CameraMount(position_m=(0.95, 0.0, 0.55), target_m=(0.475, 0.0, 0.0))
 """A camera on a stand across the workspace, looking back at it and the robot (a Panda's hand
-at home is where the YuMi's head camera sits)."""
+at home is where the YuMi's head camera sits). No heatmap focus is derived for it, so models
+read the whole heatmap: the head camera's sizes, rescaled, would cut the spray bottle more, and
+seen from this side the part cut lies along its side grasp's approach (docs/decisions/robots.md,
+"The focus is each camera's")."""
 FOOTPRINT_M = ((-0.16, 0.08), (-0.10, 0.10))
 """x and y ranges of ``panda_link0`` on the table [m] (its collision mesh's box)."""
 

@@ -97,9 +97,13 @@ def _footprint() -> tuple[tuple[float, float], tuple[float, float]]:
     return x, y
 
 
-HEAD_CAMERA = CameraMount(position_m=(0.09, 0.0, 0.52), target_m=(0.49, 0.0, 0.0))
+HEAD_CAMERA = CameraMount(position_m=(0.09, 0.0, 0.52), target_m=(0.49, 0.0, 0.0),
+                          focus_window_px=24, focus_box_px=18)
 """The head camera: 5 cm above the front edge of the body's top, between the shoulders, tilted
-down toward x = 0.49 m on the table (why there: ``sim.world.head_camera.CameraConfig``)."""
+down toward x = 0.49 m on the table (why there: ``sim.world.head_camera.CameraConfig``). Its
+heatmap focus (issue 49, docs/decisions/distractor.md): over the workspace (x 0.40-0.55 m, a
+115.5 px focal length) the sponge, the longest target body seen from above, spans 15-18 px (the
+18 px square), and the mug's handle reaches 12-15 px from its centre (15 + 9 = 24 px)."""
 
 FINGERS = FingerGeometry(
     tip_beyond_tcp_m=specs.FINGER_JOINT_Z_M + specs.FINGER_BOX.size[2] - specs.TCP_Z_M,

@@ -20,7 +20,8 @@ from scipy import ndimage
 from perception.camera import PinholeCamera, RgbdFrame
 from perception.interface import InvalidInputError as PerceptionInputError
 from robots import yumi
-from robots.description import RobotDescription
+from robots.description import CameraMount, RobotDescription
+from robots.errors import InvalidInputError as RobotInputError
 from sim.errors import InvalidInputError
 from sim.world.d435 import (
     CalibrationError,
@@ -101,6 +102,10 @@ class CameraConfig:
         near_m: Near clipping distance.
         far_m: Far clipping distance.
         lighting: The light the image is rendered with.
+        focus_window_px: The attention heatmap focus derived for this camera's images
+            (:class:`robots.description.CameraMount`; 0: none derived). A dataset records it
+            with the camera, and a model trained there reads its heatmaps so.
+        focus_box_px: The side of the focus's densest square [px]; 0 without a focus.
 
     """
 
@@ -114,6 +119,8 @@ class CameraConfig:
     near_m: float = 0.05
     far_m: float = 3.0
     lighting: Lighting = field(default_factory=Lighting)
+    focus_window_px: int = yumi.HEAD_CAMERA.focus_window_px
+    focus_box_px: int = yumi.HEAD_CAMERA.focus_box_px
 
     def __post_init__(self) -> None:
         for name in ("width_px", "height_px"):
@@ -130,6 +137,11 @@ class CameraConfig:
             self.pinhole  # noqa: B018
         except PerceptionInputError as error:
             raise InvalidInputError(error.field, error.value, error.allowed) from None
+        try:  # the focus: the robot description's rule (both 0, or both >= 1)
+            CameraMount(self.position_m, self.target_m, self.focus_window_px, self.focus_box_px)
+        except RobotInputError as error:
+            raise InvalidInputError(error.field.removeprefix("camera."), error.value,
+                                    error.allowed) from None
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> CameraConfig:
@@ -164,11 +176,12 @@ class CameraConfig:
 def camera_config(robot: RobotDescription = yumi.YUMI) -> CameraConfig:
     """The camera settings of ``robot``'s workcell.
 
-    Its camera mount; every other setting the head camera's (the D435-like crop, the image
-    size, the light).
+    Its camera mount and the heatmap focus derived for it; every other setting the head
+    camera's (the D435-like crop, the image size, the light).
     """
     mount = robot.camera
-    return replace(CameraConfig(), position_m=mount.position_m, target_m=mount.target_m)
+    return replace(CameraConfig(), position_m=mount.position_m, target_m=mount.target_m,
+                   focus_window_px=mount.focus_window_px, focus_box_px=mount.focus_box_px)
 
 
 class HeadCamera:

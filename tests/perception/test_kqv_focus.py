@@ -67,8 +67,8 @@ def test_focus_settings_are_checked():
     with pytest.raises(InvalidInputError, match=r"focus_window_px = -1 is not allowed: None or "
                                                  r"an integer >= 0"):
         KqvConfig(focus_window_px=-1)
-    with pytest.raises(InvalidInputError, match=r"focus_box_px = 0 is not allowed: an integer "
-                                                 r">= 1"):
+    with pytest.raises(InvalidInputError, match=r"focus_box_px = 0 is not allowed: None or an "
+                                                 r"integer >= 1"):
         KqvConfig(focus_box_px=0)
 
 
@@ -87,3 +87,16 @@ def test_read_with_keeps_the_weights_and_changes_only_how_the_heatmap_is_read():
                                                 r"read_with changes only focus_box_px, "
                                                 r"focus_window_px"):
         model.read_with(starts=1)
+
+
+def test_each_camera_states_its_own_focus_and_the_config_overrides_it():
+    grasp = replace(spec(kind=LabelKind.GRASP_POSE), camera=CAMERA)  # stride 2 (ray readout)
+    stand = replace(grasp, focus_window_px=0, focus_box_px=0)  # a camera with none derived
+    assert KqvModel(stand).network.focus_cells == (0, 9)  # the whole heatmap
+    wider = replace(grasp, focus_window_px=30, focus_box_px=20)
+    assert KqvModel(wider).network.focus_cells == (15, 10)
+    assert KqvModel(wider, KqvConfig(focus_window_px=0)).network.focus_cells[0] == 0
+    assert KqvModel(stand, KqvConfig(focus_window_px=24, focus_box_px=18)).network.focus_cells \
+        == (12, 9)
+    position = replace(spec(), focus_window_px=24, focus_box_px=18)
+    assert KqvModel(position).network.focus_cells[0] == 0  # positions read whole, as before

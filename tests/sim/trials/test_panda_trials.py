@@ -5,12 +5,15 @@ from __future__ import annotations
 
 import json
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from perception.interface import ConditionKind, LabelKind
 from perception.learning.learnable import ModelSpec
+from perception.models.kqv import KqvConfig
+from perception.models.kqv_net import focus_px
 from robots import get_robot, yumi
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream, sample_scene
@@ -22,7 +25,7 @@ from sim.trials.records import TrialOutcome
 from sim.trials.run_loop import run_trials, trial_scene
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_settings import TrialSettings, check_camera
-from sim.world.head_camera import CameraConfig, camera_config
+from sim.world.head_camera import CameraConfig, HeadCamera, camera_config
 
 
 def test_the_yumis_workcell_camera_is_the_head_camera():
@@ -103,3 +106,21 @@ def test_a_panda_scene_keeps_its_objects_apart_for_the_hand():
                          get_scene_spec("yumi"), 0, SeedStream.TEST, 0)
     xy = np.array([o.position_xy_m for o in scene.objects])
     assert min(np.linalg.norm(a - b) for i, a in enumerate(xy) for b in xy[i + 1:]) >= 0.16
+
+
+def test_each_robots_camera_records_the_heatmap_focus_derived_for_it():
+    yumi_record = HeadCamera(camera_config(yumi.YUMI)).record()
+    panda_record = HeadCamera(camera_config(get_robot("panda"))).record()
+    assert (yumi_record["focus_window_px"], yumi_record["focus_box_px"]) == (24, 18)
+    assert (panda_record["focus_window_px"], panda_record["focus_box_px"]) == (0, 0)
+    metadata = {"scene": "yumi", "task": "single", "label_kind": LabelKind.GRASP_POSE,
+                "targets": 1, "condition_kind": ConditionKind.NONE, "condition_choices": (),
+                "image_height_px": 128, "image_width_px": 128, "extra": {}}
+    specs = [ModelSpec.from_metadata(SimpleNamespace(**metadata, camera=record))
+             for record in (yumi_record, panda_record)]
+    assert [(s.focus_window_px, s.focus_box_px) for s in specs] == [(24, 18), (0, 0)]
+    assert [focus_px(s, KqvConfig()) for s in specs] == [(24, 18), (0, 18)]
+    assert CameraConfig.from_json(panda_record) == camera_config(get_robot("panda"))
+    with pytest.raises(InvalidInputError, match=r"focus_box_px = 0 is not allowed: 0 with no "
+                                                r"focus window, >= 1 with one"):
+        replace(CameraConfig(), focus_box_px=0)
