@@ -7,13 +7,19 @@ opening alone sets the opening. A model that states neither gets :data:`DEFAULT_
 gripper fully open, backed off as far as every catalog grasp is, no alternatives; it suits
 every object of the catalog, whose grasps all open fully (``benchmarks/bench_pick_variants.py``
 measures it). Nothing here reads the simulator: a grip is what the robot knows before it moves.
+
+The catalog states its grasps for the YuMi's hand (50 mm at most); every one of them opens it
+fully, for the most room for a grasp off by a few millimetres or degrees. On a hand with a
+wider stroke (the Panda's 80 mm) such a grasp opens that hand fully: a sponge grasp turned 40-50
+degrees off misses with the Panda's fingers 50 mm apart and holds with them 80 mm apart
+(docs/decisions/robots.md).
 """
 
 from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from perception.catalog import MAX_OPENING_M, ObjectSpec, catalog_names, get_object_spec
@@ -66,10 +72,20 @@ DEFAULT_GRIP = Grip(MAX_OPENING_M, DEFAULT_PREGRASP_DISTANCE_M, GripSource.DEFAU
 """The grip of a target the model says nothing about (see the module docstring)."""
 
 
-def grip_of(target: Target) -> Grip:
+def catalog_opening_m(catalog_m: float, max_opening_m: float = MAX_OPENING_M) -> float:
+    """A catalog opening on a hand opening ``max_opening_m`` at most [m].
+
+    An opening at the YuMi's full stroke (every catalog grasp's) opens the hand fully; a
+    narrower one keeps its width.
+    """
+    return max_opening_m if catalog_m >= MAX_OPENING_M else catalog_m
+
+
+def grip_of(target: Target, max_opening_m: float = MAX_OPENING_M) -> Grip:
     """The grip ``target`` asks for: its type's catalog grasp, its opening, or the default.
 
-    A stated opening overrides the type's.
+    A stated opening overrides the type's. ``max_opening_m``: the stroke of the hand that
+    picks (the YuMi's by default); a grip that opens fully opens it fully.
 
     Raises:
         InvalidInputError: The type is not in the catalog, or the opening is not within the
@@ -77,16 +93,17 @@ def grip_of(target: Target) -> Grip:
 
     """
     opening = target.opening_m
-    if opening is not None and not (math.isfinite(opening) and 0.0 < opening <= MAX_OPENING_M):
+    if opening is not None and not (math.isfinite(opening) and 0.0 < opening <= max_opening_m):
         raise InvalidInputError("target opening_m", opening,
-                                f"in (0, {MAX_OPENING_M}] m, the gripper's stroke")
+                                f"in (0, {max_opening_m}] m, the gripper's stroke")
     if target.object_type is None:
         if opening is None:
-            return DEFAULT_GRIP
+            return replace(DEFAULT_GRIP, opening_m=catalog_opening_m(DEFAULT_GRIP.opening_m,
+                                                                     max_opening_m))
         return Grip(opening, DEFAULT_PREGRASP_DISTANCE_M, GripSource.OPENING)
     if target.object_type not in catalog_names():
         raise InvalidInputError("target object_type", target.object_type,
                                 f"one of {', '.join(catalog_names())} or None")
     spec = get_object_spec(target.object_type)
-    return Grip(spec.grasp.opening_m if opening is None else opening,
-                spec.grasp.pregrasp_distance_m, GripSource.OBJECT_TYPE, spec)
+    return Grip(catalog_opening_m(spec.grasp.opening_m, max_opening_m) if opening is None
+                else opening, spec.grasp.pregrasp_distance_m, GripSource.OBJECT_TYPE, spec)

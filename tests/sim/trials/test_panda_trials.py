@@ -47,6 +47,7 @@ def test_the_panda_picks_with_the_oracle(task):
         record = runner.run(trial_scene(spec, 0, 0), 0, 0, "oracle")
     assert record.outcome is TrialOutcome.SUCCESS, record.reason
     assert {pick["arm"] for pick in record.picks} == {"panda"}
+    assert {pick["grip"]["opening_m"] for pick in record.picks} == {0.08}  # its hand, open fully
 
 
 def test_a_run_names_its_robot_unless_it_is_the_yumi():

@@ -8,8 +8,9 @@ from perception.grasps import grasp_pose
 from perception.interface import InvalidInputError as PerceptionInputError
 from perception.interface import Target
 from perception.poses import Pose
+from robots import get_robot
 from sim.errors import InvalidInputError
-from sim.world.grip import DEFAULT_GRIP, GripSource, grip_of
+from sim.world.grip import DEFAULT_GRIP, GripSource, catalog_opening_m, grip_of
 
 HERE = np.array([0.45, 0.0, 0.05])
 
@@ -35,7 +36,7 @@ def test_a_stated_opening_is_taken_and_overrides_the_types():
 
 
 def test_a_model_that_states_nothing_gets_the_default_that_opens_as_far_as_any_grasp():
-    assert grip_of(Target(HERE, np.eye(3))) is DEFAULT_GRIP
+    assert grip_of(Target(HERE, np.eye(3))) == DEFAULT_GRIP
     assert DEFAULT_GRIP.source is GripSource.DEFAULT and DEFAULT_GRIP.alternatives(
         Pose(HERE, np.eye(3))) == ()
     for name in catalog_names():
@@ -54,3 +55,18 @@ def test_an_unknown_type_or_an_impossible_opening_is_refused_by_name():
         grip_of(Target(HERE, np.eye(3), opening_m=0.08))
     with pytest.raises(PerceptionInputError, match="opening_m = nan is not allowed"):
         Target(HERE, np.eye(3), opening_m=float("nan"))
+
+
+def test_a_wider_hand_opens_fully_where_the_catalog_opens_the_yumis_fully():
+    stroke_m = get_robot("panda").arms[0].gripper.max_opening_m
+    assert stroke_m == 0.08
+    for name in catalog_names():  # every catalog grasp opens the YuMi's hand fully
+        grip = grip_of(Target(HERE, np.eye(3), object_type=name), stroke_m)
+        assert grip.opening_m == stroke_m and grip.spec is get_object_spec(name)
+    assert grip_of(Target(HERE, np.eye(3)), stroke_m).opening_m == stroke_m
+    assert grip_of(Target(HERE, np.eye(3)), stroke_m).source is GripSource.DEFAULT
+    assert grip_of(Target(HERE, np.eye(3), opening_m=0.07), stroke_m).opening_m == 0.07
+    assert catalog_opening_m(0.03, stroke_m) == 0.03  # a narrower grasp keeps its width
+    with pytest.raises(InvalidInputError, match=r"target opening_m = 0\.09 is not allowed: in "
+                       r"\(0, 0\.08\] m, the gripper's stroke"):
+        grip_of(Target(HERE, np.eye(3), opening_m=0.09), stroke_m)
