@@ -1,0 +1,29 @@
+"""benchmarks/check_panda_opening.py: turned sponge grasps on the Panda, per opening."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_a_straight_sponge_grasp_holds_at_either_opening(tmp_path):
+    spec = importlib.util.spec_from_file_location(
+        "check_panda_opening", ROOT / "benchmarks" / "check_panda_opening.py")
+    assert spec is not None and spec.loader is not None
+    check = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = check
+    spec.loader.exec_module(check)
+    task = check.panda_task()
+    assert task.min_spacing_m == 0.16 and task.camera.kind.value == "d435"
+    scenes = check.sponge_scenes(task, 2)
+    assert all(s.objects[s.targets[0]].object_type == "sponge" for s in scenes)
+    out = tmp_path / "opening.json"
+    outcomes = check.main(["--scenes", "1", "--openings-mm", "50,80", "--turns-deg", "0",
+                           "--out", str(out)])
+    assert outcomes == {"50": {"0": ["success"]}, "80": {"0": ["success"]}}
+    record = json.loads(out.read_text())
+    assert record["how"]["scenes"] == [scenes[0].index]
