@@ -220,6 +220,11 @@ class RobotDescription:
         return tuple(arm.name for arm in self.arms)
 
     @property
+    def max_opening_m(self) -> float:
+        """The widest finger gap every hand opens to [m]: a grip must fit whichever arm picks."""
+        return min(a.gripper.max_opening_m for a in self.arms)
+
+    @property
     def neighbour_spacing_m(self) -> float | None:
         """The least distance between object centres its hands need [m]; None: any task's."""
         needs = [a.gripper.neighbour_spacing_m for a in self.arms

@@ -104,7 +104,7 @@ class PickEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
         self.first_index, self.index_step = first_index, index_step
         self._runner = TrialRunner(self.task, execution=execution,
                                    robot=description)  # its model: the oracle
-        self.max_opening_m = max(a.gripper.max_opening_m for a in description.arms)
+        self.max_opening_m = description.max_opening_m
         self.object_types: tuple[str, ...] = YUMI_SCENE.object_types
         self.joint_names: tuple[str, ...] = tuple(self._runner.world.robot.joint_names)
         self.observation_space = self._observation_space()

@@ -164,8 +164,6 @@ class TrialRunner:
         self.model: PerceptionModel = model(self.world, self.camera)
         check_inputs(self.model, TRIAL_INPUTS, getattr(self.model, "name", repr(self.model)))
         self.planner = planner or make_planner(self.world.description)
-        # a grip must fit whichever arm the planner picks: the narrowest hand's stroke
-        self.max_opening_m = min(a.gripper.max_opening_m for a in robot.arms)
         self.observer = observer
         if observer is not None:
             self.world.step_hook = observer.stepped
@@ -339,7 +337,8 @@ class TrialRunner:
         rotation = nearest_rotation("predicted rotation", predicted.rotation)
         grasp = Pose(np.asarray(predicted.position_m, dtype=float), rotation)
         try:
-            return PlannedPick(None, "", grasp, grip_of(predicted, self.max_opening_m))
+            grip = grip_of(predicted, self.world.description.max_opening_m)
+            return PlannedPick(None, "", grasp, grip)
         except InvalidInputError as error:
             return PlannedPick(TrialOutcome.PERCEPTION_FAILED, str(error), grasp)
 
