@@ -1,5 +1,7 @@
 """The grip comes from what a model states: its type's catalog grasp, its opening, or a default."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -22,7 +24,14 @@ def test_a_named_type_brings_its_catalog_grasp_and_symmetric_alternatives():
     assert grip.opening_m == bottle.grasp.opening_m
     assert grip.pregrasp_distance_m == bottle.grasp.pregrasp_distance_m
     grasp = grasp_pose(bottle, Pose.from_xy_yaw(0.45, 0.1, 0.3))
-    assert len(grip.alternatives(grasp)) == 4  # a bottle is the same from every side
+    turned = grip.alternatives(grasp)  # a bottle is the same from every side: the whole circle
+    assert len(turned) == 17
+    axis = grasp.position[:2] + 0.006 * grasp.rotation[:2, 2]  # the TCP stops 6 mm short of it
+    bearings = [math.degrees(math.atan2(*(p.position[:2] - axis)[::-1])) for p in turned]
+    first = math.degrees(math.atan2(*(grasp.position[:2] - axis)[::-1]))
+    steps = [round(math.remainder(b - first, 360.0)) for b in bearings]
+    assert steps == [20, -20, 40, -40, 60, -60, 80, -80, 100, -100, 120, -120, 140, -140, 160,
+                     -160, 180]  # nearest the given grasp first
     assert grip_of(Target(HERE, np.eye(3), object_type="sponge")).alternatives(grasp) == ()
     assert grip.to_record() == {"source": "object_type", "object_type": "spray_bottle",
                                 "opening_m": 0.05, "pregrasp_distance_m": 0.08}
