@@ -62,9 +62,8 @@ ALTERNATIVE_TURNS_RAD = (*(sign * k * ALTERNATIVE_STEP_RAD for k in range(1, 9)
                            for sign in (1.0, -1.0)), math.pi)
 """The whole circle in 20 degree steps, nearest the given grasp first: +-20, +-40, ... +-160,
 180 degrees. The bottle is the same from every side, so a hand may take it from whichever side
-is clear: with only +-20 and +-40 degrees, the Panda's wide hand found no clear side for the
-bottle's side grasp between two neighbours 16 cm away in 6 of 270 Table III trials, the oracle's
-too; the whole circle planned all 6 (docs/decisions/robots.md)."""
+is clear; the Panda's wide hand, between neighbours, often finds none within 40 degrees of the
+given grasp (docs/decisions/robots.md)."""
 
 
 def symmetric_alternatives(
