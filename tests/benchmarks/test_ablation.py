@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import pytest
+from benchmark_scripts import load_benchmark
 from user_models import CAMERA, synthetic_dataset
 
 from experiments.tables import SeedStream, dataset_path
@@ -24,18 +22,7 @@ from perception.registry import new_model
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def _load() -> ModuleType:
-    """The script as a module (benchmarks are scripts, not a package): its folder on the path."""
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    spec = importlib.util.spec_from_file_location("ablation", ROOT / "benchmarks" / "ablation.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["ablation"] = module  # dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
-
-
-ablation = _load()
+ablation = load_benchmark("ablation")
 ROWS = ablation.row_files()
 
 

@@ -2,21 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
+from benchmark_scripts import load_benchmark
 
 
 def test_one_cycle_is_timed_part_by_part(tmp_path):
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    spec = importlib.util.spec_from_file_location("bench_closed_loop",
-                                                  ROOT / "benchmarks" / "bench_closed_loop.py")
-    assert spec is not None and spec.loader is not None
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_benchmark("bench_closed_loop")
     out = tmp_path / "cycle.json"
     assert bench.main(["--n", "2", "--out", str(out)]) == 0
     record = json.loads(out.read_text())

@@ -2,21 +2,15 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-from pathlib import Path
 
 import pytest
-
-ROOT = Path(__file__).resolve().parents[2]
+from benchmark_scripts import load_benchmark
 
 
 @pytest.mark.parametrize(("robot", "arms"), [("yumi", {"r", "l"}), ("panda", {"panda"})])
 def test_each_arm_is_measured_against_the_bar(tmp_path, robot, arms):
-    spec = importlib.util.spec_from_file_location("bench_ik", ROOT / "benchmarks" / "bench_ik.py")
-    assert spec is not None and spec.loader is not None
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_benchmark("bench_ik")
     out = tmp_path / "ik.json"
     assert bench.main(["--n", "20", "--robot", robot, "--out", str(out)]) == 0
     record = json.loads(out.read_text())

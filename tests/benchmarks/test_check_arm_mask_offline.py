@@ -2,29 +2,19 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
-from pathlib import Path
 
 import numpy as np
+from benchmark_scripts import load_benchmark
 
 from perception.learning.dataset_file import load_dataset
 from perception.learning.train import TrainConfig
 from perception.models.kqv import KqvConfig, KqvModel
 from sim.trials.collector import CollectSettings, collect
 
-ROOT = Path(__file__).resolve().parents[2]
-
 
 def test_the_masks_are_the_arm_and_the_heeded_images_are_counted(tmp_path):
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    spec = importlib.util.spec_from_file_location(
-        "check_arm_mask_offline", ROOT / "benchmarks" / "check_arm_mask_offline.py")
-    assert spec is not None and spec.loader is not None
-    check = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = check  # its dataclasses look their module up
-    spec.loader.exec_module(check)
+    check = load_benchmark("check_arm_mask_offline")
     data = tmp_path / "approach.gva"
     dataset = collect(CollectSettings("yumi", "single", 1, approach_hz=5.0), data, progress=False)
     masks = check.robot_masks(load_dataset(data))

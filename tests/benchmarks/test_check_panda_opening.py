@@ -2,21 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
+from benchmark_scripts import load_benchmark
 
 
 def test_a_straight_sponge_grasp_holds_at_either_opening(tmp_path):
-    spec = importlib.util.spec_from_file_location(
-        "check_panda_opening", ROOT / "benchmarks" / "check_panda_opening.py")
-    assert spec is not None and spec.loader is not None
-    check = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = check
-    spec.loader.exec_module(check)
+    check = load_benchmark("check_panda_opening")
     task = check.panda_task()
     assert task.min_spacing_m == 0.16 and task.camera.kind.value == "d435"
     scenes = check.sponge_scenes(task, 2)

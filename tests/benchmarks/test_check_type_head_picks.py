@@ -2,27 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
-from pathlib import Path
 
 import numpy as np
+from benchmark_scripts import load_benchmark
 from gva_cli import gva
 
 from perception.interface import Prediction, Target
-
-ROOT = Path(__file__).resolve().parents[2]
-
-
-def _check_module():
-    spec = importlib.util.spec_from_file_location(
-        "check_type_head_picks", ROOT / "benchmarks" / "check_type_head_picks.py")
-    assert spec is not None and spec.loader is not None
-    check = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = check
-    spec.loader.exec_module(check)
-    return check
 
 
 class _Typed:
@@ -33,7 +19,7 @@ class _Typed:
 
 
 def test_untyped_keeps_the_grasp_and_drops_the_type():
-    check = _check_module()
+    check = load_benchmark("check_type_head_picks")
     model = check.Untyped(_Typed())
     (target,) = model.predict_frame(None, None).targets
     assert target.object_type is None and model.name == "typed"
@@ -41,7 +27,7 @@ def test_untyped_keeps_the_grasp_and_drops_the_type():
 
 
 def test_a_replay_with_the_types_is_the_run_and_without_them_is_paired(tmp_path):
-    check = _check_module()
+    check = load_benchmark("check_type_head_picks")
     run = tmp_path / "run"
     status, _, stderr = gva("reproduce", "real", "--out", run, "--tasks", "single", "--demos",
                             "2", "--n", "2", "--steps", "3", "--workers", "1", "--holdout",

@@ -2,21 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
+from benchmark_scripts import load_benchmark
 
 
 def test_every_object_is_sized_through_every_robots_camera(tmp_path):
-    spec = importlib.util.spec_from_file_location(
-        "object_image_spans", ROOT / "benchmarks" / "object_image_spans.py")
-    assert spec is not None and spec.loader is not None
-    bench = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = bench  # its dataclass looks its module up
-    spec.loader.exec_module(bench)
+    bench = load_benchmark("object_image_spans")
     out = tmp_path / "spans.json"
     rows = bench.main(["--robots", "yumi,panda", "--out", str(out)])
     assert [(r.robot, r.object_type) for r in rows] == [
