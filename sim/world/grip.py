@@ -98,8 +98,7 @@ def grip_of(target: Target, max_opening_m: float = MAX_OPENING_M) -> Grip:
                                 f"in (0, {max_opening_m}] m, the gripper's stroke")
     if target.object_type is None:
         if opening is None:
-            return replace(DEFAULT_GRIP, opening_m=catalog_opening_m(DEFAULT_GRIP.opening_m,
-                                                                     max_opening_m))
+            return replace(DEFAULT_GRIP, opening_m=max_opening_m)  # fully open, as ever
         return Grip(opening, DEFAULT_PREGRASP_DISTANCE_M, GripSource.OPENING)
     if target.object_type not in catalog_names():
         raise InvalidInputError("target object_type", target.object_type,
