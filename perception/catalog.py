@@ -18,6 +18,7 @@ resting on the table at (x, y) with yaw ψ has ``T_world_object = (x, y, 0) · R
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from types import MappingProxyType
 from typing import NamedTuple
@@ -43,12 +44,41 @@ from perception.object_spec import (
 from perception.poses import Pose
 
 __all__ = [  # the names of perception.object_spec that importers have always found here, too
-    "BLOCK", "CLUTTER_TYPES", "DISTRACTOR_TYPES", "DRINK_CAN", "FINGERTIP_BEYOND_TCP_M",
-    "FINGER_HALF_WIDTH_M", "FINGER_LENGTH_M", "FINGER_THICKNESS_M", "GLUE_STICK", "MARKER",
-    "MAX_OPENING_M", "MAX_PAYLOAD_KG", "MAX_PRIMITIVES", "MIN_FINGERTIP_HEIGHT_M", "MUG",
-    "NOTEBOOK", "OBJECT_TYPES", "SPONGE", "SPRAY_BOTTLE", "GraspSpec", "ObjectSpec",
-    "ObstacleShape", "Primitive", "PrimitiveKind", "Symmetry", "catalog_names", "clear_of_table",
-    "get_object_spec", "lowest_fingertip_z_m", "obstacle_shapes",
+    "BLOCK",
+    "BOTTLE_TWIN",
+    "CLUTTER_TYPES",
+    "COLOUR_TWIN",
+    "DISTRACTOR_TYPES",
+    "DRINK_CAN",
+    "FINGERTIP_BEYOND_TCP_M",
+    "FINGER_HALF_WIDTH_M",
+    "FINGER_LENGTH_M",
+    "FINGER_THICKNESS_M",
+    "GLUE_STICK",
+    "LOOK_ALIKE_TYPES",
+    "MARKER",
+    "MAX_OPENING_M",
+    "MAX_PAYLOAD_KG",
+    "MAX_PRIMITIVES",
+    "MIN_FINGERTIP_HEIGHT_M",
+    "MUG",
+    "MUG_TWIN",
+    "NOTEBOOK",
+    "OBJECT_TYPES",
+    "SHAPE_TWINS",
+    "SPONGE",
+    "SPRAY_BOTTLE",
+    "GraspSpec",
+    "ObjectSpec",
+    "ObstacleShape",
+    "Primitive",
+    "PrimitiveKind",
+    "Symmetry",
+    "catalog_names",
+    "clear_of_table",
+    "get_object_spec",
+    "lowest_fingertip_z_m",
+    "obstacle_shapes",
 ]
 
 
@@ -134,6 +164,37 @@ BLOCK = ObjectSpec(
     grasp=GraspSpec((0.0, 0.0, 0.028), _DOWN, (0.0, 1.0, 0.0), 0.05, 0.08, Symmetry.TWO_FOLD),
 )
 
+# Look-alikes, never targets: the block's kin for the other two types, and a colour twin.
+# A shape twin is a target type's shape in unfinished wood, the one colour no palette gives a
+# target (docs/tasks.md): a model that takes it for the type looks at shape alone. Same
+# primitives, mass and grasp as the type, so it lies and is pushed as the type would be.
+BOTTLE_TWIN = ObjectSpec(
+    name="bottle_twin",
+    primitives=tuple(dataclasses.replace(p, rgba=_WOOD) for p in SPRAY_BOTTLE.primitives),
+    mass_kg=SPRAY_BOTTLE.mass_kg, lateral_friction=1.0, spinning_friction_m=0.003,
+    rolling_friction_m=0.0005, grasp=SPRAY_BOTTLE.grasp,
+)
+MUG_TWIN = ObjectSpec(
+    name="mug_twin",
+    primitives=tuple(dataclasses.replace(p, rgba=_WOOD) for p in MUG.primitives),
+    mass_kg=MUG.mass_kg, lateral_friction=1.0, spinning_friction_m=0.003,
+    rolling_friction_m=0.0005, grasp=MUG.grasp,
+)
+# A 45 mm toy cube with a top layer: no target's shape (the sponge is 90 x 35 mm, the bottle and
+# the mug round). A scene paints it in one of its targets' colours, the body in the target's
+# first part's and the top in its last (sim.tasks.appearance: a sponge's foam and the scourer
+# the camera sees from above, a bottle's body and head): a colour twin, the look-alike a colour
+# threshold cannot tell from its target. Grey in the catalog.
+COLOUR_TWIN = ObjectSpec(
+    name="colour_twin",
+    primitives=(
+        Primitive(_BOX, (0.045, 0.045, 0.037), (0.0, 0.0, 0.0185), (0.5, 0.5, 0.5, 1.0)),
+        Primitive(_BOX, (0.045, 0.045, 0.008), (0.0, 0.0, 0.041), (0.4, 0.4, 0.4, 1.0)),
+    ),
+    mass_kg=0.05, lateral_friction=1.0, spinning_friction_m=0.003, rolling_friction_m=0.0005,
+    grasp=GraspSpec((0.0, 0.0, 0.04), _DOWN, (0.0, 1.0, 0.0), 0.05, 0.08, Symmetry.TWO_FOLD),
+)
+
 # Table clutter, never a target: objects a model learns to ignore, unlike the block in shape and
 # unlike every target and the block in colour (no yellow, green, white, blue, red or wood; nor
 # grey or black, which have white's chromaticity), so a model trained among them never saw the
@@ -189,11 +250,17 @@ GLUE_STICK = ObjectSpec(
 )
 
 _CATALOG = MappingProxyType({spec.name: spec for spec in (
-    SPONGE, SPRAY_BOTTLE, MUG, BLOCK, DRINK_CAN, NOTEBOOK, MARKER, GLUE_STICK)})
+    SPONGE, SPRAY_BOTTLE, MUG, BLOCK, DRINK_CAN, NOTEBOOK, MARKER, GLUE_STICK, BOTTLE_TWIN,
+    MUG_TWIN, COLOUR_TWIN)})
 OBJECT_TYPES: tuple[str, ...] = ("sponge", "spray_bottle", "mug")
 """Names of the object types a task targets, in a fixed order (a one-hot condition's order)."""
 DISTRACTOR_TYPES: tuple[str, ...] = ("block",)
-"""The look-alike distractor: the sponge's size and shape, never a target."""
+"""The experiments' look-alike distractor: the sponge's size and shape, never a target."""
+LOOK_ALIKE_TYPES: tuple[str, ...] = ("bottle_twin", "mug_twin", "colour_twin")
+"""Further look-alikes, never targets: the bottle's and the mug's shapes in the block's wood, and
+a cube a scene paints in one of its targets' colours (``colour_twin``)."""
+SHAPE_TWINS = {"sponge": "block", "spray_bottle": "bottle_twin", "mug": "mug_twin"}
+"""Each target type's shape twin: its shape, not its colours."""
 CLUTTER_TYPES: tuple[str, ...] = ("drink_can", "notebook", "marker", "glue_stick")
 """Everyday table clutter, presented only as distractors, never targets. Unlike the block in
 shape and colour, so a model trained among clutter was never shown the block it is tested on."""

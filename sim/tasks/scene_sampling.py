@@ -6,7 +6,9 @@ model was trained on: scene ``index`` of stream ``stream`` under seed ``seed`` i
 ``SeedSequence([seed, stream, index, 1])``: a task with distractors presents the same scene
 as the task without them (same objects, poses, targets and condition), plus the distractors.
 A task with ``distractors.per_scene`` draws which of its distractors a scene presents from that
-same stream, before placing them.
+same stream, before placing them. A scene's look (:mod:`sim.tasks.appearance`) comes last, from
+``SeedSequence([seed, stream, index, 3])``: a task that varies its looks presents the same
+scene as the task that does not.
 
 Placement is rejection sampling, bounded: a task that cannot fit is refused before sampling by
 :func:`check_task_fits` (an area bound, Groemer's packing inequality), and one that the bound
@@ -29,6 +31,8 @@ from sim.errors import InvalidInputError
 from sim.tasks.queries import query_for
 from sim.tasks.scene_specs import SceneSpec
 from sim.tasks.task_spec import MAX_OBJECTS, SIDES, ObjectChoice, TargetSelection, TaskSpec
+from sim.world.head_camera import Lighting
+from sim.world.looks import SceneLook
 
 MAX_PLACEMENT_TRIES = 200
 """Positions drawn for one object before the scene's placement starts over; also the restarts."""
@@ -39,6 +43,8 @@ DISTRACTOR_STREAM = 1
 """The distractors' own seed stream, beside the scene's (see the module docstring)."""
 BALANCE_STREAM = 2
 """The seed stream of a balanced task's shuffled type blocks (``TaskSpec.balance_types``)."""
+APPEARANCE_STREAM = 3
+"""The seed stream of a scene's look (colours, textures, table, light, camera mount)."""
 
 
 class SeedStream(enum.IntEnum):
@@ -71,6 +77,8 @@ class Scene:
         condition: The top-down condition: what it names, which the referee judges by.
         query: What the model is given for it where that differs (a sentence, a picture:
             :mod:`sim.tasks.queries`); None: the condition itself (one-hot tasks).
+        look: What the scene looks like (:class:`~sim.world.looks.SceneLook`, one look per
+            object); None: today's world.
 
     """
 
@@ -83,6 +91,7 @@ class Scene:
     targets: tuple[int, ...]
     condition: Condition = NO_CONDITION
     query: Condition | None = None
+    look: SceneLook | None = None
 
     @property
     def given(self) -> Condition:
@@ -101,7 +110,8 @@ class Scene:
             "targets": list(self.targets),
             "condition": {"kind": self.condition.kind.value, "value": self.condition.value},
         } | ({} if self.query is None else {
-            "query": {"kind": self.query.kind.value, "value": self.query.value}})
+            "query": {"kind": self.query.kind.value, "value": self.query.value}}) | (
+            {} if self.look is None or not self.look.to_json() else {"look": self.look.to_json()})
 
     def asking(self, value: str, task: TaskSpec) -> Scene:
         """The same scene, objects and poses, asked for condition ``value`` and its target.
@@ -164,6 +174,10 @@ def check_task_fits(task: TaskSpec, spec: SceneSpec) -> None:
         raise InvalidInputError(f"{where}: objects.count", task.count,
                                 f"{len(spec.object_types)} (one of each of "
                                 f"{', '.join(spec.object_types)})")
+    if spec.name != "yumi" and task.appearance.draws_anything(task.distractors):
+        raise InvalidInputError(f"{where}: appearance", task.appearance.to_json(),
+                                "today's looks: the paper-sim scene keeps its URDF objects' "
+                                "colours, table and light (appearance varies in the yumi scene)")
     presentable = spec.object_types + spec.distractor_types
     unknown = [t for t in task.distractors if t not in presentable]
     if unknown:
@@ -256,8 +270,14 @@ def sample_scene(
             [seed, int(stream), index, DISTRACTOR_STREAM]))
         objects += _place_distractors(task, spec, objects, _draw_distractors(task, distractor_rng),
                                       distractor_rng)
+    look = None
+    if task.appearance.draws_anything(tuple(o.object_type for o in objects)):
+        look = task.appearance.draw(
+            tuple(o.object_type for o in objects), tuple(o.distractor for o in objects), targets,
+            stream is SeedStream.TEST, Lighting(), np.random.default_rng(
+                np.random.SeedSequence([seed, int(stream), index, APPEARANCE_STREAM])))
     return Scene(task.name, spec.name, seed, stream, index, objects, targets, condition,
-                 query_for(task, spec.name, condition, seed, stream, index))
+                 query_for(task, spec.name, condition, seed, stream, index), look)
 
 
 def balanced_type(spec: SceneSpec, seed: int, index: int) -> str:

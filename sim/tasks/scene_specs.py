@@ -3,7 +3,7 @@
 | | ``paper-sim`` (Table II) | ``yumi`` (Table III) |
 |---|---|---|
 | objects | duck, soccer ball, mug (pybullet_data, ~10 cm) | sponge, spray bottle, mug |
-| distractors only | none | a wooden block; clutter: drink can, notebook, marker, glue stick |
+| distractors only | none | a wooden block, clutter (drink can, notebook, ...), look-alikes |
 | camera | at the table centre from 50 cm | the YuMi's head camera |
 | label per target | the object's position (x, y, z) [m] | the TCP pose that picks it |
 
@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from perception.catalog import CLUTTER_TYPES, DISTRACTOR_TYPES, OBJECT_TYPES
+from perception.catalog import CLUTTER_TYPES, DISTRACTOR_TYPES, LOOK_ALIKE_TYPES, OBJECT_TYPES
 from perception.interface import LabelKind
 from sim.errors import InvalidInputError
 from sim.world.head_camera import CameraConfig
@@ -56,8 +56,9 @@ YUMI_SCENE = SceneSpec(
     workspace_x_m=(0.40, 0.55),
     workspace_y_m=(-0.20, 0.20),
     label_kind=LabelKind.GRASP_POSE,
-    # The block (the experiments' look-alike) and the clutter, never targets.
-    distractor_types=DISTRACTOR_TYPES + CLUTTER_TYPES,
+    # The block (the experiments' look-alike), the clutter and the other look-alikes (the
+    # bottle's and the mug's shape twins, the colour twin), never targets.
+    distractor_types=DISTRACTOR_TYPES + CLUTTER_TYPES + LOOK_ALIKE_TYPES,
 )
 
 

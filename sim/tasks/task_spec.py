@@ -35,6 +35,12 @@ a user writes a new one as a TOML file and passes its path wherever a task name 
     [camera]
     sensor = "ideal"          # ideal | d435 (then any D435Config field by name)
 
+    Appearance keys (optional, :mod:`sim.tasks.appearance`; every default today's world):
+    ``[objects] palette`` and ``textures``, ``[lighting] azimuth_deg``, ``elevation_deg``,
+    ``colour_temperature_k``, ``ambient``, ``diffuse``, ``shadows``, ``[table] looks``,
+    ``[camera] mount_offset_mm`` and ``mount_offset_deg``, ``[appearance] held_out``, and the
+    look-alike distractors ``bottle_twin``, ``mug_twin`` and ``colour_twin``.
+
     [disturbance]             # optional: the target moves during the pick (issue 36)
     move_m = [0.03, 0.08]     # see sim/tasks/disturbance.py
 
@@ -60,6 +66,7 @@ from typing import Any
 from perception.interface import ConditionKind
 from perception.interface import InvalidInputError as PerceptionInputError
 from sim.errors import InvalidInputError
+from sim.tasks.appearance import Appearance
 from sim.tasks.disturbance import Disturbance
 from sim.tasks.phrasings import Phrasings
 from sim.world.head_camera import CameraConfig
@@ -142,6 +149,8 @@ class TaskSpec:
         disturbance: How the target moves during a pick (``[disturbance]``,
             :mod:`sim.tasks.disturbance`); None (the default): it lies still. It needs the
             ``yumi`` scene's physics: the trial runner applies it.
+        appearance: What may vary in how the scenes look (palettes, textures, table, light,
+            camera mount: :mod:`sim.tasks.appearance`); the default is today's world.
         source: The file the task came from.
 
     """
@@ -165,6 +174,7 @@ class TaskSpec:
     distractors_per_scene: tuple[int, int] | None = None
     camera: SensorConfig = dataclasses.field(default_factory=SensorConfig)
     disturbance: Disturbance | None = None
+    appearance: Appearance = dataclasses.field(default_factory=Appearance)
     source: str = "<code>"
 
     def __post_init__(self) -> None:
@@ -239,6 +249,9 @@ class TaskSpec:
             raise bad("camera", self.camera, "a SensorConfig")
         if not (self.disturbance is None or isinstance(self.disturbance, Disturbance)):
             raise bad("disturbance", self.disturbance, "a Disturbance or None")
+        if not isinstance(self.appearance, Appearance):
+            raise bad("appearance", self.appearance, "an Appearance")
+        self.appearance.check(bad)
         lens = self.camera.d435.colour_distortion_k1_k2_p1_p2_k3
         try:  # one-to-one over the head camera's image (and beyond): PinholeCamera checks it
             replace(CameraConfig().pinhole, distortion_k1_k2_p1_p2_k3=lens)
@@ -263,14 +276,19 @@ class TaskSpec:
         """The fields records keep of the task (run identities, datasets' task records).
 
         Without its source; the sensor as ``"camera"`` (:meth:`SensorConfig.to_json`),
-        ``"distractors_per_scene"`` and ``"disturbance"`` (:meth:`Disturbance.to_json`) only
-        where set, so records from before they existed (all ideal, every distractor presented,
-        targets lying still) are the same task.
+        ``"distractors_per_scene"``, ``"disturbance"`` (:meth:`Disturbance.to_json`) and
+        ``"appearance"`` (:meth:`Appearance.to_json`) only where set, so records from before they
+        existed (all ideal, every distractor presented, targets lying still, today's looks) are
+        the same task.
         """
-        data = dataclasses.asdict(self)
+        appearance = self.appearance
+        data = dataclasses.asdict(dataclasses.replace(self, appearance=Appearance()))
         data.pop("source")
         data.pop("camera")
         data.pop("disturbance")
+        data.pop("appearance")
+        if not appearance.is_default:
+            data["appearance"] = appearance.to_json()
         if self.disturbance is not None:
             data["disturbance"] = self.disturbance.to_json()
         if self.distractors_per_scene is None:

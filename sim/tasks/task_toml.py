@@ -18,6 +18,13 @@ from typing import Any
 
 from perception.interface import ConditionKind
 from sim.errors import InvalidInputError
+from sim.tasks.appearance import (
+    CATALOG_PALETTE,
+    Appearance,
+    LightVariation,
+    builtin_palettes,
+    load_palette,
+)
 from sim.tasks.disturbance import Disturbance, DisturbanceWhen, disturbance_from_table
 from sim.tasks.phrasings import Phrasings, read_phrase_file
 from sim.tasks.task_spec import (
@@ -31,11 +38,18 @@ from sim.tasks.task_spec import (
 )
 from sim.world.d435 import D435Config
 from sim.world.sensor import SensorConfig, sensor_from_table
+from sim.world.textures import TextureKind
 
 MAX_TASK_FILE_BYTES = 64 * 1024
 """A task file is a few hundred bytes; a bigger file is refused unread (an image, a dataset)."""
 
 TASK_FILES = Path(__file__).resolve().parent / "task_files"
+_LIGHT_RANGES = ("azimuth_deg", "elevation_deg", "colour_temperature_k", "ambient", "diffuse")
+"""``[lighting]`` keys that take a number or ``[low, high]`` (:class:`LightVariation`)."""
+_MOUNT_KEYS = ("mount_offset_mm", "mount_offset_deg")
+"""``[camera]`` keys of the mount's offset (:class:`Appearance`), not of the sensor."""
+
+
 def _key(key: str) -> str:
     """A TOML key as written: bare if it can be, else quoted (no newline reaches a message)."""
     return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else json.dumps(key)
@@ -43,14 +57,16 @@ def _key(key: str) -> str:
 
 _SECTIONS: dict[str, set[str]] = {
     "": {"name", "description", "objects", "targets", "condition", "placement", "lighting",
-         "distractors", "camera", "disturbance"},
-    "objects": {"choose", "count", "balance_types"},
+         "distractors", "camera", "disturbance", "table", "appearance"},
+    "objects": {"choose", "count", "balance_types", "palette", "textures"},
     "targets": {"select"},
     "condition": {"kind", "given_as", "phrases"},
     "placement": {"sides", "yaw_deg", "min_spacing_m", "x_m", "y_m"},
-    "lighting": {"brightness"},
+    "lighting": {"brightness", *_LIGHT_RANGES, "shadows"},
     "distractors": {"types", "per_scene"},
-    "camera": {"sensor", *(f.name for f in dataclasses.fields(D435Config))},
+    "camera": {"sensor", *_MOUNT_KEYS, *(f.name for f in dataclasses.fields(D435Config))},
+    "table": {"looks"},
+    "appearance": {"held_out"},
     "disturbance": {f.name for f in dataclasses.fields(Disturbance)},
 }
 
@@ -116,9 +132,32 @@ class _Reader:
             raise self.error(f"{section}.{key}", value, "a list of two finite numbers [low, high]")
         return float(value[0]), float(value[1])
 
+    def span(self, section: str, key: str) -> tuple[float, float] | None:
+        """``section.key``, a number or ``[low, high]``, as ``(low, high)``; None if absent."""
+        allowed = "a finite number or a list of two [low, high]"
+        value = self.get(section, key, (int, float, list), None, allowed)
+        if value is None:
+            return None
+        values = value if isinstance(value, list) else [value, value]
+        if len(values) != 2 or not all(finite_number(v) for v in values):
+            raise self.error(f"{section}.{key}", value, allowed)
+        return float(values[0]), float(values[1])
 
-def task_from_toml(text: str, source: str = "<string>") -> TaskSpec:
-    """Reads a task from TOML text; every mistake is an error naming the file and the field."""
+    def names(self, section: str, key: str, default: tuple[str, ...]) -> tuple[str, ...]:
+        """``section.key`` as a list of names; ``default`` if absent."""
+        value = self.get(section, key, list, None, "a list of names")
+        if value is None:
+            return default
+        if not all(isinstance(v, str) for v in value):
+            raise self.error(f"{section}.{key}", value, "a list of names")
+        return tuple(value)
+
+
+def task_from_toml(text: str, source: str = "<string>", folder: Path | None = None) -> TaskSpec:
+    """Reads a task from TOML text; every mistake is an error naming the file and the field.
+
+    ``folder``: where the file lies; a palette file it names is read relative to it.
+    """
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
@@ -162,8 +201,35 @@ def task_from_toml(text: str, source: str = "<string>") -> TaskSpec:
         distractors_per_scene=None if per_scene is None else (per_scene[0], per_scene[1]),
         camera=_camera(reader, source),
         disturbance=_disturbance(reader, source),
+        appearance=_appearance(reader, folder),
         source=source,
     )
+
+
+def _appearance(reader: _Reader, folder: Path | None) -> Appearance:
+    """The appearance keys (:mod:`sim.tasks.appearance`); today's world where all are absent."""
+    palette_name = reader.get("objects", "palette", str, CATALOG_PALETTE, "a palette's name or "
+                              "file")
+    try:
+        palette = load_palette(palette_name, folder)
+    except InvalidInputError as error:
+        raise reader.error(error.field, error.value, error.allowed) from None
+    if palette is not None and palette_name not in builtin_palettes():
+        palette_name = str((folder or Path()).joinpath(palette_name).resolve())
+    textures = reader.names("objects", "textures", ("plain",))
+    try:
+        kinds = tuple(TextureKind(t) for t in textures)
+    except ValueError:
+        raise reader.error("objects.textures", list(textures), "names among " + ", ".join(
+            t.value for t in TextureKind)) from None
+    light = LightVariation(**{k: reader.span("lighting", k) for k in _LIGHT_RANGES},
+                           shadows=reader.get("lighting", "shadows", bool, True, "true or false"))
+    return Appearance(
+        palette=palette, palette_name=palette_name, textures=kinds,
+        tables=reader.names("table", "looks", ("wood",)), light=light,
+        mount_offset_mm=reader.number("camera", "mount_offset_mm", 0.0),
+        mount_offset_deg=reader.number("camera", "mount_offset_deg", 0.0),
+        held_out=reader.get("appearance", "held_out", bool, False, "true or false"))
 
 
 def _disturbance(reader: _Reader, source: str) -> Disturbance | None:
@@ -183,6 +249,7 @@ def _camera(reader: _Reader, source: str) -> SensorConfig:
     table = reader.get("", "camera", dict, None, 'a table such as { sensor = "d435" }')
     if table is None:
         return SensorConfig()
+    table = {k: v for k, v in table.items() if k not in _MOUNT_KEYS}  # the mount: not the sensor
     try:
         return sensor_from_table(table, f"task file {source}: camera")
     except InvalidInputError as error:  # a long value shortened: the message stays one line
@@ -232,8 +299,11 @@ def with_test_phrases(task: TaskSpec, path: str | Path, targets: tuple[str, ...]
     return dataclasses.replace(task, phrasings=task.phrasings.with_test(kept, Path(path).name))
 
 
-def task_from_bytes(data: bytes, source: str = "<bytes>") -> TaskSpec:
-    """Reads a task from a file's bytes: UTF-8 text (a leading BOM is skipped), then TOML."""
+def task_from_bytes(data: bytes, source: str = "<bytes>", folder: Path | None = None) -> TaskSpec:
+    """Reads a task from a file's bytes: UTF-8 text (a leading BOM is skipped), then TOML.
+
+    ``folder``: where the file lies (palette files are read relative to it).
+    """
     if len(data) > MAX_TASK_FILE_BYTES:
         raise InvalidInputError(f"task file {source}", f"{len(data)} bytes or more",
                                 f"a task file of at most {MAX_TASK_FILE_BYTES} bytes")
@@ -243,7 +313,7 @@ def task_from_bytes(data: bytes, source: str = "<bytes>") -> TaskSpec:
         raise InvalidInputError(f"task file {source}", "not UTF-8 text", "a TOML text file in "
                                 f"UTF-8 (byte {error.start} is {data[error.start]:#04x})"
                                 ) from None
-    return task_from_toml(text, source)
+    return task_from_toml(text, source, folder)
 
 
 def task_to_toml(task: TaskSpec) -> str:
@@ -284,6 +354,7 @@ def task_to_toml(task: TaskSpec) -> str:
             else {"per_scene": list(task.distractors_per_scene)}),
         "camera": task.camera.to_json(),
     }
+    _write_appearance(task, tables)
     if task.disturbance is not None:
         tables["disturbance"] = task.disturbance.to_json()
     if task.phrasings is not None:
@@ -293,6 +364,27 @@ def task_to_toml(task: TaskSpec) -> str:
     for table, keys in tables.items():
         lines += ["", f"[{table}]", *(f"{key} = {value(v)}" for key, v in keys.items())]
     return "\n".join(lines) + "\n"
+
+
+def _write_appearance(task: TaskSpec, tables: dict[str, dict[str, Any]]) -> None:
+    """Adds the task's appearance keys to ``tables``, those that differ from today's world."""
+    look = task.appearance
+    if look.palette is not None:
+        tables["objects"]["palette"] = look.palette_name
+    if look.textures != (TextureKind.PLAIN,):
+        tables["objects"]["textures"] = [t.value for t in look.textures]
+    for key in _LIGHT_RANGES:
+        if getattr(look.light, key) is not None:
+            tables["lighting"][key] = list(getattr(look.light, key))
+    if not look.light.shadows:
+        tables["lighting"]["shadows"] = False
+    for key in _MOUNT_KEYS:
+        if getattr(look, key):
+            tables["camera"][key] = getattr(look, key)
+    if look.tables != ("wood",):
+        tables["table"] = {"looks": list(look.tables)}
+    if look.held_out:
+        tables["appearance"] = {"held_out": True}
 
 
 def builtin_tasks() -> tuple[str, ...]:
@@ -314,7 +406,7 @@ def load_task(name_or_path: str | Path) -> TaskSpec:
         except OSError as error:
             raise InvalidInputError("task file", text, f"a readable file ({error.strerror})"
                                     ) from None
-        return task_from_bytes(data, source)
+        return task_from_bytes(data, source, path.resolve().parent)
     if text not in builtin_tasks():
         raise InvalidInputError(
             "task", text, f"one of {', '.join(builtin_tasks())}, or the path of a .toml file"

@@ -60,7 +60,9 @@ class TrialRecord:
     ``judge`` is the grasp judge's verdict on the pick (:mod:`perception.grasp_judge`), absent
     in records made before it. ``asked`` is what the model was given for a condition, where
     it is no one-hot name (the scene record's ``query``): ``{"kind": "text", "value": <the
-    sentence>}``, or ``{"kind": "image", "value": "picture <sha256[:12]>"}``.
+    sentence>}``, or ``{"kind": "image", "value": "picture <sha256[:12]>"}``. ``look`` is what
+    the scene looked like where its task varies it (the scene record's ``look``,
+    :class:`sim.world.looks.SceneLook`); absent, and not written, for today's world.
     """
 
     index: int
@@ -86,6 +88,7 @@ class TrialRecord:
     wall_time_s: float = 0.0
     asked: dict[str, Any] | None = None
     judge: dict[str, Any] | None = None
+    look: dict[str, Any] | None = None
 
     @property
     def success(self) -> bool:
@@ -105,6 +108,8 @@ class TrialRecord:
         """One JSON line (no newline)."""
         data = asdict(self)
         data["outcome"] = self.outcome.value
+        if self.look is None:  # today's world: records as they always were
+            del data["look"]
         return json.dumps(data, sort_keys=True)
 
     @classmethod
@@ -176,16 +181,41 @@ def judged_pairs(records: Iterable[TrialRecord]) -> list[tuple[bool, bool]]:
     return pairs
 
 
+def record_lines(path: Path) -> list[bytes]:
+    """The lines of a ``trials.jsonl`` as bytes: each decoded by :func:`record_of_line`.
+
+    Not decoded whole: a file that is not UTF-8 (or a crash mid-character in its last line)
+    is then refused, or repaired, a line at a time as any other damage is.
+    """
+    return Path(path).read_bytes().splitlines()
+
+
+def record_of_line(line: bytes) -> TrialRecord:
+    """One line of a ``trials.jsonl`` as its record.
+
+    Raises:
+        ValueError: (or JSONDecodeError, TypeError, KeyError) the line is not one
+            :meth:`TrialRecord.to_json` wrote; bytes that are not UTF-8 name the first.
+
+    """
+    try:
+        text = line.decode("utf-8")
+    except UnicodeDecodeError as error:
+        raise ValueError(f"not UTF-8 text (byte {error.start} is "
+                         f"{line[error.start]:#04x}), not a line gva trials wrote") from None
+    return TrialRecord.from_json(text)
+
+
 def read_trial_records(path: Path) -> list[TrialRecord]:
     """The records of a ``trials.jsonl``, read only: a half-written last line is left out.
 
     A damaged line before the last is no crash's doing: it is refused, naming the line.
     """
-    lines = Path(path).read_text().splitlines()
+    lines = record_lines(path)
     records = []
     for number, line in enumerate(lines, start=1):
         try:
-            records.append(TrialRecord.from_json(line))
+            records.append(record_of_line(line))
         except (json.JSONDecodeError, TypeError, ValueError, KeyError) as error:
             if number == len(lines):  # a crash mid-write; a resumed run drops it too
                 break
@@ -271,14 +301,14 @@ class TrialLog:
     def _read(self) -> Iterator[tuple[int, TrialRecord]]:
         if not self.path.exists():
             return
-        lines = self.path.read_text().splitlines()
-        kept: list[str] = []
+        lines = record_lines(self.path)
+        kept: list[bytes] = []
         for number, line in enumerate(lines, start=1):
             try:
-                record = TrialRecord.from_json(line)
+                record = record_of_line(line)
             except (json.JSONDecodeError, TypeError, ValueError, KeyError) as error:
                 if number == len(lines):  # a crash mid-write: drop the partial last line
-                    self.path.write_text("".join(k + "\n" for k in kept))
+                    self.path.write_bytes(b"".join(k + b"\n" for k in kept))
                     return
                 raise RunFolderError(f"{self.path} line {number} is damaged: {error}") from None
             kept.append(line)
@@ -290,7 +320,7 @@ class TrialLog:
 
     def append(self, record: TrialRecord) -> None:
         """Appends one finished trial and forces it to disk before returning."""
-        with self.path.open("a") as handle:
+        with self.path.open("a", encoding="utf-8") as handle:
             handle.write(record.to_json() + "\n")
             handle.flush()
             os.fsync(handle.fileno())

@@ -78,6 +78,7 @@ from sim.trials.planner_setup import (
 from sim.trials.records import TrialOutcome, TrialRecord
 from sim.world.grip import grip_of
 from sim.world.head_camera import HeadCamera, camera_config
+from sim.world.looks import SceneLook, lighting_for, moved_camera
 from sim.world.sensor import SensorSeed
 from sim.world.yumi_world import World, check_wait_s
 
@@ -157,10 +158,12 @@ class TrialRunner:
         self.obstacle_source = obstacles
         self.world = World(robot=robot)
         self.depth = depth or depth_config(self.world.description, self.world.config)
-        self.camera = HeadCamera(camera_config(robot), sensor=task.camera)
+        self.mounted_camera = HeadCamera(camera_config(robot), sensor=task.camera)
+        self.camera = self.mounted_camera  # a scene's look may move its mount (setup)
         self.frame_seed = SensorSeed()  # the next frame's; setup names the scene, sight counts
-        self.lighting = dataclasses.replace(self.camera.config.lighting,
-                                            brightness=task.brightness)
+        self.task_lighting = dataclasses.replace(self.camera.config.lighting,
+                                                 brightness=task.brightness)
+        self.lighting = self.task_lighting  # a scene's look may draw its own (setup)
         self.model: PerceptionModel = model(self.world, self.camera)
         check_inputs(self.model, TRIAL_INPUTS, getattr(self.model, "name", repr(self.model)))
         self.planner = planner or make_planner(self.world.description)
@@ -189,15 +192,28 @@ class TrialRunner:
         self.frame_seed = SensorSeed(scene.seed, int(scene.stream), scene.index)
         world.rebuild()
         world.reset_scene()
-        bodies = [world.add_object(get_object_spec(o.object_type), o.position_xy_m, o.yaw_rad)
-                  for o in scene.objects]
+        look = scene.look
+        bodies = [world.add_object(get_object_spec(o.object_type), o.position_xy_m, o.yaw_rad,
+                                   None if look is None else look.objects[i])
+                  for i, o in enumerate(scene.objects)]
+        self._look(look)
         world.step(round(self.settle_s / world.config.time_step_s))
         world.sleep_resting_objects()
         if isinstance(self.model, OraclePerception):  # distractors are never the oracle's targets
             self.model.candidates = tuple(b for b, o in zip(bodies, scene.objects, strict=True)
                                           if not o.distractor)
             self.model.named = scene.condition  # what a sentence or a picture stands for
+            self.model.camera = self.camera
         return bodies
+
+    def _look(self, look: SceneLook | None) -> None:
+        """The scene's table, light and camera mount (its objects' looks are on the bodies)."""
+        if look is not None:
+            self.world.dress_table(look.table)
+        self.lighting = lighting_for(self.task_lighting, None if look is None else look.light)
+        mount = None if look is None else look.mount
+        self.camera = self.mounted_camera if mount is None else HeadCamera(
+            moved_camera(self.mounted_camera.config, mount), sensor=self.task.camera)
 
     def sense(self, self_filter: bool = False) -> RgbdFrame:
         """The head camera's RGB-D frame now, under the task's lighting, with its calibration.
@@ -231,7 +247,8 @@ class TrialRunner:
         return TrialRecord(index=index, seed=seed, task=scene.task, model=model_name,
                            objects=record["objects"], **result.record_fields(),
                            sim_time_s=self.world.time_s,
-                           wall_time_s=time.perf_counter() - started, asked=record.get("query"))
+                           wall_time_s=time.perf_counter() - started, asked=record.get("query"),
+                           look=record.get("look"))
 
     def pick_targets(self, scene: Scene, bodies: list[int]) -> TrialResult:
         """Picks every target of ``scene`` in order, until one fails; how the trial went."""

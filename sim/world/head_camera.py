@@ -71,6 +71,36 @@ class Lighting:
             if not 0.0 <= value <= 2.0:
                 raise InvalidInputError(name, value, "in [0, 2]")
 
+    @property
+    def colour_rgb(self) -> tuple[float, float, float]:
+        """The lamp's colour at full brightness: white."""
+        return (1.0, 1.0, 1.0)
+
+
+@dataclass(frozen=True)
+class TintedLighting(Lighting):
+    """A light whose lamp has a colour: a scene's drawn light (:mod:`sim.world.looks`).
+
+    Never a camera config's own light, so the camera records datasets and runs keep have the
+    fields they always had.
+
+    Attributes:
+        tint_rgb: The lamp's colour at full brightness, each channel in [0, 1].
+
+    """
+
+    tint_rgb: tuple[float, float, float] = (1.0, 1.0, 1.0)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if len(self.tint_rgb) != 3 or not all(0.0 <= v <= 1.0 for v in self.tint_rgb):
+            raise InvalidInputError("tint_rgb", self.tint_rgb, "three channels in [0, 1]")
+
+    @property
+    def colour_rgb(self) -> tuple[float, float, float]:
+        """The lamp's colour at full brightness: its tint."""
+        return self.tint_rgb
+
 
 @dataclass(frozen=True)
 class CameraConfig:
@@ -316,7 +346,7 @@ class HeadCamera:
         _, _, rgba, buffer, segmentation = client.getCameraImage(
             width_px, height_px, view, projection,
             lightDirection=list(light.direction),
-            lightColor=[light.brightness] * 3,
+            lightColor=[light.brightness * c for c in light.colour_rgb],
             lightAmbientCoeff=light.ambient_coeff * light.brightness,
             lightDiffuseCoeff=light.diffuse_coeff,
             lightSpecularCoeff=light.specular_coeff,

@@ -18,6 +18,7 @@ from perception.poses import Pose, rot_z
 from robots import yumi
 from robots.description import RobotDescription
 from sim.errors import InvalidInputError, SimulationError
+from sim.world.looks import ObjectLook, dress_object, dress_table
 from sim.world.quiet import silenced_output
 from sim.world.sim_robot import RobotConfig, SimRobot
 
@@ -164,9 +165,13 @@ class World:
                 self.step_hook(self)
 
     def add_object(
-        self, spec: ObjectSpec, position_xy_m: tuple[float, float], yaw_rad: float
+        self, spec: ObjectSpec, position_xy_m: tuple[float, float], yaw_rad: float,
+        look: ObjectLook | None = None,
     ) -> int:
-        """Place an object resting on the table at ``position_xy_m`` turned by ``yaw_rad``."""
+        """Place an object resting on the table at ``position_xy_m`` turned by ``yaw_rad``.
+
+        ``look``: its colours and texture (:mod:`sim.world.looks`); None: the catalog's.
+        """
         x, y = (float(v) for v in position_xy_m)
         self._check_on_table("position_xy_m", (x, y), (x, y))
         collision, visual = self._shape_ids(spec)
@@ -185,7 +190,16 @@ class World:
             if self.config.object_sleeping else pybullet.ACTIVATION_STATE_DISABLE_SLEEPING,
         )
         self._objects[body] = spec
+        if look is not None:
+            dress_object(self.client, body, spec, look)
         return body
+
+    def dress_table(self, name: str) -> None:
+        """Gives the table top the finish called ``name`` (:data:`sim.world.looks.TABLE_LOOKS`).
+
+        Until :meth:`rebuild`, which brings back the URDF's wood.
+        """
+        dress_table(self.client, self.table_id, name)
 
     def on_table(self, xy: Any) -> bool:
         """Whether ``xy`` [m] is where :meth:`add_object` places objects: 5 cm inside the top."""

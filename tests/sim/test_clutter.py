@@ -18,6 +18,7 @@ import pytest
 from perception.catalog import (
     CLUTTER_TYPES,
     DISTRACTOR_TYPES,
+    LOOK_ALIKE_TYPES,
     OBJECT_TYPES,
     PrimitiveKind,
     catalog_names,
@@ -65,7 +66,8 @@ def test_clutter_is_in_the_catalog_and_the_yumi_scene_but_never_a_target():
     assert DISTRACTOR_TYPES == ("block",)  # the experiments' look-alike, unchanged
     assert set(CLUTTER_TYPES) <= set(catalog_names())
     assert not set(CLUTTER_TYPES) & set(OBJECT_TYPES + DISTRACTOR_TYPES)
-    assert YUMI_SCENE.distractor_types == DISTRACTOR_TYPES + CLUTTER_TYPES
+    assert YUMI_SCENE.distractor_types == DISTRACTOR_TYPES + CLUTTER_TYPES + LOOK_ALIKE_TYPES
+    assert not set(LOOK_ALIKE_TYPES) & set(OBJECT_TYPES)
     assert YUMI_SCENE.object_types == OBJECT_TYPES
 
 

@@ -56,7 +56,7 @@ def test_a_users_task_file_loads_from_its_path(tmp_path):
     ("name = ", r"task file t\.toml = 'not valid TOML' is not allowed: TOML \(Invalid value"),
     ("[objects]\ncount = 1", r"task file t\.toml: name = None is not allowed: a non-empty string"),
     ('name = "x"\ncolour = "red"', r"task file t\.toml: colour = 'red' is not allowed: a known "
-     r"key: camera, condition, description"),
+     r"key: appearance, camera, condition, description"),
     # The camera table: the sensor's kind, then D435 parameters by their field names.
     ('name = "x"\ncamera = { sensor = "kinect" }', r"task file t\.toml: camera\.sensor = "
      r"'kinect' is not allowed: one of 'ideal', 'd435'"),

@@ -45,7 +45,7 @@ def test_catalog_names_and_unknown_name() -> None:
     assert OBJECT_TYPES == ("sponge", "spray_bottle", "mug")
     assert DISTRACTOR_TYPES == ("block",)
     allowed = (r"object type = 'cup' is not allowed: one of sponge, spray_bottle, mug, block, "
-               r"drink_can, notebook, marker, glue_stick$")
+               r"drink_can, notebook, marker, glue_stick, bottle_twin, mug_twin, colour_twin$")
     with pytest.raises(InvalidInputError, match=allowed):
         get_object_spec("cup")
 

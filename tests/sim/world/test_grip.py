@@ -57,7 +57,7 @@ def test_a_model_that_states_nothing_gets_the_default_that_opens_as_far_as_any_g
 def test_an_unknown_type_or_an_impossible_opening_is_refused_by_name():
     with pytest.raises(InvalidInputError, match="target object_type = 'cup' is not allowed: one "
                        "of sponge, spray_bottle, mug, block, drink_can, notebook, marker, "
-                       "glue_stick or None"):
+                       "glue_stick, bottle_twin, mug_twin, colour_twin or None"):
         grip_of(Target(HERE, np.eye(3), object_type="cup"))
     with pytest.raises(InvalidInputError, match=r"target opening_m = 0\.08 is not allowed: in "
                        r"\(0, 0\.05\] m, the gripper's stroke"):
