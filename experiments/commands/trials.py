@@ -13,6 +13,7 @@ from pathlib import Path
 from experiments.commands.arguments import add_executor_options, executor, integer, resume_command
 from robots import ROBOT_NAMES
 from sim.errors import InvalidInputError
+from sim.tasks.variants import builtin_variants
 from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.planner_setup import ObstacleSource
 from sim.trials.records import TrialSummary
@@ -41,6 +42,10 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         default=TrialSettings.obstacles.value,
                         help="what picks are planned around: the head camera's depth image "
                         "(default), or the simulator's true shapes, to debug the planner only")
+    parser.add_argument("--variant", metavar="NAME|FILE",
+                        help="the task under a variant of its looks: one of "
+                        f"{', '.join(builtin_variants())}, or a variant .toml file "
+                        "(docs/tasks.md)")
     parser.add_argument("--phrases", type=Path, metavar="FILE",
                         help="a text task's test sentences from FILE: lines of "
                         "phrase<TAB>target, target an object type or a side")
@@ -85,7 +90,8 @@ def run(args: argparse.Namespace) -> int:
                              obstacles=ObstacleSource(args.obstacles),
                              phrases=None if args.phrases is None else str(args.phrases),
                              allow_sensor_change=args.allow_sensor_change,
-                             loop=loop_settings(args), robot=args.robot)
+                             loop=loop_settings(args), robot=args.robot,
+                             variant=args.variant)
     check = held_out_check(settings)
     if check is not None and not check.passed:
         print(f"WARNING: checkpoint {args.model} failed its training's held-out check "

@@ -167,6 +167,11 @@ def task_from_toml(text: str, source: str = "<string>", folder: Path | None = No
         raise InvalidInputError(f"task file {source}", "arrays or tables nested too deeply",
                                 "TOML nested as a task is (tables of keys, lists of values)"
                                 ) from None
+    return task_from_data(data, source, folder)
+
+
+def task_from_data(data: dict[str, Any], source: str, folder: Path | None = None) -> TaskSpec:
+    """Reads a task from a parsed task file (``tomllib``'s tables), as :func:`task_from_toml`."""
     reader = _Reader(data, source)
     reader.check_keys()
     name = reader.get("", "name", str, None)

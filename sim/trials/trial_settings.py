@@ -37,6 +37,7 @@ from sim.tasks.scene_sampling import (
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_spec import SIDES, TaskSpec, spaced_for
 from sim.tasks.task_toml import TASK_FILES, load_task, with_test_phrases
+from sim.tasks.variants import VARIANT_FILES, with_variant
 from sim.trials.execution import ExecutionSettings
 from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.oracle import OraclePerception
@@ -125,6 +126,8 @@ class TrialSettings:
             ``--replan-hz``; :mod:`sim.trials.closed_loop`); open by default.
         robot: The robot that picks, one of :data:`robots.ROBOT_NAMES` (``--robot``), seen
             through its workcell's camera; the YuMi by default.
+        variant: The task under a variant of its appearance (``--variant``: a built-in name or
+            a variant file, :mod:`sim.tasks.variants`); None: the task as its file says.
 
     """
 
@@ -140,6 +143,7 @@ class TrialSettings:
     allow_sensor_change: bool = False
     loop: LoopSettings = field(default_factory=LoopSettings)
     robot: str = "yumi"
+    variant: str | None = None
 
     def __post_init__(self) -> None:
         if self.robot not in ROBOT_NAMES:
@@ -165,7 +169,10 @@ class TrialSettings:
         Its test phrasings come from ``phrases``, if set; its objects keep the distance the
         robot's hand needs (:func:`~sim.tasks.task_spec.spaced_for`).
         """
-        task = spaced_for(load_task(self.task), self.description().neighbour_spacing_m)
+        task = load_task(self.task)
+        if self.variant is not None:
+            task = with_variant(task, self.variant)
+        task = spaced_for(task, self.description().neighbour_spacing_m)
         if self.phrases is None:
             return task
         return with_test_phrases(task, self.phrases, condition_choices(task, YUMI_SCENE),
@@ -199,6 +206,9 @@ class TrialSettings:
             "task_file": given if given.is_file() else TASK_FILES / f"{self.task}.toml"}
         if self.phrases is not None:
             files["phrases_file"] = Path(self.phrases)
+        if self.variant is not None:
+            builtin = VARIANT_FILES / f"{self.variant}.toml"
+            files["variant_file"] = builtin if builtin.is_file() else Path(self.variant)
         if model_source(self.model) is ModelSource.CHECKPOINT:
             from perception.learning.checkpoint import CONFIG_FILE, WEIGHTS_FILE
 

@@ -1,0 +1,92 @@
+"""Variants: one task under another appearance, as a fragment of a task file laid over it.
+
+A variant is a TOML file of task-file tables (``[objects] palette``, ``[lighting]``,
+``[table]``, ``[camera]`` mount keys, ``[distractors]``, ``[appearance]``) that
+:func:`with_variant` lays over a task: its keys replace the task's, except
+``distractors.types``, which join the task's own. The built-in variants
+(``sim/tasks/variants/*.toml``) are the rows of a variant table: ``dark`` and ``block`` (the
+paper's robustness rows), one per appearance condition (``palette``, ``textures``, ``light``,
+``table``, ``mount``, ``colour-twins``, ``shape-twins``), ``varied`` with every one on, and
+``varied-held-out`` (the train half for demonstrations, the test half for trials).
+
+The varied task is named ``<task>+<variant>`` and keeps everything else of the task: its
+scenes' objects, poses, targets and conditions are the task's (the look has its own stream).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from sim.errors import InvalidInputError
+from sim.tasks.task_spec import TaskSpec
+from sim.tasks.task_toml import task_from_data, task_to_toml
+
+VARIANT_FILES = Path(__file__).resolve().parent / "variants"
+MAX_VARIANT_FILE_BYTES = 16 * 1024
+"""A variant file is a few hundred bytes; a bigger file is refused unread."""
+VARIANT_TABLES = {"objects": {"palette", "textures"}, "lighting": None, "table": None,
+                  "camera": {"mount_offset_mm", "mount_offset_deg"}, "distractors": None,
+                  "appearance": None}
+"""What a variant may set: these tables (None: any key the task file takes there)."""
+
+
+def builtin_variants() -> tuple[str, ...]:
+    """Names of the variants that ship with gva (``sim/tasks/variants/*.toml``)."""
+    return tuple(sorted(p.stem for p in VARIANT_FILES.glob("*.toml")))
+
+
+def read_variant(name_or_path: str | Path) -> tuple[str, dict[str, Any], Path]:
+    """A built-in variant by name, or a variant file by path: its name, tables and folder."""
+    text = str(name_or_path)
+    path = VARIANT_FILES / f"{text}.toml"
+    if not path.is_file():
+        path = Path(text)
+        if not (text.endswith(".toml") and path.is_file()):
+            raise InvalidInputError("variant", text, f"one of {', '.join(builtin_variants())}, "
+                                    "or the path of a variant .toml file")
+    where = f"variant file {path.name}"
+    try:
+        data = path.read_bytes()[:MAX_VARIANT_FILE_BYTES + 1]
+    except OSError as error:
+        raise InvalidInputError(where, text, f"a readable file ({error.strerror})") from None
+    if len(data) > MAX_VARIANT_FILE_BYTES:
+        raise InvalidInputError(where, f"{len(data)} bytes or more",
+                                f"a variant of at most {MAX_VARIANT_FILE_BYTES} bytes")
+    try:
+        tables = tomllib.loads(data.decode("utf-8-sig"))
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError, RecursionError) as error:
+        raise InvalidInputError(where, "not a TOML text in UTF-8", f"TOML ({error})") from None
+    for table, value in tables.items():
+        if table not in VARIANT_TABLES or not isinstance(value, dict):
+            raise InvalidInputError(f"{where}: {table}", value, "a table among "
+                                    f"{', '.join(VARIANT_TABLES)}")
+        allowed = VARIANT_TABLES[table]
+        unknown = [] if allowed is None else sorted(set(value) - allowed)
+        if allowed is not None and unknown:
+            raise InvalidInputError(f"{where}: {table}.{unknown[0]}", value[unknown[0]],
+                                    f"a key a variant sets there: {', '.join(sorted(allowed))}")
+    return path.stem, tables, path.resolve().parent
+
+
+def with_variant(task: TaskSpec, variant: str | Path) -> TaskSpec:
+    """``task`` under ``variant``, named ``<task>+<variant>``; a bad key names the variant file.
+
+    Raises:
+        InvalidInputError: The variant is unknown or malformed, or the varied task is not a
+            valid task (the message names the field as the task file's check does).
+
+    """
+    name, tables, folder = read_variant(variant)
+    data = tomllib.loads(task_to_toml(task))
+    for table, keys in tables.items():
+        merged = data.setdefault(table, {})
+        for key, value in keys.items():
+            if table == "distractors" and key == "types":
+                merged[key] = [*merged.get(key, []), *(t for t in value
+                                                       if t not in merged.get(key, []))]
+            else:
+                merged[key] = value
+    data["name"] = f"{task.name}+{name}"
+    return task_from_data(data, f"{task.source} + variant {name}", folder)
