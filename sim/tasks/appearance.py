@@ -357,7 +357,8 @@ class Appearance:
         Targets' types take a colourway and a texture, then ``colour_twin`` distractors the
         colours of the scene's first target (its first part's and its last), then the table,
         the light and the mount. Other distractors (the block, the clutter, the shape twins)
-        keep their catalog colours. ``test``: the scene is a test scene (a held-out task draws the test half).
+        keep their catalog colours. ``test``: the scene is a test scene (a held-out task draws
+        the test half).
         """
         half = "test" if test else "train"
 
