@@ -29,6 +29,8 @@ class PlanStatus(enum.Enum):
     # a re-plan mid-motion (PickPlanner.replan): the motion from the moving state to the new
     # pre-grasp leaves a joint limit or collides
     RETARGET_FAILED = "retarget_failed"
+    # A search stopped by its PlanBudget ends as what it found so far: COLLISION where IK gave
+    # candidates (RETARGET_FAILED in a re-plan), else UNREACHABLE; its reason says so.
 
 
 class GripperCommand(enum.Enum):
@@ -62,6 +64,44 @@ class ArmSpec:
 
 
 @dataclass(frozen=True)
+class PlanBudget:
+    """The most work one planning call spends on a pick before it gives up (issue 65).
+
+    A grasp no arm can take is searched exhaustively: every grasp (a bottle's 17 turned
+    alternatives and its own), arm, pre-grasp back-off and IK solution, each candidate's
+    approach and retreat through every via pose; up to 576 IK attempts and as many checked
+    candidates on the YuMi, a weakly trained model's grasps 5.5-6 s a trial against 0.3-0.5 s.
+    The search keeps its order and stops only once a count is spent (checked before each
+    candidate, and before each arm and back-off's IK attempts), so a pick planned within the
+    budget is planned exactly as without one.
+
+    The defaults are about twice the most a planned pick has needed: 101 candidates and 136
+    IK attempts (an oracle's spray bottle, YuMi ``multiple`` seed 0 trial 6, planned on its
+    fourth alternative after 9.5 s), the Panda's most 87 and 104 (``multiple``, its sixth
+    alternative), over 330 oracle picks at seed 0 (YuMi ``single``, ``selected-type``,
+    ``selected-position``, ``single-moved``, ``multiple``; Panda ``single``, ``multiple``);
+    all but 8 needed 16 candidates or fewer. 288 IK attempts are half a bottle's whole search
+    on the YuMi; a grasp's own search over both arms and back-offs (32 attempts) always fits.
+
+    Args:
+        max_candidates: Candidate plans (IK solutions of pre-grasp, grasp and lift) whose
+            segments are planned and checked.
+        max_ik_attempts: Pre-grasp IK attempts (one per seed, for the grasp and its half
+            turn), found or not; no arm and back-off begins its attempts past this many.
+
+    """
+
+    max_candidates: int = 200
+    max_ik_attempts: int = 288
+
+    def __post_init__(self) -> None:
+        for name in ("max_candidates", "max_ik_attempts"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise InvalidInputError(name, value, "an integer >= 1")
+
+
+@dataclass(frozen=True)
 class PickPlannerConfig:
     """Tunables of the pick planner.
 
@@ -82,6 +122,8 @@ class PickPlannerConfig:
             robot a long back-off can put the wrist on the robot's own body, while far away a
             short one can bring the open fingers down next to the target.
         seed: Seeds the random IK restarts.
+        budget: The most work one pick's planning spends (:class:`PlanBudget`); None searches
+            every grasp, arm and IK solution however long it takes.
 
     """
 
@@ -96,8 +138,11 @@ class PickPlannerConfig:
     via_heights_m: tuple[float, ...] = (0.12, 0.22)
     pregrasp_scales: tuple[float, ...] = (1.0, 0.6)
     seed: int = 0
+    budget: PlanBudget | None = PlanBudget()
 
     def __post_init__(self) -> None:
+        if self.budget is not None and not isinstance(self.budget, PlanBudget):
+            raise InvalidInputError("budget", self.budget, "a PlanBudget or None")
         positive = ("pregrasp_distance_m", "lift_height_m", "dt_s", "max_straight_deviation_m",
                     "max_joint_jump_rad")
         for name in positive:
@@ -185,6 +230,7 @@ class PlanResult:
     plan: PickPlan | None = None
     planning_time_s: float = 0.0
     candidates_tried: int = 0
+    ik_attempts: int = 0  # pre-grasp IK attempts (see PlanBudget)
 
     @property
     def ok(self) -> bool:

@@ -16,7 +16,7 @@ execution rate) against self-collision and the obstacles. It returns a plan, or 
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -59,6 +59,7 @@ class _Candidate:
 
 
 _FLIP = pin.SE3(pin.utils.rotate("z", np.pi), np.zeros(3))
+_GRIPPER_TURNS = 2  # _candidates solves each attempt for the grasp and its half turn (_FLIP)
 
 
 class PickPlanner:
@@ -113,37 +114,57 @@ class PickPlanner:
                               planning_time_s=time.perf_counter() - started)
         pregrasp = request.pregrasp_distance_m or self.config.pregrasp_distance_m
         rng = np.random.default_rng(self.config.seed)
+        budget = self.config.budget
         reasons: list[str] = []
-        tried = 0
+        tried = attempted = 0
         any_ik = False
+        spent = ""  # what ran out, once the budget stops the search
+        for arm, grasp_name, T_grasp, distance_m in self._options(request, q0, pregrasp):
+            found = False
+            for attempts in self._attempt_stages(moving):
+                if budget is not None and attempted >= budget.max_ik_attempts:
+                    spent = f"{attempted} IK attempts"
+                    break
+                candidates = self._candidates(arm, T_grasp, q0, distance_m, rng, attempts)
+                attempted += _GRIPPER_TURNS * len(attempts)
+                found = found or bool(candidates)
+                for candidate in candidates:
+                    if budget is not None and tried >= budget.max_candidates:
+                        spent = f"{tried} candidate plans"
+                        break
+                    tried += 1
+                    plan, report = self._timed_plan(candidate, q0, moving)
+                    if plan is not None:
+                        return PlanResult(PlanStatus.SUCCESS, f"arm {arm}, {grasp_name}", plan,
+                                          time.perf_counter() - started, tried, attempted)
+                    reasons.append(f"arm {arm}, {grasp_name}: {report}")
+                if spent:
+                    break
+            if not found and not spent:
+                reasons.append(f"arm {arm}, {grasp_name}: no in-limit IK solution for pre-grasp "
+                               f"({100 * distance_m:.0f} cm back), grasp and lift")
+            any_ik = any_ik or found
+            if spent:
+                reasons.insert(0, f"planning budget spent: {spent} ({budget})")
+                break
+        status = PlanStatus.COLLISION if any_ik else PlanStatus.UNREACHABLE
+        if any_ik and moving is not None:
+            status = PlanStatus.RETARGET_FAILED
+        return PlanResult(status, "; ".join(reasons[:4 + bool(spent)]), None,
+                          time.perf_counter() - started, tried, attempted)
+
+    def _options(self, request: PickRequest, q0: np.ndarray, pregrasp_m: float
+                 ) -> Iterator[tuple[str, str, pin.SE3, float]]:
+        """What the search tries, in order: arm, grasp's name, grasp, pre-grasp back-off [m].
+
+        The grasp first, then each alternative; for each, the nearer arm first; for each, the
+        back-offs of ``pregrasp_scales`` in order.
+        """
         for number, T_grasp in enumerate((request.T_world_grasp, *request.alternatives)):
             grasp_name = "grasp" if number == 0 else f"alternative {number}"
             for arm in self._arms_by_distance(q0, T_grasp.translation, request.arms):
                 for scale in self.config.pregrasp_scales:
-                    distance_m = scale * pregrasp
-                    found = False
-                    for attempts in self._attempt_stages(moving):
-                        candidates = self._candidates(arm, T_grasp, q0, distance_m, rng,
-                                                      attempts)
-                        found = found or bool(candidates)
-                        for candidate in candidates:
-                            tried += 1
-                            plan, report = self._timed_plan(candidate, q0, moving)
-                            if plan is not None:
-                                return PlanResult(PlanStatus.SUCCESS,
-                                                  f"arm {arm}, {grasp_name}", plan,
-                                                  time.perf_counter() - started, tried)
-                            reasons.append(f"arm {arm}, {grasp_name}: {report}")
-                    if not found:
-                        reasons.append(f"arm {arm}, {grasp_name}: no in-limit IK solution for "
-                                       f"pre-grasp ({100 * distance_m:.0f} cm back), grasp and "
-                                       "lift")
-                    any_ik = any_ik or found
-        status = PlanStatus.COLLISION if any_ik else PlanStatus.UNREACHABLE
-        if any_ik and moving is not None:
-            status = PlanStatus.RETARGET_FAILED
-        return PlanResult(status, "; ".join(reasons[:4]), None, time.perf_counter() - started,
-                          tried)
+                    yield arm, grasp_name, T_grasp, scale * pregrasp_m
 
     def replan(self, request: PickRequest, moving: JointState) -> PlanResult:
         """A new pick for the arm in motion, its approach re-targeted from its moving state.

@@ -86,10 +86,12 @@ class KqvModel(TorchModel):
         each and the best goes on; ``config.steps`` counts its steps, and the report's wall
         time includes the dropped starts'.
 
-        With a type head, :attr:`KqvConfig.type_steps` more steps then train it alone. The
-        report names its phases (``"starts"`` where several were tried, ``"targets"``,
-        ``"object types"``), each with its wall time, and its ``final_loss`` stays the
-        targets'. A dataset that names no target's type trains no type phase.
+        With a type head, :attr:`KqvConfig.type_steps` more steps then train it alone, but
+        never more than ``config.steps``: a short training (a smoke run of a few steps) is
+        short in both phases, and one of ``type_steps`` steps or more trains the head as it
+        always did. The report names its phases (``"starts"`` where several were tried,
+        ``"targets"``, ``"object types"``), each with its wall time, and its ``final_loss``
+        stays the targets'. A dataset that names no target's type trains no type phase.
         """
         config = config or TrainConfig()
         fresh = self.scaler is None  # a first fit may try several starts; a later one not
@@ -112,7 +114,8 @@ class KqvModel(TorchModel):
         if self.network.type_head is None or not (dataset.target_type_indices() >= 0).any():
             return pose
         types = train(self.network, self.type_loss, named,
-                      replace(config, steps=self.config.type_steps), progress,
+                      replace(config, steps=min(self.config.type_steps, config.steps)),
+                      progress,
                       description=f"{self.name} {self.spec.task} [object types]",
                       parameters=self.network.type_head.parameters())
         chained = TrainReport.chain([pose, types], ("targets", "object types"))

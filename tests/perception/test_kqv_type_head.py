@@ -17,10 +17,11 @@ from perception.models.kqv import KqvConfig, KqvModel
 
 @pytest.fixture(scope="module")
 def typed_model():
-    """A kqv model with a type head, trained on 16 typed scenes (60 pose steps)."""
+    """A kqv model with a type head, trained on 16 typed scenes (300 steps: its type head is
+    trained as many, at most, and learns the types in about that many)."""
     train = typed_dataset(16, seed=0)
     model = KqvModel.for_dataset(train, KqvConfig(starts=1, warmup_steps=0))
-    model.fit(train, TrainConfig(steps=60, batch_size=8, threads=1, log_every=10),
+    model.fit(train, TrainConfig(steps=300, batch_size=8, threads=1, log_every=10),
               progress=False)
     return model, train
 
@@ -35,8 +36,8 @@ def test_the_type_head_states_the_type_it_attends_to_in_untrained_scenes(typed_m
     assert len(set(true)) == 3  # every type among the untrained scenes
     assert np.mean([s == t for s, t in zip(stated, true, strict=True)]) >= 0.9, (stated, true)
     report = model.report
-    assert [(p.name, p.steps) for p in report.phases] == [("targets", 60), ("object types", 300)]
-    assert report.steps == 360 and report.final_loss == report.phases[0].final_loss
+    assert [(p.name, p.steps) for p in report.phases] == [("targets", 300), ("object types", 300)]
+    assert report.steps == 600 and report.final_loss == report.phases[0].final_loss
     assert report.phases[1].final_loss < 0.55  # cross-entropy: half of a guess's log 3 = 1.1
 
 
@@ -62,6 +63,19 @@ def test_the_type_head_leaves_the_pose_weights_as_they_would_be_without_it():
     assert reports[None].steps == 5 + 4 and reports[None].phases[0].steps == 2
     assert sum(p.wall_time_s for p in reports[None].phases) == pytest.approx(
         reports[None].wall_time_s)
+
+
+def test_a_short_training_trains_the_type_head_no_more_steps_than_asked():
+    """Issue 65: a 3-step training spent 300 steps on the type head; ``type_steps`` or more
+    train it ``type_steps``, as before."""
+    dataset = typed_dataset(4, seed=3)
+    for steps, type_steps, trained in ((3, 300, 3), (6, 4, 4), (4, 4, 4)):
+        model = KqvModel.for_dataset(dataset, KqvConfig(type_steps=type_steps, starts=1,
+                                                        warmup_steps=0))
+        report = model.fit(dataset, TrainConfig(steps=steps, batch_size=2, threads=1),
+                           progress=False)
+        assert [(p.name, p.steps) for p in report.phases] == [("targets", steps),
+                                                              ("object types", trained)]
 
 
 def test_the_type_head_is_built_for_grasp_specs_that_name_their_types():

@@ -326,13 +326,13 @@ def test_gva_train_names_the_phases_and_evaluate_prints_the_type_accuracy(tmp_pa
     """The accuracy printed and saved is the checkpoint's own, recounted here from its answers."""
     dataset = typed_dataset(6, seed=8)
     data = save_dataset(dataset, tmp_path / "typed.gva")
-    fast = ["--steps", "5", "--batch-size", "4", "--threads", "1", "--holdout", "0",
+    fast = ["--steps", "150", "--batch-size", "4", "--threads", "1", "--holdout", "0",
             "--no-progress"]
     assert main(["train", "--model", "kqv", "--data", str(data), "--out",
                  str(tmp_path / "kqv"), *fast]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert lines[0].startswith("kqv on synthetic / multiple: 6 samples, 305 steps, final loss ")
-    assert re.fullmatch(r"phases: targets 5 steps, final loss \S+; object types 300 steps, "
+    assert lines[0].startswith("kqv on synthetic / multiple: 6 samples, 300 steps, final loss ")
+    assert re.fullmatch(r"phases: targets 150 steps, final loss \S+; object types 150 steps, "
                         r"final loss \S+", lines[1]), lines
     assert main(["evaluate", "--model", str(tmp_path / "kqv"), "--data", str(data)]) == 0
     lines = capsys.readouterr().out.splitlines()
