@@ -89,8 +89,10 @@ def read_model_config(path: str | Path, model: str) -> dict[str, Any]:
 
     Raises:
         InvalidInputError: An unknown model; a file that is missing, too big, not UTF-8 or not
-            TOML; an unknown key, a table, ``seed``, or a value of the wrong type or one the
-            config refuses. The message names the file, the key, the value and what is allowed.
+            TOML; an unknown key, a table, ``seed``, or a value of the wrong type, beyond 64
+            bits or one the config refuses (every number of gva's configs has an upper bound,
+            each with its reason in the config's module: ``key_dim`` at most 4096, ...). The
+            message names the file, the key, the value and what is allowed.
 
     """
     cls, preset = trainable(model)
@@ -130,6 +132,10 @@ def read_model_config(path: str | Path, model: str) -> dict[str, Any]:
     except (TypeError, ValueError) as error:
         raise InvalidInputError(f"model config {source}", _brief(settings),
                                 f"values {config_class.__name__} accepts ({error})") from None
+    for key, value in settings.items():  # tomllib reads integers of any size; TOML's are 64-bit
+        if _beyond_int64(value):  # and a plug-in's config may bound none of its own
+            raise InvalidInputError(f"model config {source}: {_key(key)}", _brief(value),
+                                    f"integers of TOML's 64 bits, {-2 ** 63} to {2 ** 63 - 1}")
     return settings
 
 
@@ -167,6 +173,13 @@ def _holds_table(value: Any) -> bool:
 def _tuples(value: Any) -> Any:
     """``value`` with every array a tuple: configs are frozen and compared by value."""
     return tuple(_tuples(item) for item in value) if isinstance(value, list) else value
+
+
+def _beyond_int64(value: Any) -> bool:
+    """Whether ``value`` is, or holds, an integer the TOML spec's 64 bits cannot hold."""
+    if isinstance(value, tuple):
+        return any(_beyond_int64(item) for item in value)
+    return isinstance(value, int) and not -2 ** 63 <= value < 2 ** 63
 
 
 def _kinds(hint: Any) -> tuple[type, ...] | None:

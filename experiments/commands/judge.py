@@ -15,6 +15,7 @@ from pathlib import Path
 
 from perception.files import atomic_write
 from perception.grasp_tolerance import ToleranceMap, default_tolerance_map
+from sim.errors import InvalidInputError
 from sim.trials.judging import RunJudgement, describe_error, judge_run
 
 
@@ -32,6 +33,8 @@ def add_options(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Judges the run, prints the report, writes the JSON; the exit status (0)."""
+    if args.json is not None and args.json.is_dir():  # before the judging, as gva compare does
+        raise InvalidInputError("--json", str(args.json), "a file to write, not a folder")
     tolerance = default_tolerance_map() if args.map is None else ToleranceMap.load(args.map)
     judgement = judge_run(args.folder, tolerance)
     if args.json is not None:  # before the report: a reader that stops early (| head) loses none

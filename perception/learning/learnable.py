@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import abc
 import enum
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -255,3 +256,32 @@ def check_choices(name: str, value: object, allowed: Sequence[object]) -> None:
     """An error unless ``value`` is one of ``allowed`` (for config ``__post_init__`` checks)."""
     if value not in allowed:
         raise InvalidInputError(name, value, f"one of {', '.join(map(repr, allowed))}")
+
+
+def check_integer(name: str, value: object, least: int, most: int, *,
+                  optional: bool = False) -> None:
+    """An error unless ``value`` is an integer in [``least``, ``most``] (or None, if optional).
+
+    Every count of a model config has an upper bound as well (a width, a number of steps): a
+    value past it is a typo or a unit mistake, which would otherwise end in an allocation error
+    or a training that never ends.
+    """
+    if optional and value is None:
+        return
+    if isinstance(value, bool) or not isinstance(value, int) or not least <= value <= most:
+        raise InvalidInputError(name, value, f"{'None or ' if optional else ''}an integer >= "
+                                f"{least} and <= {most}")
+
+
+def check_number(name: str, value: object, least: float, most: float, *,
+                 open_below: bool = False) -> None:
+    """An error unless ``value`` is a finite number in [``least``, ``most``].
+
+    ``open_below``: in (``least``, ``most``]. A config's weights and temperatures, bounded as
+    its counts are (:func:`check_integer`).
+    """
+    number = value if isinstance(value, int | float) and not isinstance(value, bool) else None
+    if number is None or not math.isfinite(number) or not (
+            number > least if open_below else number >= least) or number > most:
+        raise InvalidInputError(name, value, f"a finite value {'>' if open_below else '>='} "
+                                f"{least:g} and <= {most:g}")

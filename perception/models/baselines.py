@@ -25,7 +25,6 @@ random half of each batch mirrored where the task allows it (``mirror``), as
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from types import MappingProxyType
@@ -36,7 +35,12 @@ from torch import Tensor, nn
 
 from perception.interface import ConditionKind, InvalidInputError
 from perception.learning.data import Dataset
-from perception.learning.learnable import ModelSpec, check_choices
+from perception.learning.learnable import (
+    ModelSpec,
+    check_choices,
+    check_integer,
+    check_number,
+)
 from perception.learning.mirror import MIRROR_FLAG, Mirror
 from perception.learning.train import Batch, TrainConfig, TrainReport
 from perception.models.base import MLP, LabelScaler, normalise_images
@@ -51,20 +55,38 @@ GREY_WEIGHTS = (0.299, 0.587, 0.114)
 INPUT_NORMS = ("fixed", "per-image")
 
 
+MOST: Mapping[str, int | float] = MappingProxyType({
+    # The largest value of each number of the baselines' configs, each with why a larger one is
+    # a mistake (a typo, a unit slip) rather than a setting; a config file asking more is refused.
+    "head_width": 4096,  # 64 x the default head; as wide as the widest MLP heads (VGG's fc)
+    "rotation_loss_weight": 1000.0,  # 10,000 x the default: positions would not be learned
+    "channels": 1024,  # per conv layer on 128 px images: 32 x the widest default (32)
+    "points": 1024,  # K heatmaps: 64 x the paper's q = 16, a point per cell of a 32 x 32 map
+    "temperature": 1000.0,  # 1000 x the default 1.0: the spatial softmax is flat, points central
+    "point_loss_weight": 1000.0,  # 100 x kqv's 10: the pose loss it helps is drowned
+    "latent_dim": 65536,  # more than a 128 x 128 RGB image's 49,152 values: no compression
+})
+
+
 def check_count(name: str, value: Any) -> None:
-    """An error unless ``value`` is an integer >= 1 (a width, a count)."""
-    if not isinstance(value, int) or isinstance(value, bool) or value < 1:
-        raise InvalidInputError(name, value, "an integer >= 1")
+    """An error unless ``value`` is an integer >= 1 and at most its field's :data:`MOST`."""
+    check_integer(name, value, 1, int(MOST[name]))
 
 
 def check_channels(name: str, value: Any, lengths: range) -> tuple[int, ...]:
-    """``value`` as a tuple of integers >= 1 of a length in ``lengths`` (JSON gives a list)."""
+    """``value`` as a tuple of integers in [1, MOST] of a length in ``lengths`` (JSON: a list)."""
     channels = tuple(value) if isinstance(value, list | tuple) else ()
+    most = MOST["channels"]
     if len(channels) not in lengths or not all(
-            isinstance(c, int) and not isinstance(c, bool) and c >= 1 for c in channels):
+            isinstance(c, int) and not isinstance(c, bool) and 1 <= c <= most for c in channels):
         count = str(lengths[0]) if len(lengths) == 1 else f"{lengths[0]} to {lengths[-1]}"
-        raise InvalidInputError(name, value, f"{count} integers >= 1")
+        raise InvalidInputError(name, value, f"{count} integers >= 1 and <= {most}")
     return channels
+
+
+def check_weight(name: str, value: Any) -> None:
+    """An error unless ``value`` is a finite number >= 0 and at most its field's :data:`MOST`."""
+    check_number(name, value, 0, MOST[name])
 
 
 @dataclass(frozen=True)
@@ -101,9 +123,7 @@ class BaselineConfig:
 
     def __post_init__(self) -> None:
         check_count("head_width", self.head_width)
-        if not (math.isfinite(self.rotation_loss_weight) and self.rotation_loss_weight >= 0):
-            raise InvalidInputError("rotation_loss_weight", self.rotation_loss_weight,
-                                    "a finite value >= 0")
+        check_weight("rotation_loss_weight", self.rotation_loss_weight)
         check_choices("input_norm", self.input_norm, INPUT_NORMS)
         if self.mirror not in (None, True, False):
             raise InvalidInputError("mirror", self.mirror, "None, True or False")

@@ -34,10 +34,11 @@ import torch
 from torch import Tensor, nn
 
 from perception.interface import InvalidInputError
-from perception.learning.learnable import ModelSpec, check_choices
+from perception.learning.learnable import ModelSpec, check_choices, check_number
 from perception.learning.train import Batch
 from perception.models.base import coordinate_grid, softmax2d, spatial_expectation
 from perception.models.baselines import (
+    MOST,
     AutoencoderModel,
     BaselineConfig,
     BaselineModel,
@@ -46,6 +47,7 @@ from perception.models.baselines import (
     PoseHead,
     check_channels,
     check_count,
+    check_weight,
     conv_stack,
 )
 from perception.models.keypoint_ray import KeypointRayNet
@@ -96,12 +98,9 @@ class KeypointConfig(BaselineConfig):
             check_count("points", self.points)
         object.__setattr__(self, "channels", check_channels("channels", self.channels,
                                                             range(2, 3)))
-        if not (math.isfinite(self.temperature) and self.temperature > 0):
-            raise InvalidInputError("temperature", self.temperature, "a finite value > 0")
+        check_number("temperature", self.temperature, 0, MOST["temperature"], open_below=True)
         check_choices("readout", self.readout, READOUTS)
-        if not (math.isfinite(self.point_loss_weight) and self.point_loss_weight >= 0):
-            raise InvalidInputError("point_loss_weight", self.point_loss_weight,
-                                    "a finite value >= 0")
+        check_weight("point_loss_weight", self.point_loss_weight)
         if self.point_loss_weight > 0 and self.readout != "ray":
             raise InvalidInputError("point_loss_weight", self.point_loss_weight,
                                     f"0 with readout {self.readout!r} (its points serve no "

@@ -13,7 +13,7 @@ from types import MappingProxyType
 from typing import Any
 
 from perception.interface import InvalidInputError
-from perception.learning.learnable import check_choices
+from perception.learning.learnable import check_choices, check_integer, check_number
 from perception.models.rotations import ROTATION_CODES
 
 QUERY_MODES = ("auto", "base", "conditioned", "conditioned+base", "paper")
@@ -23,6 +23,28 @@ SENTENCE_READINGS = ("auto", "tokens", "nearest", "prototypes", "embedding")
 INFERENCE_FIELDS = frozenset({"focus_window_px", "focus_box_px"})
 """KqvConfig fields that only change how a trained network is read (``KqvModel.read_with``):
 a checkpoint is scored under other values without training again."""
+
+
+MOST: Mapping[str, int | float] = MappingProxyType({
+    # The largest value of each of KqvConfig's numbers, each with why a larger one is a mistake
+    # (a typo, a unit slip) rather than a setting; a config file asking more is refused.
+    "channels": 1024,  # per conv layer on 128 px images: 64 x the default 16
+    "key_dim": 4096,  # a heatmap key wider than any published attention model's
+    "value_dim": 4096,  # a_feat wider than any published attention model's value
+    "head_width": 4096,  # 64 x the default head; as wide as the widest MLP heads (VGG's fc)
+    "warmup_steps": 1_000_000,  # a thousand default trainings (1000 steps) of warm-up alone
+    "starts": 100,  # each trains start_steps of its own: 33 x the default 3
+    "start_steps": 1_000_000,  # a thousand default trainings per start
+    "start_batch_size": 4096,  # 4096 images of 128 x 128 x 3 float32 are 800 MB per step
+    "type_steps": 1_000_000,  # a thousand default trainings for a head of a few hundred weights
+    "focus_window_px": 4096,  # wider than any image gva renders (128 px; the D435 848 px)
+    "focus_box_px": 4096,  # the same: a box wider than any image holds the whole heatmap
+    "temperature": 1000.0,  # 10,000 x the default 0.1: every heatmap is flat
+    "warmup_temperature": 1000.0,  # the same, at the warm-up's first step
+    "sentence_temperature": 100.0,  # cosines lie in [-1, 1]: past 100 every weight is equal
+    "point_loss_weight": 1000.0,  # 100 x the default: the pose loss it helps is drowned
+    "rotation_loss_weight": 1000.0,  # 10,000 x the default: positions would not be learned
+})
 
 
 @dataclass(frozen=True)
@@ -102,7 +124,8 @@ class KqvConfig:
         type_head: Whether a small MLP reads each head's ``a_feat`` and states the object type
             it attends to; it trains after the pose, on the frozen network. None: for grasp-pose
             labels where the dataset names its types, unless the condition is an object type.
-        type_steps: Optimiser steps of that type phase.
+        type_steps: Optimiser steps of that type phase; a training asked for fewer steps
+            (``TrainConfig.steps``) trains the type head that many.
         sentence_reading: How a sentence condition becomes a Query. Each named target has a
             prototype, the mean embedding of the training sentences that named it, and a
             sentence's weights are the softmax of its cosines to them at
@@ -154,25 +177,18 @@ class KqvConfig:
 
     def __post_init__(self) -> None:
         channels = tuple(self.channels) if isinstance(self.channels, list | tuple) else ()
-        if len(channels) != 2 or not all(isinstance(c, int) and c >= 1 for c in channels):
-            raise InvalidInputError("channels", self.channels, "two integers >= 1")
+        if len(channels) != 2 or not all(isinstance(c, int) and not isinstance(c, bool) and
+                                         1 <= c <= MOST["channels"] for c in channels):
+            raise InvalidInputError("channels", self.channels,
+                                    f"two integers >= 1 and <= {MOST['channels']}")
         object.__setattr__(self, "channels", channels)  # a JSON list reads back as the tuple
         for name in ("key_dim", "value_dim", "head_width", "warmup_steps", "starts",
                      "start_steps", "type_steps"):
-            value = getattr(self, name)
-            least = 0 if name == "warmup_steps" else 1
-            if not isinstance(value, int) or isinstance(value, bool) or value < least:
-                raise InvalidInputError(name, value, f"an integer >= {least}")
-        for name, least in (("focus_window_px", 0), ("focus_box_px", 1)):
-            value = getattr(self, name)
-            if value is not None and (not isinstance(value, int) or isinstance(value, bool) or
-                                      value < least):
-                raise InvalidInputError(name, value, f"None or an integer >= {least}")
-        if self.start_batch_size is not None and (
-                not isinstance(self.start_batch_size, int) or
-                isinstance(self.start_batch_size, bool) or self.start_batch_size < 1):
-            raise InvalidInputError("start_batch_size", self.start_batch_size,
-                                    "None or an integer >= 1")
+            check_integer(name, getattr(self, name), 0 if name == "warmup_steps" else 1,
+                          int(MOST[name]))
+        for name, least in (("focus_window_px", 0), ("focus_box_px", 1),
+                            ("start_batch_size", 1)):
+            check_integer(name, getattr(self, name), least, int(MOST[name]), optional=True)
         check_choices("stride", self.stride, (None, 1, 2, 4))
         check_choices("query_mode", self.query_mode, QUERY_MODES)
         check_choices("similarity", self.similarity, ("cosine", "dot"))
@@ -181,13 +197,11 @@ class KqvConfig:
         check_choices("rotation", self.rotation, ROTATION_CODES)
         check_choices("sentence_reading", self.sentence_reading, SENTENCE_READINGS)
         for name in ("temperature", "warmup_temperature", "sentence_temperature"):
-            if not (math.isfinite(getattr(self, name)) and getattr(self, name) > 0):
-                raise InvalidInputError(name, getattr(self, name), "a finite value > 0")
+            check_number(name, getattr(self, name), 0, MOST[name], open_below=True)
         if not (math.isfinite(self.start_holdout) and 0 <= self.start_holdout < 1):
             raise InvalidInputError("start_holdout", self.start_holdout, "a fraction in [0, 1)")
         for name in ("rotation_loss_weight", "point_loss_weight"):
-            if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
-                raise InvalidInputError(name, getattr(self, name), "a finite value >= 0")
+            check_number(name, getattr(self, name), 0, MOST[name])
         if self.mirror not in (None, True, False):
             raise InvalidInputError("mirror", self.mirror, "None, True or False")
         for name in ("head_features", "type_head"):

@@ -18,4 +18,9 @@ PICK_ID = "gva/Pick-v0"
 """The environment's Gymnasium id."""
 
 if PICK_ID not in registry:
-    register(id=PICK_ID, entry_point="sim.envs.pick_env:PickEnv")
+    # Without the PassiveEnvChecker gymnasium.make adds by default: when an env's first reset
+    # raises (a refused option), that wrapper (Gymnasium 1.x) has marked its reset checked but
+    # kept no observation, so every later step raised TypeError: cannot unpack NoneType. What it
+    # checks (the spaces, reset and step's returns) the full gymnasium.utils.env_checker.check_env
+    # checks in tests/sim/envs/test_pick_env.py; make(..., disable_env_checker=False) adds it.
+    register(id=PICK_ID, entry_point="sim.envs.pick_env:PickEnv", disable_env_checker=True)

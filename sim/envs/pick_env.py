@@ -48,6 +48,10 @@ from sim.trials.trial_runner import TrialRunner
 WORKSPACE_BOUND_M = 1.0
 """Grasp positions the action space holds: within this of the robot base on each axis [m]."""
 
+ROTATION_6D_MOST = 1e100
+"""Largest magnitude of a ``rotation_6d`` entry: only the axes' directions count, and past
+about 1e154 an axis's squared length overflows float64 (its rotation would come out zero)."""
+
 _KINDS = tuple(ConditionKind)
 _ACTION_KEYS = ("position_m", "rotation_6d", "object_type", "opening_m")
 
@@ -121,7 +125,7 @@ class PickEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
         self._sighting: Sighting | None = None
 
     def _observation_space(self) -> spaces.Dict:
-        camera = self._runner.camera.config
+        camera = self._runner.mounted_camera.config
         h, w = camera.height_px, camera.width_px
         kind = self.task.model_condition
         condition: dict[str, spaces.Space[Any]] = {"kind": spaces.Discrete(len(_KINDS))}
@@ -151,18 +155,22 @@ class PickEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
               ) -> tuple[dict[str, Any], dict[str, Any]]:
         """Puts test scene ``options["index"]`` (else the next index) of ``seed`` on the table.
 
-        Before any seed is given the scenes are seed 0's, as ``gva trials``' default.
+        Before any seed is given the scenes are seed 0's, as ``gva trials``' default. A reset
+        refused (a bad seed or option) changes nothing: the episode before it goes on.
         """
-        super().reset(seed=seed)
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)
+                                 or seed < 0):
+            raise InvalidInputError("seed", seed, "None or an integer >= 0")
         options = dict(options or {})
         unknown = sorted(set(options) - {"index"})
         if unknown:
             raise InvalidInputError("options", unknown, "only 'index' (a test-scene index)")
-        if seed is not None:
-            self._seed, self._next_index = int(seed), self.first_index
-        index = options.get("index", self._next_index)
-        if isinstance(index, bool) or not isinstance(index, (int, np.integer)) or index < 0:
+        index = options.get("index", self._next_index if seed is None else self.first_index)
+        if isinstance(index, bool) or not isinstance(index, int | np.integer) or index < 0:
             raise InvalidInputError("options['index']", index, "an integer >= 0")
+        super().reset(seed=seed)  # checked first: a refused reset leaves every state as it was
+        if seed is not None:
+            self._seed = int(seed)
         self._next_index = int(index) + self.index_step
         self._scene = trial_scene(self.task, self._seed, int(index))
         bodies = self._runner.setup(self._scene)
@@ -250,25 +258,63 @@ class PickEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
             raise InvalidInputError("action", sorted(action),
                                     "position_m and rotation_6d, optionally object_type and "
                                     "opening_m")
-        position = np.asarray(action["position_m"], dtype=np.float64)
-        six = np.asarray(action["rotation_6d"], dtype=np.float64)
-        if six.shape != (6,) or not np.all(np.isfinite(six)):
-            raise InvalidInputError("action['rotation_6d']", six.tolist(), "6 finite numbers")
+        position = _numbers("position_m", action["position_m"], 3, "3 finite numbers [m]")
+        six = _numbers("rotation_6d", action["rotation_6d"], 6,
+                       f"6 finite numbers within +-{ROTATION_6D_MOST:g}")
+        if float(np.max(np.abs(six))) > ROTATION_6D_MOST:  # its lengths would overflow
+            raise InvalidInputError("action['rotation_6d']", six.tolist(),
+                                    f"6 finite numbers within +-{ROTATION_6D_MOST:g}")
         length = float(np.linalg.norm(six[:3]))
         x = six[:3] / length if length > 1e-9 else six[:3]
         y = six[3:] - float(x @ six[3:]) * x
-        if length <= 1e-9 or float(np.linalg.norm(y)) <= 1e-9:
+        if length <= 1e-9 or float(np.linalg.norm(y)) <= 1e-9 * max(
+                1.0, float(np.linalg.norm(six[3:]))):  # parallel, to the precision they have
             raise InvalidInputError("action['rotation_6d']", six.tolist(),
                                     "two non-parallel 3-vectors: the TCP's x and y axes")
         y = y / np.linalg.norm(y)
         rotation = np.column_stack([x, y, np.cross(x, y)])
-        kind = int(action.get("object_type", 0))
-        if not 0 <= kind <= len(self.object_types):
-            raise InvalidInputError("action['object_type']", kind,
-                                    f"0 (not stated) to {len(self.object_types)}")
-        opening = float(np.asarray(action.get("opening_m", 0.0)).reshape(-1)[0])
+        kind = _numbers("object_type", action.get("object_type", 0), 1,
+                        f"an integer, 0 (not stated) to {len(self.object_types)}")[0]
+        if kind != int(kind) or not 0 <= kind <= len(self.object_types):
+            raise InvalidInputError("action['object_type']", _shown(action["object_type"]),
+                                    f"an integer, 0 (not stated) to {len(self.object_types)}")
+        kind = int(kind)
+        opening = float(_numbers("opening_m", action.get("opening_m", 0.0), 1,
+                                 f"0 (not stated) or a gap in (0, {self.max_opening_m}] m")[0])
         if not (math.isfinite(opening) and 0.0 <= opening <= self.max_opening_m):
             raise InvalidInputError("action['opening_m']", opening,
                                     f"0 (not stated) or a gap in (0, {self.max_opening_m}] m")
         return Target(position, rotation, self.object_types[kind - 1] if kind else None,
                       opening or None)
+
+
+def _numbers(key: str, value: Any, size: int, allowed: str) -> np.ndarray:
+    """An action's ``key`` as ``size`` float64 numbers, or an error naming ``action[key]``.
+
+    The error names the value and ``allowed``; where ``size`` is 1, a number of any shape.
+    """
+    try:
+        numbers = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):  # a string, a ragged list: not numbers at all
+        raise InvalidInputError(f"action[{key!r}]", _shown(value), allowed) from None
+    if numbers.size != size or (size > 1 and numbers.ndim != 1) or not np.all(
+            np.isfinite(numbers)):
+        raise InvalidInputError(f"action[{key!r}]", _shown(value), allowed)
+    return numbers.reshape(size)
+
+
+def _shown(value: Any) -> Any:
+    """An action's value as a message shows it: an array as a list, a long one cut short."""
+    shown = value.tolist() if isinstance(value, np.ndarray) else value
+    text = repr(shown)
+    return shown if len(text) <= 80 else _Cut(text[:80] + "...")
+
+
+class _Cut:
+    """A value shown by the start of its repr."""
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+
+    def __repr__(self) -> str:
+        return self.text

@@ -25,7 +25,7 @@ from sim.trials.paired_statistics import (
     PairedTest,
     Verdict,
 )
-from sim.trials.records import TrialOutcome, TrialRecord
+from sim.trials.records import TrialOutcome, TrialRecord, record_lines, record_of_line
 from sim.trials.run_folder import differences
 
 RUN_FILES = ("run.json", "trials.jsonl", "summary.json")
@@ -237,10 +237,10 @@ def read_finished_run(folder: str | Path) -> FinishedRun:
         raise RunFolderError(f"{folder / 'summary.json'} names no number of trials "
                              f"(settings.n = {n!r}); it is not a summary gva trials wrote")
     records: dict[int, TrialRecord] = {}
-    lines = (folder / "trials.jsonl").read_text().splitlines()
+    lines = record_lines(folder / "trials.jsonl")
     for number, line in enumerate(lines, start=1):
         try:
-            record = TrialRecord.from_json(line)
+            record = record_of_line(line)
         except (json.JSONDecodeError, TypeError, ValueError, KeyError) as error:
             raise RunFolderError(f"{folder / 'trials.jsonl'} line {number} is damaged "
                                  f"({error}); run the same gva trials command again to "
@@ -256,7 +256,10 @@ def read_finished_run(folder: str | Path) -> FinishedRun:
 def _read_json(path: Path) -> dict[str, Any]:
     """The JSON object in ``path``; a damaged or non-object file raises RunFolderError."""
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(path.read_bytes().decode("utf-8"))
+    except UnicodeDecodeError as error:
+        raise RunFolderError(f"{path} is damaged (not UTF-8 text: byte {error.start} is "
+                             f"{error.object[error.start]:#04x})") from None
     except json.JSONDecodeError as error:
         raise RunFolderError(f"{path} is damaged ({error})") from None
     if not isinstance(data, dict):

@@ -48,14 +48,40 @@ def object_yaw_rad(objects: Sequence[dict[str, Any]], object_type: str, truth: P
 
 def judge_pick(pick: dict[str, Any], objects: Sequence[dict[str, Any]],
                tolerance: ToleranceMap | None = None) -> GraspVerdict | None:
-    """The judge's verdict on one pick of a record; None where the model gave no grasp."""
+    """The judge's verdict on one pick of a record; None where the model gave no grasp.
+
+    Raises:
+        InvalidInputError: A grasp of the pick holds a value that is not finite (or not a
+            position or rotation at all), naming it (``predicted.position_m``). gva trials
+            never records one (a :class:`~perception.interface.Target` refuses a non-finite
+            grasp), so such a record is damaged: it is refused, as a damaged line is, rather
+            than scored as an error of nan mm or left out of counts that say they are the
+            whole run's.
+
+    """
     if pick.get("predicted") is None or pick.get("truth") is None or \
             "rotation" not in pick["predicted"]:
         return None
+    for key in ("truth", "predicted"):
+        _check_finite(key, pick[key])
     predicted, truth = pose_of(pick["predicted"]), pose_of(pick["truth"])
     spec = get_object_spec(pick["target"])
     return judge_grasp(spec, truth, predicted, object_yaw_rad(objects, spec.name, truth),
                        tolerance)
+
+
+def _check_finite(key: str, grasp: dict[str, Any]) -> None:
+    """An error naming ``key.part`` unless the grasp's position and rotation are finite."""
+    for part, shape in (("position_m", (3,)), ("rotation", (3, 3))):
+        value = grasp.get(part)
+        try:
+            array = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):  # a string, a ragged list: not numbers at all
+            array = np.full(0, np.nan)
+        if array.shape != shape or not np.all(np.isfinite(array)):
+            raise InvalidInputError(f"{key}.{part}", value,
+                                    f"{' x '.join(map(str, shape))} finite numbers, as gva "
+                                    "trials records them (this record is damaged)")
 
 
 @dataclass(frozen=True)
@@ -89,9 +115,16 @@ def judged_picks(record: TrialRecord, tolerance: ToleranceMap | None = None
     picks = record.picks or ([] if record.target is None else [{
         "target": record.target, "truth": record.truth, "predicted": record.predicted,
         "outcome": record.outcome.value, "reason": record.reason}])
-    return tuple(JudgedPick(record.index, number, pick["target"], TrialOutcome(pick["outcome"]),
-                            pick.get("reason", ""), judge_pick(pick, record.objects, tolerance))
-                 for number, pick in enumerate(picks))
+    judged = []
+    for number, pick in enumerate(picks):
+        try:
+            verdict = judge_pick(pick, record.objects, tolerance)
+        except InvalidInputError as error:  # which trial and pick the field is of
+            raise InvalidInputError(f"trial {record.index} pick {number} {error.field}",
+                                    error.value, error.allowed) from None
+        judged.append(JudgedPick(record.index, number, pick["target"],
+                                 TrialOutcome(pick["outcome"]), pick.get("reason", ""), verdict))
+    return tuple(judged)
 
 
 def pick_counts(picks: Iterable[JudgedPick]) -> PickCounts:
@@ -158,10 +191,14 @@ def judge_run(run: Path, tolerance: ToleranceMap | None = None) -> RunJudgement:
     sets, every, misses, alarms = [], [], [], []
     for folder in trial_folders(run):
         name = str(folder.relative_to(run)) if folder != run else "."
-        records = read_trial_records(folder / "trials.jsonl")
+        path = folder / "trials.jsonl"
+        records = read_trial_records(path)
         if not records:
             continue
-        judged = [(record, judged_picks(record, tolerance)) for record in records]
+        try:
+            judged = [(record, judged_picks(record, tolerance)) for record in records]
+        except InvalidInputError as error:  # and which file
+            raise InvalidInputError(f"{path} {error.field}", error.value, error.allowed) from None
         picks = [pick for _, these in judged for pick in these]
         every.extend(picks)
         for record, these in judged:

@@ -64,7 +64,10 @@ def claim_run_folder(folder: Path, settings: Mapping[str, Any], name: str = "run
     history: list[Any] = []
     if path.exists():
         try:
-            stored = json.loads(path.read_text())
+            stored = json.loads(path.read_bytes().decode("utf-8"))
+        except UnicodeDecodeError as error:
+            raise RunFolderError(f"{path} is damaged (not UTF-8 text: byte {error.start} is "
+                                 f"{error.object[error.start]:#04x}); use another --out") from None
         except json.JSONDecodeError as error:
             raise RunFolderError(f"{path} is damaged ({error}); use another --out") from None
         history = stored.pop(PROVENANCE_KEY, []) if isinstance(stored, dict) else []

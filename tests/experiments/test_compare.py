@@ -151,6 +151,24 @@ def test_folders_that_are_not_finished_runs_are_refused_in_one_line(tmp_path):
     assert status == 2 and f"--out = '{tmp_path}' is not allowed: a file" in stderr
 
 
+def test_a_trials_file_or_run_file_not_utf8_is_one_line_naming_the_file(tmp_path):
+    # issue 63: "'utf-8' codec can't decode byte 0xff in position 0: invalid start byte"
+    a = write_run(tmp_path / "a", trials([OK] * 3))
+    b = write_run(tmp_path / "b", trials([OK] * 3))
+    log = b / "trials.jsonl"
+    log.write_bytes(b"\xff" + log.read_bytes())
+    status, stdout, stderr = gva("compare", a, b)
+    assert status == 2 and stdout == ""
+    assert stderr == (f"gva compare: error: {log} line 1 is damaged (not UTF-8 text (byte 0 is "
+                      "0xff), not a line gva trials wrote); run the same gva trials command "
+                      "again to repair and finish it\n")
+    summary = a / "summary.json"
+    summary.write_bytes(b"\xfe" + summary.read_bytes())
+    status, stdout, stderr = gva("compare", a, a)
+    assert status == 2 and stderr == (f"gva compare: error: {summary} is damaged (not UTF-8 "
+                                      "text: byte 0 is 0xfe)\n")
+
+
 def _set(model: str, task: str, per_seed: dict[int, list[TrialRecord]],
          expected: int = 30) -> TrialSetResult:
     return TrialSetResult(model, task, Variant.PLAIN,

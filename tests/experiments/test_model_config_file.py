@@ -7,6 +7,7 @@ their settings and a job's call of ``new_model``, never by running the simulator
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 import re
 from pathlib import Path
@@ -24,6 +25,7 @@ from perception.interface import InvalidInputError
 from perception.learning.checkpoint import read_config
 from perception.learning.dataset_file import save_dataset
 from perception.model_config_file import ModelConfigFile, read_model_config
+from perception.registry import trainable
 from sim.errors import InvalidInputError as SimInvalidInputError
 from sim.errors import RunFolderError
 from sim.trials.run_folder import json_form
@@ -88,7 +90,13 @@ def test_a_checkpoint_trained_without_a_file_records_none(dataset, tmp_path):
                     r"value \(at line 1, column 10\)\)$"),
     (None, r"model config {path} = 'no such file or directory' is not allowed: an existing, "
            r"readable TOML file$"),
-], ids=["unknown-key", "bad-value", "seed", "nested-table", "wrong-type", "bad-toml", "missing"])
+    # issue 63: a torch "can't allocate memory" traceback, and a training that never ended
+    ("key_dim = 1000000000000\n", r"model config {path}: key_dim = 1000000000000 is not "
+                                  r"allowed: an integer >= 1 and <= 4096$"),
+    ("starts = 99999999999999999999\n", r"model config {path}: starts = 99999999999999999999 "
+                                        r"is not allowed: an integer >= 1 and <= 100$"),
+], ids=["unknown-key", "bad-value", "seed", "nested-table", "wrong-type", "bad-toml", "missing",
+        "key-dim-too-wide", "starts-beyond-64-bits"])
 def test_a_bad_file_is_one_line_naming_file_key_value_and_allowed(dataset, tmp_path, text,
                                                                    message):
     path = tmp_path / "bad.toml"
@@ -200,3 +208,29 @@ def test_fields_added_later_stay_out_of_identities_at_their_old_behaviour():
     helped = model_config("keypoint-16-helped", 0)
     assert helped["readout"] == "ray" and helped["input_norm"] == "per-image"
     assert "mirror" in helped and "point_loss_weight" in helped
+
+
+def _too_big(value: object) -> str:
+    """TOML for a value far past any bound, of the kind of ``value`` (a field's default)."""
+    if isinstance(value, tuple):
+        return "[" + ", ".join(_too_big(item) for item in value) + "]"
+    return "1e300" if isinstance(value, float) else "1000000000000"
+
+
+@pytest.mark.parametrize("model", ["kqv", "keypoint", "dsae", "fcn", "conv-ae"])
+def test_every_number_of_a_models_config_has_an_upper_bound(tmp_path, model):
+    # issue 63: model-config integers had no upper bound (and the floats none either)
+    config_class = trainable(model)[0].config_class
+    numbers = [f for f in dataclasses.fields(config_class) if f.name != "seed" and (
+        (isinstance(f.default, int | float | tuple) and not isinstance(f.default, bool))
+        or (f.default is None and f.type in ("int | None", "float | None")))]
+    assert len(numbers) >= 3  # fcn: head_width, rotation_loss_weight, channels
+    for field in numbers:
+        default = 1 if field.default is None else field.default
+        path = write(tmp_path / f"{field.name}.toml", f"{field.name} = {_too_big(default)}\n")
+        with pytest.raises(InvalidInputError) as refused:
+            read_model_config(path, model)
+        message = str(refused.value)
+        assert message.startswith(f"model config {path}: {field.name} = "), message
+        assert "\n" not in message
+        assert re.search(r"<= [0-9.e+]+$|one of .*|a fraction in \[0, 1\)$", message), message

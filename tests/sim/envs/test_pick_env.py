@@ -116,6 +116,54 @@ def test_bad_input_names_the_field() -> None:
     env.close()
 
 
+def test_a_refused_reset_leaves_the_env_usable() -> None:
+    # issue 63: after a refused first reset, a good reset then every step raised
+    # "TypeError: cannot unpack non-iterable NoneType" (the checker gymnasium.make added)
+    env = make(task="single")
+    with pytest.raises(InvalidInputError, match=r"options\['index'\] = -1 is not allowed"):
+        env.reset(options={"index": -1})
+    env.reset(seed=3, options={"index": 5})
+    _, _, terminated, _, info = env.step(env.unwrapped.oracle_action())
+    assert terminated and (info["seed"], info["index"]) == (3, 5)
+    with pytest.raises(InvalidInputError, match=r"options\['index'\] = -2 is not allowed"):
+        env.reset(seed=7, options={"index": -2})  # refused: changes nothing
+    with pytest.raises(InvalidInputError, match=r"seed = -1 is not allowed"):
+        env.reset(seed=-1)
+    _, info = env.reset()
+    assert (info["seed"], info["index"]) == (3, 6)
+    _, _, _, _, info = env.step(env.unwrapped.oracle_action())
+    assert info["outcome"]
+    env.close()
+
+
+def test_an_action_of_no_numbers_or_overflowing_ones_is_refused_naming_the_field() -> None:
+    # issue 63: [1e300, 0, 0, 0, 1e300, 0] overflowed to a zero matrix, blamed on the oracle;
+    # a string position raised numpy's "could not convert string to float"
+    env = make(task="single")
+    env.reset(seed=0)
+    good = env.unwrapped.oracle_action()
+    for change, field, allowed in [
+            ({"rotation_6d": np.array([1e300, 0, 0, 0, 1e300, 0])}, "rotation_6d",
+             "6 finite numbers within +-1e+100"),
+            ({"rotation_6d": np.array([1e90, 0, 0, 1e90, 1e70, 0])}, "rotation_6d",
+             "two non-parallel 3-vectors"),
+            ({"rotation_6d": np.array([np.inf, 0, 0, 0, 1, 0])}, "rotation_6d",
+             "6 finite numbers"),
+            ({"position_m": "abc"}, "position_m", "3 finite numbers"),
+            ({"position_m": np.array([np.nan, 0, 0])}, "position_m", "3 finite numbers"),
+            ({"object_type": "mug"}, "object_type", "an integer, 0 (not stated) to 3"),
+            ({"opening_m": "wide"}, "opening_m", "0 (not stated) or a gap")]:
+        with pytest.raises(InvalidInputError) as refused:
+            env.step(good | change)
+        value = change[field]
+        shown = value.tolist() if isinstance(value, np.ndarray) else value
+        assert str(refused.value).startswith(
+            f"action['{field}'] = {shown!r} is not allowed: {allowed}"), str(refused.value)
+    _, _, terminated, _, _ = env.step(good)  # the refused actions changed nothing
+    assert terminated
+    env.close()
+
+
 def test_a_grasp_far_off_is_a_recorded_failure_not_a_crash() -> None:
     env = make(task="single")
     env.reset(seed=0, options={"index": 0})

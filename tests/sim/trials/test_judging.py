@@ -142,3 +142,36 @@ def test_a_half_written_last_line_is_left_out_and_a_damaged_one_before_it_refuse
 def test_a_run_without_misses_says_so_rather_than_a_share_of_none():
     assert PickCounts(picks=30).line() == "no misses; 0 false alarms (of 30 picks)"
     assert PickCounts(picks=30, false_alarms=2).line().startswith("no misses; 2 false alarms")
+
+
+def test_gva_judge_refuses_a_json_folder_before_judging_in_one_line(old_run, tmp_path):
+    # issue 63: judged first, then "[Errno 21] Is a directory: '.../.x.tmp' -> '...'"
+    status, out, err = gva("judge", old_run, "--json", tmp_path)
+    assert status == 2 and out == ""
+    assert err == (f"gva judge: error: --json = '{tmp_path}' is not allowed: a file to write, "
+                   "not a folder\n")
+
+
+def test_a_trials_file_not_utf8_is_one_line_naming_file_and_line(old_run):
+    # issue 63: "'utf-8' codec can't decode byte 0xff in position 0: invalid start byte"
+    log = old_run / "s3" / "trials" / "kqv" / "single" / "trials.jsonl"
+    log.write_bytes(b"\xff" + log.read_bytes())
+    status, out, err = gva("judge", old_run)
+    assert status == 2 and out == ""
+    assert err == (f"gva judge: error: {log} line 1 is damaged: not UTF-8 text (byte 0 is "
+                   "0xff), not a line gva trials wrote\n")
+
+
+def test_a_non_finite_prediction_is_refused_naming_the_record_and_field(tmp_path):
+    # issue 63: a NaN predicted position was scored: a "+nan mm" false alarm. gva trials never
+    # records one, so the record is damaged: refused, as a damaged line is, not scored
+    sponge = grasp_pose(SPONGE, Pose.from_xy_yaw(0.45, 0.0, 0.0))
+    records = [_record(i, SPONGE, sponge, sponge, TrialOutcome.SUCCESS) for i in range(2)]
+    records[1].picks[0]["predicted"]["position_m"] = [math.nan, 0.0, 0.3]
+    run = tmp_path / "run"
+    _write_run(run, records)
+    status, out, err = gva("judge", run)
+    assert status == 2 and out == ""
+    assert err == (f"gva judge: error: {run / 'trials.jsonl'} trial 1 pick 0 "
+                   "predicted.position_m = [nan, 0.0, 0.3] is not allowed: 3 finite numbers, "
+                   "as gva trials records them (this record is damaged)\n")

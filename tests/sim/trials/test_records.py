@@ -88,3 +88,31 @@ def test_target_picks_are_the_picks_or_the_one_pick_of_an_older_record():
     assert newer.target_picks() == (TargetPick("sponge", True), TargetPick("mug", False))
     assert TrialSummary.of([older, newer]).per_object == {
         "mug": {"attempted": 2, "picked": 0}, "sponge": {"attempted": 1, "picked": 1}}
+
+
+def test_a_trials_file_not_utf8_is_refused_naming_the_file_and_line_not_decoded_whole(tmp_path):
+    # issue 63: a resumed run raised the codec's own "'utf-8' codec can't decode byte 0xff"
+    log = TrialLog(tmp_path, {"seed": 0})
+    log.append(record(0))
+    log.append(record(1))
+    text = log.path.read_bytes()
+    log.path.write_bytes(b"\xff" + text)
+    with pytest.raises(RunFolderError) as refused:
+        TrialLog(tmp_path, {"seed": 0})
+    assert str(refused.value) == (f"{log.path} line 1 is damaged: not UTF-8 text (byte 0 is "
+                                  "0xff), not a line gva trials wrote")
+    assert log.path.read_bytes() == b"\xff" + text  # refused, not repaired
+    # a crash in the middle of a character of the last line: dropped as any partial line is
+    log.path.write_bytes(text + record(2).to_json().encode()[:30] + b"\xc3")
+    again = TrialLog(tmp_path, {"seed": 0})
+    assert sorted(again.records) == [0, 1] and log.path.read_bytes() == text
+
+
+def test_a_run_file_not_utf8_is_refused_naming_the_file(tmp_path):
+    TrialLog(tmp_path, {"seed": 0})
+    run = tmp_path / "run.json"
+    run.write_bytes(b"\xff" + run.read_bytes())
+    with pytest.raises(RunFolderError) as refused:
+        TrialLog(tmp_path, {"seed": 0})
+    assert str(refused.value) == (f"{run} is damaged (not UTF-8 text: byte 0 is 0xff); use "
+                                  "another --out")
