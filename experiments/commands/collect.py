@@ -9,9 +9,10 @@ import argparse
 from pathlib import Path
 
 from experiments.commands.arguments import integer
-from perception.interface import ConditionKind
+from perception.interface import ConditionKind, InvalidInputError
 from robots import ROBOT_NAMES
 from sim.tasks.scene_sampling import SeedStream
+from sim.tasks.variants import builtin_variants
 from sim.trials.collector import CollectSettings, collect
 
 
@@ -19,6 +20,9 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     """The options of ``gva collect``."""
     parser.add_argument("--scene", required=True, help="paper-sim or yumi")
     parser.add_argument("--task", required=True, help="built-in task name or task TOML path")
+    parser.add_argument("--variant", metavar="NAME|FILE",
+                        help="the task under a variant of its looks: one of "
+                        f"{', '.join(builtin_variants())}, or a variant .toml file")
     parser.add_argument("--size", type=integer(1), required=True, help="number of scenes")
     parser.add_argument("--seed", type=integer(0), default=CollectSettings.seed,
                         help="seed of the scenes (%(default)s)")
@@ -35,17 +39,23 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", choices=ROBOT_NAMES, default=CollectSettings.robot,
                         help="yumi scene: the robot whose demonstrations these are, seen "
                         "through its workcell's camera (%(default)s)")
-    parser.add_argument("--out", type=Path, required=True, help="dataset file to write")
+    parser.add_argument("--out", type=Path, required=True,
+                        help="dataset file to write (.gva; must not exist yet)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Collects the dataset and prints what it holds; the exit status."""
+    out: Path = args.out
+    if out.exists():  # before the collecting: a dataset already there is never replaced
+        raise InvalidInputError("--out", str(out), "a .gva path that does not exist yet"
+                                + ("; it is a folder" if out.is_dir() else ""))
     settings = CollectSettings(scene=args.scene, task=args.task, size=args.size, seed=args.seed,
                                stream=SeedStream[args.stream.upper()],
                                every_condition=args.every_condition,
-                               approach_hz=args.approach_hz, robot=args.robot)
+                               approach_hz=args.approach_hz, robot=args.robot,
+                               variant=args.variant)
     dataset = collect(settings, args.out, progress=not args.no_progress)
     meta = dataset.metadata
     redrawn = meta.extra.get("demonstrations_redrawn")

@@ -22,6 +22,7 @@ from experiments.table3.run import run_reproduce_real
 from experiments.table3.settings import ReproduceRealSettings
 from experiments.tables import BEYOND_TASKS
 from perception.learning.validation import CheckConfig
+from sim.tasks.variants import builtin_variants
 from sim.world.sensor import SensorKind
 
 
@@ -71,6 +72,12 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         "trials: d435 (lens distortion, depth noise and holes, hand-eye error; "
                         "docs/decisions/d435-sensor.md) or ideal, an exact pinhole "
                         "(%(default)s)")
+    parser.add_argument("--world", metavar="VARIANT",
+                        help="the world the whole run lives in, demonstrations and trials: a "
+                        f"variant of every task's looks ({', '.join(builtin_variants())}, or "
+                        "a variant .toml file); varied-held-out demonstrates on half the "
+                        "palette, textures and tables and tries on the other half (default: "
+                        "today's world)")
     add_loop_options(parser)
     add_robot_option(parser)
     add_executor_options(parser)
@@ -88,7 +95,8 @@ def run(args: argparse.Namespace) -> int:
                                      sensor=SensorKind(args.sensor), workers=args.workers,
                                      loop=loop_settings(args), robot=args.robot,
                                      executor=executor(args), train_threads=args.train_threads,
-                                     model_configs=model_config_files(args))
+                                     model_configs=model_config_files(args),
+                                     world=args.world)
     report = run_reproduce_real(settings, args.out, progress=not args.no_progress)
     for line in report.summary_lines("job(s) run", lambda record: record["job"]):
         print(line)

@@ -195,7 +195,8 @@ def _train(job: TrainJob) -> str:
     settings, unit = job.settings, job.unit
     with torch_threads(settings.train_threads):
         path = dataset_file(job.out, unit.task, settings)
-        data = load_dataset(path, expect={"scene": SCENE, "task": unit.task,
+        data = load_dataset(path, expect={"scene": SCENE,  # the task as run (its world's name)
+                                          "task": settings.run_task(TrialSet(unit)).name,
                                           "seed": settings.seed})
         demonstrations = data.metadata.extra.get("scenes", len(data))
         if demonstrations != settings.demos:  # a demonstration has an image per pick

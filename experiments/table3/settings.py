@@ -33,6 +33,7 @@ from sim.jobs import LOCAL, Executor
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.task_spec import TaskSpec, spaced_for
 from sim.tasks.task_toml import load_task, task_to_toml
+from sim.tasks.variants import read_variant, with_variant
 from sim.trials.execution import ExecutionSettings
 from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.run_folder import json_form
@@ -159,6 +160,9 @@ class ReproduceRealSettings:
         robot: The robot that demonstrates and picks, through its workcell's camera (one of
             :data:`robots.ROBOT_NAMES`, ``--robot``); named in the identity only where it is
             not the YuMi, so earlier folders resume.
+        world: A variant every task of the run lives under, demonstrations and trials alike
+            (``--world``, :mod:`sim.tasks.variants`; ``varied-held-out``: the generalisation
+            protocol); named in the identity only where set. None: today's world.
 
     """
 
@@ -179,8 +183,11 @@ class ReproduceRealSettings:
     model_configs: tuple[ModelConfigFile, ...] = ()
     loop: LoopSettings = field(default_factory=LoopSettings)
     robot: str = "yumi"
+    world: str | None = None
 
     def __post_init__(self) -> None:
+        if self.world is not None:
+            read_variant(self.world)  # an unknown or malformed variant is refused by name
         if self.robot not in ROBOT_NAMES:
             raise InvalidInputError("robot", self.robot, f"one of {', '.join(ROBOT_NAMES)}")
         if not isinstance(self.sensor, SensorKind):
@@ -229,8 +236,10 @@ class ReproduceRealSettings:
         Its training scenes take the types in turn where ``balance_types`` says so; its objects
         are spaced for the robot's hand (:func:`~sim.tasks.task_spec.spaced_for`).
         """
-        task = spaced_for(variant_task(trial_set.unit.task, trial_set.variant, self.sensor),
-                          get_robot(self.robot).neighbour_spacing_m)
+        task = variant_task(trial_set.unit.task, trial_set.variant, self.sensor)
+        if self.world is not None:
+            task = with_variant(task, self.world)
+        task = spaced_for(task, get_robot(self.robot).neighbour_spacing_m)
         if self.balance_types and task.draws_one_type and not task.balance_types:
             task = replace(task, balance_types=True)
         return task
@@ -259,7 +268,8 @@ class ReproduceRealSettings:
                   else {"sensor": SensorConfig(self.sensor).to_json()})
         loop = {"loop": self.loop.to_json()} if self.closed else {}
         robot = {} if self.robot == "yumi" else {"robot": self.robot}
-        return sensor | loop | robot | {
+        world = {} if self.world is None else {"world": read_variant(self.world)[1]}
+        return sensor | loop | robot | world | {
                 "format_version": FORMAT_VERSION, "experiment": "reproduce-real",
                 "scene": SCENE, "demos": self.demos, "n": self.n,
                 "train": train, "settle_s": TrialSettings.settle_s,
@@ -317,6 +327,8 @@ class ReproduceRealSettings:
             parts.append(f"--loop closed --replan-hz {self.loop.replan_hz:g}")
         if self.robot != ReproduceRealSettings.robot:
             parts.append(f"--robot {self.robot}")
+        if self.world is not None:
+            parts.append(f"--world {self.world}")
         if self.train_threads != ReproduceRealSettings.train_threads:
             parts.append(f"--train-threads {self.train_threads}")
         if self.check.holdout != CheckConfig.holdout:

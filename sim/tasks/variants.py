@@ -21,7 +21,7 @@ from typing import Any
 
 from sim.errors import InvalidInputError
 from sim.tasks.task_spec import TaskSpec
-from sim.tasks.task_toml import task_from_data, task_to_toml
+from sim.tasks.task_toml import load_task, task_from_data, task_to_toml
 
 VARIANT_FILES = Path(__file__).resolve().parent / "variants"
 MAX_VARIANT_FILE_BYTES = 16 * 1024
@@ -90,3 +90,15 @@ def with_variant(task: TaskSpec, variant: str | Path) -> TaskSpec:
                 merged[key] = value
     data["name"] = f"{task.name}+{name}"
     return task_from_data(data, f"{task.source} + variant {name}", folder)
+
+
+def load_task_variant(task: str | Path, variant: str | Path | None) -> TaskSpec:
+    """A task by name or file, under ``variant`` where one is given (``--task``, ``--variant``)."""
+    loaded = load_task(task)
+    return loaded if variant is None else with_variant(loaded, variant)
+
+
+def variant_file(variant: str | Path) -> Path:
+    """The file a variant is read from (a run's provenance names it)."""
+    builtin = VARIANT_FILES / f"{variant}.toml"
+    return builtin if builtin.is_file() else Path(variant)

@@ -48,7 +48,7 @@ from sim.tasks.scene_sampling import (
 )
 from sim.tasks.scene_specs import SCENE_NAMES, SceneSpec, get_scene_spec
 from sim.tasks.task_spec import TaskSpec, spaced_for
-from sim.tasks.task_toml import load_task
+from sim.tasks.variants import load_task_variant
 from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.records import TrialOutcome
 from sim.trials.trial_runner import TrialRunner
@@ -93,6 +93,8 @@ class CollectSettings:
         robot: ``yumi`` scene only: the robot whose demonstrations these are, seen through its
             workcell's camera (one of :data:`robots.ROBOT_NAMES`; the YuMi by default). The
             metadata names it (``extra["robot"]``) where it is not the YuMi.
+        variant: The task under a variant of its looks (``--variant``, :mod:`sim.tasks.variants`);
+            None: the task as its file says. The dataset's task record holds the appearance.
 
     """
 
@@ -104,6 +106,7 @@ class CollectSettings:
     every_condition: bool | None = None
     approach_hz: float | None = None
     robot: str = "yumi"
+    variant: str | None = None
 
     def __post_init__(self) -> None:
         if self.robot not in ROBOT_NAMES:
@@ -133,7 +136,8 @@ class CollectSettings:
     @property
     def task_spec(self) -> TaskSpec:
         """The task, its objects spaced for the robot's hand (:func:`spaced_for`)."""
-        return spaced_for(load_task(self.task), get_robot(self.robot).neighbour_spacing_m)
+        return spaced_for(load_task_variant(self.task, self.variant),
+                          get_robot(self.robot).neighbour_spacing_m)
 
     @property
     def asks_every_condition(self) -> bool:
@@ -343,12 +347,12 @@ def _collect_yumi(
                         for question in asked(task, scene, settings.asks_every_condition)[1:]]
             kept += 1
             bar.update()
-        camera = _camera_json(runner.camera)
+        camera = _camera_json(runner.mounted_camera)  # as mounted: a look may move it per scene
     extra = {"stream": settings.stream.name.lower(), "scenes": settings.size,
              "every_condition": settings.asks_every_condition,
              JOINT_NAMES_KEY: list(images.joint_names),
              "demonstrations_redrawn": len(redrawn), "redrawn": redrawn,
-             MIRROR_FLAG: mirror_symmetric(task, spec, runner.camera.config)}
+             MIRROR_FLAG: mirror_symmetric(task, spec, runner.mounted_camera.config)}
     if settings.approach_hz is not None:  # the arm masked out of them (self-filtered frames)
         extra |= {"approach_hz": settings.approach_hz, APPROACH_MASKED_KEY: True,
                   "approach_images_hidden": images.hidden}

@@ -36,8 +36,8 @@ from sim.tasks.scene_sampling import (
 )
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_spec import SIDES, TaskSpec, spaced_for
-from sim.tasks.task_toml import TASK_FILES, load_task, with_test_phrases
-from sim.tasks.variants import VARIANT_FILES, with_variant
+from sim.tasks.task_toml import TASK_FILES, with_test_phrases
+from sim.tasks.variants import load_task_variant, variant_file
 from sim.trials.execution import ExecutionSettings
 from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.oracle import OraclePerception
@@ -169,10 +169,8 @@ class TrialSettings:
         Its test phrasings come from ``phrases``, if set; its objects keep the distance the
         robot's hand needs (:func:`~sim.tasks.task_spec.spaced_for`).
         """
-        task = load_task(self.task)
-        if self.variant is not None:
-            task = with_variant(task, self.variant)
-        task = spaced_for(task, self.description().neighbour_spacing_m)
+        task = spaced_for(load_task_variant(self.task, self.variant),
+                          self.description().neighbour_spacing_m)
         if self.phrases is None:
             return task
         return with_test_phrases(task, self.phrases, condition_choices(task, YUMI_SCENE),
@@ -207,8 +205,7 @@ class TrialSettings:
         if self.phrases is not None:
             files["phrases_file"] = Path(self.phrases)
         if self.variant is not None:
-            builtin = VARIANT_FILES / f"{self.variant}.toml"
-            files["variant_file"] = builtin if builtin.is_file() else Path(self.variant)
+            files["variant_file"] = variant_file(self.variant)
         if model_source(self.model) is ModelSource.CHECKPOINT:
             from perception.learning.checkpoint import CONFIG_FILE, WEIGHTS_FILE
 
