@@ -55,7 +55,7 @@ from sim.trials.trial_settings import task_identity
 from sim.world.sensor import SensorConfig, SensorKind, sensor_from_table
 
 MODEL = "kqv"
-TEST_SETS = dict(zip(SET_NAMES, (table3.Variant.DISTRACTOR, table3.Variant.PLAIN), strict=True))
+TEST_SETS = dict(zip(SET_NAMES, ("block", table3.PLAIN), strict=True))
 
 
 @dataclass(frozen=True)
@@ -89,7 +89,7 @@ class Step(NamedTuple):
 
 def clutter_task(task: str, sensor: SensorKind, per_scene: tuple[int, int]) -> TaskSpec:
     """The task under ``sensor`` with ``per_scene`` clutter objects a scene, never targets."""
-    base = table3.variant_task(task, table3.Variant.PLAIN, sensor)
+    base = table3.variant_task(task, table3.PLAIN, sensor)
     return replace(base, distractors=CLUTTER_TYPES, distractors_per_scene=per_scene,
                    description=f"{base.description} Plus {per_scene[0]}-{per_scene[1]} of "
                    f"{', '.join(CLUTTER_TYPES)} (clutter, never a target).")
@@ -97,7 +97,7 @@ def clutter_task(task: str, sensor: SensorKind, per_scene: tuple[int, int]) -> T
 
 def balanced_task(task: str, sensor: SensorKind, _: tuple[int, int]) -> TaskSpec:
     """The task under ``sensor`` with its training scenes' types taken in turn."""
-    base = table3.variant_task(task, table3.Variant.PLAIN, sensor)
+    base = table3.variant_task(task, table3.PLAIN, sensor)
     return replace(base, balance_types=True, description=f"{base.description} Types taken in "
                    "turn in the training scenes.")
 
@@ -107,7 +107,7 @@ CANDIDATES: dict[str, Callable[[str, SensorKind, tuple[int, int]], TaskSpec]] = 
 """Each candidate's task for a built-in task name, a sensor and ``--clutter-per-scene``."""
 
 
-def test_task(out: Path, spec: TaskSpec, task: str, variant: table3.Variant, seed: int,
+def test_task(out: Path, spec: TaskSpec, task: str, variant: str, seed: int,
               n: int, given: Path | None) -> TestTask:
     """Where ``spec``'s test set is cached: by sensor, plus a hash unless the built-in variant.
 
@@ -186,7 +186,7 @@ def run_entry(args: argparse.Namespace, run: Path, task: str, seed: int, notes: 
         else:
             given = None
             notes.append(f"{run} s{seed}: no tasks/{spec.name}.toml; used the built-in {task} "
-                         f"as variant_task(..., {variant.name}) with the run's sensor "
+                         f"as variant_task(..., {variant!r}) with the run's sensor "
                          f"{sensor.describe()} (from {meta})")
         tests.append(test_task(args.out, spec, task, variant, seed, args.test_scenes, given))
     return Entry(str(run), task, seed, checkpoint, tests[0], tests[1])

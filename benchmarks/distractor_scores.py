@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from experiments.table3 import settings as table3
+from perception.catalog import DISTRACTOR_TYPES
 from perception.interface import Prediction
 from perception.learning.data import Dataset
 from perception.learning.dataset_file import load_dataset
@@ -67,7 +67,7 @@ def nearer_block(predictions: Sequence[Prediction], dataset: Dataset) -> int | N
     for prediction, record, shown in zip(predictions, dataset.scenes, dataset.target_present(),
                                          strict=True):
         objects = record["objects"]
-        blocks = [o["position_xy_m"] for o in objects if o["type"] in table3.DISTRACTOR_TYPES]
+        blocks = [o["position_xy_m"] for o in objects if o["type"] in DISTRACTOR_TYPES]
         xy = [np.asarray(target.position_m[:2]) for target in prediction.targets]
         nearer += [min(np.linalg.norm(xy[k] - block) for block in blocks) < np.linalg.norm(
             xy[k] - objects[record["targets"][k]]["position_xy_m"])

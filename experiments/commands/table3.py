@@ -57,10 +57,13 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--holdout", type=float, default=CheckConfig.holdout,
                         help="fraction of each task's demonstrations held out to check its "
                         "trained model (%(default)s; 0: train on all, check nothing)")
-    parser.add_argument("--robustness", action=argparse.BooleanOptionalAction,
-                        default=defaults.robustness,
-                        help="also run kqv under darker light and with a distractor "
-                        f"({'on' if defaults.robustness else 'off'})")
+    parser.add_argument("--variants", type=variant_names, default=defaults.variants,
+                        help="comma-separated variants every model is also tried under, each "
+                        f"paired with its clean trials: {', '.join(builtin_variants())}, or "
+                        f"variant .toml files; none for none (default {','.join(defaults.variants)}"
+                        ": the paper's robustness rows)")
+    parser.add_argument("--no-robustness", dest="variants", action="store_const", const=(),
+                        help="no variants: the same as --variants none")
     parser.add_argument("--balance-types", action=argparse.BooleanOptionalAction,
                         default=defaults.balance_types,
                         help="demonstrations take the object types in turn where a scene draws "
@@ -85,12 +88,17 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     parser.set_defaults(run=run)
 
 
+def variant_names(text: str) -> tuple[str, ...]:
+    """``--variants``: comma-separated names or files; ``none`` (or nothing) for none."""
+    return () if text.strip() in ("", "none") else names(text)
+
+
 def run(args: argparse.Namespace) -> int:
     """Runs (or resumes) the table and prints its summary; 1 when some job failed."""
     settings = ReproduceRealSettings(models=args.models, tasks=args.tasks, n=args.n,
                                      demos=args.demos, steps=args.steps, seed=args.seed,
                                      seeds=args.seeds, check=CheckConfig(holdout=args.holdout),
-                                     robustness=args.robustness,
+                                     variants=args.variants,
                                      balance_types=args.balance_types,
                                      sensor=SensorKind(args.sensor), workers=args.workers,
                                      loop=loop_settings(args), robot=args.robot,

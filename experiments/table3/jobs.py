@@ -20,11 +20,11 @@ from typing import Any
 from experiments.table3.gifs import record_gif
 from experiments.table3.settings import (
     GIF_TRIALS,
+    PLAIN,
     SCENE,
     ReproduceRealSettings,
     TrialSet,
     Unit,
-    Variant,
     checkpoint_folder,
     dataset_file,
     error_file,
@@ -359,7 +359,7 @@ def _trials_estimate(settings: ReproduceRealSettings, out: Path, trial_set: Tria
     targets = _targets(trial_set.unit.task)
     summary = trials_folder(out, trial_set) / "summary.json"
     estimate = 0.0 if summary.exists() else TRIAL_S_PER_PICK * settings.n * targets
-    if trial_set.variant is Variant.PLAIN and not gif_file(out, trial_set.unit).exists():
+    if trial_set.variant == PLAIN and not gif_file(out, trial_set.unit).exists():
         estimate += GIF_S_PER_PICK * min(GIF_TRIALS, settings.n) * targets
     return estimate
 
@@ -378,7 +378,7 @@ def _trial_jobs(settings: ReproduceRealSettings, out: Path, unit: Unit | None = 
         trials = settings.trial_settings(out, trial_set)
         job = TrialsJob(f"trials-{trial_set.name}-s{settings.seed}", trial_set, trials, out)
         candidates: list[tuple[Job, bool]] = [(job, trials_done(job))]
-        if trial_set.variant is Variant.PLAIN:
+        if trial_set.variant == PLAIN:
             gif = GifJob(f"gif-{trial_set.unit.name}-s{settings.seed}", trial_set.unit, trials,
                          min(GIF_TRIALS, settings.n), out)
             candidates.append((gif, gif_done(gif)))

@@ -1,10 +1,11 @@
 """The reports of ``gva reproduce real``, rebuilt from every trial folder of every seed's folder.
 
 ``table3.json`` (per model, task and variant: each seed's successes, their mean and spread,
-and every seed's trials pooled; each baseline against kqv, paired on the same trials) and
-``table3.md`` (laid out like the paper's Table III, then intervals, the paired comparisons,
-held-out checks, failure reasons and GIFs). A trial folder of an interrupted run counts the
-trials it has, marked ``*``. What each file holds: ``docs/reproducing.md``.
+and every seed's trials pooled; each baseline against kqv and each variant against the clean
+world, paired on the same trials) and ``table3.md`` (laid out like the paper's Table III, then
+intervals, the paired comparisons, held-out checks, failure reasons and GIFs). A trial folder
+of an interrupted run counts the trials it has, marked ``*``. What each file holds:
+``docs/reproducing.md``.
 """
 
 from __future__ import annotations
@@ -17,16 +18,16 @@ from typing import Any, NamedTuple
 
 from experiments.table3.folder import history_wall_time_s, read_checks, read_failed, read_gifs
 from experiments.table3.settings import (
-    DARK_BRIGHTNESS,
-    DISTRACTOR_TYPES,
-    ROBUST_MODEL,
+    OPEN_LOOP,
+    PLAIN,
+    REFERENCE_MODEL,
     ReproduceRealSettings,
-    Variant,
 )
 from experiments.table3.trial_sets import (
     TrialSetResult,
     first_pick_errors_cm,
     read_trial_sets,
+    variant_order,
 )
 from experiments.tables import (
     ALL_TASKS,
@@ -40,6 +41,7 @@ from experiments.tables import (
 )
 from sim.tasks.task_spec import TargetSelection
 from sim.tasks.task_toml import load_task
+from sim.tasks.variants import variant_title
 from sim.trials.compare import Comparison, compare_records
 from sim.trials.paired_statistics import CONFIDENCE, SIGNIFICANCE, format_p
 from sim.trials.records import TrialOutcome, TrialRecord
@@ -55,11 +57,13 @@ REASON_CHARS = 200
 
 
 @dataclass(frozen=True)
-class BaselineComparison:
-    """A baseline's trials of one task and seed paired with kqv's on the same trials.
+class PairedSets:
+    """Two trial sets of one task and seed paired trial for trial (:mod:`sim.trials.compare`).
 
-    ``comparison`` has kqv as A and the baseline as B (its difference: baseline - kqv).
-    ``unfinished``: a set lacks some trials, and only the trials both have are paired.
+    A baseline against kqv (``variant`` plain; ``comparison`` has kqv as A, its difference
+    baseline - kqv), or a model under a variant against its own plain trials (the plain set as
+    A: variant - clean). ``unfinished``: a set lacks some trials, and only the trials both
+    have are paired.
     """
 
     model: str
@@ -67,6 +71,7 @@ class BaselineComparison:
     seed: int
     comparison: Comparison
     unfinished: bool
+    variant: str = PLAIN
 
     def entry(self) -> dict[str, Any]:
         """The comparison as ``table3.json`` holds it."""
@@ -80,39 +85,55 @@ class BaselineComparison:
                 + ("*" if self.unfinished else ""))
 
 
-def baseline_comparisons(sets: Sequence[TrialSetResult]) -> list[BaselineComparison]:
-    """Each baseline's plain trials against kqv's, per task and seed, on the trials both have.
+def _paired(reference: TrialSetResult | None, result: TrialSetResult) -> list[PairedSets]:
+    """``result``'s trials against ``reference``'s, per seed, on the trials both have.
 
-    Trial ``i`` of a seed is the same scene for every model (the seed's test stream), so the
-    sets pair by index (:mod:`sim.trials.compare`).
+    Trial ``i`` of a seed is the same scene for every model and variant (the seed's test
+    stream; a variant's looks and distractors have streams of their own).
     """
-    reference = {s.task: dict(s.per_seed) for s in sets
-                 if s.model == ROBUST_MODEL and s.variant is Variant.PLAIN}
+    if reference is None:
+        return []
+    theirs_by_seed = dict(reference.per_seed)
     found = []
-    for result in sets:
-        if result.model == ROBUST_MODEL or result.variant is not Variant.PLAIN:
-            continue
-        for seed, records in result.per_seed:
-            theirs = {r.index: r for r in reference.get(result.task, {}).get(seed, ())}
-            ours = {r.index: r for r in records}
-            common = sorted(set(theirs) & set(ours))
-            if not common:
-                continue
-            comparison = compare_records([theirs[i] for i in common], [ours[i] for i in common])
-            found.append(BaselineComparison(result.model, result.task, seed, comparison,
-                                            len(common) < result.expected))
+    for seed, records in result.per_seed:
+        theirs = {r.index: r for r in theirs_by_seed.get(seed, ())}
+        ours = {r.index: r for r in records}
+        common = sorted(set(theirs) & set(ours))
+        if common:
+            found.append(PairedSets(
+                result.model, result.task, seed,
+                compare_records([theirs[i] for i in common], [ours[i] for i in common]),
+                len(common) < result.expected, result.variant))
     return found
 
 
-def row_title(model: str, variant: Variant) -> str:
+def baseline_comparisons(sets: Sequence[TrialSetResult]) -> list[PairedSets]:
+    """Each baseline's plain trials against kqv's, per task and seed, on the trials both have."""
+    reference = {s.task: s for s in sets if s.model == REFERENCE_MODEL and s.variant == PLAIN}
+    return [paired for result in sets
+            if result.model != REFERENCE_MODEL and result.variant == PLAIN
+            for paired in _paired(reference.get(result.task), result)]
+
+
+def variant_comparisons(sets: Sequence[TrialSetResult]) -> list[PairedSets]:
+    """Each model's trials under each variant against its own plain trials, per task and seed."""
+    plain = {(s.model, s.task): s for s in sets if s.variant == PLAIN}
+    return [paired for result in sets if result.variant not in (PLAIN, OPEN_LOOP)
+            for paired in _paired(plain.get((result.model, result.task)), result)]
+
+
+def row_title(model: str, variant: str) -> str:
     """The row title of a model under a variant."""
-    if variant is Variant.DARK:
-        return f"{model_title(model)}, darker light (brightness {DARK_BRIGHTNESS:g})"
-    if variant is Variant.DISTRACTOR:
-        return f"{model_title(model)}, + {' + '.join(DISTRACTOR_TYPES)} distractor"
-    if variant is Variant.OPEN_LOOP:
+    if variant == PLAIN:
+        return model_title(model)
+    if variant == OPEN_LOOP:
         return f"{model_title(model)}, open loop (same checkpoint)"
-    return model_title(model)
+    return f"{model_title(model)}, {variant_title(variant)}"
+
+
+def has_distractors(result: TrialSetResult) -> bool:
+    """Whether some trial of the set presents a distractor."""
+    return any(o.get("distractor") for r in result.records for o in r.objects)
 
 
 def shared_target_type(task: str, record: TrialRecord) -> bool:
@@ -131,28 +152,32 @@ def shared_target_type(task: str, record: TrialRecord) -> bool:
 def table3_json(sets: Sequence[TrialSetResult]) -> dict[str, Any]:
     """The tables of ``table3.json`` (without settings and timing)."""
     models: dict[str, dict[str, Any]] = {}
-    robustness: dict[str, dict[str, Any]] = {
-        Variant.DARK.value: {"brightness": DARK_BRIGHTNESS, "model": ROBUST_MODEL, "tasks": {}},
-        Variant.DISTRACTOR.value: {"types": list(DISTRACTOR_TYPES), "model": ROBUST_MODEL,
-                                   "tasks": {}}}
+    variants: dict[str, dict[str, dict[str, Any]]] = {}
+    against_clean: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
+    for paired in variant_comparisons(sets):
+        against_clean.setdefault((paired.model, paired.variant, paired.task), []).append(
+            paired.entry())
     for result in sets:
-        if result.variant is Variant.PLAIN:
+        if result.variant == PLAIN:
             models.setdefault(result.model, {})[result.task] = result.entry()
-        elif result.variant is Variant.OPEN_LOOP:
-            models.setdefault(result.model, {})[f"{result.task}-{result.variant.value}"] = (
+        elif result.variant == OPEN_LOOP:
+            models.setdefault(result.model, {})[f"{result.task}-{result.variant}"] = (
                 result.entry())
-        elif result.model == ROBUST_MODEL:
-            entry = result.entry()
-            if result.variant is Variant.DISTRACTOR:
+        else:
+            entry = result.entry() | {"against_clean": against_clean.get(
+                (result.model, result.variant, result.task), [])}
+            if has_distractors(result):
                 entry["shared_target_type"] = sum(shared_target_type(result.task, r)
                                                   for r in result.records)
-            robustness[result.variant.value]["tasks"][result.task] = entry
+            variants.setdefault(result.model, {}).setdefault(result.variant, {})[
+                result.task] = entry
     against: dict[str, dict[str, list[dict[str, Any]]]] = {}
     for paired in baseline_comparisons(sets):
         against.setdefault(paired.model, {}).setdefault(paired.task, []).append(paired.entry())
-    return {"tasks": models.get(ROBUST_MODEL, {}), "models": models, "robustness": robustness,
-            "against_kqv": {"reference": ROBUST_MODEL, "difference": f"model - {ROBUST_MODEL}",
-                            "models": against},
+    return {"tasks": models.get(REFERENCE_MODEL, {}), "models": models,
+            "variants": {"difference": "variant - plain", "models": variants},
+            "against_kqv": {"reference": REFERENCE_MODEL,
+                            "difference": f"model - {REFERENCE_MODEL}", "models": against},
             "paper": {t: {"successes": k, "n": PAPER_TRIALS} for t, k in PAPER_TABLE3.items()}}
 
 
@@ -193,10 +218,10 @@ def _paper(task: str) -> str:
     return f"{PAPER_TABLE3[task]}/{PAPER_TRIALS}" if task in PAPER_TABLE3 else "—"
 
 
-def _rows(sets: Sequence[TrialSetResult]) -> list[tuple[str, Variant]]:
+def _rows(sets: Sequence[TrialSetResult]) -> list[tuple[str, str]]:
     """(model, variant) of each row: plain rows first, models in the paper's order."""
     return sorted({(s.model, s.variant) for s in sets},
-                  key=lambda r: (list(Variant).index(r[1]), model_order(r[0])))
+                  key=lambda r: (variant_order(r[1]), model_order(r[0])))
 
 
 def successes_table(sets: Sequence[TrialSetResult]) -> str:
@@ -218,7 +243,7 @@ def table3_markdown(sets: Sequence[TrialSetResult], made_by: str,
                     gifs: Mapping[str, Mapping[str, Any]] | None = None,
                     failed: Sequence[Mapping[str, Any]] = (),
                     checks: Sequence[Mapping[str, Any]] = (), robot: str = "yumi") -> str:
-    """``table3.md``: the paper's row, ours, the robustness rows, then why trials failed."""
+    """``table3.md``: the paper's row, ours, the variants' rows, then why trials failed."""
     by_key = {(s.model, s.variant, s.task): s for s in sets}
     lines = [
         "# Table III in simulation: successful picks out of 30", "",
@@ -238,14 +263,15 @@ def table3_markdown(sets: Sequence[TrialSetResult], made_by: str,
     lines += [f"| {row_title(m, v)} | " + " | ".join(_interval(by_key.get((m, v, t)))
                                                     for t in _columns(sets)) + " |"
               for m, v in _rows(sets)]
-    lines += ["", *comparisons_markdown(baseline_comparisons(sets)), *checks_markdown(checks),
+    lines += ["", *comparisons_markdown(baseline_comparisons(sets)),
+              *variants_markdown(variant_comparisons(sets)), *checks_markdown(checks),
               "## Failure reasons", ""]
     for task in ALL_TASKS:
         present = [s for s in sets if s.task == task]
         if not present:
             continue
         lines += [f"### {TASK_TITLES[task]}", ""]
-        for result in sorted(present, key=lambda s: (list(Variant).index(s.variant),
+        for result in sorted(present, key=lambda s: (variant_order(s.variant),
                                                      model_order(s.model))):
             lines += _reasons(result)
         lines.append("")
@@ -272,9 +298,9 @@ def _reasons(result: TrialSetResult) -> list[str]:
                         for name, c in summary.per_object.items())
     line = f"- **{row_title(result.model, result.variant)}**: {counts or 'no trials'}"
     line += f"; picks by object: {objects}" if objects else ""
-    if result.variant is Variant.DISTRACTOR:
+    if result.variant != PLAIN and has_distractors(result):
         shared = sum(shared_target_type(result.task, r) for r in result.records)
-        line += f"; the distractor has a target's type in {shared} of {summary.n} trials"
+        line += f"; a distractor has a target's type in {shared} of {summary.n} trials"
     if summary.judge is not None:
         line += f"; the grasp judge: {summary.judge.line()}"
     lines = [line]
@@ -298,17 +324,17 @@ def _reasons(result: TrialSetResult) -> list[str]:
     return lines
 
 
-def comparisons_markdown(comparisons: Sequence[BaselineComparison]) -> list[str]:
+def comparisons_markdown(comparisons: Sequence[PairedSets]) -> list[str]:
     """The section of each baseline against kqv, paired on the same trials; none without one."""
     if not comparisons:
         return []
     by_key = {(c.model, c.seed, c.task): c for c in comparisons}
     rows = sorted({(c.model, c.seed) for c in comparisons},
                   key=lambda row: (model_order(row[0]), row[1]))
-    lines = [f"## Baselines against {model_title(ROBUST_MODEL)}, paired on the same trials", "",
-             f"Each baseline's trials against {ROBUST_MODEL}'s on the same test scenes (same "
-             f"seed, same trial index): the difference in success rate, baseline - "
-             f"{ROBUST_MODEL}, with its {100 * CONFIDENCE:.0f} % interval (Newcombe's hybrid "
+    lines = [f"## Baselines against {model_title(REFERENCE_MODEL)}, paired on the same trials",
+             "", f"Each baseline's trials against {REFERENCE_MODEL}'s on the same test scenes "
+             f"(same seed, same trial index): the difference in success rate, baseline - "
+             f"{REFERENCE_MODEL}, with its {100 * CONFIDENCE:.0f} % interval (Newcombe's hybrid "
              "score interval for paired proportions), and the two-sided exact McNemar test's "
              f"p. A negative difference with p < {SIGNIFICANCE:g}: the baseline is significantly "
              "worse (`gva compare`, docs/trials.md). `*`: only the trials both sets have are "
@@ -316,6 +342,26 @@ def comparisons_markdown(comparisons: Sequence[BaselineComparison]) -> list[str]
     lines += [f"| {model_title(model)}, seed {seed} | "
               + " | ".join(by_key[model, seed, t].cell() if (model, seed, t) in by_key else "—"
                            for t in TASKS) + " |" for model, seed in rows]
+    return [*lines, ""]
+
+
+def variants_markdown(comparisons: Sequence[PairedSets]) -> list[str]:
+    """The section of each model under each variant against its clean trials; none without."""
+    if not comparisons:
+        return []
+    by_key = {(c.model, c.variant, c.seed, c.task): c for c in comparisons}
+    rows = sorted({(c.model, c.variant, c.seed) for c in comparisons},
+                  key=lambda row: (model_order(row[0]), variant_order(row[1]), row[2]))
+    lines = ["## Each variant against the clean world, paired on the same trials", "",
+             "Each model's trials under a variant against its own trials in the world it was "
+             "trained in, on the same test scenes (same seed, same trial index): the "
+             f"difference in success rate, variant - clean, with its {100 * CONFIDENCE:.0f} % "
+             "interval and the exact McNemar test's p (`gva compare`). `*`: only the trials "
+             "both sets have are paired.", "", *_header(TASKS)]
+    lines += [f"| {row_title(model, variant)}, seed {seed} | "
+              + " | ".join(by_key[model, variant, seed, t].cell()
+                           if (model, variant, seed, t) in by_key else "—" for t in TASKS)
+              + " |" for model, variant, seed in rows]
     return [*lines, ""]
 
 
@@ -370,7 +416,7 @@ def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float
         "gifs": gifs,
         "settings": settings.shared_identity() | {
             "command": settings.command(out), "models": list(settings.models),
-            "tasks": list(settings.tasks), "robustness": settings.robustness,
+            "tasks": list(settings.tasks), "variants": list(settings.variants),
             "balance_types": settings.balance_types,
             "sensor": SensorConfig(settings.sensor).to_json(), "workers": settings.worker_count(),
             "model_configs": {f.model: f.to_json() for f in settings.model_configs}},

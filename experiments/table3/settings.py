@@ -1,12 +1,12 @@
 """What ``gva reproduce real`` runs: settings, units, trial sets, and where a folder keeps them.
 
 A unit is one model trained on one task; a trial set is a unit's trials under a variant (as
-trained, darker light, a distractor). Each seed's run has its own folder ``OUT/s<seed>/``.
+trained, or under one of the run's variants: darker light, the block, other looks). Each
+seed's run has its own folder ``OUT/s<seed>/``.
 """
 
 from __future__ import annotations
 
-import enum
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -42,47 +42,35 @@ from sim.world.head_camera import CameraConfig, camera_config
 from sim.world.sensor import SensorConfig, SensorKind
 
 SCENE = "yumi"
-ROBUST_MODEL = "kqv"
-"""The model whose robustness rows are run (the paper reports them for its own model)."""
-DARK_BRIGHTNESS = 0.5
-"""The darker light: half the normal light (training augments brightness by 0.7-1.3 only)."""
-DISTRACTOR_TYPES = ("block",)
-"""The distractor added to every scene: the wooden block, sponge-like and never a target."""
+REFERENCE_MODEL = "kqv"
+"""The model every baseline is compared with, trial for trial (the paper's)."""
+PLAIN = "plain"
+"""A unit's trials in the world it was trained in."""
+OPEN_LOOP = "open-loop"
+"""A closed-loop run's checkpoint, its picks open-loop on the same scenes (issue 36)."""
+DEFAULT_VARIANTS = ("dark", "block")
+"""The variants every model is tried under by default: the paper's robustness rows, darker
+light and the wooden block (``sim/tasks/variants/``)."""
 GIF_TRIALS = 3
 FORMAT_VERSION = 3
 """What a run folder holds; 2: a demonstration keeps the image before each of its picks;
 3: a folder per seed, and a scene with a condition shown under each of its values."""
 
 
-class Variant(enum.Enum):
-    """The conditions a trained model is tried under."""
+def variant_task(task: str, variant: str, sensor: SensorKind = SensorKind.IDEAL,
+                 world: str | None = None) -> TaskSpec:
+    """The task ``task`` seen through ``sensor``, in ``world``, under ``variant``.
 
-    PLAIN = "plain"  # the task as trained
-    DARK = "dark"  # the same scenes under darker light
-    DISTRACTOR = "distractor"  # the same scenes plus a distractor that is never a target
-    OPEN_LOOP = "open-loop"  # a closed-loop run's checkpoint, its picks open-loop (issue 36)
-
-
-def variant_task(task: str, variant: Variant, sensor: SensorKind = SensorKind.IDEAL
-                 ) -> TaskSpec:
-    """The task ``task`` under ``variant``, seen through ``sensor``.
-
-    The same scenes, darker or with a distractor, rendered by an ideal camera or a D435.
-    Distractors come from a seed stream of their own, so the objects, poses, targets and
-    conditions stay those of the plain task. The plain task's checkpoint serves every variant:
-    trials check a model against the task's scene, condition, targets and image size, not its
-    name.
+    ``world`` (a variant, ``--world``) is laid over the task first, then ``variant`` (one of
+    the run's ``--variants``; ``plain`` and ``open-loop`` lay nothing): the same scenes, looked
+    at otherwise, so the objects, poses, targets and conditions stay those of the plain task.
+    The plain task's checkpoint serves every variant: trials check a model against the task's
+    scene, condition, targets and image size, not its name or looks.
     """
     base = replace(load_task(task), camera=SensorConfig(sensor))
-    if variant is Variant.DARK:
-        return replace(base, name=f"{task}-dark", brightness=DARK_BRIGHTNESS,
-                       description=f"{base.description} Darker light ({DARK_BRIGHTNESS}).")
-    if variant is Variant.DISTRACTOR:
-        return replace(base, name=f"{task}-distractor",
-                       distractors=base.distractors + DISTRACTOR_TYPES,
-                       description=f"{base.description} Plus a distractor "
-                       f"({', '.join(DISTRACTOR_TYPES)}) that is never a target.")
-    return base
+    if world is not None:
+        base = with_variant(base, world)
+    return base if variant in (PLAIN, OPEN_LOOP) else with_variant(base, variant)
 
 
 @dataclass(frozen=True)
@@ -100,15 +88,15 @@ class Unit:
 
 @dataclass(frozen=True)
 class TrialSet:
-    """The trials of one unit under one variant."""
+    """The trials of one unit under one variant (``plain``, ``open-loop`` or a variant's name)."""
 
     unit: Unit
-    variant: Variant = Variant.PLAIN
+    variant: str = PLAIN
 
     @property
     def task_name(self) -> str:
-        """``single``, or ``single-dark``: the name of the task the trials run."""
-        suffix = "" if self.variant is Variant.PLAIN else f"-{self.variant.value}"
+        """``single``, or ``single-dark``: the name of the folder and file of the set's task."""
+        suffix = "" if self.variant == PLAIN else f"-{Path(self.variant).stem}"
         return f"{self.unit.task}{suffix}"
 
     @property
@@ -130,7 +118,9 @@ class ReproduceRealSettings:
         seed: S0: seeds the demonstrations (TRAIN stream), the weights and the trials (TEST
             stream); with ``seeds`` > 1 the first of the seeds.
         seeds: Runs of the whole experiment, seeds ``S0 .. S0 + seeds - 1``.
-        robustness: Also run :data:`ROBUST_MODEL`'s trials in the dark and with a distractor.
+        variants: The variants every unit is also tried under (``--variants``: built-in names of
+            :mod:`sim.tasks.variants` or variant files), each paired with its plain trials;
+            by default the paper's robustness rows, darker light and the wooden block.
         balance_types: The demonstrations of a task whose scenes draw one object type take the
             types in turn (``objects.balance_types``), as the person recording the paper's 20
             demonstrations would place each object about as often; drawn at random, 20 of
@@ -173,7 +163,7 @@ class ReproduceRealSettings:
     steps: int = TrainConfig.steps
     seed: int = 0
     seeds: int = 1
-    robustness: bool = True
+    variants: tuple[str, ...] = DEFAULT_VARIANTS
     balance_types: bool = True
     sensor: SensorKind = SensorKind.D435
     workers: int | None = None
@@ -188,6 +178,11 @@ class ReproduceRealSettings:
     def __post_init__(self) -> None:
         if self.world is not None:
             read_variant(self.world)  # an unknown or malformed variant is refused by name
+        for variant in self.variants:
+            if variant in (PLAIN, OPEN_LOOP) or self.variants.count(variant) > 1:
+                raise InvalidInputError("variants", list(self.variants), "distinct variants, "
+                                        f"none called {PLAIN} or {OPEN_LOOP}")
+            read_variant(variant)
         if self.robot not in ROBOT_NAMES:
             raise InvalidInputError("robot", self.robot, f"one of {', '.join(ROBOT_NAMES)}")
         if not isinstance(self.sensor, SensorKind):
@@ -213,12 +208,9 @@ class ReproduceRealSettings:
         return [Unit(m, t) for m in self.models for t in ALL_TASKS if t in self.tasks]
 
     def trial_sets(self) -> list[TrialSet]:
-        """Every set of trials: each unit's, and the robustness variants of kqv's units."""
-        variants = (Variant.PLAIN, Variant.OPEN_LOOP, Variant.DARK, Variant.DISTRACTOR)
-        return [TrialSet(unit, v) for unit in self.units() for v in variants
-                if v is Variant.PLAIN or (v is Variant.OPEN_LOOP and self.closed) or (
-                    v in (Variant.DARK, Variant.DISTRACTOR) and self.robustness
-                    and unit.model == ROBUST_MODEL)]
+        """Every set of trials: each unit's plain set, open-loop (closed runs), each variant."""
+        variants = (PLAIN, *((OPEN_LOOP,) if self.closed else ()), *self.variants)
+        return [TrialSet(unit, v) for unit in self.units() for v in variants]
 
     @property
     def closed(self) -> bool:
@@ -236,10 +228,8 @@ class ReproduceRealSettings:
         Its training scenes take the types in turn where ``balance_types`` says so; its objects
         are spaced for the robot's hand (:func:`~sim.tasks.task_spec.spaced_for`).
         """
-        task = variant_task(trial_set.unit.task, trial_set.variant, self.sensor)
-        if self.world is not None:
-            task = with_variant(task, self.world)
-        task = spaced_for(task, get_robot(self.robot).neighbour_spacing_m)
+        task = spaced_for(variant_task(trial_set.unit.task, trial_set.variant, self.sensor,
+                                       self.world), get_robot(self.robot).neighbour_spacing_m)
         if self.balance_types and task.draws_one_type and not task.balance_types:
             task = replace(task, balance_types=True)
         return task
@@ -275,8 +265,7 @@ class ReproduceRealSettings:
                 "train": train, "settle_s": TrialSettings.settle_s,
                 "execution": asdict(ExecutionSettings()),
                 "obstacles": obstacle_identity(TrialSettings.obstacles), "gif_trials": GIF_TRIALS,
-                "variants": {"dark_brightness": DARK_BRIGHTNESS,
-                             "distractor_types": list(DISTRACTOR_TYPES)}}
+                "variants": {Path(v).stem: read_variant(v)[1] for v in self.variants}}
 
     def train_identity(self, unit: Unit) -> dict[str, Any]:
         """What defines a unit's checkpoint; ``trained.json`` holds it."""
@@ -305,7 +294,7 @@ class ReproduceRealSettings:
 
     def trial_loop(self, trial_set: TrialSet) -> LoopSettings:
         """The loop a set's picks run: the run's, but open for its ``open-loop`` sets."""
-        return LoopSettings() if trial_set.variant is Variant.OPEN_LOOP else self.loop
+        return LoopSettings() if trial_set.variant == OPEN_LOOP else self.loop
 
     def command(self, out: Path) -> str:
         """The ``gva reproduce real`` command line of these settings (workers left out)."""
@@ -317,8 +306,10 @@ class ReproduceRealSettings:
             parts.append(f"--tasks {','.join(self.tasks)}")
         if self.models != ReproduceRealSettings.models:
             parts.append(f"--models {','.join(self.models)}")
-        if not self.robustness:
+        if not self.variants:
             parts.append("--no-robustness")
+        elif self.variants != DEFAULT_VARIANTS:
+            parts.append(f"--variants {','.join(self.variants)}")
         if not self.balance_types:
             parts.append("--no-balance-types")
         if self.sensor is not ReproduceRealSettings.sensor:
@@ -386,7 +377,7 @@ def write_run_tasks(settings: ReproduceRealSettings, out: Path) -> None:
     """
     for trial_set in settings.trial_sets():
         path = task_file(out, trial_set.task_name)
-        text = (f"# the task {trial_set.unit.task} ({trial_set.variant.value}, sensor "
+        text = (f"# the task {trial_set.unit.task} ({trial_set.variant}, sensor "
                 f"{settings.sensor.value}), written by gva reproduce real\n"
                 + task_to_toml(settings.run_task(trial_set)))
         if not path.exists() or path.read_text(encoding="utf-8") != text:

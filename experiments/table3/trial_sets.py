@@ -12,7 +12,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from experiments.table3.settings import Variant, seed_folder
+from experiments.table3.settings import OPEN_LOOP, PLAIN, seed_folder
 from experiments.tables import ALL_TASKS, model_order
 from sim.trials.records import TrialRecord, TrialSummary
 
@@ -27,7 +27,7 @@ class TrialSetResult:
 
     model: str
     task: str
-    variant: Variant
+    variant: str  # plain, open-loop, or a variant's name
     per_seed: tuple[tuple[int, tuple[TrialRecord, ...]], ...]
     expected: int  # the n each seed's set was started with
 
@@ -89,12 +89,23 @@ def first_pick_errors_cm(records: Sequence[TrialRecord]) -> list[float]:
     return errors
 
 
-def split_task(name: str) -> tuple[str, Variant]:
-    """``single-dark`` -> (``single``, DARK); ``single`` -> (``single``, PLAIN)."""
-    for variant in (Variant.DARK, Variant.DISTRACTOR, Variant.OPEN_LOOP):
-        if name.endswith(f"-{variant.value}"):
-            return name[:-len(variant.value) - 1], variant
-    return name, Variant.PLAIN
+def split_task(name: str) -> tuple[str, str]:
+    """``single-dark`` -> (``single``, ``dark``); ``single`` -> (``single``, ``plain``).
+
+    The longest task name that starts it wins (``selected-type-text`` is a task, not
+    ``selected-type`` under a variant ``text``); a name of no task comes back whole, plain.
+    """
+    for task in sorted(ALL_TASKS, key=len, reverse=True):
+        if name == task:
+            return task, PLAIN
+        if name.startswith(f"{task}-"):
+            return task, name[len(task) + 1:]
+    return name, PLAIN
+
+
+def variant_order(variant: str) -> tuple[int, str]:
+    """Rows in order: plain, open-loop, then the variants by name."""
+    return (0 if variant == PLAIN else 1 if variant == OPEN_LOOP else 2, variant)
 
 
 def read_trial_sets(out: Path, seeds: Sequence[int], n: int) -> list[TrialSetResult]:
@@ -103,7 +114,7 @@ def read_trial_sets(out: Path, seeds: Sequence[int], n: int) -> list[TrialSetRes
     ``n`` is the trials each set is meant to have (the folder's ``run.json`` pins it). A row
     holds the seeds that have its trial folder.
     """
-    rows: dict[tuple[str, str, Variant], list[tuple[int, tuple[TrialRecord, ...]]]] = {}
+    rows: dict[tuple[str, str, str], list[tuple[int, tuple[TrialRecord, ...]]]] = {}
     for seed in seeds:
         for log in sorted((seed_folder(out, seed) / "trials").glob("*/*/trials.jsonl")):
             task, variant = split_task(log.parent.name)
@@ -116,7 +127,7 @@ def read_trial_sets(out: Path, seeds: Sequence[int], n: int) -> list[TrialSetRes
                 (seed, tuple(r for r in records if r.index < n)))
     found = [TrialSetResult(model, task, variant, tuple(per_seed), n)
              for (model, task, variant), per_seed in rows.items()]
-    found.sort(key=lambda s: (model_order(s.model), list(Variant).index(s.variant),
+    found.sort(key=lambda s: (model_order(s.model), variant_order(s.variant),
                               ALL_TASKS.index(s.task)))
     return found
 

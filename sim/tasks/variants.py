@@ -26,6 +26,14 @@ from sim.tasks.task_toml import load_task, task_from_data, task_to_toml
 VARIANT_FILES = Path(__file__).resolve().parent / "variants"
 MAX_VARIANT_FILE_BYTES = 16 * 1024
 """A variant file is a few hundred bytes; a bigger file is refused unread."""
+VARIANT_TITLES = {
+    "dark": "darker light (brightness 0.5)", "block": "+ block distractor",
+    "palette": "household colourways", "textures": "printed textures",
+    "light": "any lamp (2700-6500 K)", "table": "other tables",
+    "mount": "camera re-mounted (15 mm, 2 deg)", "colour-twins": "+ colour twin",
+    "shape-twins": "+ shape twins", "varied": "every variant on",
+    "varied-held-out": "every variant on, looks held out"}
+"""How a report names each built-in variant's row; a variant file is named by its stem."""
 VARIANT_TABLES = {"objects": {"palette", "textures"}, "lighting": None, "table": None,
                   "camera": {"mount_offset_mm", "mount_offset_deg"}, "distractors": None,
                   "appearance": None}
@@ -90,6 +98,11 @@ def with_variant(task: TaskSpec, variant: str | Path) -> TaskSpec:
                 merged[key] = value
     data["name"] = f"{task.name}+{name}"
     return task_from_data(data, f"{task.source} + variant {name}", folder)
+
+
+def variant_title(variant: str | Path) -> str:
+    """A variant's row title in reports."""
+    return VARIANT_TITLES.get(str(variant), Path(variant).stem)
 
 
 def load_task_variant(task: str | Path, variant: str | Path | None) -> TaskSpec:

@@ -152,19 +152,29 @@ def pooled_records(pairs: Sequence[tuple[Sequence[TrialRecord], Sequence[TrialRe
 
 
 def _check_same_trials(a: Sequence[TrialRecord], b: Sequence[TrialRecord]) -> None:
-    """Raises unless ``a`` and ``b`` hold the same trials: indices, seed, task, objects."""
+    """Raises unless ``a`` and ``b`` hold the same trials: indices, seed, task, objects.
+
+    B may run A's task under a variant (``single+dark``, :mod:`sim.tasks.variants`): the same
+    scenes, looked at otherwise, and where the variant adds distractors, B's objects are A's
+    followed by them. So a model's trials under a variant pair with its clean ones.
+    """
     first, second = [r.index for r in a], [r.index for r in b]
     if first != second:
         raise InvalidInputError("trial indices of B", _ranges(second),
                                 f"{_ranges(first)}, as in A: pairs need the same trials")
-    fields: dict[str, Callable[[TrialRecord], object]] = {
-        "seed": lambda r: r.seed, "task": lambda r: r.task, "objects": lambda r: r.objects}
+    fields: dict[str, Callable[[TrialRecord, TrialRecord], bool]] = {
+        "seed": lambda ra, rb: ra.seed == rb.seed,
+        "task": lambda ra, rb: rb.task == ra.task or rb.task.startswith(f"{ra.task}+"),
+        "objects": lambda ra, rb: rb.objects[:len(ra.objects)] == ra.objects and all(
+            o.get("distractor") for o in rb.objects[len(ra.objects):])}
     for record_a, record_b in zip(a, b, strict=True):
-        for name, value in fields.items():
-            if value(record_a) != value(record_b):
-                raise InvalidInputError(f"trial {record_b.index} {name} of B", value(record_b),
-                                        f"{value(record_a)!r}, as in A: pairs need the same "
-                                        "trials (the same scenes)")
+        for name, same in fields.items():
+            if not same(record_a, record_b):
+                raise InvalidInputError(
+                    f"trial {record_b.index} {name} of B", getattr(record_b, name),
+                    f"{getattr(record_a, name)!r}, as in A (or A's under a variant, with its "
+                    "distractors after A's objects): pairs need the same trials (the same "
+                    "scenes)")
 
 
 def _ranges(indices: Sequence[int]) -> str:

@@ -14,8 +14,12 @@ from pathlib import Path
 import pytest
 from gva_cli import gva
 
-from experiments.table3.report import baseline_comparisons, table3_json, table3_markdown
-from experiments.table3.settings import Variant
+from experiments.table3.report import (
+    baseline_comparisons,
+    table3_json,
+    table3_markdown,
+    variant_comparisons,
+)
 from experiments.table3.trial_sets import TrialSetResult
 from sim.trials.records import TrialOutcome, TrialRecord, TrialSummary
 from sim.trials.trial_settings import TrialSettings
@@ -171,7 +175,7 @@ def test_a_trials_file_or_run_file_not_utf8_is_one_line_naming_the_file(tmp_path
 
 def _set(model: str, task: str, per_seed: dict[int, list[TrialRecord]],
          expected: int = 30) -> TrialSetResult:
-    return TrialSetResult(model, task, Variant.PLAIN,
+    return TrialSetResult(model, task, "plain",
                           tuple((seed, tuple(records)) for seed, records in per_seed.items()),
                           expected)
 
@@ -182,7 +186,7 @@ def test_table3_pairs_each_baseline_with_kqv_per_task_and_seed():
     keypoint = _set("keypoint-16", "single", {0: trials([OK] * 15 + [FAILED] * 15, "kp"),
                                               1: trials([OK] * 12, "kp", seed=1)})  # 12 of 30
     fcn = _set("fcn", "multiple", {0: trials([FAILED] * 30, "fcn", task="multiple")})
-    dark = TrialSetResult("kqv", "single", Variant.DARK, kqv.per_seed, 30)
+    dark = TrialSetResult("kqv", "single", "dark", kqv.per_seed, 30)
     sets = [kqv, dark, keypoint, fcn]  # fcn has no kqv trials of its task: nothing to pair
     found = baseline_comparisons(sets)
     assert [(c.model, c.task, c.seed, c.unfinished) for c in found] == [
@@ -229,3 +233,16 @@ def test_pairs_of_runs_of_several_seeds_pool_their_trials(tmp_path):
                       task="multiple", seed=1)
     status, _, stderr, _ = compared(tmp_path, runs[0], runs[1], other, other)
     assert status == 2 and "task of a later pair = 'multiple' is not allowed" in stderr
+
+
+def test_table3_pairs_each_variant_with_its_own_clean_trials():
+    kqv = _set("kqv", "single", {0: trials([OK] * 28 + [FAILED] * 2, "kqv")})
+    dark = TrialSetResult("kqv", "single", "dark",
+                          ((0, tuple(trials([OK] * 20 + [FAILED] * 10, "kqv-dark"))),), 30)
+    fcn_palette = TrialSetResult("fcn", "single", "palette", kqv.per_seed, 30)  # no fcn plain
+    found = variant_comparisons([kqv, dark, fcn_palette])
+    assert [(c.model, c.variant, c.task, c.seed) for c in found] == [
+        ("kqv", "dark", "single", 0)]
+    assert found[0].comparison.n == 30
+    assert found[0].comparison.overall.difference == pytest.approx(-8 / 30)  # variant - clean
+    assert found[0].cell().startswith("-27 %")

@@ -49,7 +49,7 @@ def test_a_small_table2_on_ray_has_the_cells_of_the_local_pool(local_ray, tmp_pa
 def test_a_one_task_table3_on_ray_has_the_counts_and_records_of_the_local_pool(
         local_ray, tmp_path):
     settings = ReproduceRealSettings(tasks=("single",), demos=2, n=3, steps=3, workers=2,
-                                     robustness=False)
+                                     variants=())
     run_reproduce_real(settings, tmp_path / "local", progress=False)
     run_reproduce_real(dataclasses.replace(settings, executor=RAY), tmp_path / "ray",
                        progress=False)

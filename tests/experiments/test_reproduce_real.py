@@ -16,7 +16,6 @@ from experiments.table3.settings import (
     ReproduceRealSettings,
     TrialSet,
     Unit,
-    Variant,
     task_file,
     trained_file,
 )
@@ -55,8 +54,10 @@ def test_a_tiny_run_writes_the_table_and_the_gif(tiny_run):
     assert set(single) >= {"successes", "n", "wilson95", "outcomes"}
     assert sum(single["outcomes"].values()) == 2 and single["outcomes"]["error"] == 0
     assert table["models"]["kqv"]["single"] == single
-    for variant in ("dark", "distractor"):
-        assert table["robustness"][variant]["tasks"]["single"]["n"] == 2
+    for variant in ("dark", "block"):
+        entry = table["variants"]["models"]["kqv"][variant]["single"]
+        assert entry["n"] == 2 and [e["seed"] for e in entry["against_clean"]] == [0]
+        assert entry["against_clean"][0]["n"] == 2
     assert table["paper"]["single"] == {"successes": 27, "n": 30}
     assert table["seeds"] == [0] and single["per_seed"] == [
         {"seed": 0, "successes": single["successes"], "n": 2, "unfinished": False}]
@@ -65,6 +66,8 @@ def test_a_tiny_run_writes_the_table_and_the_gif(tiny_run):
     markdown = (tiny_run / "table3.md").read_text()
     assert "| Paper (real YuMi, 20 demonstrations) | 27/30 | 28/30 | 26/30 | 27/30 |" in markdown
     assert "| Ours (kqv, q=min), darker light (brightness 0.5) |" in markdown
+    assert "| Ours (kqv, q=min), + block distractor |" in markdown
+    assert "## Each variant against the clean world, paired on the same trials" in markdown
     assert "## Failure reasons" in markdown and "--steps 3" in markdown
     gif = tiny_run / "s0" / "gifs" / "kqv-single.gif"
     assert gif.read_bytes()[:6] == b"GIF89a"
@@ -87,10 +90,10 @@ def test_the_gif_replays_the_logged_trials(tiny_run):
 
 def test_the_variants_are_task_files_the_checkpoint_is_accepted_for(tiny_run):
     seed0 = tiny_run / "s0"
-    dark = load_task(task_file(seed0, TrialSet(UNIT, Variant.DARK).task_name))
-    distractor = load_task(task_file(seed0, TrialSet(UNIT, Variant.DISTRACTOR).task_name))
-    assert (dark.name, dark.brightness, dark.distractors) == ("single-dark", 0.5, ())
-    assert (distractor.name, distractor.distractors) == ("single-distractor", ("block",))
+    dark = load_task(task_file(seed0, TrialSet(UNIT, "dark").task_name))
+    distractor = load_task(task_file(seed0, TrialSet(UNIT, "block").task_name))
+    assert (dark.name, dark.brightness, dark.distractors) == ("single+dark", 0.5, ())
+    assert (distractor.name, distractor.distractors) == ("single+block", ("block",))
     model = load_model(seed0 / "checkpoints" / "kqv" / "single")
     for task in (dark, distractor):
         check_model_fits_task(model, task, "kqv")  # trained on `single`: accepted
@@ -100,14 +103,14 @@ def test_the_variants_are_task_files_the_checkpoint_is_accepted_for(tiny_run):
 
     plain = scenes("single")
     assert scenes("single-dark") == plain
-    for index, objects in scenes("single-distractor").items():  # the same scene, plus a block
+    for index, objects in scenes("single-block").items():  # the same scene, plus a block
         assert objects[:1] == plain[index]
         assert (objects[1]["type"], objects[1]["distractor"]) == ("block", True)
 
 
 def test_the_run_sees_through_the_d435_by_default_and_records_it(tiny_run):
     seed0 = tiny_run / "s0"
-    for name in ("single", "single-dark", "single-distractor"):
+    for name in ("single", "single-dark", "single-block"):
         assert load_task(task_file(seed0, name)).camera == SensorConfig(SensorKind.D435)
     dataset = next((seed0 / "datasets").glob("*.gva"))
     assert read_metadata(dataset).camera["sensor"]["sensor"] == "d435"
@@ -126,9 +129,9 @@ def test_demonstrations_take_the_types_in_turn_unless_asked_and_trials_see_the_s
     assert random.command(Path("out")).endswith("--no-balance-types")
     status, stdout, _ = gva("reproduce", "real", "--help")
     assert status == 0 and "--no-balance-types" in stdout
-    balanced = TINY_SETTINGS.run_task(TrialSet(UNIT, Variant.DISTRACTOR))
+    balanced = TINY_SETTINGS.run_task(TrialSet(UNIT, "block"))
     assert balanced.balance_types and replace(balanced, balance_types=False) == \
-        random.run_task(TrialSet(UNIT, Variant.DISTRACTOR))
+        random.run_task(TrialSet(UNIT, "block"))
 
 
 def test_a_folder_run_through_one_sensor_refuses_the_other(tiny_run):
@@ -281,9 +284,9 @@ def test_the_markdown_has_the_papers_row_ours_and_the_failure_reasons():
     plain = [_record(i, TrialOutcome.SUCCESS, "lifted 9.9 cm and held 1.0 s") for i in range(28)]
     plain += [_record(28, TrialOutcome.MISSED, "the gripper closed on nothing", "mug", 0.031),
               _record(29, TrialOutcome.IK_UNREACHABLE, "no arm reaches it", "mug", None)]
-    sets = [TrialSetResult("kqv", "single", Variant.PLAIN, ((0, tuple(plain)),), 30),
-            TrialSetResult("fcn", "single", Variant.PLAIN, ((0, tuple(plain[:20])),), 30),
-            TrialSetResult("kqv", "single", Variant.DISTRACTOR, ((0, tuple(plain[-5:])),), 5)]
+    sets = [TrialSetResult("kqv", "single", "plain", ((0, tuple(plain)),), 30),
+            TrialSetResult("fcn", "single", "plain", ((0, tuple(plain[:20])),), 30),
+            TrialSetResult("kqv", "single", "block", ((0, tuple(plain[-5:])),), 5)]
     text = table3_markdown(sets, "Made by `gva reproduce real`.")
     lines = text.splitlines()
     paper = lines.index("| Paper (real YuMi, 20 demonstrations) | 27/30 | 28/30 | 26/30 | 27/30 |")
@@ -296,7 +299,7 @@ def test_the_markdown_has_the_papers_row_ours_and_the_failure_reasons():
            "mug 0/2, sponge 28/28" in reasons
     assert "  - trial 28 (mug, 3.1 cm off): missed: the gripper closed on nothing" in reasons
     assert "  - trial 29 (mug): ik_unreachable: no arm reaches it" in reasons
-    assert "the distractor has a target's type in 3 of 5 trials" in reasons
+    assert "a distractor has a target's type in 3 of 5 trials" in reasons
     assert text.rstrip().endswith("Made by `gva reproduce real`.")
 
 
@@ -306,7 +309,7 @@ def test_over_seeds_a_cell_is_the_mean_and_spread_with_each_count():
             replace(_record(i, TrialOutcome.SUCCESS if i < successes else TrialOutcome.MISSED,
                             "x"), seed=number) for i in range(30))
 
-    result = TrialSetResult("kqv", "single", Variant.PLAIN,
+    result = TrialSetResult("kqv", "single", "plain",
                             (seed(0, 29), seed(1, 27), seed(2, 30)), 30)
     assert result.counts == [29, 27, 30] and result.mean == pytest.approx(86 / 3)
     entry = result.entry()
@@ -353,19 +356,19 @@ def test_a_closed_loop_run_tries_each_checkpoint_open_loop_too(tmp_path):
     from experiments.table3.trial_sets import split_task
     from sim.trials.loop_settings import Loop, LoopSettings
 
-    closed = ReproduceRealSettings(tasks=("single-moved", "single"), robustness=False,
+    closed = ReproduceRealSettings(tasks=("single-moved", "single"), variants=(),
                                    loop=LoopSettings(Loop.CLOSED, replan_hz=5.0))
     sets = closed.trial_sets()
     assert {(s.unit.task, s.variant) for s in sets} == {
-        (t, v) for t in ("single-moved", "single") for v in (Variant.PLAIN, Variant.OPEN_LOOP)}
+        (t, v) for t in ("single-moved", "single") for v in ("plain", "open-loop")}
     loops = {s.variant: closed.trial_loop(s).loop for s in sets}
-    assert loops == {Variant.PLAIN: Loop.CLOSED, Variant.OPEN_LOOP: Loop.OPEN}
+    assert loops == {"plain": Loop.CLOSED, "open-loop": Loop.OPEN}
     assert closed.approach_hz == 5.0 and closed.shared_identity()["loop"]["replan_hz"] == 5.0
     assert closed.command(tmp_path).endswith("--loop closed --replan-hz 5")
-    assert split_task("single-moved-open-loop") == ("single-moved", Variant.OPEN_LOOP)
-    plain = ReproduceRealSettings(robustness=False)
+    assert split_task("single-moved-open-loop") == ("single-moved", "open-loop")
+    plain = ReproduceRealSettings(variants=())
     assert plain.approach_hz is None and "loop" not in plain.shared_identity()
-    assert {s.variant for s in plain.trial_sets()} == {Variant.PLAIN}
+    assert {s.variant for s in plain.trial_sets()} == {"plain"}
 
 
 @pytest.mark.slow
@@ -378,7 +381,7 @@ def test_a_panda_run_demonstrates_trains_and_picks_through_its_own_camera(tmp_pa
     assert status == 0, stderr
     assert "4 job(s) run (0 failed)" in stdout
     settings = ReproduceRealSettings(tasks=("single",), demos=2, n=2, steps=3, workers=1,
-                                     robustness=False, robot="panda")
+                                     variants=(), robot="panda")
     assert settings.shared_identity()["robot"] == "panda"
     assert "robot" not in TINY_SETTINGS.shared_identity()  # YuMi folders resume as before
     assert settings.command(out).endswith("--robot panda")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from experiments.table3.settings import ReproduceRealSettings, TrialSet, Unit, Variant
+from experiments.table3.settings import ReproduceRealSettings, TrialSet, Unit
 from sim.errors import InvalidInputError
 from sim.tasks.variants import read_variant
 from sim.trials.collector import CollectSettings, collect
@@ -20,7 +20,7 @@ def test_the_world_lays_its_variant_over_every_task_and_enters_the_identity():
         assert run_task.appearance.held_out
         assert plain.run_task(TrialSet(unit)).appearance.is_default
         assert world.train_identity(unit)["task"] != plain.train_identity(unit)["task"]
-        dark = world.run_task(TrialSet(unit, Variant.DARK))
+        dark = world.run_task(TrialSet(unit, "dark"))
         assert dark.brightness == 0.5 and dark.appearance == run_task.appearance
     assert world.shared_identity()["world"] == read_variant("varied-held-out")[1]
     assert "world" not in plain.shared_identity()  # folders from before keep their identity
