@@ -10,7 +10,7 @@ from perception.interface import ConditionKind
 from sim.tasks.scene_picture import render_scene, write_scene_png
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import get_scene_spec
-from sim.tasks.task_toml import load_task
+from sim.tasks.variants import load_task_variant
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:
@@ -18,6 +18,8 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scene", required=True, help="paper-sim or yumi")
     parser.add_argument("--task", default="multiple",
                         help="task name or TOML path (%(default)s)")
+    parser.add_argument("--variant", metavar="NAME|FILE",
+                        help="the task under a variant of its looks (docs/tasks.md)")
     parser.add_argument("--seed", type=integer(0), default=0, help="seed (%(default)s)")
     parser.add_argument("--index", type=integer(0), default=0, help="scene index (%(default)s)")
     parser.add_argument("--stream", choices=[stream.name.lower() for stream in SeedStream],
@@ -30,10 +32,10 @@ def add_options(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Renders the scene, writes the PNG and says what it shows; the exit status."""
-    task = load_task(args.task)
+    task = load_task_variant(args.task, args.variant)
     stream = SeedStream[args.stream.upper()]
     scene = sample_scene(task, get_scene_spec(args.scene), args.seed, stream, args.index)
-    image = render_scene(scene, task.brightness)
+    image = render_scene(scene, task)
     path = write_scene_png(image, args.out, args.scale)
     targets = ", ".join(scene.objects[i].object_type for i in scene.targets)
     condition = f"; condition {scene.condition.value}" if scene.condition.value else ""

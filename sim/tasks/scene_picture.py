@@ -11,14 +11,22 @@ from perception.catalog import get_object_spec
 from perception.drawing import write_png
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import Scene
-from sim.world.head_camera import HeadCamera
+from sim.tasks.task_spec import TaskSpec
+from sim.world.head_camera import CameraConfig, HeadCamera
+from sim.world.looks import lighting_for, moved_camera
+from sim.world.sensor import SensorSeed
 from sim.world.yumi_world import World
 
 SETTLE_S = 0.25
 
 
-def render_scene(scene: Scene, brightness: float = 1.0) -> np.ndarray:
-    """The camera image of ``scene`` (uint8 (H, W, 3)), as a model would get it."""
+def render_scene(scene: Scene, task: TaskSpec | None = None) -> np.ndarray:
+    """The camera image of ``scene`` (uint8 (H, W, 3)), as a model would get it.
+
+    Under ``task``'s light and sensor (its first frame: the D435's noise drawn as a trial's
+    would be) and the scene's look; None: the ideal camera in the scene's normal light.
+    """
+    brightness = 1.0 if task is None else task.brightness
     if scene.scene == "paper-sim":
         from sim.world.paper_world import PaperWorld
 
@@ -28,15 +36,21 @@ def render_scene(scene: Scene, brightness: float = 1.0) -> np.ndarray:
                 paper.add_object(placed.object_type, placed.position_xy_m, placed.yaw_rad)
             paper.settle()
             return paper.render(brightness)
+    look = scene.look
     with World() as world:
         world.reset_scene()
-        for placed in scene.objects:
+        for index, placed in enumerate(scene.objects):
             world.add_object(get_object_spec(placed.object_type), placed.position_xy_m,
-                             placed.yaw_rad)
+                             placed.yaw_rad, None if look is None else look.objects[index])
+        if look is not None:
+            world.dress_table(look.table)
         world.step(round(SETTLE_S / world.config.time_step_s))
-        camera = HeadCamera()
-        lighting = dataclasses.replace(camera.config.lighting, brightness=brightness)
-        return camera.render(world.client, lighting)
+        config = moved_camera(CameraConfig(), None if look is None else look.mount)
+        camera = HeadCamera(config, None if task is None else task.camera)
+        lighting = lighting_for(dataclasses.replace(config.lighting, brightness=brightness),
+                                None if look is None else look.light)
+        return camera.render(world.client, lighting,
+                             SensorSeed(scene.seed, int(scene.stream), scene.index))
 
 
 def write_scene_png(image: np.ndarray, path: str | Path, scale: int = 1) -> Path:
