@@ -31,8 +31,8 @@ VARIANT_TITLES = {
     "palette": "household colourways", "textures": "printed textures",
     "light": "any lamp (2700-6500 K)", "table": "other tables",
     "mount": "camera re-mounted (15 mm, 2 deg)", "colour-twins": "+ colour twin",
-    "shape-twins": "+ shape twins", "varied": "every variant on",
-    "varied-held-out": "every variant on, looks held out"}
+    "shape-twins": "+ shape twins", "varied": "every look varied",
+    "varied-held-out": "every look varied, held out"}
 """How a report names each built-in variant's row; a variant file is named by its stem."""
 VARIANT_TABLES = {"objects": {"palette", "textures"}, "lighting": None, "table": None,
                   "camera": {"mount_offset_mm", "mount_offset_deg"}, "distractors": None,
