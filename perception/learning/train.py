@@ -34,6 +34,11 @@ BRIGHTNESS = (0.7, 1.3)  # image gain: the yumi tasks light scenes at 0.3-1.0 br
 CONTRAST = (0.8, 1.2)  # scales each image about its mean grey level
 COLOUR_GAIN = (0.9, 1.1)  # per channel: small, so a red mug stays red and a green sponge green
 NOISE_STD = 0.02  # per pixel and channel, of the [0, 1] range: sensor noise
+_RGB_TO_YIQ = torch.tensor([[0.299, 0.587, 0.114],
+                            [0.596, -0.274, -0.322],
+                            [0.211, -0.523, 0.312]])
+"""NTSC YIQ: luma Y and the two chroma axes I, Q; a turn in the IQ plane turns every hue alike
+and keeps each pixel's luma (the usual hue jitter of colour augmentation)."""
 
 
 class TrainingError(PerceptionError):
@@ -55,6 +60,11 @@ class TrainConfig:
             come from the model's own seed.
         augment: Photometric augmentation on or off (see the module docstring); with it, a
             sentence's embedding is jittered too (``sentence_noise``).
+        hue_jitter: With ``augment``, each training image's hues are also turned by an angle
+            drawn uniformly in [-it, it] of a full turn (0.5: any hue), its luma kept: a model
+            then cannot tell objects apart by hue, as in a world of many colourways
+            (``docs/decisions/appearance.md``). 0, the default: no turn, and the training draws
+            exactly what it drew before the option existed.
         sentence_noise: Under a text condition, Gaussian noise of this standard deviation per
             dimension is added to each embedding, which is then made unit length again (0.05:
             a cosine of about 0.7 with the sentence's). For a model that reads the embedding
@@ -75,6 +85,7 @@ class TrainConfig:
     weight_decay: float = 0.0
     seed: int = 0
     augment: bool = True
+    hue_jitter: float = 0.0
     sentence_noise: float = 0.0
     device: str = "cpu"
     threads: int | None = None
@@ -89,6 +100,8 @@ class TrainConfig:
             raise InvalidInputError("seed", self.seed, "an integer >= 0")
         if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
             raise InvalidInputError("learning_rate", self.learning_rate, "a finite value > 0")
+        if not (isinstance(self.hue_jitter, int | float) and 0.0 <= self.hue_jitter <= 0.5):
+            raise InvalidInputError("hue_jitter", self.hue_jitter, "a share of a turn in [0, 0.5]")
         if not (math.isfinite(self.sentence_noise) and self.sentence_noise >= 0):
             raise InvalidInputError("sentence_noise", self.sentence_noise, "a finite value >= 0")
         if not (math.isfinite(self.weight_decay) and self.weight_decay >= 0):
@@ -190,8 +203,13 @@ def available_threads() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
-def photometric_augment(images: Tensor, generator: torch.Generator) -> Tensor:
-    """Random brightness, contrast, colour gain and noise on images (B, 3, H, W) in [0, 1]."""
+def photometric_augment(images: Tensor, generator: torch.Generator,
+                        hue_jitter: float = 0.0) -> Tensor:
+    """Random brightness, contrast, colour gain and noise on images (B, 3, H, W) in [0, 1].
+
+    ``hue_jitter`` > 0: then each image's hues turned by up to that share of a turn either way
+    (:attr:`TrainConfig.hue_jitter`), drawn after the rest, so 0 draws what it always drew.
+    """
     batch = images.shape[0]
 
     def uniform(low_high: tuple[float, float], *shape: int) -> Tensor:
@@ -202,7 +220,21 @@ def photometric_augment(images: Tensor, generator: torch.Generator) -> Tensor:
     images = (images - mean) * uniform(CONTRAST, batch, 1, 1, 1) + mean  # (B, 3, H, W)
     images = images * uniform(BRIGHTNESS, batch, 1, 1, 1) * uniform(COLOUR_GAIN, batch, 3, 1, 1)
     noise = torch.randn(images.shape, generator=generator).to(images) * NOISE_STD
-    return (images + noise).clamp_(0.0, 1.0)  # (B, 3, H, W)
+    images = (images + noise).clamp_(0.0, 1.0)  # (B, 3, H, W)
+    if hue_jitter > 0.0:
+        images = turn_hues(images, 2.0 * math.pi * uniform((-hue_jitter, hue_jitter), batch))
+    return images
+
+
+def turn_hues(images: Tensor, angles_rad: Tensor) -> Tensor:
+    """Each image (B, 3, H, W) in [0, 1] with its hues turned by its angle (B,), luma kept."""
+    cos, sin = torch.cos(angles_rad), torch.sin(angles_rad)  # (B,)
+    turn = torch.zeros(len(angles_rad), 3, 3).to(images)  # (B, 3, 3) in YIQ
+    turn[:, 0, 0] = 1.0
+    turn[:, 1, 1], turn[:, 1, 2], turn[:, 2, 1], turn[:, 2, 2] = cos, -sin, sin, cos
+    to_yiq = _RGB_TO_YIQ.to(images)
+    matrices = torch.linalg.inv(to_yiq) @ turn @ to_yiq  # (B, 3, 3) in RGB
+    return torch.einsum("bij,bjhw->bihw", matrices, images).clamp_(0.0, 1.0)
 
 
 def batch_indices(size: int, batch_size: int, rng: np.random.Generator) -> Iterator[np.ndarray]:
@@ -268,7 +300,7 @@ def train(
             index = next(batches)
             images = images_to_tensor(dataset.images[index], device)  # (B, 3, H, W)
             if config.augment:
-                images = photometric_augment(images, generator)
+                images = photometric_augment(images, generator, config.hue_jitter)
             asked = conditions[index]  # (B, C)
             if jitter:
                 noise = torch.randn(asked.shape, generator=generator).to(device)

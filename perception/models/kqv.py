@@ -94,6 +94,8 @@ class KqvModel(TorchModel):
         stays the targets'. A dataset that names no target's type trains no type phase.
         """
         config = config or TrainConfig()
+        if self.config.hue_jitter:  # the model's setting reaches the training loop
+            config = replace(config, hue_jitter=self.config.hue_jitter)
         fresh = self.scaler is None  # a first fit may try several starts; a later one not
         if fresh:
             self.spec.check_dataset(dataset)

@@ -10,7 +10,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Any
+from typing import Any, ClassVar
 
 from perception.interface import InvalidInputError
 from perception.learning.learnable import check_choices, check_integer, check_number
@@ -142,6 +142,9 @@ class KqvConfig:
         sentence_temperature: Divides those cosines before the softmax (the weights
             ``KqvModel.read_sentences`` reports; ``"nearest"`` reads only their largest).
         seed: Seeds the initial weights.
+        hue_jitter: Training images' hues turned by up to this share of a turn either way
+            (:attr:`perception.learning.train.TrainConfig.hue_jitter`): for worlds of many
+            colourways, where hue names no type. 0 (default): no turn.
 
     """
 
@@ -173,7 +176,12 @@ class KqvConfig:
     type_steps: int = 300
     sentence_reading: str = "auto"
     sentence_temperature: float = 0.02
+    hue_jitter: float = 0.0
     seed: int = 0
+
+    SINCE: ClassVar[Mapping[str, Any]] = MappingProxyType({"hue_jitter": 0.0})
+    """Fields added later, at the value that trains as before them: left out of a run's
+    identity there, so folders made before them resume (``experiments.tables.model_config``)."""
 
     def __post_init__(self) -> None:
         channels = tuple(self.channels) if isinstance(self.channels, list | tuple) else ()
@@ -200,6 +208,9 @@ class KqvConfig:
             check_number(name, getattr(self, name), 0, MOST[name], open_below=True)
         if not (math.isfinite(self.start_holdout) and 0 <= self.start_holdout < 1):
             raise InvalidInputError("start_holdout", self.start_holdout, "a fraction in [0, 1)")
+        if isinstance(self.hue_jitter, bool) or not isinstance(self.hue_jitter, int | float) or \
+                not 0.0 <= self.hue_jitter <= 0.5:
+            raise InvalidInputError("hue_jitter", self.hue_jitter, "a share of a turn in [0, 0.5]")
         for name in ("rotation_loss_weight", "point_loss_weight"):
             check_number(name, getattr(self, name), 0, MOST[name])
         if self.mirror not in (None, True, False):

@@ -234,3 +234,13 @@ def test_every_number_of_a_models_config_has_an_upper_bound(tmp_path, model):
         assert message.startswith(f"model config {path}: {field.name} = "), message
         assert "\n" not in message
         assert re.search(r"<= [0-9.e+]+$|one of .*|a fraction in \[0, 1\)$", message), message
+
+
+def test_hue_jitter_is_a_kqv_setting_left_out_of_identities_at_its_default():
+    from experiments.tables import model_config
+    from perception.models.kqv_config import KqvConfig
+
+    assert "hue_jitter" not in model_config("kqv", 0)  # folders made before it resume
+    assert model_config("kqv", 0, {"hue_jitter": 0.25})["hue_jitter"] == 0.25
+    with pytest.raises(InvalidInputError, match=r"hue_jitter = 0\.6 is not allowed"):
+        KqvConfig(hue_jitter=0.6)
