@@ -1,4 +1,4 @@
-"""The layers of DESIGN.md hold: imports point downward only, and no module import cycle.
+"""The layers of docs/design.md hold: imports point downward only, and no module import cycle.
 
 Every ``import`` statement counts, wherever it stands: at the top of a module, inside a function,
 under ``if TYPE_CHECKING:`` or another condition. Files are found by walking the package folders,
@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 PYBULLET = frozenset({"pybullet", "pybullet_data", "pybullet_utils"})
 
-# Which project packages each package may import (itself included): DESIGN.md's
+# Which project packages each package may import (itself included): docs/design.md's
 # `experiments -> sim -> {control, perception}`, with `robots` (URDF data and its generator)
 # below them all. A package missing here (a new one) may import nothing of the project.
 ALLOWED: Mapping[str, frozenset[str]] = {
@@ -33,7 +33,7 @@ ALLOWED: Mapping[str, frozenset[str]] = {
     "benchmarks": frozenset({"experiments", "sim", "control", "perception", "robots"}),
 }
 
-# Outside libraries a package may not import. DESIGN.md: control is pure math, "no simulator,
+# Outside libraries a package may not import. docs/design.md: control is pure math, "no simulator,
 # no torch"; perception is pure learning, "no simulator, no Pinocchio".
 BANNED: Mapping[str, frozenset[str]] = {
     "control": frozenset({"torch"}) | PYBULLET,
@@ -234,7 +234,7 @@ def test_the_walk_finds_every_package(project_imports):
 
 def test_imports_point_down_the_layers(project_imports):
     messages = forbidden(project_imports)
-    assert not messages, "imports against DESIGN.md's layers:\n" + "\n".join(messages)
+    assert not messages, "imports against docs/design.md's layers:\n" + "\n".join(messages)
 
 
 def test_no_import_cycle(project_imports):
@@ -242,7 +242,7 @@ def test_no_import_cycle(project_imports):
     assert not messages, "\n".join(messages)
 
 
-# sim's rooms (DESIGN.md), in order: each may import the rooms before it, never one after it.
+# sim's rooms (docs/design.md), in order: each may import the rooms before it, never one after it.
 SIM_ROOMS = ("sim.world", "sim.tasks", "sim.trials", "sim.envs")
 
 
