@@ -116,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     total = sum(medians.values())
     record: dict[str, Any] = {
         "benchmark": "closed_loop_cycle", "model": args.model, "task": args.task,
-        "n": args.n, "seed": args.seed, "sensor": settings.task_spec.camera.kind.value,
+        "n": args.n, "seed": args.seed, "sensor": settings.task_spec.sensor.kind.value,
         "parts_ms": {part: {"median": round(medians[part], 2),
                             "p95": round(float(np.percentile(times[part], 95)), 2),
                             "share": round(medians[part] / total, 3)}

@@ -113,8 +113,8 @@ def test_task(out: Path, spec: TaskSpec, task: str, variant: str, seed: int,
 
     ``given``: the task file to collect from (a run's); None: one written into the cache.
     """
-    key, identity = spec.camera.kind.value, json_form(task_identity(spec))
-    if identity != json_form(task_identity(table3.variant_task(task, variant, spec.camera.kind))):
+    key, identity = spec.sensor.kind.value, json_form(task_identity(spec))
+    if identity != json_form(task_identity(table3.variant_task(task, variant, spec.sensor.kind))):
         key += "-" + hashlib.sha256(json.dumps(identity, sort_keys=True).encode()).hexdigest()[:8]
     folder = out / "test-scenes" / key / f"s{seed}"
     path, text = given or folder / "tasks" / f"{spec.name}.toml", task_to_toml(spec)

@@ -30,6 +30,7 @@ from robots import get_robot
 from sim.errors import InvalidInputError, RunFolderError
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import scene_camera
+from sim.tasks.task_sensor import seen_in_scene
 from sim.tasks.task_toml import load_task
 from sim.trials.collector import APPROACH_MASKED_KEY, CollectSettings
 from sim.trials.run_folder import differences, json_form
@@ -263,7 +264,7 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
     if not path.exists():
         return False
     meta = read_metadata(path)
-    definition = load_task(task)
+    definition = seen_in_scene(load_task(task), scene)  # as collect sees it: its sensor named
     asked = json_form({"scene": scene, "task": definition.name, "size": size, "seed": seed,
                        "stream": stream.name.lower(),
                        "every_condition": CollectSettings(scene, task, size, seed,

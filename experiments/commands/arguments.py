@@ -8,6 +8,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from sim.jobs import Executor, ExecutorKind
+from sim.world.sensor import DEFAULT_SENSOR, SensorKind
 
 if TYPE_CHECKING:  # imported where used: a command's --help must not load torch
     from perception.model_config_file import ModelConfigFile
@@ -65,6 +66,25 @@ def model_config_files(args: argparse.Namespace) -> tuple[ModelConfigFile, ...]:
 
     check_model_configs(args.model_config, args.models)
     return tuple(ModelConfigFile.read(path, model) for model, path in args.model_config)
+
+
+def add_sensor_option(parser: argparse.ArgumentParser, otherwise: str = "") -> None:
+    """``--sensor``: what the yumi scene is rendered through, as ``gva reproduce real --sensor``.
+
+    It replaces the task file's ``[camera] sensor``; without it, the file's, else ``otherwise``
+    (e.g. a checkpoint's own sensor), else the D435 (:mod:`sim.tasks.task_sensor`).
+    """
+    parser.add_argument("--sensor", choices=[k.value for k in SensorKind],
+                        help="yumi scene: what the head camera renders through, replacing the "
+                        "task file's [camera] sensor: d435 (lens distortion, depth noise and "
+                        "holes, hand-eye error; docs/decisions/d435-sensor.md) or ideal, an "
+                        "exact pinhole (default: the task file's, else "
+                        f"{otherwise}{DEFAULT_SENSOR.value})")
+
+
+def sensor_kind(args: argparse.Namespace) -> SensorKind | None:
+    """The ``--sensor`` asked for; None where none was."""
+    return None if args.sensor is None else SensorKind(args.sensor)
 
 
 def resume_command(args: argparse.Namespace) -> str:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from experiments.commands.arguments import integer
+from experiments.commands.arguments import add_sensor_option, integer, sensor_kind
 from perception.interface import ConditionKind, InvalidInputError
 from robots import ROBOT_NAMES
 from sim.tasks.scene_sampling import SeedStream
@@ -39,6 +39,7 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", choices=ROBOT_NAMES, default=CollectSettings.robot,
                         help="yumi scene: the robot whose demonstrations these are, seen "
                         "through its workcell's camera (%(default)s)")
+    add_sensor_option(parser)
     parser.add_argument("--out", type=Path, required=True,
                         help="dataset file to write (.gva; must not exist yet)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -55,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
                                stream=SeedStream[args.stream.upper()],
                                every_condition=args.every_condition,
                                approach_hz=args.approach_hz, robot=args.robot,
-                               variant=args.variant)
+                               variant=args.variant, sensor=sensor_kind(args))
     dataset = collect(settings, args.out, progress=not args.no_progress)
     meta = dataset.metadata
     redrawn = meta.extra.get("demonstrations_redrawn")
@@ -68,8 +69,9 @@ def run(args: argparse.Namespace) -> int:
                 f"1/{meta.extra['approach_hz']:g} s where the arm hides no target; "
                 f"{meta.extra.get('approach_images_hidden', 0)} where it does left out")
     images = f" ({meta.size} samples: {why})" if scenes != meta.size else ""
+    sensor = meta.camera.get("sensor", {}).get("sensor", "ideal")
     print(f"{scenes} scenes{images} of {meta.scene} / {meta.task} (seed {meta.seed}, "
-          f"{meta.extra.get('stream', args.stream)} stream), "
+          f"{meta.extra.get('stream', args.stream)} stream, seen through the {sensor} sensor), "
           f"{meta.targets} target(s) each, {meta.label_kind.value} labels"
           + (f"; {redrawn} failed demonstrations redrawn" if redrawn is not None else ""))
     print(f"dataset: {args.out}")

@@ -5,11 +5,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from experiments.commands.arguments import integer
+from experiments.commands.arguments import add_sensor_option, integer, sensor_kind
 from perception.interface import ConditionKind
 from sim.tasks.scene_picture import render_scene, write_scene_png
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import get_scene_spec
+from sim.tasks.task_sensor import seen_in_scene
 from sim.tasks.variants import load_task_variant
 
 
@@ -26,13 +27,15 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         default="test", help="seed stream (%(default)s)")
     parser.add_argument("--scale", type=integer(1), default=1,
                         help="enlarge the PNG this many times (%(default)s: the model's size)")
+    add_sensor_option(parser)
     parser.add_argument("--out", type=Path, required=True, help="PNG file to write")
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Renders the scene, writes the PNG and says what it shows; the exit status."""
-    task = load_task_variant(args.task, args.variant)
+    task = seen_in_scene(load_task_variant(args.task, args.variant), args.scene,
+                         sensor_kind(args))
     stream = SeedStream[args.stream.upper()]
     scene = sample_scene(task, get_scene_spec(args.scene), args.seed, stream, args.index)
     image = render_scene(scene, task)
@@ -42,7 +45,9 @@ def run(args: argparse.Namespace) -> int:
     if scene.query is not None:  # what the model is given for it
         condition += (f', asked as "{scene.query.value}"' if scene.query.kind is
                       ConditionKind.TEXT else f", shown as a {scene.query.value}")
+    through = "its own ideal camera" if args.scene == "paper-sim" else \
+        f"the {task.sensor.kind.value} sensor"
     print(f"{args.scene} / {task.name}, {args.stream} scene {args.index}: targets {targets}"
-          f"{condition}; {image.shape[1]}x{image.shape[0]} px image")
+          f"{condition}; {image.shape[1]}x{image.shape[0]} px image, seen through {through}")
     print(f"wrote {path}")
     return 0

@@ -10,7 +10,14 @@ import argparse
 import sys
 from pathlib import Path
 
-from experiments.commands.arguments import add_executor_options, executor, integer, resume_command
+from experiments.commands.arguments import (
+    add_executor_options,
+    add_sensor_option,
+    executor,
+    integer,
+    resume_command,
+    sensor_kind,
+)
 from robots import ROBOT_NAMES
 from sim.errors import InvalidInputError
 from sim.tasks.variants import builtin_variants
@@ -49,9 +56,12 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--phrases", type=Path, metavar="FILE",
                         help="a text task's test sentences from FILE: lines of "
                         "phrase<TAB>target, target an object type or a side")
+    add_sensor_option(parser, otherwise="a checkpoint's own (the sensor its datasets were "
+                      "rendered by), else ")
     parser.add_argument("--allow-sensor-change", action="store_true",
-                        help="run a checkpoint under the task's camera sensor even when its "
-                        "datasets were rendered by another (refused by default, naming both)")
+                        help="run a checkpoint under --sensor or the task file's sensor even "
+                        "when its datasets were rendered by another (refused by default, "
+                        "naming both)")
     add_loop_options(parser)
     add_robot_option(parser)
     add_executor_options(parser)
@@ -91,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
                              phrases=None if args.phrases is None else str(args.phrases),
                              allow_sensor_change=args.allow_sensor_change,
                              loop=loop_settings(args), robot=args.robot,
-                             variant=args.variant)
+                             variant=args.variant, sensor=sensor_kind(args))
     check = held_out_check(settings)
     if check is not None and not check.passed:
         print(f"WARNING: checkpoint {args.model} failed its training's held-out check "

@@ -28,6 +28,7 @@ from experiments.tables import (
 from perception.learning.train import TrainConfig, available_threads
 from perception.model_config_file import ModelConfigFile
 from sim.jobs import LOCAL, Executor
+from sim.tasks.task_sensor import seen_in_scene
 from sim.tasks.task_toml import load_task
 from sim.trials.run_folder import json_form
 from sim.trials.trial_settings import task_identity
@@ -148,7 +149,8 @@ class ReproduceSimSettings:
         return json_form(self.run_identity() | {
             "model": cell.model,
             "model_config": model_config(cell.model, cell.seed, self.model_settings(cell.model)),
-            "task": task_identity(load_task(cell.task)), "size": cell.size, "seed": cell.seed})
+            "task": task_identity(seen_in_scene(load_task(cell.task), self.scene)),
+            "size": cell.size, "seed": cell.seed})
 
     def model_config_file(self, model: str) -> ModelConfigFile | None:
         """The file of ``model_configs`` for ``model``; None: it trains with its own settings."""

@@ -37,6 +37,7 @@ from robots import ROBOT_NAMES, get_robot
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import condition_choices
 from sim.tasks.scene_specs import YUMI_SCENE
+from sim.tasks.task_sensor import seen_through
 from sim.tasks.task_spec import TaskSpec, spaced_for
 from sim.tasks.task_toml import load_task
 from sim.trials.execution import ExecutionSettings
@@ -44,6 +45,7 @@ from sim.trials.pick_results import PickAttempt, Sighting, trial_result
 from sim.trials.records import TrialOutcome
 from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
+from sim.world.sensor import SensorKind
 
 WORKSPACE_BOUND_M = 1.0
 """Grasp positions the action space holds: within this of the robot base on each axis [m]."""
@@ -69,6 +71,10 @@ class PickEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
         robot: The robot that picks (one of :data:`robots.ROBOT_NAMES`), seen through its
             workcell's camera, its task's objects spaced for its hand, as ``gva trials
             --robot`` runs it.
+        sensor: What the head camera renders through, ``"d435"`` or ``"ideal"`` (or a
+            :class:`~sim.world.sensor.SensorKind`), replacing the task's ``[camera] sensor``
+            as ``gva trials --sensor`` does; None: the task's, else the D435
+            (:mod:`sim.tasks.task_sensor`). :attr:`task` names the one it renders through.
 
     Observation (a dict): ``rgb`` (H, W, 3) uint8; ``depth_m`` (H, W) float32, depth along the
     optical axis [m], 0 or inf where none; ``K`` (3, 3) intrinsics (OpenCV's convention);
@@ -93,7 +99,8 @@ class PickEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
 
     def __init__(self, task: str | Path | TaskSpec = "single", render_mode: str | None = None,
                  first_index: int = 0, index_step: int = 1,
-                 execution: ExecutionSettings | None = None, robot: str = "yumi") -> None:
+                 execution: ExecutionSettings | None = None, robot: str = "yumi",
+                 sensor: str | SensorKind | None = None) -> None:
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise InvalidInputError("render_mode", render_mode, "None or 'rgb_array'")
         for name, value, least in (("first_index", first_index, 0), ("index_step", index_step, 1)):
@@ -102,8 +109,8 @@ class PickEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
         if robot not in ROBOT_NAMES:
             raise InvalidInputError("robot", robot, f"one of {', '.join(ROBOT_NAMES)}")
         description = get_robot(robot)
-        self.task = spaced_for(task if isinstance(task, TaskSpec) else load_task(task),
-                               description.neighbour_spacing_m)
+        loaded = task if isinstance(task, TaskSpec) else load_task(task)
+        self.task = spaced_for(seen_through(loaded, sensor), description.neighbour_spacing_m)
         self.render_mode = render_mode
         self.first_index, self.index_step = first_index, index_step
         self._runner = TrialRunner(self.task, execution=execution,

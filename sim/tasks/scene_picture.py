@@ -23,8 +23,10 @@ SETTLE_S = 0.25
 def render_scene(scene: Scene, task: TaskSpec | None = None) -> np.ndarray:
     """The camera image of ``scene`` (uint8 (H, W, 3)), as a model would get it.
 
-    Under ``task``'s light and sensor (its first frame: the D435's noise drawn as a trial's
-    would be) and the scene's look; None: the ideal camera in the scene's normal light.
+    Under ``task``'s light and sensor (:attr:`~sim.tasks.task_spec.TaskSpec.sensor`, the D435
+    where it names none; its first frame: the D435's noise drawn as a trial's would be) and the
+    scene's look; None: the ideal camera in the scene's normal light. The paper-sim scene
+    renders through its own camera, an ideal pinhole, whatever the task's sensor.
     """
     brightness = 1.0 if task is None else task.brightness
     if scene.scene == "paper-sim":
@@ -46,7 +48,7 @@ def render_scene(scene: Scene, task: TaskSpec | None = None) -> np.ndarray:
             world.dress_table(look.table)
         world.step(round(SETTLE_S / world.config.time_step_s))
         config = moved_camera(CameraConfig(), None if look is None else look.mount)
-        camera = HeadCamera(config, None if task is None else task.camera)
+        camera = HeadCamera(config, None if task is None else task.sensor)
         lighting = lighting_for(dataclasses.replace(config.lighting, brightness=brightness),
                                 None if look is None else look.light)
         return camera.render(world.client, lighting,

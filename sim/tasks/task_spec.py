@@ -32,7 +32,7 @@ a user writes a new one as a TOML file and passes its path wherever a task name 
                               # the clutter: "drink_can", "notebook", "marker", "glue_stick")
     per_scene = [0, 2]        # optional: each scene presents 0-2 of the types, drawn anew
 
-    [camera]
+    [camera]                  # optional: without it, the command's sensor (--sensor, else d435)
     sensor = "ideal"          # ideal | d435 (then any D435Config field by name)
 
     Appearance keys (optional, :mod:`sim.tasks.appearance`; every default today's world):
@@ -70,7 +70,7 @@ from sim.tasks.appearance import Appearance
 from sim.tasks.disturbance import Disturbance
 from sim.tasks.phrasings import Phrasings
 from sim.world.head_camera import CameraConfig
-from sim.world.sensor import SensorConfig, SensorKind
+from sim.world.sensor import DEFAULT_SENSOR, SensorConfig, SensorKind
 
 SIDES = ("left", "right")
 """Side condition values: ``left`` is +y (the robot's left, the image's left)."""
@@ -145,7 +145,10 @@ class TaskSpec:
         distractors_per_scene: ``(low, high)``: each scene presents a number drawn uniformly in
             [low, high] of the distinct ``distractors``, chosen without replacement; None (the
             default): every scene presents them all.
-        camera: The head camera's sensor (``[camera]``): the ideal pinhole, or a D435's.
+        camera: The head camera's sensor as the task file names it (``[camera] sensor``): the
+            ideal pinhole, or a D435's. None (a file without one): the command's sensor, its
+            ``--sensor`` or else :data:`~sim.world.sensor.DEFAULT_SENSOR`, the D435
+            (:mod:`sim.tasks.task_sensor`); :attr:`sensor` is what renders it.
         disturbance: How the target moves during a pick (``[disturbance]``,
             :mod:`sim.tasks.disturbance`); None (the default): it lies still. It needs the
             ``yumi`` scene's physics: the trial runner applies it.
@@ -172,7 +175,7 @@ class TaskSpec:
     brightness: float = 1.0
     distractors: tuple[str, ...] = ()
     distractors_per_scene: tuple[int, int] | None = None
-    camera: SensorConfig = dataclasses.field(default_factory=SensorConfig)
+    camera: SensorConfig | None = None
     disturbance: Disturbance | None = None
     appearance: Appearance = dataclasses.field(default_factory=Appearance)
     source: str = "<code>"
@@ -245,19 +248,24 @@ class TaskSpec:
         if not (_finite(self.brightness) and 0.0 < self.brightness <= MAX_BRIGHTNESS):
             raise bad("lighting.brightness", self.brightness,
                       f"a number in (0, {MAX_BRIGHTNESS:g}]")
-        if not isinstance(self.camera, SensorConfig):
-            raise bad("camera", self.camera, "a SensorConfig")
+        if not (self.camera is None or isinstance(self.camera, SensorConfig)):
+            raise bad("camera", self.camera, "a SensorConfig or None")
         if not (self.disturbance is None or isinstance(self.disturbance, Disturbance)):
             raise bad("disturbance", self.disturbance, "a Disturbance or None")
         if not isinstance(self.appearance, Appearance):
             raise bad("appearance", self.appearance, "an Appearance")
         self.appearance.check(bad)
-        lens = self.camera.d435.colour_distortion_k1_k2_p1_p2_k3
+        lens = self.sensor.d435.colour_distortion_k1_k2_p1_p2_k3
         try:  # one-to-one over the head camera's image (and beyond): PinholeCamera checks it
             replace(CameraConfig().pinhole, distortion_k1_k2_p1_p2_k3=lens)
         except PerceptionInputError as error:
             raise bad("camera.colour_distortion_k1_k2_p1_p2_k3", list(lens),
                       error.allowed) from None
+
+    @property
+    def sensor(self) -> SensorConfig:
+        """The sensor the yumi scene is rendered through: ``camera``, else the D435 default."""
+        return SensorConfig(DEFAULT_SENSOR) if self.camera is None else self.camera
 
     @property
     def draws_one_type(self) -> bool:
@@ -275,11 +283,13 @@ class TaskSpec:
     def recorded_fields(self) -> dict[str, Any]:
         """The fields records keep of the task (run identities, datasets' task records).
 
-        Without its source; the sensor as ``"camera"`` (:meth:`SensorConfig.to_json`),
-        ``"distractors_per_scene"``, ``"disturbance"`` (:meth:`Disturbance.to_json`) and
-        ``"appearance"`` (:meth:`Appearance.to_json`) only where set, so records from before they
-        existed (all ideal, every distractor presented, targets lying still, today's looks) are
-        the same task.
+        Without its source; the sensor as ``"camera"`` (:meth:`SensorConfig.to_json`) unless
+        it is the ideal camera, and ``"distractors_per_scene"``, ``"disturbance"``
+        (:meth:`Disturbance.to_json`) and ``"appearance"`` (:meth:`Appearance.to_json`) only
+        where set, so records from before they existed (all ideal, every distractor presented,
+        targets lying still, today's looks) are the same task. The sensor recorded is
+        :attr:`sensor`, the one that renders: a task whose file names none records the D435
+        (the default) in full, as a task file naming it does, never the ideal camera's omission.
         """
         appearance = self.appearance
         data = dataclasses.asdict(dataclasses.replace(self, appearance=Appearance()))
@@ -293,8 +303,8 @@ class TaskSpec:
             data["disturbance"] = self.disturbance.to_json()
         if self.distractors_per_scene is None:
             data.pop("distractors_per_scene")
-        if self.camera.kind is not SensorKind.IDEAL:
-            data["camera"] = self.camera.to_json()
+        if self.sensor.kind is not SensorKind.IDEAL:
+            data["camera"] = self.sensor.to_json()
         return data
 
     @property

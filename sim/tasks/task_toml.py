@@ -249,12 +249,24 @@ def _disturbance(reader: _Reader, source: str) -> Disturbance | None:
     return disturbance_from_table(table, f"task file {source}")
 
 
-def _camera(reader: _Reader, source: str) -> SensorConfig:
-    """``[camera]``: ``sensor = "ideal"`` (the default) or ``"d435"``, and D435 fields by name."""
+def _camera(reader: _Reader, source: str) -> SensorConfig | None:
+    """``[camera]``: ``sensor = "ideal"`` or ``"d435"``, and D435 fields by name.
+
+    None where the file names no sensor: the command's sensor renders the task (``--sensor``,
+    else the D435; :mod:`sim.tasks.task_sensor`). D435 fields need ``sensor = "d435"`` beside
+    them: under ``--sensor ideal`` they would be recorded yet never used.
+    """
     table = reader.get("", "camera", dict, None, 'a table such as { sensor = "d435" }')
     if table is None:
-        return SensorConfig()
+        return None
     table = {k: v for k, v in table.items() if k not in _MOUNT_KEYS}  # the mount: not the sensor
+    if "sensor" not in table:
+        if table:
+            key = sorted(table)[0]
+            raise reader.error(f"camera.{_key(key)}", table[key], "absent unless sensor = "
+                               "'d435' is named beside it (without one the command's sensor "
+                               "renders, and --sensor ideal has no D435 parameters)")
+        return None
     try:
         return sensor_from_table(table, f"task file {source}: camera")
     except InvalidInputError as error:  # a long value shortened: the message stays one line
@@ -357,8 +369,9 @@ def task_to_toml(task: TaskSpec) -> str:
         "distractors": {"types": list(task.distractors)} | (
             {} if task.distractors_per_scene is None
             else {"per_scene": list(task.distractors_per_scene)}),
-        "camera": task.camera.to_json(),
     }
+    if task.camera is not None:  # none named: the command's sensor (sim.tasks.task_sensor)
+        tables["camera"] = task.camera.to_json()
     _write_appearance(task, tables)
     if task.disturbance is not None:
         tables["disturbance"] = task.disturbance.to_json()
@@ -385,7 +398,7 @@ def _write_appearance(task: TaskSpec, tables: dict[str, dict[str, Any]]) -> None
         tables["lighting"]["shadows"] = False
     for key in _MOUNT_KEYS:
         if getattr(look, key):
-            tables["camera"][key] = getattr(look, key)
+            tables.setdefault("camera", {})[key] = getattr(look, key)
     if look.tables != ("wood",):
         tables["table"] = {"looks": list(look.tables)}
     if look.held_out:

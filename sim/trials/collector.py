@@ -47,6 +47,7 @@ from sim.tasks.scene_sampling import (
     sample_scene,
 )
 from sim.tasks.scene_specs import SCENE_NAMES, SceneSpec, get_scene_spec
+from sim.tasks.task_sensor import seen_in_scene
 from sim.tasks.task_spec import TaskSpec, spaced_for
 from sim.tasks.variants import load_task_variant
 from sim.trials.loop_settings import Loop, LoopSettings
@@ -54,6 +55,7 @@ from sim.trials.records import TrialOutcome
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.view import hidden_share
 from sim.world.head_camera import HeadCamera
+from sim.world.sensor import SensorKind
 from sim.world.yumi_world import World
 
 MAX_REDRAW_FACTOR = 3
@@ -95,6 +97,10 @@ class CollectSettings:
             metadata names it (``extra["robot"]``) where it is not the YuMi.
         variant: The task under a variant of its looks (``--variant``, :mod:`sim.tasks.variants`);
             None: the task as its file says. The dataset's task record holds the appearance.
+        sensor: ``yumi`` scene only: what the head camera renders through (``--sensor``),
+            replacing the task file's ``[camera] sensor``; None: the file's, else the D435
+            (:mod:`sim.tasks.task_sensor`). The metadata's camera record names it. The
+            ``paper-sim`` scene renders through its own ideal camera and takes none.
 
     """
 
@@ -107,6 +113,7 @@ class CollectSettings:
     approach_hz: float | None = None
     robot: str = "yumi"
     variant: str | None = None
+    sensor: SensorKind | None = None
 
     def __post_init__(self) -> None:
         if self.robot not in ROBOT_NAMES:
@@ -116,6 +123,9 @@ class CollectSettings:
                                     "(it has no robot); another robot only in the yumi scene")
         if self.scene not in SCENE_NAMES:
             raise InvalidInputError("scene", self.scene, f"one of {', '.join(SCENE_NAMES)}")
+        if not (self.sensor is None or isinstance(self.sensor, SensorKind)):
+            raise InvalidInputError("sensor", self.sensor, "None or one of " + ", ".join(
+                f"SensorKind.{k.name}" for k in SensorKind))
         check_task_fits(self.task_spec, get_scene_spec(self.scene))
         if self.size < 1:
             raise InvalidInputError("size", self.size, "an integer >= 1")
@@ -135,9 +145,13 @@ class CollectSettings:
 
     @property
     def task_spec(self) -> TaskSpec:
-        """The task, its objects spaced for the robot's hand (:func:`spaced_for`)."""
-        return spaced_for(load_task_variant(self.task, self.variant),
-                          get_robot(self.robot).neighbour_spacing_m)
+        """The task seen through the scene's sensor, its objects spaced for the robot's hand.
+
+        :func:`~sim.tasks.task_sensor.seen_in_scene`, then :func:`spaced_for`.
+        """
+        task = seen_in_scene(load_task_variant(self.task, self.variant), self.scene,
+                             self.sensor)
+        return spaced_for(task, get_robot(self.robot).neighbour_spacing_m)
 
     @property
     def asks_every_condition(self) -> bool:

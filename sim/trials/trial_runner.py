@@ -119,7 +119,8 @@ class TrialRunner:
     """One world, camera, model and planner, reused across the trials of a run.
 
     Args:
-        task: The task the scenes are drawn from.
+        task: The task the scenes are drawn from, seen through its sensor
+            (:attr:`~sim.tasks.task_spec.TaskSpec.sensor`: the D435 where it names none).
         model: Builds the perception model from the world and camera (e.g. the oracle).
         settle_s: Time objects settle on the table before the first image [s].
         execution: How picks are executed and judged.
@@ -158,7 +159,7 @@ class TrialRunner:
         self.obstacle_source = obstacles
         self.world = World(robot=robot)
         self.depth = depth or depth_config(self.world.description, self.world.config)
-        self.mounted_camera = HeadCamera(camera_config(robot), sensor=task.camera)
+        self.mounted_camera = HeadCamera(camera_config(robot), sensor=task.sensor)
         self.camera = self.mounted_camera  # a scene's look may move its mount (setup)
         self.frame_seed = SensorSeed()  # the next frame's; setup names the scene, sight counts
         self.task_lighting = dataclasses.replace(self.camera.config.lighting,
@@ -213,7 +214,7 @@ class TrialRunner:
         self.lighting = lighting_for(self.task_lighting, None if look is None else look.light)
         mount = None if look is None else look.mount
         self.camera = self.mounted_camera if mount is None else HeadCamera(
-            moved_camera(self.mounted_camera.config, mount), sensor=self.task.camera)
+            moved_camera(self.mounted_camera.config, mount), sensor=self.task.sensor)
 
     def sense(self, self_filter: bool = False) -> RgbdFrame:
         """The head camera's RGB-D frame now, under the task's lighting, with its calibration.

@@ -35,6 +35,7 @@ from sim.tasks.scene_sampling import (
     target_count,
 )
 from sim.tasks.scene_specs import YUMI_SCENE
+from sim.tasks.task_sensor import seen_through
 from sim.tasks.task_spec import SIDES, TaskSpec, spaced_for
 from sim.tasks.task_toml import TASK_FILES, with_test_phrases
 from sim.tasks.variants import load_task_variant, variant_file
@@ -44,7 +45,7 @@ from sim.trials.oracle import OraclePerception
 from sim.trials.planner_setup import ObstacleSource, yumi_depth_config
 from sim.trials.trial_runner import TRIAL_INPUTS, ModelFactory
 from sim.world.head_camera import CameraConfig, camera_config
-from sim.world.sensor import SensorConfig, sensor_from_table
+from sim.world.sensor import SensorConfig, SensorKind, sensor_from_table
 from sim.world.yumi_world import check_wait_s
 
 MODELS: dict[str, ModelFactory] = {"oracle": OraclePerception}
@@ -122,6 +123,10 @@ class TrialSettings:
             phrasings; None: the task's own.
         allow_sensor_change: Run a checkpoint under another sensor than the one its datasets
             were rendered by (``gva trials --allow-sensor-change``); refused otherwise.
+        sensor: What the head camera renders through (``--sensor``), replacing the task
+            file's ``[camera] sensor``; None: the file's, else a checkpoint's own (the sensor
+            its datasets were rendered by: :func:`trained_sensor`), else the D435
+            (:mod:`sim.tasks.task_sensor`).
         loop: Whether picks re-predict while the arm approaches (``--loop closed``,
             ``--replan-hz``; :mod:`sim.trials.closed_loop`); open by default.
         robot: The robot that picks, one of :data:`robots.ROBOT_NAMES` (``--robot``), seen
@@ -144,6 +149,7 @@ class TrialSettings:
     loop: LoopSettings = field(default_factory=LoopSettings)
     robot: str = "yumi"
     variant: str | None = None
+    sensor: SensorKind | None = None
 
     def __post_init__(self) -> None:
         if self.robot not in ROBOT_NAMES:
@@ -155,6 +161,9 @@ class TrialSettings:
         if self.model_class is not None and source is not ModelSource.CHECKPOINT:
             raise InvalidInputError("model_class", self.model_class, "None unless model is a "
                                     "checkpoint folder (it names the class that loads it)")
+        if not (self.sensor is None or isinstance(self.sensor, SensorKind)):
+            raise InvalidInputError("sensor", self.sensor, "None or one of " + ", ".join(
+                f"SensorKind.{k.name}" for k in SensorKind))
         check_task_fits(self.task_spec, YUMI_SCENE)  # also: an unknown task names the allowed
         check_wait_s("settle_s", self.settle_s)
         if self.n < 1:
@@ -164,13 +173,16 @@ class TrialSettings:
 
     @property
     def task_spec(self) -> TaskSpec:
-        """The task, read from its name or file, spaced for the robot's hand.
+        """The task, read from its name or file, seen through its sensor, spaced for the hand.
 
-        Its test phrasings come from ``phrases``, if set; its objects keep the distance the
-        robot's hand needs (:func:`~sim.tasks.task_spec.spaced_for`).
+        Its sensor is ``sensor``, else the file's, else the checkpoint's own, else the D435
+        (:func:`~sim.tasks.task_sensor.seen_through`); its test phrasings come from
+        ``phrases``, if set; its objects keep the distance the robot's hand needs
+        (:func:`~sim.tasks.task_spec.spaced_for`).
         """
-        task = spaced_for(load_task_variant(self.task, self.variant),
-                          self.description().neighbour_spacing_m)
+        task = seen_through(load_task_variant(self.task, self.variant), self.sensor,
+                            checkpoint_sensor(self.model))
+        task = spaced_for(task, self.description().neighbour_spacing_m)
         if self.phrases is None:
             return task
         return with_test_phrases(task, self.phrases, condition_choices(task, YUMI_SCENE),
@@ -286,9 +298,10 @@ def check_model_fits_task(model: PerceptionModel, task: TaskSpec, where: str,
     A model with a :class:`~perception.learning.learnable.ModelSpec` must have been trained on
     the yumi scene with the task's condition (kind and choices), target count and the head camera's
     image size, and (unless ``allow_sensor_change``) under the task's sensor
-    (:func:`trained_sensor`), through ``robot``'s camera (where its spec records the camera:
-    one robot's images are not another's). Its task may have another name (e.g. the same task
-    under dimmer light).
+    (:func:`trained_sensor` against :attr:`TaskSpec.sensor`; the refusal names ``--sensor``
+    with the checkpoint's own first, then ``--allow-sensor-change``), through ``robot``'s
+    camera (where its spec records the camera: one robot's images are not another's). Its task
+    may have another name (e.g. the same task under dimmer light).
     """
     kind = getattr(model, "label_kind", None)
     if kind is not LabelKind.GRASP_POSE:
@@ -310,11 +323,14 @@ def check_model_fits_task(model: PerceptionModel, task: TaskSpec, where: str,
                                 f"{_describe(*trained)}", f"a checkpoint for trial task "
                                 f"{task.name} {_describe(*needed)}")
     sensor = trained_sensor(spec, where)
-    if sensor != task.camera and not allow_sensor_change:
+    if sensor != task.sensor and not allow_sensor_change:
+        own = (f"--sensor {sensor.kind.value}" if sensor == SensorConfig(sensor.kind) else
+               f"a task file whose [camera] names sensor {sensor.describe()}")
         raise InvalidInputError(f"model {where}", f"trained on images of sensor "
-                                f"{sensor.describe()}", f"a checkpoint trained under trial task "
-                                f"{task.name}'s sensor {task.camera.describe()}, or "
-                                "--allow-sensor-change to try it under another")
+                                f"{sensor.describe()}", f"trials under that sensor ({own}; "
+                                f"trial task {task.name} is seen through "
+                                f"{task.sensor.describe()}), or --allow-sensor-change to try it "
+                                f"under {task.sensor.describe()}")
 
 
 def check_camera(spec: ModelSpec, robot: RobotDescription, where: str) -> None:
@@ -333,6 +349,26 @@ def check_camera(spec: ModelSpec, robot: RobotDescription, where: str) -> None:
                             "demonstrations)")
 
 
+def checkpoint_sensor(model: str) -> SensorConfig | None:
+    """The sensor checkpoint folder ``model`` was trained under; None for any other model.
+
+    Read from its ``config.json`` (its spec's record, as :func:`trained_sensor` reads it), the
+    weights unread; None too where the config keeps no spec (a model of its own making,
+    unchecked) or cannot be read (loading the checkpoint then says why).
+    """
+    if model_source(model) is not ModelSource.CHECKPOINT:
+        return None
+    from perception.learning.checkpoint import CheckpointError, read_config
+
+    try:
+        spec = read_config(model).get("spec")
+    except CheckpointError:
+        return None
+    if not isinstance(spec, dict):
+        return None
+    return _recorded_sensor(spec.get("sensor"), model)
+
+
 def trained_sensor(spec: ModelSpec, where: str) -> SensorConfig:
     """The sensor a checkpoint's training images were rendered by, as its spec records it.
 
@@ -340,7 +376,11 @@ def trained_sensor(spec: ModelSpec, where: str) -> SensorConfig:
     ``metadata.camera["sensor"]``); a spec without one is the ideal camera's, the only sensor
     datasets were rendered by before sensors were recorded.
     """
-    record = spec.sensor
+    return _recorded_sensor(spec.sensor, where)
+
+
+def _recorded_sensor(record: dict[str, Any] | None, where: str) -> SensorConfig:
+    """A spec's ``sensor`` record as a sensor; None: the ideal camera (before sensors)."""
     return SensorConfig() if record is None else sensor_from_table(record, f"model {where}: "
                                                                    "sensor")
 

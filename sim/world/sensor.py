@@ -72,15 +72,24 @@ class SensorConfig:
         return self.kind.value + (f" ({', '.join(changed)})" if changed else "")
 
 
+DEFAULT_SENSOR = SensorKind.D435
+"""What the yumi scene is seen through unless a task file's ``[camera] sensor`` or ``--sensor``
+says otherwise, in every command (collect, trials, show scene, reproduce real, the Gymnasium
+env): the D435, the sensor of the README's tables, so a model is trained and tried in one world.
+(:class:`SensorConfig`'s own default stays the ideal camera: records written before sensors
+existed, and the paper-sim scene's camera, are ideal.)"""
+
 _ALLOWED_SENSORS = f"one of {', '.join(repr(k.value) for k in SensorKind)}"
 
 
 def sensor_from_table(table: Mapping[str, Any], where: str) -> SensorConfig:
     """The sensor a ``camera`` table (or a record :meth:`SensorConfig.to_json` wrote) names.
 
-    ``sensor`` picks the kind (default ``"ideal"``); any :class:`D435Config` field may follow,
-    by name. Every mistake is an :class:`InvalidInputError` whose field starts with ``where``
-    (e.g. ``"task file my.toml: camera"``).
+    ``sensor`` picks the kind (default ``"ideal"``: records always name it, and those from
+    before sensors existed are ideal; a task file without it is read by
+    :mod:`sim.tasks.task_toml`, where it means the command's sensor); any :class:`D435Config`
+    field may follow, by name. Every mistake is an :class:`InvalidInputError` whose field
+    starts with ``where`` (e.g. ``"task file my.toml: camera"``).
     """
     if not isinstance(table, Mapping):
         raise InvalidInputError(where, table, "a table such as { sensor = \"d435\" }")
@@ -171,5 +180,5 @@ class SensorSeed:
         return np.random.default_rng(np.random.SeedSequence([SENSOR_MOUNT_TAG, self.seed]))
 
 
-__all__ = ["SENSOR_MOUNT_TAG", "SENSOR_NOISE_TAG", "SensorConfig", "SensorKind", "SensorSeed",
-           "sensor_from_table"]
+__all__ = ["DEFAULT_SENSOR", "SENSOR_MOUNT_TAG", "SENSOR_NOISE_TAG", "SensorConfig", "SensorKind",
+           "SensorSeed", "sensor_from_table"]

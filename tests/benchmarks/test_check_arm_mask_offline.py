@@ -11,12 +11,14 @@ from perception.learning.dataset_file import load_dataset
 from perception.learning.train import TrainConfig
 from perception.models.kqv import KqvConfig, KqvModel
 from sim.trials.collector import CollectSettings, collect
+from sim.world.sensor import SensorKind
 
 
 def test_the_masks_are_the_arm_and_the_heeded_images_are_counted(tmp_path):
     check = load_benchmark("check_arm_mask_offline")
     data = tmp_path / "approach.gva"
-    dataset = collect(CollectSettings("yumi", "single", 1, approach_hz=5.0), data, progress=False)
+    dataset = collect(CollectSettings("yumi", "single", 1, approach_hz=5.0,
+                                      sensor=SensorKind.IDEAL), data, progress=False)
     masks = check.robot_masks(load_dataset(data))
     approach = [i for i, r in enumerate(dataset.scenes) if r.get("stage") == "approach"]
     assert not masks[0].any() and masks[approach[-1]].sum() > 100  # the arm, coming in

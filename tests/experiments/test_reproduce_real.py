@@ -120,6 +120,37 @@ def test_the_run_sees_through_the_d435_by_default_and_records_it(tiny_run):
     assert "seen through the d435 sensor" in (tiny_run / "table3.md").read_text()
 
 
+def test_plain_trials_of_its_checkpoint_repeat_its_records_and_collect_its_sensor(tiny_run,
+                                                                                  tmp_path):
+    """Issue 64: ``gva trials --model CKPT --task T`` sees through the checkpoint's sensor (the
+    D435 here) with no --sensor, so it repeats the run's trials; ``gva collect`` at the same
+    seed renders through the sensor the run's demonstrations were."""
+    seed0 = tiny_run / "s0"
+    out = tmp_path / "mine"
+    status, _, stderr = gva("trials", "--model", seed0 / "checkpoints" / "kqv" / "single",
+                            "--task", "single", "--seed", "0", "--n", "2", "--out", out,
+                            "--no-progress")
+    assert status == 0, stderr
+
+    def records(folder):
+        lines = (folder / "trials.jsonl").read_text().splitlines()
+        return sorted(({k: v for k, v in json.loads(line).items() if k != "wall_time_s"}
+                       for line in lines), key=lambda r: r["index"])
+
+    ours, theirs = records(out), records(seed0 / "trials" / "kqv" / "single")
+    assert [r["index"] for r in ours] == [0, 1]
+    for mine, run in zip(ours, theirs, strict=True):  # field by field, to name any that differ
+        assert {k: mine.get(k) for k in mine | run} == {k: run.get(k) for k in mine | run}
+    assert json.loads((out / "run.json").read_text())["task"]["camera"]["sensor"] == "d435"
+    status, _, stderr = gva("collect", "--scene", "yumi", "--task", "single", "--size", "1",
+                            "--seed", "0", "--out", tmp_path / "d.gva", "--no-progress")
+    assert status == 0, stderr
+    demos = next((seed0 / "datasets").glob("*.gva"))
+    collected = read_metadata(tmp_path / "d.gva").camera["sensor"]
+    assert collected == read_metadata(demos).camera["sensor"] == SensorConfig(
+        SensorKind.D435).to_json()
+
+
 def test_demonstrations_take_the_types_in_turn_unless_asked_and_trials_see_the_same_scenes():
     single, multiple = (TINY_SETTINGS.run_task(TrialSet(Unit("kqv", t))) for t in
                         ("single", "multiple"))

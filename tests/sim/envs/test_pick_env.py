@@ -194,3 +194,17 @@ def test_the_panda_env_gets_the_panda_trials_outcomes() -> None:
                                                 r"panda"):
         make(task="single", robot="ur5")
     env.close()
+
+
+def test_the_env_sees_through_the_d435_unless_its_sensor_says_otherwise() -> None:
+    """Issue 64: ``sensor=`` means what ``gva trials --sensor`` does; the default is the D435."""
+    from sim.world.sensor import SensorConfig, SensorKind
+
+    for kwargs, sensor in (({}, SensorConfig(SensorKind.D435)), ({"sensor": "ideal"},
+                                                                 SensorConfig())):
+        env = make(task="single", **kwargs)
+        assert env.unwrapped.task.camera == sensor
+        assert env.unwrapped._runner.mounted_camera.sensor == sensor
+        env.close()
+    with pytest.raises(InvalidInputError, match="sensor = 'kinect' is not allowed"):
+        make(task="single", sensor="kinect")

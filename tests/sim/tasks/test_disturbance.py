@@ -127,8 +127,8 @@ def test_built_in_tasks_record_the_same_fields_as_before_disturbances(name):
         before.pop(key)
     if task.distractors_per_scene is None:
         before.pop("distractors_per_scene")
-    if task.camera.to_json() != {"sensor": "ideal"}:
-        before["camera"] = task.camera.to_json()
+    if task.sensor.to_json() != {"sensor": "ideal"}:
+        before["camera"] = task.sensor.to_json()
     assert recorded == before
     moving = dataclasses.replace(task, disturbance=Disturbance(move_m=(0.03, 0.08)))
     assert moving.recorded_fields() == recorded | {"disturbance": {

@@ -188,7 +188,8 @@ def test_a_task_written_as_toml_reads_back_the_same(name):
 
 
 def test_the_camera_table_picks_the_sensor_and_overrides_d435_fields_by_name():
-    assert load_task("single").camera == SensorConfig()  # ideal until measured (issue 48)
+    single = load_task("single")  # names no sensor: the command's, else the D435 (issue 64)
+    assert single.camera is None and single.sensor == SensorConfig(SensorKind.D435)
     task = task_from_toml('name = "x"\ncamera = { sensor = "d435", subpixel_rms_px = 0.1, '
                           'depth_width_px = 640, colour_distortion_k1_k2_p1_p2_k3 = '
                           '[-0.03, 0, 0, 0, 0] }', "t.toml")

@@ -75,7 +75,8 @@ def test_yumi_dataset_holds_grasp_labels_conditions_and_scene_records(yumi_files
         assert all(np.array_equal(data.images[n], data.images[shown[0]]) for n in shown)
     assert meta.extra["stream"] == "train" and meta.extra["demonstrations_redrawn"] >= 0
     assert meta.extra["object_types"] == list(meta.condition_choices)  # the scene's vocabulary
-    assert meta.camera["sensor"] == {"sensor": "ideal"} and "camera" not in meta.extra["task"]
+    d435 = SensorConfig(SensorKind.D435).to_json()  # no sensor named: the D435 (issue 64)
+    assert meta.camera["sensor"] == d435 and meta.extra["task"]["camera"] == d435
     np.testing.assert_array_equal(data.target_type_indices()[:, 0], data.conditions.argmax(1))
     for condition, label, record in zip(data.conditions, data.labels, data.scenes, strict=True):
         named = meta.condition_choices[int(np.argmax(condition))]
@@ -220,12 +221,24 @@ def test_a_d435_dataset_records_its_sensor_and_keeps_the_calibration(tmp_path):
     assert data.depths_m is not None and (data.depths_m == 0.0).any()  # the sensor's holes
 
 
+def test_sensor_replaces_the_task_files_and_the_paper_scene_keeps_its_own_camera(tmp_path):
+    ideal = collect(CollectSettings("yumi", "single", size=1, seed=0, sensor=SensorKind.IDEAL),
+                    tmp_path / "i.gva", progress=False).metadata
+    assert ideal.camera["sensor"] == {"sensor": "ideal"} and "camera" not in ideal.extra["task"]
+    paper = collect(CollectSettings("paper-sim", "single", size=1, seed=0), tmp_path / "p.gva",
+                    progress=False).metadata  # its datasets as before the D435 default
+    assert paper.camera["sensor"] == {"sensor": "ideal"} and "camera" not in paper.extra["task"]
+    with pytest.raises(InvalidInputError, match=r"sensor = 'd435' is not allowed: none for the "
+                       r"paper-sim scene: it renders through its own camera"):
+        CollectSettings("paper-sim", "single", 1, sensor=SensorKind.D435)
+
+
 def test_approach_images_keep_the_pick_label_and_mask_the_arm_coming_in(tmp_path):
     """``approach_hz``: each approach adds images labelled as the pick's image, the arm masked
     out of them as a closed-loop trial's re-predictions have it (issue 36)."""
     path = tmp_path / "approach.gva"
-    dataset = collect(CollectSettings("yumi", "single", 2, approach_hz=5.0), path,
-                      progress=False)
+    dataset = collect(CollectSettings("yumi", "single", 2, approach_hz=5.0,
+                                      sensor=SensorKind.IDEAL), path, progress=False)
     stages = [record.get("stage", "pick") for record in dataset.scenes]
     assert stages.count("pick") == 2 and stages.count("approach") >= 6  # > 0.6 s an approach
     assert dataset.metadata.extra["approach_hz"] == 5.0

@@ -139,22 +139,40 @@ def _d435_task_file(tmp_path):
     return path
 
 
-def test_a_checkpoint_refuses_trials_under_another_sensor_naming_both(tmp_path, capsys):
+def test_a_checkpoint_refuses_trials_under_another_sensor_naming_its_own_flag_first(
+        tmp_path, capsys):
     folder = _checkpoint(tmp_path / "ckpt", spec=YUMI_SINGLE)  # its spec: no sensor, so ideal
     task = _d435_task_file(tmp_path)
     with pytest.raises(InvalidInputError, match=(
             f"model {re.escape(str(folder))} = 'trained on images of sensor ideal' is not "
-            r"allowed: a checkpoint trained under trial task single-d435's sensor d435, or "
-            r"--allow-sensor-change to try it under another")):
+            r"allowed: trials under that sensor \(--sensor ideal; trial task single-d435 is "
+            r"seen through d435\), or --allow-sensor-change to try it under d435$")):
         load_trial_model(TrialSettings(str(folder), str(task)))
+    with pytest.raises(InvalidInputError, match=r"\(--sensor ideal; trial task single is seen "
+                       r"through d435\)"):  # --sensor, the user's choice, differs too
+        load_trial_model(TrialSettings(str(folder), "single", sensor=SensorKind.D435))
     load_trial_model(TrialSettings(str(folder), str(task), allow_sensor_change=True))
-    load_trial_model(TrialSettings(str(folder), "single"))  # ideal under ideal
+    load_trial_model(TrialSettings(str(folder), str(task), sensor=SensorKind.IDEAL))
     assert main(["trials", "--model", str(folder), "--task", str(task), "--n", "1", "--out",
                  str(tmp_path / "run"), "--no-progress"]) == 2
-    assert "or --allow-sensor-change" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert err.index("--sensor ideal") < err.index("or --allow-sensor-change")
     assert not (tmp_path / "run").exists()
     assert build_parser().parse_args(["trials", "--out", "x", "--allow-sensor-change"]
                                      ).allow_sensor_change
+    assert build_parser().parse_args(["trials", "--out", "x", "--sensor", "ideal"]
+                                     ).sensor == "ideal"
+
+
+def test_a_task_without_a_sensor_is_tried_under_the_checkpoints_own(tmp_path):
+    ideal = _checkpoint(tmp_path / "ideal", spec=YUMI_SINGLE)  # from before sensors: ideal
+    d435 = _checkpoint(tmp_path / "d435", spec=dataclasses.replace(
+        YUMI_SINGLE, sensor=SensorConfig(SensorKind.D435).to_json()))
+    for folder, sensor in ((ideal, SensorConfig()), (d435, SensorConfig(SensorKind.D435))):
+        settings = TrialSettings(str(folder), "single")  # single.toml names no sensor
+        assert settings.task_spec.camera == sensor
+        load_trial_model(settings)
+    assert TrialSettings("oracle", "single").task_spec.camera == SensorConfig(SensorKind.D435)
 
 
 def test_a_checkpoint_trained_under_the_d435_refuses_ideal_trials(tmp_path):
@@ -163,15 +181,23 @@ def test_a_checkpoint_trained_under_the_d435_refuses_ideal_trials(tmp_path):
     assert ModelSpec.from_json(spec.to_json()) == spec  # the record survives a checkpoint
     assert "sensor" not in YUMI_SINGLE.to_json()  # an ideal spec's JSON as before sensors
     folder = _checkpoint(tmp_path / "ckpt", spec=spec)
-    with pytest.raises(InvalidInputError, match=r"trained on images of sensor d435.* trial task "
-                       r"single's sensor ideal"):
-        load_trial_model(TrialSettings(str(folder), "single"))
+    ideal = tmp_path / "single-ideal.toml"
+    ideal.write_text(task_to_toml(dataclasses.replace(
+        load_task("single"), name="single-ideal", camera=SensorConfig())))
+    with pytest.raises(InvalidInputError, match=r"trained on images of sensor d435.* "
+                       r"\(--sensor d435; trial task single-ideal is seen through ideal\)"):
+        load_trial_model(TrialSettings(str(folder), str(ideal)))
+    load_trial_model(TrialSettings(str(folder), str(ideal), sensor=SensorKind.D435))
     load_trial_model(TrialSettings(str(folder), str(_d435_task_file(tmp_path))))
 
 
 def test_run_json_names_a_d435_sensor_and_ideal_runs_keep_their_identity(tmp_path):
-    assert "camera" not in TrialSettings("oracle", "single").identity()["task"]  # as before
+    ideal = TrialSettings("oracle", "single", sensor=SensorKind.IDEAL)
+    assert "camera" not in ideal.identity()["task"]  # as before sensors
+    d435 = {"sensor": "d435"} | {k: list(v) if isinstance(v, tuple) else v
+                                 for k, v in dataclasses.asdict(D435Config()).items()}
     identity = TrialSettings("oracle", str(_d435_task_file(tmp_path))).identity()
-    assert identity["task"]["camera"] == {"sensor": "d435"} | {
-        k: list(v) if isinstance(v, tuple) else v
-        for k, v in dataclasses.asdict(D435Config()).items()}
+    assert identity["task"]["camera"] == d435
+    # A task file naming no sensor is the D435's, recorded as a file naming it is (issue 64).
+    assert TrialSettings("oracle", "single").identity()["task"] == {
+        **identity["task"], "name": "single"}
