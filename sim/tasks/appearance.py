@@ -16,9 +16,10 @@ What a scene draws (docs/tasks.md tabulates the keys and bounds):
 - the camera mount's offset (``[camera] mount_offset_mm``, ``mount_offset_deg``);
 - a ``colour_twin`` distractor's colours: those of the scene's first target.
 
-With ``[appearance] held_out = true``, training scenes draw only the ``train`` half of every set
-(palette entries, textures, table looks) and test scenes only the ``test`` half: a model is
-tried on colours and patterns its demonstrations never showed.
+With ``[appearance] held_out = true``, training scenes draw only the ``train`` half of the
+objects' looks (palette entries, textures) and test scenes only the ``test`` half: a model is
+tried on colours and patterns its demonstrations never showed, on tables and under lamps drawn
+from the same sets as its demonstrations'.
 """
 
 from __future__ import annotations
@@ -69,9 +70,7 @@ MAX_MOUNT_OFFSET_DEG = 10.0
 TEXTURE_SPLIT = {TextureKind.PLAIN: "train", TextureKind.STRIPES: "train",
                  TextureKind.PRINT: "test", TextureKind.NOISE: "test"}
 """Which half of a held-out task each texture belongs to."""
-TABLE_SPLIT = {"wood": "train", "white": "train", "dark-wood": "train", "cloth": "train",
-               "grey": "test", "black": "test", "beige": "test", "green-mat": "test"}
-"""Which half of a held-out task each table look belongs to."""
+
 
 
 class Split(enum.Enum):
@@ -270,8 +269,8 @@ class Appearance:
         light: How the light varies.
         mount_offset_mm: Each axis of the camera mount's offset drawn in [-it, it] [mm].
         mount_offset_deg: The mount's pan and tilt each drawn in [-it, it] [deg].
-        held_out: Training scenes draw the ``train`` half of palettes, textures and tables, test
-            scenes the ``test`` half.
+        held_out: Training scenes draw the ``train`` half of palettes and textures, test scenes
+            the ``test`` half (tables, light and look-alikes from the whole sets in both).
 
     """
 
@@ -312,15 +311,14 @@ class Appearance:
             self._check_halves(bad)
 
     def _check_halves(self, bad: Callable[[str, Any, str], InvalidInputError]) -> None:
-        """Held out: every varied set needs a member in each half, or one half sees nothing."""
+        """Held out: palettes and textures need a member in each half, or one half sees none."""
         sets = [("objects.textures", [t.value for t in self.textures],
-                 [TEXTURE_SPLIT[t] for t in self.textures]),
-                ("table.looks", list(self.tables), [TABLE_SPLIT[t] for t in self.tables])]
+                 [TEXTURE_SPLIT[t] for t in self.textures])]
         if self.palette is not None:
             sets += [(f"objects.palette {self.palette_name}: {kind}", [e.name for e in entries],
                       [e.split.value for e in entries]) for kind, entries in self.palette.entries]
         for field_name, names, splits in sets:
-            if len(names) == 1 and field_name in ("objects.textures", "table.looks"):
+            if len(names) == 1 and field_name == "objects.textures":
                 continue  # not varied: both halves see the one
             for half in ("train", "test"):
                 if not any(s in (half, "both") for s in splits):
@@ -381,7 +379,7 @@ class Appearance:
             first = looks[targets[0]].colours or _catalog_hex(types[targets[0]])
             looks = [ObjectLook((first[0], first[-1])) if t == "colour_twin" else look
                      for t, look in zip(types, looks, strict=True)]
-        tables = kept(self.tables, TABLE_SPLIT.__getitem__)
+        tables = self.tables  # both halves draw every table: what is held out is the objects'
         table = tables[int(rng.integers(len(tables)))] if len(tables) > 1 else tables[0]
         light = None if self.light.is_default else self.light.draw(base_light, rng)
         mount = None
