@@ -21,6 +21,33 @@ import numpy as np
 from perception.camera import PinholeCamera
 from sim.errors import InvalidInputError
 
+PLAUSIBLE: dict[str, tuple[float, float, str]] = {
+    # Each parameter's plausible range, beside the source of its default (docs/decisions/
+    # d435-sensor.md, "Parameters"): wide enough for any D400-like stereo camera, narrow enough
+    # that a unit slip (mm for m) or a typo that blinds the depth is refused, not rendered.
+    "baseline_m": (0.01, 0.3, "stereo baselines from the D405's 18 mm and the D435's 50 mm "
+                   "(Intel D400 datasheet) up to 30 cm rigs"),
+    "depth_focal_length_px": (50.0, 5000.0, "the D435's 427 px at 848 px wide (rs-enumerate-"
+                              "devices) from a 100 px wide image to a 4k narrow lens"),
+    "depth_width_px": (64, 4096, "the D435's 848 px (Intel, Tuning depth cameras) from a "
+                       "thumbnail to 4k"),
+    "subpixel_rms_px": (0.01, 1.0, "Intel, Tuning depth cameras: below 0.1 px, near 0.05 on good "
+                        "texture; a pixel of RMS is no stereo match"),
+    "depth_unit_m": (1e-5, 0.01, "the D400's default 1 mm, from 0.01 mm up to 1 cm; a coarser "
+                     "step rounds every object on the table into it"),
+    "max_disparity_px": (16.0, 1024.0, "Intel, Tuning depth cameras: 126 px at disparity shift "
+                         "0; a search of fewer than 16 px or more than 1024 px is no D400's"),
+    "left_imager_x_m": (-0.2, 0.2, "the D435i's 15 mm (factory calibration, realsense-ros 701), "
+                        "within a camera body"),
+    "colour_snr_max_db": (10.0, 60.0, "the OV2740's 36 dB; past 60 dB no CMOS colour sensor's "
+                          "full well reaches"),
+    "hand_eye_translation_rms_m": (0.0, 0.05, "0.28 mm after calibration (§Calibration); 5 cm "
+                                   "is a camera never calibrated"),
+    "hand_eye_rotation_rms_rad": (0.0, math.radians(5.0), "0.25 deg after calibration "
+                                  "(§Calibration); 5 deg is a camera never calibrated"),
+}
+"""Each D435 parameter's plausible range and why; :class:`D435Config` refuses a value outside."""
+
 
 @dataclass(frozen=True)
 class D435Config:
@@ -56,20 +83,13 @@ class D435Config:
     hand_eye_rotation_rms_rad: float = math.radians(0.25)  # §Calibration
 
     def __post_init__(self) -> None:
-        for name in ("baseline_m", "depth_focal_length_px", "subpixel_rms_px", "depth_unit_m",
-                     "max_disparity_px", "colour_snr_max_db"):
+        for name, (low, high, why) in PLAUSIBLE.items():
             value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0.0):
-                raise InvalidInputError(name, value, "a finite number > 0")
-        if not (isinstance(self.left_imager_x_m, int | float)
-                and math.isfinite(self.left_imager_x_m)):
-            raise InvalidInputError("left_imager_x_m", self.left_imager_x_m, "a finite number")
-        for name in ("hand_eye_translation_rms_m", "hand_eye_rotation_rms_rad"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0.0):
-                raise InvalidInputError(name, value, "a finite number >= 0 (0: exact calibration)")
-        if not isinstance(self.depth_width_px, int) or self.depth_width_px < 1:
-            raise InvalidInputError("depth_width_px", self.depth_width_px, "an integer >= 1")
+            if isinstance(value, bool) or not isinstance(value, int | float) or not (
+                    math.isfinite(value) and low <= value <= high):
+                raise InvalidInputError(name, value, f"a number in [{low:g}, {high:g}] ({why})")
+        if not isinstance(self.depth_width_px, int):
+            raise InvalidInputError("depth_width_px", self.depth_width_px, "an integer")
         lens = self.colour_distortion_k1_k2_p1_p2_k3
         if not (isinstance(lens, tuple) and len(lens) == 5 and all(
                 isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)

@@ -20,11 +20,13 @@ from sim.world.yumi_world import World
 RADIUS_M = 0.012
 SPOTS_PX = ((64.0, 64.0), (14.0, 108.0), (112.0, 16.0))  # the centre and two far corners
 D435 = SensorConfig(SensorKind.D435)
-# A sensor whose mount and lens are far off and whose noise is nil, so both show in pixels.
+# A sensor whose mount and lens are far off and whose noise is the least a D435's could be
+# (sim.world.d435.PLAUSIBLE: 0.01 px, 60 dB; depth noise 0.1 mm, colour 0.2 levels), so both
+# show in pixels.
 OFF = SensorConfig(SensorKind.D435, D435Config(
     hand_eye_translation_rms_m=0.01, hand_eye_rotation_rms_rad=math.radians(2.0),
-    colour_distortion_k1_k2_p1_p2_k3=(-0.1, 0.0, 0.0, 0.0, 0.0), subpixel_rms_px=1e-9,
-    colour_snr_max_db=300.0))
+    colour_distortion_k1_k2_p1_p2_k3=(-0.1, 0.0, 0.0, 0.0, 0.0), subpixel_rms_px=0.01,
+    colour_snr_max_db=60.0))
 
 
 def _on_table(uv: tuple[float, float], height_m: float) -> np.ndarray:
@@ -143,7 +145,7 @@ def test_the_frame_keeps_the_calibration_while_the_image_follows_the_true_camera
 def test_the_camera_record_names_the_sensor_and_its_parameters():
     ideal, d435 = HeadCamera().record(), HeadCamera(sensor=OFF).record()
     assert ideal["sensor"] == {"sensor": "ideal"}
-    assert d435["sensor"]["sensor"] == "d435" and d435["sensor"]["subpixel_rms_px"] == 1e-9
+    assert d435["sensor"]["sensor"] == "d435" and d435["sensor"]["subpixel_rms_px"] == 0.01
     assert d435["sensor"]["colour_distortion_k1_k2_p1_p2_k3"] == [-0.1, 0.0, 0.0, 0.0, 0.0]
     assert CameraConfig.from_json(d435) == CameraConfig()  # the config reads past the sensor
 
