@@ -3,7 +3,10 @@
 Any run folder of ``gva trials`` or ``gva reproduce real``, also one made before the judge
 existed. Prints per trial set (task, seed, model) the real and the predicted count, then over
 all picks the misses, the misses the judge flagged, the ones it did not and its false alarms,
-per object type, and each unflagged miss and false alarm with its errors in the grasp frame.
+per object type; the judge scored as a probability (AUC, Brier score and skill, expected misses
+against observed, a reliability table: :mod:`sim.trials.calibration`); and each unflagged miss
+and false alarm with its errors in the grasp frame. ``--json`` also gives each pick's
+probability.
 No torch, no physics: seconds for a Table III run.
 """
 
@@ -56,6 +59,12 @@ def print_report(judgement: RunJudgement) -> None:
     print(f"all: {judgement.picks.line()}")
     for object_type, counts in judgement.per_object.items():
         print(f"  {object_type:<13} {counts.line()}")
+    calibration = judgement.calibration
+    if calibration is not None:
+        print(f"as a probability: {calibration.line()}")
+        print("  reliability: " + "; ".join(
+            f"p {b.low:.1f}-{b.high:.1f}: {b.picks} picks, held {100 * b.observed_rate:.0f} %"
+            for b in calibration.reliability if b.observed_rate is not None))
     unflagged = [row for row in judgement.misses
                  if row.get("judge", {}).get("predicted_success", False)]
     for title, rows in (("misses the judge did not flag", unflagged),

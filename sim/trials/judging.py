@@ -21,6 +21,7 @@ from perception.grasp_judge import GraspVerdict, judge_grasp
 from perception.grasp_tolerance import ToleranceMap, default_tolerance_map
 from perception.poses import Pose
 from sim.errors import InvalidInputError
+from sim.trials.calibration import Calibration
 from sim.trials.records import PickCounts, TrialOutcome, TrialRecord, read_trial_records
 
 
@@ -108,6 +109,11 @@ class JudgedPick:
         """Whether the judge says it would."""
         return self.verdict is not None and self.verdict.predicted_success
 
+    @property
+    def probability(self) -> float:
+        """The judge's probability that the pick holds; 0 where the model gave no grasp."""
+        return 0.0 if self.verdict is None else self.verdict.success_rate
+
 
 def judged_picks(record: TrialRecord, tolerance: ToleranceMap | None = None
                  ) -> tuple[JudgedPick, ...]:
@@ -149,7 +155,11 @@ class TrialSetJudgement:
 
 @dataclass(frozen=True)
 class RunJudgement:
-    """A run folder judged: each trial set, all their picks together, each pick missed."""
+    """A run folder judged: each trial set, all their picks together, each pick missed.
+
+    ``calibration`` scores the judge's probabilities over every pick
+    (:mod:`sim.trials.calibration`); ``probabilities`` lists each pick's (where, held, p).
+    """
 
     sets: tuple[TrialSetJudgement, ...]
     picks: PickCounts
@@ -157,10 +167,14 @@ class RunJudgement:
     misses: tuple[dict[str, Any], ...]
     false_alarms: tuple[dict[str, Any], ...]
     tolerance_map: dict[str, Any]
+    calibration: Calibration | None = None
+    probabilities: tuple[dict[str, Any], ...] = ()
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready, as ``gva judge --json`` writes it."""
-        return asdict(self)
+        data = asdict(self)
+        data["calibration"] = None if self.calibration is None else self.calibration.to_json()
+        return data
 
 
 def _pick_row(folder: str, record: TrialRecord, pick: JudgedPick) -> dict[str, Any]:
@@ -188,7 +202,7 @@ def trial_folders(run: Path) -> list[Path]:
 def judge_run(run: Path, tolerance: ToleranceMap | None = None) -> RunJudgement:
     """Judges every trial under ``run``: per trial set and over all picks."""
     tolerance = tolerance or default_tolerance_map()
-    sets, every, misses, alarms = [], [], [], []
+    sets, every, misses, alarms, probabilities = [], [], [], [], []
     for folder in trial_folders(run):
         name = str(folder.relative_to(run)) if folder != run else "."
         path = folder / "trials.jsonl"
@@ -203,6 +217,9 @@ def judge_run(run: Path, tolerance: ToleranceMap | None = None) -> RunJudgement:
         every.extend(picks)
         for record, these in judged:
             for pick in these:
+                probabilities.append({"folder": name, "seed": record.seed, "trial": pick.trial,
+                                      "pick": pick.number, "target": pick.target,
+                                      "held": pick.picked, "probability": pick.probability})
                 if not pick.picked:
                     misses.append(_pick_row(name, record, pick))
                 elif not pick.predicted_success:
@@ -214,8 +231,10 @@ def judge_run(run: Path, tolerance: ToleranceMap | None = None) -> RunJudgement:
             predicted_successes=sum(bool(these) and all(p.predicted_success for p in these)
                                     for _, these in judged),
             picks=pick_counts(picks), per_object=_per_object(picks)))
+    calibration = Calibration.of([(p.probability, p.picked) for p in every]) if every else None
     return RunJudgement(tuple(sets), pick_counts(every), _per_object(every), tuple(misses),
-                        tuple(alarms), dict(tolerance.provenance))
+                        tuple(alarms), dict(tolerance.provenance), calibration,
+                        tuple(probabilities))
 
 
 def _per_object(picks: Sequence[JudgedPick]) -> dict[str, PickCounts]:

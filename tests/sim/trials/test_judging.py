@@ -119,6 +119,16 @@ def test_gva_judge_prints_the_counts_and_writes_them(old_run, tmp_path):
     assert "trial 3 pick 0 sponge: grasp_slipped" in out  # the miss it did not flag
     data = json.loads((tmp_path / "judged.json").read_text())
     assert data["picks"]["flagged_misses"] == 1 and len(data["sets"]) == 1
+    # the judge as a probability: each pick's p, and the run's scores, printed and written
+    assert "as a probability: AUC " in out and "expected misses " in out and "reliability:" in out
+    picks = data["probabilities"]
+    assert [(p["trial"], p["held"]) for p in picks] == [(0, True), (1, False), (2, True),
+                                                         (3, False)]
+    assert all(0.0 <= p["probability"] <= 1.0 for p in picks)
+    calibration = data["calibration"]
+    assert calibration["picks"] == 4 and calibration["misses"] == 2
+    assert calibration["expected_misses"] == pytest.approx(
+        sum(1 - p["probability"] for p in picks))
 
 
 def test_gva_judge_refuses_a_folder_without_trials(tmp_path):
