@@ -19,6 +19,7 @@ are PNG bytes in the parquet file (LeRobot's ``"image"`` dtype): lossless, no vi
 
 from __future__ import annotations
 
+import hashlib
 import io
 import json
 import os
@@ -135,6 +136,8 @@ def import_lerobot(folder: str | Path) -> Dataset:
                                  f"gva reads {GVA_FORMAT!r}")
     if missing_keys := sorted(_GVA_KEYS - set(gva)):
         raise LeRobotFolderError(root, f"{GVA_PATH} lacks {', '.join(missing_keys)}")
+    if "files_sha256" in gva:  # exported since issue 63: every file as written, none added
+        _check_files(root, gva["files_sha256"])
     metadata = _metadata(root, gva["metadata"])
     paths = sorted(root.glob("data/*/*.parquet"))
     if not paths:
@@ -166,6 +169,34 @@ def import_lerobot(folder: str | Path) -> Dataset:
         raise LeRobotFolderError(root, "contents do not match the checksum in meta/gva.json: "
                                  "changed after export")
     return result
+
+
+def _files_sha256(root: Path) -> dict[str, str]:
+    """Every file under ``root`` but meta/gva.json: its path (``/``-separated) -> SHA-256."""
+    return {path.relative_to(root).as_posix(): hashlib.sha256(path.read_bytes()).hexdigest()
+            for path in sorted(root.rglob("*")) if path.is_file()
+            and path.relative_to(root).as_posix() != GVA_PATH}
+
+
+def _check_files(root: Path, expected: Any) -> None:
+    """Refuses a folder whose files differ from the export's: changed, missing or added.
+
+    The contents checksum covers what gva reads back; this covers what LeRobot reads too
+    (info.json's counts and shapes, the episodes and tasks tables, stats.json), so a folder
+    changed after export is refused whichever file changed (docs/lerobot.md).
+    """
+    if not (isinstance(expected, dict) and all(isinstance(k, str) and isinstance(v, str)
+                                               for k, v in expected.items())):
+        raise LeRobotFolderError(root, f"{GVA_PATH} files_sha256 is not a table of path: SHA-256")
+    found = _files_sha256(root)
+    for path, digest in expected.items():
+        if path not in found:
+            raise LeRobotFolderError(root, f"lacks {path}, which the export wrote")
+        if found[path] != digest:
+            raise LeRobotFolderError(root, f"{path} changed after export (its SHA-256 differs "
+                                     f"from the one in {GVA_PATH})")
+    if added := sorted(set(found) - set(expected)):
+        raise LeRobotFolderError(root, f"holds {added[0]}, which the export did not write")
 
 
 def episode_bounds(dataset: Dataset) -> list[tuple[int, int]]:
@@ -232,7 +263,7 @@ def _write_folder(data: Dataset, root: Path, progress: bool) -> int:
             "features": features}
     _write_json(root / "meta/info.json", info)
     _write_json(root / "meta/stats.json", _all_stats(columns, data.images, data.depths_m))
-    _write_json(root / GVA_PATH, {
+    _write_json(root / GVA_PATH, {"files_sha256": _files_sha256(root)} | {
         "format": GVA_FORMAT, "metadata": metadata_to_json(meta), "scenes": list(data.scenes),
         "condition_size": int(data.conditions.shape[1]), "contents_sha256": contents_sha256(data),
         "data_files": files, "depth": DEPTH_KEY if data.depths_m is not None else None,

@@ -197,7 +197,55 @@ def test_a_changed_value_is_caught_by_the_checksum(tmp_path):
     action[0, 0] += 1e-3
     column = pa.FixedSizeListArray.from_arrays(pa.array(action.reshape(-1)), action.shape[1])
     pq.write_table(table.set_column(table.column_names.index("action"), "action", column), path)
+    with pytest.raises(LeRobotFolderError, match="data/chunk-000/file-000.parquet changed after "
+                       "export"):
+        import_lerobot(root)
+    gva = json.loads((root / "meta/gva.json").read_text())  # a folder exported before the list:
+    del gva["files_sha256"]  # its contents checksum still catches the change
+    (root / "meta/gva.json").write_text(json.dumps(gva))
     with pytest.raises(LeRobotFolderError, match="do not match the checksum"):
+        import_lerobot(root)
+
+
+def _edit_json(root, name, change):
+    path = root / name
+    path.write_text(json.dumps(change(json.loads(path.read_text()))))
+
+
+def _edit_parquet(root, name, column, values):
+    table = pq.read_table(root / name)
+    pq.write_table(table.set_column(table.column_names.index(column), column,
+                                    pa.array(values, table.schema.field(column).type)),
+                   root / name)
+
+
+@pytest.mark.parametrize(("name", "change", "message"), [
+    ("meta/info.json", lambda r: _edit_json(r, "meta/info.json", lambda d: d | {
+        "total_episodes": d["total_episodes"] + 1}), "meta/info.json changed after export"),
+    ("meta/info.json", lambda r: _edit_json(r, "meta/info.json", lambda d: d | {"fps": -5}),
+     "meta/info.json changed after export"),
+    ("meta/stats.json", lambda r: _edit_json(r, "meta/stats.json", lambda d: d | {"x": 1}),
+     "meta/stats.json changed after export"),
+    ("meta/tasks.parquet", lambda r: _edit_parquet(r, "meta/tasks.parquet", "task",
+                                                   ["pick", "place"]),
+     "meta/tasks.parquet changed after export"),
+    ("meta/episodes", lambda r: _edit_parquet(
+        r, "meta/episodes/chunk-000/file-000.parquet", "episode_index", [5, 6]),
+     "meta/episodes/chunk-000/file-000.parquet changed after export"),
+    ("episode_index", lambda r: _edit_parquet(
+        r, "data/chunk-000/file-000.parquet", "episode_index", [1, 1, 1, 0, 0, 0]),
+     "data/chunk-000/file-000.parquet changed after export"),
+    ("deleted", lambda r: (r / "meta/stats.json").unlink(), "lacks meta/stats.json, which the "
+     "export wrote"),
+    ("added", lambda r: (r / "meta/notes.txt").write_text("mine"), "holds meta/notes.txt, which "
+     "the export did not write"),
+])
+def test_a_folder_changed_anywhere_after_export_is_refused_naming_the_file(tmp_path, name, change,
+                                                                          message):
+    root = export_lerobot(make(), tmp_path / "out").folder
+    import_lerobot(root)  # as exported: accepted
+    change(root)
+    with pytest.raises(LeRobotFolderError, match=re.escape(message)):
         import_lerobot(root)
 
 
