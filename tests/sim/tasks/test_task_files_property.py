@@ -70,9 +70,25 @@ VALID: dict[tuple[str, str], st.SearchStrategy[Any]] = {
     ("distractors", "per_scene"): st.lists(st.integers(0, 4), min_size=2, max_size=2),
     ("camera", "sensor"): st.sampled_from(["ideal", "d435"]),
     ("camera", "subpixel_rms_px"): st.floats(0.01, 0.2),
-    ("camera", "depth_width_px"): st.integers(1, 2000),
+    ("camera", "depth_width_px"): st.integers(64, 2000),
     ("camera", "colour_distortion_k1_k2_p1_p2_k3"): st.lists(st.floats(-0.05, 0.05), min_size=5,
                                                              max_size=5),
+    # appearance (issue 62)
+    ("objects", "palette"): st.sampled_from(["catalog", "household"]),
+    ("objects", "textures"): st.lists(st.sampled_from(["plain", "print", "stripes", "noise"]),
+                                      min_size=1, max_size=4, unique=True),
+    ("lighting", "azimuth_deg"): st.one_of(st.floats(-360, 360), _ranges(-360.0, 360.0)),
+    ("lighting", "elevation_deg"): st.one_of(st.floats(5, 90), _ranges(5.0, 90.0)),
+    ("lighting", "colour_temperature_k"): st.one_of(st.floats(1800, 10000),
+                                                    _ranges(1800.0, 10000.0)),
+    ("lighting", "ambient"): st.one_of(st.floats(0, 1), _ranges(0.0, 1.0)),
+    ("lighting", "diffuse"): st.one_of(st.floats(0, 1), _ranges(0.0, 1.0)),
+    ("lighting", "shadows"): st.booleans(),
+    ("table", "looks"): st.lists(st.sampled_from(["wood", "white", "grey", "black", "cloth"]),
+                                 min_size=1, max_size=3, unique=True),
+    ("camera", "mount_offset_mm"): st.floats(0, 50),
+    ("camera", "mount_offset_deg"): st.floats(0, 10),
+    ("appearance", "held_out"): st.booleans(),
 }
 EDGES: dict[tuple[str, str], list[Any]] = {
     ("", "name"): ["", "x" * 100, "x" * 101, "a\nb", "\x1b[31m"],
@@ -97,10 +113,22 @@ EDGES: dict[tuple[str, str], list[Any]] = {
     ("camera", "sensor"): ["kinect", "", "D435", 1, None],
     ("camera", "subpixel_rms_px"): [0, -0.0, -1, 1e-300, *_NON_FINITE, *_HUGE, 10**400, True,
                                     "0.1"],
-    ("camera", "depth_width_px"): [0, -1, 1.0, 10**400, True],
+    ("camera", "depth_width_px"): [0, -1, 63, 4097, 1.0, 10**400, True],
     ("camera", "colour_distortion_k1_k2_p1_p2_k3"): [[0] * 5, [-2, 0, 0, 0, 0], [0] * 4,
                                                      [math.nan, 0, 0, 0, 0], [10**400, 0, 0, 0, 0],
                                                      [0.9, 0, 0, 0, 0.9]],
+    ("objects", "palette"): ["rainbow", "", "household.toml", "/dev/null", 3, ["household"]],
+    ("objects", "textures"): [[], ["plaid"], ["plain", "plain"], "print", [1]],
+    ("lighting", "azimuth_deg"): [-361, 361, [10, 0], [math.nan, 0], "east", [0, 1, 2]],
+    ("lighting", "elevation_deg"): [4.9, 90.1, 0, -90, [80, 30], math.inf],
+    ("lighting", "colour_temperature_k"): [1799, 10001, 0, -1, [6500, 2700], *_NON_FINITE],
+    ("lighting", "ambient"): [-0.1, 1.1, [0.8, 0.2], *_HUGE],
+    ("lighting", "diffuse"): [-0.1, 1.1, math.nan, True],
+    ("lighting", "shadows"): [1, "yes", None],
+    ("table", "looks"): [[], ["granite"], ["wood", "wood"], "wood", [3]],
+    ("camera", "mount_offset_mm"): [-1, 50.000001, *_NON_FINITE, *_HUGE, True],
+    ("camera", "mount_offset_deg"): [-1, 10.000001, math.nan, "2"],
+    ("appearance", "held_out"): [1, "true", None],
 }
 BASES = [  # the four built-in tasks' shapes, which the mutations below start from
     {"objects": {"choose": "random", "count": 1}, "targets": {"select": "all"},
@@ -127,7 +155,9 @@ def task_documents(draw: st.DrawFn) -> dict[str, Any]:
     document: dict[str, Any] = json.loads(json.dumps(draw(st.sampled_from(BASES))))
     document["name"] = draw(VALID[("", "name")])
     for (section, key), values in VALID.items():
-        if section in ("placement", "lighting", "distractors", "camera") and draw(st.booleans()):
+        optional = section in ("placement", "lighting", "distractors", "camera", "table",
+                               "appearance") or key in ("palette", "textures")
+        if optional and draw(st.booleans()):
             document.setdefault(section, {}).setdefault(key, draw(values))
     for _ in range(draw(st.integers(0, 4))):
         section, key = draw(st.sampled_from(sorted(VALID)))
