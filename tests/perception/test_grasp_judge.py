@@ -187,3 +187,57 @@ def test_the_logistic_reading_sees_two_errors_that_miss_together():
     assert logistic.success_rate("sponge", 0.0, 0.0, 0.0, math.radians(90.0)) > 0.0
     with pytest.raises(InvalidInputError, match="reading = 'neural'"):
         ToleranceMap.from_json(data | {"reading": "neural"})
+
+
+def _axes_map(ok_mm: dict[str, float]) -> ToleranceMap:
+    """A made-up map whose every axis holds within its own offset (``ok_mm``), none beyond."""
+    offsets = {"closing": [0.0, 6.0, 12.0], "across": [-12.0, -6.0, 0.0, 6.0, 12.0],
+               "approach": [-12.0, -6.0, 0.0, 6.0, 12.0]}
+    types = {t: {"yaw_deg": YAWS_DEG, "axes": {
+        axis: {"offsets_mm": offsets[axis],
+               "picked": [[4 if abs(o) <= ok_mm[axis] else 0 for _ in YAWS_DEG]
+                          for o in offsets[axis]],
+               "trials": [[4] * len(YAWS_DEG) for _ in offsets[axis]]} for axis in AXES}}
+             for t in OBJECT_TYPES}
+    return ToleranceMap.from_json({"format": 1, "threshold": 0.5, "how": {"command": "made up"},
+                                   "types": types})
+
+
+@pytest.mark.parametrize("axis", AXES)
+def test_every_axis_of_the_map_is_read_where_a_grasp_errs_along_it(axis):
+    """An error along one axis alone costs what that axis's cells say (issue 65).
+
+    Each axis holds to 6 mm and none at 12: an error of 12 mm along the axis misses, whichever
+    axis it is, and the same error along the other two holds.
+    """
+    tolerance = _axes_map({"closing": 6.0, "across": 6.0, "approach": 6.0})
+    truth = grasp_pose(SPONGE, Pose.from_xy_yaw(0.45, 0.0, 0.2))
+    index = AXES.index(axis)
+    offset = np.zeros(3)
+    offset[index] = 0.012
+    verdict = judge_grasp(SPONGE, truth, _moved(truth, offset, 0.0), None, tolerance)
+    assert not verdict.predicted_success and verdict.success_rate == pytest.approx(0.0), axis
+    half = np.zeros(3)
+    half[index] = 0.009  # halfway between the last cell that held and the first that missed
+    assert judge_grasp(SPONGE, truth, _moved(truth, half, 0.0), None,
+                       tolerance).success_rate == pytest.approx(0.5)
+    lenient = _axes_map({a: 6.0 if a == axis else 12.0 for a in AXES})
+    for other in set(range(3)) - {index}:
+        elsewhere = np.zeros(3)
+        elsewhere[other] = 0.012
+        assert judge_grasp(SPONGE, truth, _moved(truth, elsewhere, 0.0), None,
+                           lenient).success_rate == 1.0
+
+
+def test_a_tilted_grasp_is_measured_as_tilted():
+    """The angle between the predicted and the true approach axes, whichever way it leans."""
+    truth = grasp_pose(SPONGE, Pose.from_xy_yaw(0.45, 0.0, 0.2))
+    for axis_column, degrees in ((0, 20.0), (1, 35.0)):
+        lean = np.asarray(truth.rotation[:, axis_column])  # about the closing or across axis
+        angle = math.radians(degrees)
+        k = np.array([[0, -lean[2], lean[1]], [lean[2], 0, -lean[0]], [-lean[1], lean[0], 0]])
+        turn = np.eye(3) + math.sin(angle) * k + (1 - math.cos(angle)) * k @ k
+        tilted = Pose(truth.position, turn @ truth.rotation)
+        error = grasp_error(SPONGE, truth, tilted, 0.2)
+        assert math.degrees(error.tilt_rad) == pytest.approx(degrees, abs=1e-6)
+        assert error.to_record()["tilt_deg"] == pytest.approx(degrees, abs=1e-3)

@@ -197,11 +197,31 @@ def test_every_baseline_scales_each_image_and_mirrors_where_told(name):
         dim, bright = (model.network(images * scale, conditions).positions
                        for scale in (0.5, 1.0))
     torch.testing.assert_close(dim, bright, atol=1e-4, rtol=1e-4)
-    model.fit(flagged, SHORT, progress=False)
+    plain = images_to_tensor(dataset.images)
+    seen = _fit_seeing(model, flagged)
     assert model._mirror is not None  # the collector allows it
+    assert 0 < sum(any(torch.equal(image, p) for p in plain) for image in seen) < len(seen)
     fixed = new_model(name, dataset)
-    fixed.fit(dataset, SHORT, progress=False)
+    seen = _fit_seeing(fixed, dataset)
     assert fixed._mirror is None and not fixed.network.per_image
+    assert all(any(torch.equal(image, p) for p in plain) for image in seen)  # none mirrored
+
+
+def _fit_seeing(model, dataset) -> torch.Tensor:
+    """Fits ``model`` (no photometric augmentation); every image its network was shown."""
+    seen = []
+    network = model.network
+    for name in ("forward", "encode", "reconstruction_loss"):  # where images enter the network
+        if hasattr(network, name):
+            original = getattr(network, name)
+
+            def recording(images, *rest, _original=original, **kw):
+                seen.append(images.detach().clone())
+                return _original(images, *rest, **kw)
+
+            setattr(network, name, recording)
+    model.fit(dataset, replace(SHORT, augment=False), progress=False)
+    return torch.cat(seen)  # (N, 3, H, W): the batches as the network saw them
 
 
 def test_fcn_helped_gets_the_help_a_model_without_points_can_take():
