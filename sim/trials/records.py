@@ -114,8 +114,19 @@ class TrialRecord:
 
     @classmethod
     def from_json(cls, line: str) -> TrialRecord:
-        """Parses a line written by :meth:`to_json`."""
+        """Parses a line written by :meth:`to_json`.
+
+        Raises:
+            ValueError: (or JSONDecodeError, TypeError, KeyError) the line is no record
+                :meth:`to_json` writes: its fields' types are checked as well as its keys
+                (:func:`check_record_fields`), so a damaged field is refused here, naming it,
+                rather than failing in what reads the record later.
+
+        """
         data = json.loads(line)
+        if not isinstance(data, dict):
+            raise ValueError(f"a {type(data).__name__}, not a record (a JSON object)")
+        check_record_fields(data)
         data["outcome"] = TrialOutcome(data["outcome"])
         return cls(**data)
 
@@ -188,6 +199,70 @@ def record_lines(path: Path) -> list[bytes]:
     is then refused, or repaired, a line at a time as any other damage is.
     """
     return Path(path).read_bytes().splitlines()
+
+
+def _count(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
+
+
+def _grasp(value: Any) -> bool:
+    """A grasp pose as a record keeps it: position_m (3 numbers), rotation (3 x 3 numbers)."""
+    if not isinstance(value, dict):
+        return False
+    position, rotation = value.get("position_m"), value.get("rotation")
+    numbers = (int, float)
+    return (isinstance(position, list) and len(position) == 3
+            and all(isinstance(v, numbers) and not isinstance(v, bool) for v in position)
+            and isinstance(rotation, list) and len(rotation) == 3
+            and all(isinstance(row, list) and len(row) == 3 and all(
+                isinstance(v, numbers) and not isinstance(v, bool) for v in row)
+                for row in rotation))
+
+
+def check_record_fields(data: dict[str, Any]) -> None:
+    """Raises ValueError naming the first field of a record that is not of its kind.
+
+    The fields what reads a run relies on: index, seed, outcome, target, objects, the grasps,
+    and each pick's. (Finite values are the judge's to check: it names the trial and pick.)
+    """
+    outcomes = {o.value for o in TrialOutcome}
+
+    def bad(name: str) -> ValueError:
+        return ValueError(f"{name} = {data_at(name)!r:.80} is not what gva trials writes")
+
+    def data_at(name: str) -> Any:
+        value: Any = data
+        for step in name.replace("]", "").replace("[", ".").split("."):
+            value = value[int(step)] if isinstance(value, list) else value.get(step)
+        return value
+
+    for name in ("index", "seed"):
+        if not _count(data.get(name)):
+            raise bad(name)
+    if data.get("outcome") not in outcomes:
+        raise bad("outcome")
+    if not (data.get("target") is None or isinstance(data.get("target"), str)):
+        raise bad("target")
+    objects = data.get("objects", [])
+    if not (isinstance(objects, list) and all(isinstance(o, dict) and isinstance(
+            o.get("type"), str) for o in objects)):
+        raise bad("objects")
+    for name in ("predicted", "truth"):
+        if data.get(name) is not None and not _grasp(data[name]):
+            raise bad(name)
+    picks = data.get("picks", [])
+    if not isinstance(picks, list):
+        raise bad("picks")
+    for k, pick in enumerate(picks):
+        if not isinstance(pick, dict):
+            raise bad(f"picks[{k}]")
+        if pick.get("outcome") not in outcomes:
+            raise bad(f"picks[{k}].outcome")
+        if not (pick.get("target") is None or isinstance(pick.get("target"), str)):
+            raise bad(f"picks[{k}].target")
+        for name in ("predicted", "truth"):
+            if pick.get(name) is not None and not _grasp(pick[name]):
+                raise bad(f"picks[{k}].{name}")
 
 
 def record_of_line(line: bytes) -> TrialRecord:
