@@ -139,6 +139,26 @@ def import_lerobot(folder: str | Path) -> Dataset:
     if "files_sha256" in gva:  # exported since issue 63: every file as written, none added
         _check_files(root, gva["files_sha256"])
     metadata = _metadata(root, gva["metadata"])
+    try:
+        result = _dataset_of(root, gva, metadata)
+    except LeRobotFolderError:
+        raise
+    except (pa.ArrowException, OSError, ValueError, TypeError, KeyError, IndexError) as error:
+        said = " ".join(str(error).split())[:200]  # a library's message, kept to one line
+        raise LeRobotFolderError(root, f"data cannot be read as gva export wrote it "
+                                 f"({type(error).__name__}: {said})") from error
+    if contents_sha256(result) != gva["contents_sha256"]:
+        raise LeRobotFolderError(root, "contents do not match the checksum in meta/gva.json: "
+                                 "changed after export")
+    return result
+
+
+def _dataset_of(root: Path, gva: dict[str, Any], metadata: DatasetMetadata) -> Dataset:
+    """The dataset the folder's data files hold (checked by the caller against its checksum).
+
+    A file a library cannot read (a damaged parquet file or PNG, a column of another type)
+    raises that library's error; :func:`import_lerobot` names the folder in one line.
+    """
     paths = sorted(root.glob("data/*/*.parquet"))
     if not paths:
         raise LeRobotFolderError(root, "has no data/chunk-*/file-*.parquet")
@@ -165,9 +185,6 @@ def import_lerobot(folder: str | Path) -> Dataset:
                          depths_m=depths, joint_positions=joints)
     except InvalidInputError as error:
         raise LeRobotFolderError(root, f"holds data a dataset cannot have: {error}") from error
-    if contents_sha256(result) != gva["contents_sha256"]:
-        raise LeRobotFolderError(root, "contents do not match the checksum in meta/gva.json: "
-                                 "changed after export")
     return result
 
 
