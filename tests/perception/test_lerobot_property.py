@@ -53,7 +53,7 @@ def _mutate_column(root: Path, how: str, column: str) -> None:
         table = table.remove_column(index)
     elif how == "widen":
         values = table.column(column).to_pylist()
-        wider = [(list(v) + [0.0]) if isinstance(v, list) else [v, 0.0] for v in values]
+        wider = [[*v, 0.0] if isinstance(v, list) else [v, 0.0] for v in values]
         table = table.set_column(index, column, pa.array(wider))
     else:  # retype: the column as strings
         table = table.set_column(index, column, pa.array([str(v) for v in
