@@ -44,6 +44,7 @@ MOST: Mapping[str, int | float] = MappingProxyType({
     "sentence_temperature": 100.0,  # cosines lie in [-1, 1]: past 100 every weight is equal
     "point_loss_weight": 1000.0,  # 100 x the default: the pose loss it helps is drowned
     "rotation_loss_weight": 1000.0,  # 10,000 x the default: positions would not be learned
+    "hue_jitter": 0.5,  # a share of a turn either way: 0.5 already reaches every hue
 })
 
 
@@ -208,9 +209,7 @@ class KqvConfig:
             check_number(name, getattr(self, name), 0, MOST[name], open_below=True)
         if not (math.isfinite(self.start_holdout) and 0 <= self.start_holdout < 1):
             raise InvalidInputError("start_holdout", self.start_holdout, "a fraction in [0, 1)")
-        if isinstance(self.hue_jitter, bool) or not isinstance(self.hue_jitter, int | float) or \
-                not 0.0 <= self.hue_jitter <= 0.5:
-            raise InvalidInputError("hue_jitter", self.hue_jitter, "a share of a turn in [0, 0.5]")
+        check_number("hue_jitter", self.hue_jitter, 0.0, MOST["hue_jitter"])
         for name in ("rotation_loss_weight", "point_loss_weight"):
             check_number(name, getattr(self, name), 0, MOST[name])
         if self.mirror not in (None, True, False):

@@ -78,7 +78,7 @@ def test_a_checkpoint_trained_without_a_file_records_none(dataset, tmp_path):
 
 @pytest.mark.parametrize(("text", "message"), [
     ("simil = 1\n", r"model config {path}: simil = 1 is not allowed: a known key, one of the "
-                    r"fields of KqvConfig: channels, key_dim, .*sentence_temperature$"),
+                    r"fields of KqvConfig: channels, key_dim, .*sentence_temperature, hue_jitter$"),
     ('similarity = "l2"\n', r"model config {path}: similarity = 'l2' is not allowed: one of "
                             r"'cosine', 'dot'$"),
     ("seed = 3\n", r"model config {path}: seed = 3 is not allowed: set by --seed, not by the "
@@ -242,5 +242,6 @@ def test_hue_jitter_is_a_kqv_setting_left_out_of_identities_at_its_default():
 
     assert "hue_jitter" not in model_config("kqv", 0)  # folders made before it resume
     assert model_config("kqv", 0, {"hue_jitter": 0.25})["hue_jitter"] == 0.25
-    with pytest.raises(InvalidInputError, match=r"hue_jitter = 0\.6 is not allowed"):
+    with pytest.raises(InvalidInputError, match=r"hue_jitter = 0\.6 is not allowed: a finite "
+                       r"value >= 0 and <= 0\.5"):
         KqvConfig(hue_jitter=0.6)
