@@ -223,7 +223,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="Table III: YuMi pick trials out of 30 with trained models in the loop",
         description="Per task on the yumi scene: collects oracle-verified demonstrations, "
         "trains each model on them, runs pick trials at untrained positions with "
-        "the trained model in the loop (kqv also under darker light and with a distractor), "
+        "the trained model in the loop (each model also under each --variants: darker light "
+        "and the block by default), "
         "each seed in OUT/s<seed>/, and writes OUT/table3.md and table3.json over the seeds "
         "and OUT/s<seed>/gifs/<model>-<task>.gif. Re-running skips what is finished.",
     )
