@@ -25,9 +25,7 @@ from the same sets as its demonstrations'.
 from __future__ import annotations
 
 import enum
-import hashlib
 import math
-import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -38,6 +36,7 @@ import numpy as np
 
 from perception.catalog import OBJECT_TYPES, get_object_spec
 from sim.errors import InvalidInputError
+from sim.tasks.toml_file import read_toml_file
 from sim.world.head_camera import Lighting
 from sim.world.looks import (
     TABLE_LOOKS,
@@ -140,18 +139,7 @@ def builtin_palettes() -> tuple[str, ...]:
 def _read_palette(path: Path) -> Palette:
     """Reads and checks a palette file: every mistake names the file, the field and the value."""
     where = f"palette {path.name}"
-    try:
-        with path.open("rb") as file:
-            data = file.read(MAX_PALETTE_FILE_BYTES + 1)
-    except OSError as error:
-        raise InvalidInputError(where, str(path), f"a readable file ({error.strerror})") from None
-    if len(data) > MAX_PALETTE_FILE_BYTES:
-        raise InvalidInputError(where, f"{len(data)} bytes or more",
-                                f"a palette of at most {MAX_PALETTE_FILE_BYTES} bytes")
-    try:
-        table = tomllib.loads(data.decode("utf-8-sig"))
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError, RecursionError) as error:
-        raise InvalidInputError(where, "not a TOML text in UTF-8", f"TOML ({error})") from None
+    table, digest = read_toml_file(path, where, MAX_PALETTE_FILE_BYTES, "a palette")
     entries = []
     for object_type, rows in table.items():
         if object_type not in OBJECT_TYPES:
@@ -168,7 +156,7 @@ def _read_palette(path: Path) -> Palette:
     if not entries:
         raise InvalidInputError(where, "no types", "[[sponge]], [[spray_bottle]] or [[mug]] "
                                 "tables of colourways")
-    return Palette(path.stem, tuple(entries), hashlib.sha256(data).hexdigest())
+    return Palette(path.stem, tuple(entries), digest)
 
 
 def _palette_entry(row: dict[str, Any], where: str, parts: int) -> PaletteEntry:

@@ -22,6 +22,7 @@ from typing import Any
 from sim.errors import InvalidInputError
 from sim.tasks.task_spec import TaskSpec
 from sim.tasks.task_toml import load_task, task_from_data, task_to_toml
+from sim.tasks.toml_file import read_toml_file
 
 VARIANT_FILES = Path(__file__).resolve().parent / "variants"
 MAX_VARIANT_FILE_BYTES = 16 * 1024
@@ -55,17 +56,7 @@ def read_variant(name_or_path: str | Path) -> tuple[str, dict[str, Any], Path]:
             raise InvalidInputError("variant", text, f"one of {', '.join(builtin_variants())}, "
                                     "or the path of a variant .toml file")
     where = f"variant file {path.name}"
-    try:
-        data = path.read_bytes()[:MAX_VARIANT_FILE_BYTES + 1]
-    except OSError as error:
-        raise InvalidInputError(where, text, f"a readable file ({error.strerror})") from None
-    if len(data) > MAX_VARIANT_FILE_BYTES:
-        raise InvalidInputError(where, f"{len(data)} bytes or more",
-                                f"a variant of at most {MAX_VARIANT_FILE_BYTES} bytes")
-    try:
-        tables = tomllib.loads(data.decode("utf-8-sig"))
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError, RecursionError) as error:
-        raise InvalidInputError(where, "not a TOML text in UTF-8", f"TOML ({error})") from None
+    tables = read_toml_file(path, where, MAX_VARIANT_FILE_BYTES, "a variant").tables
     for table, value in tables.items():
         if table not in VARIANT_TABLES or not isinstance(value, dict):
             raise InvalidInputError(f"{where}: {table}", value, "a table among "
