@@ -69,16 +69,20 @@ def _old_frame(camera: HeadCamera, client, light: Lighting) -> tuple[np.ndarray,
     return image[:, :, :3], np.where(buffer >= 1.0, np.inf, depth).astype(np.float32)
 
 
-def _red_blobs(rgb: np.ndarray) -> np.ndarray:
-    """Centroids (u, v) of the red balls, sorted as SPOTS_PX is (by their nearest spot)."""
-    image = rgb.astype(int)
-    red = (image[..., 0] > 150) & (image[..., 1] < 60) & (image[..., 2] < 60)
-    labels, count = ndimage.label(red)
+def _blobs(mask: np.ndarray) -> np.ndarray:
+    """Centroids (u, v) of the balls ``mask`` shows, sorted as SPOTS_PX is (nearest spot)."""
+    labels, count = ndimage.label(mask)
     assert count == len(SPOTS_PX)
-    found = np.array([(u, v) for v, u in ndimage.center_of_mass(red, labels,
+    found = np.array([(u, v) for v, u in ndimage.center_of_mass(mask, labels,
                                                                 range(1, count + 1))])
     order = [int(np.argmin(np.linalg.norm(found - np.array(spot), axis=1))) for spot in SPOTS_PX]
     return found[order]
+
+
+def _red_blobs(rgb: np.ndarray) -> np.ndarray:
+    """Centroids (u, v) of the red balls in a colour image."""
+    image = rgb.astype(int)
+    return _blobs((image[..., 0] > 150) & (image[..., 1] < 60) & (image[..., 2] < 60))
 
 
 def test_the_ideal_sensor_renders_bit_for_bit_as_before(world):
@@ -143,14 +147,8 @@ def test_the_frame_keeps_the_calibration_while_the_image_follows_the_true_camera
 
 
 def _near_blobs(depth_m: np.ndarray, table_m: np.ndarray) -> np.ndarray:
-    """Centroids (u, v) of what stands 1 cm or more off the table in ``depth_m``, as SPOTS_PX."""
-    near = (depth_m > 0.0) & (depth_m < table_m - 0.01)
-    labels, count = ndimage.label(near)
-    assert count == len(SPOTS_PX)
-    found = np.array([(u, v) for v, u in ndimage.center_of_mass(near, labels,
-                                                                range(1, count + 1))])
-    order = [int(np.argmin(np.linalg.norm(found - np.array(spot), axis=1))) for spot in SPOTS_PX]
-    return found[order]
+    """Centroids (u, v) of what stands 1 cm or more off the table in ``depth_m``."""
+    return _blobs((depth_m > 0.0) & (depth_m < table_m - 0.01))
 
 
 def test_d435_depth_lines_up_with_its_distorted_colour_through_the_lens(world):
