@@ -18,12 +18,11 @@ from typing import Any
 
 from perception.interface import ConditionKind
 from sim.errors import InvalidInputError
-from sim.tasks.appearance import (
-    CATALOG_PALETTE,
-    Appearance,
-    LightVariation,
-    builtin_palettes,
-    load_palette,
+from sim.tasks.appearance_toml import (
+    LIGHT_RANGES,
+    MOUNT_KEYS,
+    appearance_from_toml,
+    appearance_to_toml,
 )
 from sim.tasks.disturbance import Disturbance, DisturbanceWhen, disturbance_from_table
 from sim.tasks.phrasings import Phrasings, read_phrase_file
@@ -38,16 +37,11 @@ from sim.tasks.task_spec import (
 )
 from sim.world.d435 import D435Config
 from sim.world.sensor import SensorConfig, sensor_from_table
-from sim.world.textures import TextureKind
 
 MAX_TASK_FILE_BYTES = 64 * 1024
 """A task file is a few hundred bytes; a bigger file is refused unread (an image, a dataset)."""
 
 TASK_FILES = Path(__file__).resolve().parent / "task_files"
-_LIGHT_RANGES = ("azimuth_deg", "elevation_deg", "colour_temperature_k", "ambient", "diffuse")
-"""``[lighting]`` keys that take a number or ``[low, high]`` (:class:`LightVariation`)."""
-_MOUNT_KEYS = ("mount_offset_mm", "mount_offset_deg")
-"""``[camera]`` keys of the mount's offset (:class:`Appearance`), not of the sensor."""
 
 
 def _key(key: str) -> str:
@@ -62,9 +56,9 @@ _SECTIONS: dict[str, set[str]] = {
     "targets": {"select"},
     "condition": {"kind", "given_as", "phrases"},
     "placement": {"sides", "yaw_deg", "min_spacing_m", "x_m", "y_m"},
-    "lighting": {"brightness", *_LIGHT_RANGES, "shadows"},
+    "lighting": {"brightness", *LIGHT_RANGES, "shadows"},
     "distractors": {"types", "per_scene"},
-    "camera": {"sensor", *_MOUNT_KEYS, *(f.name for f in dataclasses.fields(D435Config))},
+    "camera": {"sensor", *MOUNT_KEYS, *(f.name for f in dataclasses.fields(D435Config))},
     "table": {"looks"},
     "appearance": {"held_out"},
     "disturbance": {f.name for f in dataclasses.fields(Disturbance)},
@@ -206,35 +200,9 @@ def task_from_data(data: dict[str, Any], source: str, folder: Path | None = None
         distractors_per_scene=None if per_scene is None else (per_scene[0], per_scene[1]),
         camera=_camera(reader, source),
         disturbance=_disturbance(reader, source),
-        appearance=_appearance(reader, folder),
+        appearance=appearance_from_toml(reader, folder),
         source=source,
     )
-
-
-def _appearance(reader: _Reader, folder: Path | None) -> Appearance:
-    """The appearance keys (:mod:`sim.tasks.appearance`); today's world where all are absent."""
-    palette_name = reader.get("objects", "palette", str, CATALOG_PALETTE, "a palette's name or "
-                              "file")
-    try:
-        palette = load_palette(palette_name, folder)
-    except InvalidInputError as error:
-        raise reader.error(error.field, error.value, error.allowed) from None
-    if palette is not None and palette_name not in builtin_palettes():
-        palette_name = str((folder or Path()).joinpath(palette_name).resolve())
-    textures = reader.names("objects", "textures", ("plain",))
-    try:
-        kinds = tuple(TextureKind(t) for t in textures)
-    except ValueError:
-        raise reader.error("objects.textures", list(textures), "names among " + ", ".join(
-            t.value for t in TextureKind)) from None
-    light = LightVariation(**{k: reader.span("lighting", k) for k in _LIGHT_RANGES},
-                           shadows=reader.get("lighting", "shadows", bool, True, "true or false"))
-    return Appearance(
-        palette=palette, palette_name=palette_name, textures=kinds,
-        tables=reader.names("table", "looks", ("wood",)), light=light,
-        mount_offset_mm=reader.number("camera", "mount_offset_mm", 0.0),
-        mount_offset_deg=reader.number("camera", "mount_offset_deg", 0.0),
-        held_out=reader.get("appearance", "held_out", bool, False, "true or false"))
 
 
 def _disturbance(reader: _Reader, source: str) -> Disturbance | None:
@@ -259,7 +227,7 @@ def _camera(reader: _Reader, source: str) -> SensorConfig | None:
     table = reader.get("", "camera", dict, None, 'a table such as { sensor = "d435" }')
     if table is None:
         return None
-    table = {k: v for k, v in table.items() if k not in _MOUNT_KEYS}  # the mount: not the sensor
+    table = {k: v for k, v in table.items() if k not in MOUNT_KEYS}  # the mount: not the sensor
     if "sensor" not in table:
         if table:
             key = sorted(table)[0]
@@ -372,7 +340,7 @@ def task_to_toml(task: TaskSpec) -> str:
     }
     if task.camera is not None:  # none named: the command's sensor (sim.tasks.task_sensor)
         tables["camera"] = task.camera.to_json()
-    _write_appearance(task, tables)
+    appearance_to_toml(task.appearance, tables)
     if task.disturbance is not None:
         tables["disturbance"] = task.disturbance.to_json()
     if task.phrasings is not None:
@@ -382,27 +350,6 @@ def task_to_toml(task: TaskSpec) -> str:
     for table, keys in tables.items():
         lines += ["", f"[{table}]", *(f"{key} = {value(v)}" for key, v in keys.items())]
     return "\n".join(lines) + "\n"
-
-
-def _write_appearance(task: TaskSpec, tables: dict[str, dict[str, Any]]) -> None:
-    """Adds the task's appearance keys to ``tables``, those that differ from today's world."""
-    look = task.appearance
-    if look.palette is not None:
-        tables["objects"]["palette"] = look.palette_name
-    if look.textures != (TextureKind.PLAIN,):
-        tables["objects"]["textures"] = [t.value for t in look.textures]
-    for key in _LIGHT_RANGES:
-        if getattr(look.light, key) is not None:
-            tables["lighting"][key] = list(getattr(look.light, key))
-    if not look.light.shadows:
-        tables["lighting"]["shadows"] = False
-    for key in _MOUNT_KEYS:
-        if getattr(look, key):
-            tables.setdefault("camera", {})[key] = getattr(look, key)
-    if look.tables != ("wood",):
-        tables["table"] = {"looks": list(look.tables)}
-    if look.held_out:
-        tables["appearance"] = {"held_out": True}
 
 
 def builtin_tasks() -> tuple[str, ...]:
