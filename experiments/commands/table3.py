@@ -79,7 +79,7 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         help="the world the whole run lives in, demonstrations and trials: a "
                         f"variant of every task's looks ({', '.join(builtin_variants())}, or "
                         "a variant .toml file); varied-held-out demonstrates on half the "
-                        "palette, textures and tables and tries on the other half (default: "
+                        "palette and textures and tries on the other half (default: "
                         "today's world)")
     add_loop_options(parser)
     add_robot_option(parser)

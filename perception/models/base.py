@@ -59,9 +59,10 @@ class CoordConv(nn.Module):
     """
 
     def __init__(self, in_channels: int, out_channels: int, kernel_size: int, stride: int,
-                 activation: bool = True) -> None:
+                 activation: bool = True, dilation: int = 1) -> None:
         super().__init__()
-        self.conv = nn.Conv2d(in_channels, out_channels, kernel_size, stride, kernel_size // 2)
+        self.conv = nn.Conv2d(in_channels, out_channels, kernel_size, stride,
+                              dilation * (kernel_size // 2), dilation)
         self.activation = activation
 
     def forward(self, x: Tensor) -> Tensor:

@@ -45,6 +45,7 @@ MOST: Mapping[str, int | float] = MappingProxyType({
     "point_loss_weight": 1000.0,  # 100 x the default: the pose loss it helps is drowned
     "rotation_loss_weight": 1000.0,  # 10,000 x the default: positions would not be learned
     "hue_jitter": 0.5,  # a share of a turn either way: 0.5 already reaches every hue
+    "context_layers": 4,  # dilations 2, 4, 8, 16: past that a 3 x 3 kernel's taps leave the image
 })
 
 
@@ -146,6 +147,11 @@ class KqvConfig:
         hue_jitter: Training images' hues turned by up to this share of a turn either way
             (:attr:`perception.learning.train.TrainConfig.hue_jitter`): for worlds of many
             colourways, where hue names no type. 0 (default): no turn.
+        context_layers: 3 x 3 convolutions of dilation 2, 4, ... added to FCN1 and FCN2 before
+            their last layer (a context module, Yu and Koltun 2016): each Key then sees past an
+            object's edge (receptive field 13 px of a 128 px image at 0, 37 px at 2), so a
+            type can be told by its shape where colours name none. 0 (default): the three
+            layers of the paper's FCNs.
 
     """
 
@@ -178,9 +184,10 @@ class KqvConfig:
     sentence_reading: str = "auto"
     sentence_temperature: float = 0.02
     hue_jitter: float = 0.0
+    context_layers: int = 0
     seed: int = 0
 
-    SINCE: ClassVar[Mapping[str, Any]] = MappingProxyType({"hue_jitter": 0.0})
+    SINCE: ClassVar[Mapping[str, Any]] = MappingProxyType({"hue_jitter": 0.0, "context_layers": 0})
     """Fields added later, at the value that trains as before them: left out of a run's
     identity there, so folders made before them resume (``experiments.tables.model_config``)."""
 
@@ -210,6 +217,7 @@ class KqvConfig:
         if not (math.isfinite(self.start_holdout) and 0 <= self.start_holdout < 1):
             raise InvalidInputError("start_holdout", self.start_holdout, "a fraction in [0, 1)")
         check_number("hue_jitter", self.hue_jitter, 0.0, MOST["hue_jitter"])
+        check_integer("context_layers", self.context_layers, 0, int(MOST["context_layers"]))
         for name in ("rotation_loss_weight", "point_loss_weight"):
             check_number(name, getattr(self, name), 0, MOST[name])
         if self.mirror not in (None, True, False):

@@ -134,14 +134,20 @@ class KqvNet(nn.Module):
         window_px, box_px = focus_px(spec, c)
         self.focus_cells = (round(window_px / self.stride), round(box_px / self.stride))
         self.similarity = c.similarity
+        # KqvConfig.context_layers: dilated 3 x 3 layers before each FCN's last, so a Key sees
+        # an object's outline and not only its colour.
+        dilations = [2 ** (i + 1) for i in range(c.context_layers)]
         self.key_net = nn.Sequential(  # FCN1 with CoordConv: (B, 3, H, W) -> (B, Ck + 2, h, w)
             CoordConv(3, wide1, 5, first),
             CoordConv(wide1 + 2, wide2, 3, second),
+            *(CoordConv(wide2 + 2, wide2, 3, 1, dilation=d) for d in dilations),
             CoordConv(wide2 + 2, key, 3, 1, activation=False),
         )
         self.value_net = nn.Sequential(  # FCN2, own weights: (B, 3, H, W) -> (B, Cv, h, w)
             nn.Conv2d(3, wide1, 5, first, 2), nn.ReLU(),
             nn.Conv2d(wide1, wide2, 3, second, 1), nn.ReLU(),
+            *(layer for d in dilations
+              for layer in (nn.Conv2d(wide2, wide2, 3, 1, d, d), nn.ReLU())),
             nn.Conv2d(wide2, value, 3, 1, 1),
         )
         mode = c.query_mode

@@ -396,3 +396,29 @@ def test_the_ray_readouts_head_reads_where_the_point_is_only_when_asked():
     check_rotations("predicted rotation", target.rotation[None])
     with pytest.raises(InvalidInputError, match="head_coords = 'yes'"):
         KqvConfig(head_coords="yes")
+
+
+@pytest.mark.parametrize(("layers", "reach_px"), [(0, 6), (2, 18)])
+def test_context_layers_let_a_key_see_as_far_as_their_receptive_field(layers, reach_px):
+    # A Key at the image's centre changes with a pixel as far as its receptive field reaches
+    # (13 px wide at 0 context layers: 6 px either side; 37 px at 2: 18 either side) and not
+    # one pixel beyond: the context module is what lets a Key see an object's outline.
+    config = KqvConfig(seed=3, context_layers=layers, stride=2)
+    key_net = KqvModel(spec(), config).network.key_net.eval()
+    image = torch.rand(1, 3, 128, 128, generator=torch.Generator().manual_seed(0))
+
+    def key_changes(offset_px: int) -> bool:
+        moved = image.clone()
+        moved[0, :, 64, 64 + offset_px] += 1.0
+        with torch.no_grad():
+            return bool((key_net(moved) - key_net(image))[0, :, 32, 32].abs().max() > 0)
+
+    assert key_changes(reach_px - 1)
+    assert not key_changes(reach_px + 1)
+
+
+def test_context_layers_are_bounded_and_left_out_of_identities_at_zero():
+    with pytest.raises(InvalidInputError, match=r"context_layers = 5 is not allowed: an integer "
+                                                 r">= 0 and <= 4"):
+        KqvConfig(context_layers=5)
+    assert KqvConfig.SINCE["context_layers"] == KqvConfig().context_layers == 0
