@@ -68,6 +68,9 @@ class GraspVerdict:
         success_rate: The tolerance map's estimate of the chance the pick holds, in [0, 1].
         predicted_success: Whether the judge predicts a success (``success_rate`` >= the
             map's threshold).
+        probability: The chance a real run's pick holds: ``success_rate`` read through the
+            map's calibration (:class:`~perception.grasp_tolerance.PlattScaling`), the rate
+            itself where it has none. Not kept in trial records; the judge reads it again.
 
     """
 
@@ -75,6 +78,7 @@ class GraspVerdict:
     error: GraspError
     success_rate: float
     predicted_success: bool
+    probability: float
 
     def to_record(self) -> dict[str, Any]:
         """The verdict as a trial record's ``judge`` field keeps it."""
@@ -173,6 +177,7 @@ def judge_grasp(spec: ObjectSpec, truth: Pose, predicted: Pose,
         rate = tolerance.success_rate(spec.name, error.closing_m, error.across_m,
                                       error.approach_m, error.yaw_rad)
         if best is None or rate > best.success_rate:
-            best = GraspVerdict(spec.name, error, rate, rate >= tolerance.threshold)
+            best = GraspVerdict(spec.name, error, rate, rate >= tolerance.threshold,
+                                tolerance.probability(rate))
     assert best is not None  # equivalent_truths gives the truth at least
     return best

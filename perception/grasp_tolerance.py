@@ -17,6 +17,10 @@ That is the ``"product"`` reading. A map that also holds picks with every error 
 every pick of the type (the grid's cells and the joint picks), which sees what the product
 cannot: two errors that each hold alone and miss together. Which reading a map takes is the
 map's ``reading``; why: docs/decisions/grasp-judge.md.
+
+A map may also carry a ``calibration`` (:class:`PlattScaling`), fitted on the picks of real
+runs: it reads the map's chance as the probability that such a pick holds, keeping its order,
+so every verdict stays what it was.
 """
 
 from __future__ import annotations
@@ -47,6 +51,9 @@ FEATURE_SCALE = (10.0, 10.0, 10.0, 30.0)
 """Units of the logistic reading's errors: closing, across, approach [mm], turn [deg]."""
 L2_PENALTY = 1e-2
 """The logistic fit's ridge on every weight but the constant (keeps a clean grid finite)."""
+RATE_CLIP = 1e-4
+"""A chance is read as at least this and at most 1 minus it before its logit (the map's edges
+give 0 and 1; a pick is never certain)."""
 
 
 class ToleranceFileError(FileError):
@@ -107,6 +114,8 @@ class ToleranceMap:
         reading: ``"product"`` or ``"logistic"`` (the module docstring).
         fitted: The logistic reading per type, fitted when the map is built; None for the
             product reading.
+        calibration: How a real run's pick reads the map's chance as a probability
+            (:meth:`probability`); None: as it is.
 
     """
 
@@ -115,6 +124,14 @@ class ToleranceMap:
     provenance: MappingProxyType[str, Any]
     reading: str = "product"
     fitted: MappingProxyType[str, LogisticTolerance] | None = None
+    calibration: PlattScaling | None = None
+
+    def probability(self, rate: float) -> float:
+        """The chance a real run's pick holds, given the map's ``rate`` for it.
+
+        The map's own rate where it carries no calibration.
+        """
+        return rate if self.calibration is None else self.calibration(rate)
 
     @property
     def object_types(self) -> tuple[str, ...]:
@@ -176,8 +193,10 @@ class ToleranceMap:
         if reading == "logistic":
             fitted = MappingProxyType({t: LogisticTolerance.fit(*type_picks(entry))
                                        for t, entry in data["types"].items()})
+        calibration = data.get("calibration")
         return cls(MappingProxyType(types), threshold, MappingProxyType(data.get("how", {})),
-                   reading, fitted)
+                   reading, fitted,
+                   None if calibration is None else PlattScaling.from_json(calibration))
 
     @classmethod
     def load(cls, path: Path) -> ToleranceMap:
@@ -208,6 +227,71 @@ def quadratic_features(errors: np.ndarray) -> np.ndarray:
 def sigmoid(z: np.ndarray) -> np.ndarray:
     """``1 / (1 + exp(-z))``, without overflow far from the boundary."""
     return np.exp(-np.logaddexp(0.0, -z))
+
+
+def logit(rate: np.ndarray) -> np.ndarray:
+    """``log(r / (1 - r))`` of rates clipped to [:data:`RATE_CLIP`, 1 - :data:`RATE_CLIP`]."""
+    clipped = np.clip(rate, RATE_CLIP, 1.0 - RATE_CLIP)
+    return np.log(clipped / (1.0 - clipped))
+
+
+@dataclass(frozen=True)
+class PlattScaling:
+    """The map's chance read as a real pick's probability: ``σ(slope · logit(r) + offset)``.
+
+    The map is measured on oracle picks moved one error at a time (and some at once); a
+    trained model's picks err in every way at once, and the map's chance is not their rate
+    (issue 63: 43 misses expected where 30 happened). Scaling fitted on real runs' picks
+    (Platt 1999) maps it onto their rate and keeps its order, so no verdict changes.
+
+    Attributes:
+        slope, offset: The fitted scaling of the logit.
+        fitted_on: Which runs and picks it was fitted on, and how (command, commit, date).
+
+    """
+
+    slope: float
+    offset: float
+    fitted_on: MappingProxyType[str, Any]
+
+    def __call__(self, rate: float) -> float:
+        """The probability for the map's ``rate``; 0 stays 0 (no grasp was given)."""
+        if rate <= 0.0:
+            return 0.0
+        return float(sigmoid(self.slope * logit(np.array(rate)) + self.offset))
+
+    @classmethod
+    def fit(cls, rates: np.ndarray, held: np.ndarray, fitted_on: dict[str, Any]
+            ) -> PlattScaling:
+        """Maximum likelihood of ``held`` (n,) bool given the map's ``rates`` (n,) > 0.
+
+        Newton's method on two parameters, started at no change (slope 1, offset 0).
+        """
+        features = np.stack([logit(rates), np.ones(len(rates))], axis=1)  # (n, 2)
+        outcome = np.asarray(held, dtype=float)
+        weights = np.array([1.0, 0.0])
+        for _ in range(50):
+            p = sigmoid(features @ weights)
+            gradient = features.T @ (outcome - p)
+            hessian = (features * (p * (1 - p))[:, None]).T @ features + 1e-9 * np.eye(2)
+            step = np.linalg.solve(hessian, gradient)
+            weights = weights + step
+            if np.abs(step).max() < 1e-10:
+                break
+        return cls(float(weights[0]), float(weights[1]), MappingProxyType(dict(fitted_on)))
+
+    def to_json(self) -> dict[str, Any]:
+        """The scaling as ``grasp_tolerance.json``'s ``calibration`` keeps it."""
+        return {"slope": self.slope, "offset": self.offset, "fitted_on": dict(self.fitted_on)}
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> PlattScaling:
+        """Reads :meth:`to_json`'s form; a slope must be positive (the order kept)."""
+        slope, offset = float(data["slope"]), float(data["offset"])
+        if not (math.isfinite(slope) and slope > 0 and math.isfinite(offset)):
+            raise InvalidInputError("calibration", {"slope": slope, "offset": offset},
+                                    "a finite slope > 0 and a finite offset")
+        return cls(slope, offset, MappingProxyType(dict(data.get("fitted_on", {}))))
 
 
 @dataclass(frozen=True)

@@ -61,6 +61,12 @@ def print_report(judgement: RunJudgement) -> None:
         print(f"  {object_type:<13} {counts.line()}")
     calibration = judgement.calibration
     if calibration is not None:
+        scaling = judgement.probability_scaling
+        print("probabilities: the map's chance " + (
+            "as it is (the map carries no calibration)" if scaling is None else
+            f"through its calibration (slope {scaling['slope']:.3f}, offset "
+            f"{scaling['offset']:+.3f}), fitted on "
+            f"{scaling['fitted_on'].get('runs', 'runs it does not name')}"))
         print(f"as a probability: {calibration.line()}")
         print("  reliability: " + "; ".join(
             f"p {b.low:.1f}-{b.high:.1f}: {b.picks} picks, held {100 * b.observed_rate:.0f} %"

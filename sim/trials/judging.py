@@ -111,8 +111,8 @@ class JudgedPick:
 
     @property
     def probability(self) -> float:
-        """The judge's probability that the pick holds; 0 where the model gave no grasp."""
-        return 0.0 if self.verdict is None else self.verdict.success_rate
+        """The judge's probability that the pick holds (the map's calibrated chance), or 0."""
+        return 0.0 if self.verdict is None else self.verdict.probability
 
 
 def judged_picks(record: TrialRecord, tolerance: ToleranceMap | None = None
@@ -169,6 +169,7 @@ class RunJudgement:
     tolerance_map: dict[str, Any]
     calibration: Calibration | None = None
     probabilities: tuple[dict[str, Any], ...] = ()
+    probability_scaling: dict[str, Any] | None = None  # the map's PlattScaling, as its JSON
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready, as ``gva judge --json`` writes it."""
@@ -234,7 +235,8 @@ def judge_run(run: Path, tolerance: ToleranceMap | None = None) -> RunJudgement:
     calibration = Calibration.of([(p.probability, p.picked) for p in every]) if every else None
     return RunJudgement(tuple(sets), pick_counts(every), _per_object(every), tuple(misses),
                         tuple(alarms), dict(tolerance.provenance), calibration,
-                        tuple(probabilities))
+                        tuple(probabilities),
+                        None if tolerance.calibration is None else tolerance.calibration.to_json())
 
 
 def _per_object(picks: Sequence[JudgedPick]) -> dict[str, PickCounts]:
