@@ -256,8 +256,9 @@ class PerceptionModel(abc.ABC):
 
     name: ClassVar[str]
     label_kind: LabelKind  # per instance where one class serves both kinds (kqv)
-    inputs: ClassVar[frozenset[ModelInput]] = frozenset({ModelInput.RGB})
-    """What the model reads; a run checks it can give them before the first prediction."""
+    inputs: frozenset[ModelInput] = frozenset({ModelInput.RGB})
+    """What the model reads; a run checks it can give them before the first prediction. A class
+    attribute, or an instance's where its settings decide (a kqv model with ``depth_input``)."""
     attention_per_target: ClassVar[bool] = True
     """Whether attention head k looks for target k (kqv's Queries; a detector's points), where
     a prediction has as many heads as targets. False for heads tied to no target (a key-point

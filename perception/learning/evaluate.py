@@ -117,26 +117,33 @@ class EvaluationResult:
 
 
 OFFLINE_INPUTS = frozenset({ModelInput.RGB})
-"""What offline evaluation gives a model: a dataset's colour images."""
+"""What offline evaluation gives every model: a dataset's colour images (and a learnable
+model, their depth where the dataset keeps it)."""
 
 
 def predict_dataset(model: PerceptionModel, dataset: Dataset, batch_size: int = 32
                     ) -> list[Prediction]:
     """Every sample's prediction, batched for a :class:`LearnableModel`, one by one otherwise.
 
-    A dataset holds colour images: a model that reads depth or the camera is refused (one
-    line, before any prediction); it is measured in trials.
+    A dataset holds colour images, and depth images where its collector kept them: a model
+    that reads what the dataset lacks (or the camera) is refused (one line, before any
+    prediction); it is measured in trials.
     """
     if not isinstance(batch_size, int) or batch_size < 1:
         raise InvalidInputError("batch_size", batch_size, "an integer >= 1")
-    check_inputs(model, OFFLINE_INPUTS, getattr(model, "name", type(model).__name__))
+    learnable = isinstance(model, LearnableModel)
+    depths = dataset.depths_m if learnable and ModelInput.DEPTH in model.inputs else None
+    check_inputs(model, OFFLINE_INPUTS | ({ModelInput.DEPTH} if dataset.depths_m is not None
+                                          and learnable else set()),
+                 getattr(model, "name", type(model).__name__))
     if isinstance(model, LearnableModel):
         return [prediction for start in range(0, len(dataset), batch_size)
                 for prediction in model.predict_batch(
                     dataset.images[start:start + batch_size], model.condition_rows(
                         [dataset.condition(i) for i in range(start, min(start + batch_size,
                                                                          len(dataset)))],
-                        dataset.conditions[start:start + batch_size]))]
+                        dataset.conditions[start:start + batch_size]),
+                    None if depths is None else depths[start:start + batch_size])]
     return [model.predict(image, dataset.condition(index))
             for index, image in enumerate(dataset.images)]
 

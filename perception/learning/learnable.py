@@ -23,13 +23,14 @@ from typing import TYPE_CHECKING, Any, Self
 
 import numpy as np
 
-from perception.camera import PinholeCamera
+from perception.camera import PinholeCamera, RgbdFrame
 from perception.interface import (
     NO_CONDITION,
     Condition,
     ConditionKind,
     InvalidInputError,
     LabelKind,
+    ModelInput,
     PerceptionModel,
     Prediction,
     check_image,
@@ -196,8 +197,20 @@ class LearnableModel(PerceptionModel):
     spec: ModelSpec
 
     @abc.abstractmethod
-    def predict_batch(self, images: np.ndarray, conditions: np.ndarray) -> list[Prediction]:
-        """Predictions for uint8 images (B, H, W, 3) and condition vectors (B, C), in order."""
+    def predict_batch(self, images: np.ndarray, conditions: np.ndarray,
+                      depths_m: np.ndarray | None = None) -> list[Prediction]:
+        """Predictions for uint8 images (B, H, W, 3) and condition vectors (B, C), in order.
+
+        ``depths_m`` (B, H, W) [m]: each image's depth, for a model whose ``inputs`` name
+        :attr:`ModelInput.DEPTH` (others ignore it).
+        """
+
+    def predict_frame(self, frame: RgbdFrame, condition: Condition = NO_CONDITION
+                      ) -> Prediction:
+        """Predicts from a trial's frame: its colour image, and its depth where ``inputs`` say."""
+        if ModelInput.DEPTH not in self.inputs:
+            return self.predict(frame.rgb, condition)
+        return self._predict_one(frame.rgb, condition, frame.depth_m[None])
 
     @abc.abstractmethod
     def fit(self, dataset: Dataset, config: TrainConfig, progress: bool = True) -> TrainReport:
@@ -214,6 +227,11 @@ class LearnableModel(PerceptionModel):
 
     def predict(self, image: np.ndarray, condition: Condition = NO_CONDITION) -> Prediction:
         """Predicts the targets in one uint8 (H, W, 3) image under ``condition``."""
+        return self._predict_one(image, condition, None)
+
+    def _predict_one(self, image: np.ndarray, condition: Condition,
+                     depths_m: np.ndarray | None) -> Prediction:
+        """:meth:`predict`'s checks and batch of one, with the image's depth (1, H, W) or None."""
         spec = self.spec
         check_image(image, (spec.image_height_px, spec.image_width_px, 3))
         wanted = spec.condition_choices if spec.condition_kind.one_hot else ()
@@ -221,8 +239,8 @@ class LearnableModel(PerceptionModel):
             over = f" over ({', '.join(wanted)})" if wanted else ""
             raise InvalidInputError("condition", f"{condition.kind.value} {condition.choices}",
                                     f"a {spec.condition_kind.value} condition{over}")
-        return self.predict_batch(image[None], self.condition_rows([condition],
-                                                                   condition.vector()[None]))[0]
+        rows = self.condition_rows([condition], condition.vector()[None])
+        return self.predict_batch(image[None], rows, depths_m)[0]
 
     def condition_rows(self, conditions: Sequence[Condition], rows: np.ndarray) -> np.ndarray:
         """The condition vectors (B, C) :meth:`predict_batch` is given for ``conditions``.

@@ -103,4 +103,9 @@ class Mirror:
             conditions[flip] = rows[self.swap.to(conditions.device)[named]]
         elif self.swap is not None:
             conditions[flip] = conditions[flip][:, self.swap.to(conditions.device)]
-        return batch._replace(images=images, conditions=conditions, labels=labels)  # types stay
+        depths = batch.depths_m
+        if depths is not None:  # the depth image flips with the colour one
+            depths = depths.clone()
+            depths[flip] = depths[flip][..., self.columns.to(depths.device)]  # (b, H, W)
+        return batch._replace(images=images, conditions=conditions, labels=labels,
+                              depths_m=depths)  # types stay

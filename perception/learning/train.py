@@ -126,6 +126,8 @@ class Batch(NamedTuple):
     # object_types (Dataset.target_type_indices), -1 unknown; None: not given
     present: Tensor | None = None  # (B, q) bool: the target is in the image
     # (Dataset.target_present); None: every target is
+    depths_m: Tensor | None = None  # (B, H, W) float32 depth [m] of each image (0 or inf:
+    # none), where the dataset keeps it (Dataset.depths_m); None where it does not
 
 
 class PhaseSummary(NamedTuple):
@@ -290,6 +292,7 @@ def train(
     labels = torch.from_numpy(dataset.labels).to(device)  # (N, q, D)
     type_indices = torch.from_numpy(dataset.target_type_indices()).to(device)  # (N, q)
     present = torch.from_numpy(dataset.target_present()).to(device)  # (N, q)
+    depths = None if dataset.depths_m is None else torch.from_numpy(dataset.depths_m)  # (N, H, W)
     losses: list[tuple[int, float]] = []
     window: list[float] = []
     started = time.perf_counter()
@@ -306,7 +309,8 @@ def train(
                 noise = torch.randn(asked.shape, generator=generator).to(device)
                 asked = nn.functional.normalize(asked + config.sentence_noise * noise, dim=1)
             loss = batch_loss(Batch(images, asked, labels[index], type_indices[index],
-                                    present[index]))
+                                    present[index],
+                                    None if depths is None else depths[index].to(device)))
             if not torch.isfinite(loss):
                 raise TrainingError(f"{description}: the loss became {loss.item()} at step "
                                     f"{step}; try a lower learning_rate (now "

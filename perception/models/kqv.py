@@ -17,9 +17,16 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from perception.interface import Condition, ConditionKind, InvalidInputError, Prediction
+from perception.interface import (
+    Condition,
+    ConditionKind,
+    InvalidInputError,
+    ModelInput,
+    Prediction,
+)
 from perception.learning.data import Dataset
 from perception.learning.evaluate import evaluate
+from perception.learning.learnable import ModelSpec
 from perception.learning.mirror import MIRROR_FLAG, Mirror
 from perception.learning.train import Batch, TrainConfig, TrainReport, train
 from perception.learning.validation import split_scenes
@@ -43,6 +50,12 @@ class KqvModel(TorchModel):
     config_class = KqvConfig
     config: KqvConfig
     network: KqvNet
+
+    def __init__(self, spec: ModelSpec, config: KqvConfig | None = None,
+                 scaler: LabelScaler | None = None) -> None:
+        super().__init__(spec, config, scaler)
+        if self.config.depth_input:  # a trial gives it the frame's depth too
+            self.inputs = frozenset({ModelInput.RGB, ModelInput.DEPTH})
 
     def build_network(self) -> KqvNet:
         """The Key, Value, Query and head networks for this spec."""
@@ -94,6 +107,10 @@ class KqvModel(TorchModel):
         stays the targets'. A dataset that names no target's type trains no type phase.
         """
         config = config or TrainConfig()
+        if self.config.depth_input and dataset.depths_m is None:
+            raise InvalidInputError("depth_input", True, "false for a dataset without depth "
+                                    "images (the paper-sim scene's, or one made before depth "
+                                    "was kept)")
         if self.config.hue_jitter:  # the model's setting reaches the training loop
             config = replace(config, hue_jitter=self.config.hue_jitter)
         fresh = self.scaler is None  # a first fit may try several starts; a later one not
@@ -263,7 +280,7 @@ class KqvModel(TorchModel):
         self._steps_taken += 1
         if self._mirror is not None:
             batch = self._mirror(batch)
-        out = self.network(batch.images, batch.conditions)
+        out = self.network(batch.images, batch.conditions, depths_m=batch.depths_m)
         loss = self.target_loss(out, batch.labels, batch.present)
         camera = self.network.seen
         if camera is not None and c.point_loss_weight > 0 and out.points is not None:
@@ -287,7 +304,8 @@ class KqvModel(TorchModel):
                                     "a network with a type head and a batch with type_indices")
         with torch.no_grad():  # the pose network stays as the pose training left it
             queries = self.network.queries(batch.conditions)  # (B, q, Ck + 2)
-            features = self.network.attend(batch.images, queries).features  # (B, q, Cv)
+            features = self.network.attend(batch.images, queries,
+                                           batch.depths_m).features  # (B, q, Cv)
         logits = head(features)  # (B, q, T)
         known = indices >= 0  # (B, q)
         if not known.any():
@@ -296,18 +314,31 @@ class KqvModel(TorchModel):
 
     @torch.no_grad()
     def predict_batch(self, images: np.ndarray, conditions: np.ndarray,
-                      queries: np.ndarray | None = None) -> list[Prediction]:
+                      depths_m: np.ndarray | None = None, queries: np.ndarray | None = None
+                      ) -> list[Prediction]:
         """Predictions for uint8 images (B, H, W, 3) and conditions (B, C).
 
-        ``queries`` (B, q, Ck + 2), when given, replaces the learned Queries (top-down control
-        from outside; see :meth:`queries` for the learned ones).
+        ``depths_m`` (B, H, W) [m]: the images' depth, which a model with
+        :attr:`KqvConfig.depth_input` needs (others ignore it). ``queries`` (B, q, Ck + 2),
+        when given, replaces the learned Queries (top-down control from outside; see
+        :meth:`queries` for the learned ones).
         """
-        if queries is None:
-            return super().predict_batch(images, conditions)
         self.check_batch(images, conditions)
-        given = self._check_queries(queries, len(images))
-        out = self.network(images_to_tensor(images), torch.as_tensor(conditions).float(), given)
+        given = None if queries is None else self._check_queries(queries, len(images))
+        out = self.network(images_to_tensor(images), torch.as_tensor(conditions).float(), given,
+                           self._depths(depths_m, len(images)))
         return self.to_predictions(out, conditions)
+
+    def _depths(self, depths_m: np.ndarray | None, batch: int) -> Tensor | None:
+        """The depth images a depth-reading network is given, checked; None for the others."""
+        if not self.config.depth_input:
+            return None
+        shape = (batch, self.spec.image_height_px, self.spec.image_width_px)
+        if depths_m is None or np.shape(depths_m) != shape:
+            raise InvalidInputError("depths_m", None if depths_m is None else
+                                    f"shape {np.shape(depths_m)}", f"depth images of shape "
+                                    f"{shape} [m], for a kqv model with depth_input = true")
+        return torch.as_tensor(np.asarray(depths_m, dtype=np.float32))
 
     def read_with(self, **settings: Any) -> KqvModel:
         """The same trained weights read under other inference settings (:data:`INFERENCE_FIELDS`).
@@ -350,15 +381,18 @@ class KqvModel(TorchModel):
         return self.network.sentence_weights(rows).numpy()
 
     @torch.no_grad()
-    def attend(self, images: np.ndarray, queries: np.ndarray) -> dict[str, np.ndarray]:
+    def attend(self, images: np.ndarray, queries: np.ndarray,
+               depths_m: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """Attention of uint8 images (B, H, W, 3) under any Queries (B, q', Ck + 2).
 
         Returns ``points_px`` (B, q', 2) (u right, v down), ``heatmaps`` (B, q', h, w) and
-        ``features`` (B, q', Cv): where each Query looks and what it sees there.
+        ``features`` (B, q', Cv): where each Query looks and what it sees there. ``depths_m``
+        as :meth:`predict_batch` takes it.
         """
         self.check_batch(images, np.zeros((len(images), self.spec.condition_size)))
         attention = self.network.attend(images_to_tensor(images),
-                                        self._check_queries(queries, len(images), any_q=True))
+                                        self._check_queries(queries, len(images), any_q=True),
+                                        self._depths(depths_m, len(images)))
         points = normalised_to_pixels(attention.coords, self.spec.image_height_px,
                                       self.spec.image_width_px)
         return {"points_px": points.double().numpy(), "heatmaps": attention.heatmaps.numpy(),

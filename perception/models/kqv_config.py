@@ -152,6 +152,10 @@ class KqvConfig:
             object's edge (receptive field 13 px of a 128 px image at 0, 37 px at 2), so a
             type can be told by its shape where colours name none. 0 (default): the three
             layers of the paper's FCNs.
+        depth_input: Whether FCN1 and FCN2 also read each pixel's rise above the table, from
+            the depth image (:mod:`perception.models.rise`): the objects' shapes whatever their
+            colours and prints. The model then reads a frame's depth (datasets without depth
+            are refused). False (default): the colour image alone, as the paper.
 
     """
 
@@ -185,9 +189,11 @@ class KqvConfig:
     sentence_temperature: float = 0.02
     hue_jitter: float = 0.0
     context_layers: int = 0
+    depth_input: bool = False
     seed: int = 0
 
-    SINCE: ClassVar[Mapping[str, Any]] = MappingProxyType({"hue_jitter": 0.0, "context_layers": 0})
+    SINCE: ClassVar[Mapping[str, Any]] = MappingProxyType({"hue_jitter": 0.0, "context_layers": 0,
+                                                       "depth_input": False})
     """Fields added later, at the value that trains as before them: left out of a run's
     identity there, so folders made before them resume (``experiments.tables.model_config``)."""
 
@@ -225,6 +231,8 @@ class KqvConfig:
         for name in ("head_features", "type_head"):
             if getattr(self, name) not in (None, True, False):
                 raise InvalidInputError(name, getattr(self, name), "None, True or False")
+        if not isinstance(self.depth_input, bool):
+            raise InvalidInputError("depth_input", self.depth_input, "True or False")
         if self.head_coords not in (True, False):
             raise InvalidInputError("head_coords", self.head_coords, "True or False")
         if not isinstance(self.seed, int) or self.seed < 0:

@@ -31,6 +31,7 @@ from perception.models.base import (
 )
 from perception.models.kqv_config import KqvConfig
 from perception.models.readout import CameraRays
+from perception.models.rise import RISE_SCALE_M, rise_above_table
 from perception.models.rotations import decode_rotation, rotation_size
 from perception.models.torch_model import NetOutput
 from perception.sentence_reading import TokenReader
@@ -137,14 +138,16 @@ class KqvNet(nn.Module):
         # KqvConfig.context_layers: dilated 3 x 3 layers before each FCN's last, so a Key sees
         # an object's outline and not only its colour.
         dilations = [2 ** (i + 1) for i in range(c.context_layers)]
+        self.depth_input = c.depth_input  # a fourth input channel: the rise above the table
+        colours = 4 if self.depth_input else 3
         self.key_net = nn.Sequential(  # FCN1 with CoordConv: (B, 3, H, W) -> (B, Ck + 2, h, w)
-            CoordConv(3, wide1, 5, first),
+            CoordConv(colours, wide1, 5, first),
             CoordConv(wide1 + 2, wide2, 3, second),
             *(CoordConv(wide2 + 2, wide2, 3, 1, dilation=d) for d in dilations),
             CoordConv(wide2 + 2, key, 3, 1, activation=False),
         )
         self.value_net = nn.Sequential(  # FCN2, own weights: (B, 3, H, W) -> (B, Cv, h, w)
-            nn.Conv2d(3, wide1, 5, first, 2), nn.ReLU(),
+            nn.Conv2d(colours, wide1, 5, first, 2), nn.ReLU(),
             nn.Conv2d(wide1, wide2, 3, second, 1), nn.ReLU(),
             *(layer for d in dilations
               for layer in (nn.Conv2d(wide2, wide2, 3, 1, d, d), nn.ReLU())),
@@ -271,13 +274,21 @@ class KqvNet(nn.Module):
         cosines = unit(embeddings, dim=-1) @ unit(self.prototypes, dim=-1).T  # (B, k)
         return torch.softmax(cosines / self.sentence_temperature, dim=-1)
 
-    def attend(self, images: Tensor, queries: Tensor) -> Attention:
+    def attend(self, images: Tensor, queries: Tensor, depths_m: Tensor | None = None
+               ) -> Attention:
         """Selection and extraction: images (B, 3, H, W) in [0, 1], queries (B, q', Ck + 2).
 
         At inference each heatmap is first focused on its densest part (``focus_window_px``);
-        the returned heatmaps are the ones read.
+        the returned heatmaps are the ones read. ``depths_m`` (B, H, W): the images' depth,
+        which a network built with ``depth_input`` reads (and needs).
         """
         x = normalise_images(images, self.per_image)  # (B, 3, H, W)
+        if self.depth_input:
+            if depths_m is None:
+                raise InvalidInputError("depth", None, "each image's depth, for a kqv model "
+                                        "with depth_input = true")
+            rise = rise_above_table(depths_m.to(images)) / RISE_SCALE_M  # (B, H, W)
+            x = torch.cat([x, rise[:, None]], dim=1)  # (B, 4, H, W)
         keys = self.key_net(x)  # (B, Ck + 2, h, w)
         values = self.value_net(x)  # (B, Cv, h, w)
         height, width = keys.shape[-2:]
@@ -294,10 +305,14 @@ class KqvNet(nn.Module):
         return Attention(heatmaps, spatial_expectation(heatmaps, grid),  # (B, q', 2)
                          spatial_expectation(heatmaps, values))  # (B, q', Cv)
 
-    def forward(self, images: Tensor, conditions: Tensor, queries: Tensor | None = None
-                ) -> NetOutput:
-        """Targets for images (B, 3, H, W) in [0, 1] under conditions (B, C) (or given Queries)."""
-        attention = self.attend(images, self.queries(conditions) if queries is None else queries)
+    def forward(self, images: Tensor, conditions: Tensor, queries: Tensor | None = None,
+                depths_m: Tensor | None = None) -> NetOutput:
+        """Targets for images (B, 3, H, W) in [0, 1] under conditions (B, C) (or given Queries).
+
+        ``depths_m`` (B, H, W): as :meth:`attend` reads it.
+        """
+        attention = self.attend(images, self.queries(conditions) if queries is None else queries,
+                                depths_m)
         batch, heads = attention.coords.shape[:2]
         parts = [attention.coords] if self.head_coords else []  # (B, q, 2)
         if self.head_features:

@@ -192,8 +192,12 @@ class TorchModel(LearnableModel):
     # predicting
 
     @torch.no_grad()
-    def predict_batch(self, images: np.ndarray, conditions: np.ndarray) -> list[Prediction]:
-        """Predictions for uint8 images (B, H, W, 3) and condition vectors (B, C), in order."""
+    def predict_batch(self, images: np.ndarray, conditions: np.ndarray,
+                      depths_m: np.ndarray | None = None) -> list[Prediction]:
+        """Predictions for uint8 images (B, H, W, 3) and condition vectors (B, C), in order.
+
+        ``depths_m``: ignored; a network that reads depth (kqv's) is given it by its model.
+        """
         self.check_batch(images, conditions)
         out = self.network(images_to_tensor(images), torch.as_tensor(conditions).float())
         return self.to_predictions(out, conditions)

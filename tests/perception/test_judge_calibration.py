@@ -1,4 +1,4 @@
-"""The judge's probability calibration: a Platt scaling of its map's chance, fitted on real picks."""
+"""The judge's probability calibration: a Platt scaling of its map's chance, fitted on picks."""
 
 from __future__ import annotations
 

@@ -64,6 +64,17 @@ def test_half_the_samples_are_mirrored_and_a_side_condition_swaps():
     assert torch.equal(mirrored.images[~flipped], batch.images[~flipped])
 
 
+def test_the_depth_image_is_mirrored_with_the_colour_image():
+    dataset = synthetic_dataset(16, kind=LabelKind.POSITION, seed=9, camera=CAMERA)
+    colour = batch_of(dataset)
+    depths = colour.images.mean(dim=1)  # (B, H, W): a depth image shaped like the colour one
+    mirrored = Mirror(ModelSpec.from_metadata(dataset.metadata), seed=3)(
+        colour._replace(depths_m=depths))
+    assert mirrored.depths_m is not None
+    assert torch.equal(mirrored.depths_m, mirrored.images.mean(dim=1))  # flipped as one
+    assert not torch.equal(mirrored.depths_m, depths)  # and some were flipped
+
+
 def test_a_sentence_naming_a_side_is_swapped_by_the_row_of_the_side_it_names():
     """A sentence task trains each sentence as its named side's row (kqv's unit prototypes): a
     mirrored sample gets the other side's row, as a one-hot side gets the other entry."""
@@ -116,9 +127,9 @@ def test_kqv_mirrors_samples_when_told_or_when_the_dataset_allows_it(mirror, fla
     seen = []
     original = model.network.forward
 
-    def recording(images, conditions, queries=None):
+    def recording(images, conditions, queries=None, depths_m=None):
         seen.append(images.clone())
-        return original(images, conditions, queries)
+        return original(images, conditions, queries, depths_m)
 
     model.network.forward = recording  # type: ignore[method-assign]
     model.fit(dataset, TrainConfig(steps=3, batch_size=8, augment=False, threads=1),

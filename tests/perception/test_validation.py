@@ -48,7 +48,8 @@ class LookupModel(LearnableModel):
         self.fitted_on = dataset
         return TrainReport(1, len(dataset), 0.0, ((1, 0.0),), 0.0, 1, config)
 
-    def predict_batch(self, images: np.ndarray, conditions: np.ndarray) -> list[Prediction]:
+    def predict_batch(self, images: np.ndarray, conditions: np.ndarray,
+                      depths_m: np.ndarray | None = None) -> list[Prediction]:
         predictions = []
         for image, condition in zip(images, conditions, strict=True):
             n = next(i for i in range(len(self.truth))
