@@ -317,7 +317,7 @@ def main() -> None:
     parser.add_argument("--reading", choices=READINGS, default="product",
                         help="how the judge reads the map (product: the grid alone; logistic: "
                         "fitted to every pick, which needs --joint); see "
-                        "benchmarks/check_tolerance_reading.py")
+                        "studies/check_tolerance_reading.py")
     args = parser.parse_args()
     kept = {} if args.extend is None else kept_results(args.extend, args.n)
     todo = [c for c in cells(args.n)

@@ -1,7 +1,7 @@
-"""Loads a script of ``benchmarks/`` as a module, for the tests that run it.
+"""Loads a script of ``benchmarks/`` or ``studies/`` as a module, for the tests that run it.
 
-Benchmarks are scripts, not a package: the script's folder goes on the path (a script may
-import a sibling) and the module into ``sys.modules`` (its dataclasses look their module up).
+Benchmarks and studies are scripts, not packages: the script's folder goes on the path (a script
+may import a sibling) and the module into ``sys.modules`` (its dataclasses look their module up).
 """
 
 from __future__ import annotations
@@ -11,16 +11,28 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
-BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+ROOT = Path(__file__).resolve().parents[1]
+BENCHMARKS = ROOT / "benchmarks"
+STUDIES = ROOT / "studies"
 
 
-def load_benchmark(name: str) -> ModuleType:
-    """``benchmarks/<name>.py`` as the module ``name``."""
-    if str(BENCHMARKS) not in sys.path:
-        sys.path.insert(0, str(BENCHMARKS))
-    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
+def _load_script(folder: Path, name: str) -> ModuleType:
+    """``folder/<name>.py`` as the module ``name``."""
+    if str(folder) not in sys.path:
+        sys.path.insert(0, str(folder))
+    spec = importlib.util.spec_from_file_location(name, folder / f"{name}.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
     spec.loader.exec_module(module)
     return module
+
+
+def load_benchmark(name: str) -> ModuleType:
+    """``benchmarks/<name>.py`` as the module ``name``."""
+    return _load_script(BENCHMARKS, name)
+
+
+def load_study(name: str) -> ModuleType:
+    """``studies/<name>.py`` as the module ``name``."""
+    return _load_script(STUDIES, name)

@@ -28,9 +28,10 @@ ALLOWED: Mapping[str, frozenset[str]] = {
     "perception": frozenset({"perception", "robots"}),
     "sim": frozenset({"sim", "control", "perception", "robots"}),
     "experiments": frozenset({"experiments", "sim", "control", "perception", "robots"}),
-    # Importers only: an example runs as it stands; nothing imports a benchmark.
+    # Importers only: an example runs as it stands; nothing imports a benchmark or a study.
     "examples": frozenset({"experiments", "sim", "control", "perception", "robots"}),
     "benchmarks": frozenset({"experiments", "sim", "control", "perception", "robots"}),
+    "studies": frozenset({"experiments", "sim", "control", "perception", "robots"}),
 }
 
 # Outside libraries a package may not import. docs/design.md: control is pure math, "no simulator,

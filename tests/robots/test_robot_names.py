@@ -11,7 +11,7 @@ import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-CHECKED = ("control", "perception", "sim", "experiments", "benchmarks", "examples")
+CHECKED = ("control", "perception", "sim", "experiments", "benchmarks", "studies", "examples")
 YUMI_NAME = re.compile(r"yumi_(joint|link|body)|gripper_[rl]_(joint|base|tcp|finger)")
 
 

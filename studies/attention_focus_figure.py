@@ -1,6 +1,6 @@
 """The look-alike block's pull on ``kqv``'s attention, before and after the focus (issue 49).
 
-    python benchmarks/attention_focus_figure.py --model RUN/s11/checkpoints/kqv/single \
+    python studies/attention_focus_figure.py --model RUN/s11/checkpoints/kqv/single \
         --data TESTS/d435/s11/datasets/single-distractor-test-30-s11.gva [--count 3] \
         [--min-error-cm 2] [--out docs/figures/distractor_focus.png]
 

@@ -1,11 +1,11 @@
-"""benchmarks/check_type_head_picks.py replays a run's trials, and only the types change."""
+"""studies/check_type_head_picks.py replays a run's trials, and only the types change."""
 
 from __future__ import annotations
 
 import json
 
 import numpy as np
-from benchmark_scripts import load_benchmark
+from benchmark_scripts import load_study
 from gva_cli import gva
 
 from perception.interface import Prediction, Target
@@ -19,7 +19,7 @@ class _Typed:
 
 
 def test_untyped_keeps_the_grasp_and_drops_the_type():
-    check = load_benchmark("check_type_head_picks")
+    check = load_study("check_type_head_picks")
     model = check.Untyped(_Typed())
     (target,) = model.predict_frame(None, None).targets
     assert target.object_type is None and model.name == "typed"
@@ -27,7 +27,7 @@ def test_untyped_keeps_the_grasp_and_drops_the_type():
 
 
 def test_a_replay_with_the_types_is_the_run_and_without_them_is_paired(tmp_path):
-    check = load_benchmark("check_type_head_picks")
+    check = load_study("check_type_head_picks")
     run = tmp_path / "run"
     status, _, stderr = gva("reproduce", "real", "--out", run, "--tasks", "single", "--demos",
                             "2", "--n", "2", "--steps", "3", "--workers", "1", "--holdout",

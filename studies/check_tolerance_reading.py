@@ -1,6 +1,6 @@
 """Which reading of the tolerance map predicts picks it has not seen? Cross-validated on physics.
 
-    python benchmarks/check_tolerance_reading.py [--map perception/grasp_tolerance.json]
+    python studies/check_tolerance_reading.py [--map perception/grasp_tolerance.json]
         [--folds 5] [--out benchmarks/results/tolerance_reading.json]
 
 The joint picks of a map (every error at once, ``bench_grasp_tolerance.py --joint``) are split

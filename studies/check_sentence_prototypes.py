@@ -1,6 +1,6 @@
 """How well the frozen sentence encoder alone tells a text task's test phrasings apart.
 
-    python benchmarks/check_sentence_prototypes.py [--out FILE]
+    python studies/check_sentence_prototypes.py [--out FILE]
 
 (default ``benchmarks/results/sentence_prototypes.json``).
 

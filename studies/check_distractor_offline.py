@@ -1,6 +1,6 @@
 """Whether a fix keeps ``kqv`` off the look-alike block, judged offline in minutes (issue 49).
 
-    python benchmarks/check_distractor_offline.py --candidate clutter --seed 0 --seeds 2 \
+    python studies/check_distractor_offline.py --candidate clutter --seed 0 --seeds 2 \
         [--tasks single,multiple] [--sensor d435] [--demos 20] [--steps N] \
         [--clutter-per-scene 0,2] [--checkpoints runs/t3-s10 ...] [--test-scenes 30] \
         [--out runs/distractor-offline] [--json benchmarks/results/distractor_offline.json]
@@ -313,7 +313,7 @@ def main(argv: Sequence[str] | None = None) -> int:
               "later ones of the stream (not the trials' scenes)")
     tables.write_json(args.json, json_form({
         "benchmark": "distractor_offline",
-        "command": shlex.join(["python", "benchmarks/check_distractor_offline.py", *argv]),
+        "command": shlex.join(["python", "studies/check_distractor_offline.py", *argv]),
         "settings": {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()}
         | {"checkpoints": [str(r) for r in args.checkpoints], "clutter_types": CLUTTER_TYPES},
         "notes": notes, "scores": [asdict(s) for s in scores],

@@ -1,11 +1,11 @@
-"""benchmarks/check_arm_mask_offline.py reads the robot's pixels and counts the heeded images."""
+"""studies/check_arm_mask_offline.py reads the robot's pixels and counts the heeded images."""
 
 from __future__ import annotations
 
 import json
 
 import numpy as np
-from benchmark_scripts import load_benchmark
+from benchmark_scripts import load_study
 
 from perception.learning.dataset_file import load_dataset
 from perception.learning.train import TrainConfig
@@ -15,7 +15,7 @@ from sim.world.sensor import SensorKind
 
 
 def test_the_masks_are_the_arm_and_the_heeded_images_are_counted(tmp_path):
-    check = load_benchmark("check_arm_mask_offline")
+    check = load_study("check_arm_mask_offline")
     data = tmp_path / "approach.gva"
     dataset = collect(CollectSettings("yumi", "single", 1, approach_hz=5.0,
                                       sensor=SensorKind.IDEAL), data, progress=False)

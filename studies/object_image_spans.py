@@ -8,7 +8,7 @@ at 8 yaws, and states per object: its span (the larger side of its image box) an
 (the farthest corner from where its centre projects). Geometry only: no rendering, no model.
 
 Usage:
-    python benchmarks/object_image_spans.py [--robots yumi,panda] [--out FILE]
+    python studies/object_image_spans.py [--robots yumi,panda] [--out FILE]
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ One row per variant (today's world first), one column per test scene of a task (
 scenes in every row: looks and distractors have seed streams of their own), each image as a
 model gets it (128 x 128, the head camera's D435 crop). Writes ``docs/figures/variants.png``::
 
-    python benchmarks/variant_contact_sheet.py --task multiple --scenes 5 --seed 0
+    python studies/variant_contact_sheet.py --task multiple --scenes 5 --seed 0
 """
 
 from __future__ import annotations

@@ -1,14 +1,14 @@
-"""benchmarks/object_image_spans.py: the Table III objects' sizes through each robot's camera."""
+"""studies/object_image_spans.py: the Table III objects' sizes through each robot's camera."""
 
 from __future__ import annotations
 
 import json
 
-from benchmark_scripts import load_benchmark
+from benchmark_scripts import load_study
 
 
 def test_every_object_is_sized_through_every_robots_camera(tmp_path):
-    bench = load_benchmark("object_image_spans")
+    bench = load_study("object_image_spans")
     out = tmp_path / "spans.json"
     rows = bench.main(["--robots", "yumi,panda", "--out", str(out)])
     assert [(r.robot, r.object_type) for r in rows] == [

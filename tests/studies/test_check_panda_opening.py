@@ -1,14 +1,14 @@
-"""benchmarks/check_panda_opening.py: turned sponge grasps on the Panda, per opening."""
+"""studies/check_panda_opening.py: turned sponge grasps on the Panda, per opening."""
 
 from __future__ import annotations
 
 import json
 
-from benchmark_scripts import load_benchmark
+from benchmark_scripts import load_study
 
 
 def test_a_straight_sponge_grasp_holds_at_either_opening(tmp_path):
-    check = load_benchmark("check_panda_opening")
+    check = load_study("check_panda_opening")
     task = check.panda_task()
     assert task.min_spacing_m == 0.16 and task.camera.kind.value == "d435"
     scenes = check.sponge_scenes(task, 2)

@@ -1,6 +1,6 @@
 """Whether any threshold on the grasp judge's predicted success reaches issue 47's bar.
 
-    python benchmarks/check_judge_operating_points.py runs/t3-s10 runs/t3-s0 \
+    python studies/check_judge_operating_points.py runs/t3-s10 runs/t3-s0 \
         [--out benchmarks/results/judge_operating_points.json]
 
 The judge calls a pick a miss when its predicted success rate is below 0.5. A lower or higher

@@ -1,6 +1,6 @@
 """What `kqv`'s type head buys in picks: a Table III run's trials again, the stated types dropped.
 
-    python benchmarks/check_type_head_picks.py --run runs/t3h --seeds 0 1 2 3 4 \
+    python studies/check_type_head_picks.py --run runs/t3h --seeds 0 1 2 3 4 \
         [--model kqv] [--tasks single multiple selected-position] [--workers 2] \
         [--out benchmarks/results/type_head_picks.json]
 

@@ -8,7 +8,7 @@ sponge scenes of the ``single`` task's test stream at :data:`SEED` (no Table III
 seen through the D435-like sensor as Table III is.
 
 Usage:
-    python benchmarks/check_panda_opening.py [--scenes 8] [--openings-mm 50,80]
+    python studies/check_panda_opening.py [--scenes 8] [--openings-mm 50,80]
         [--turns-deg 0,20,30,40,50] [--out benchmarks/results/panda_opening.json]
 """
 

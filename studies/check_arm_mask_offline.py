@@ -1,6 +1,6 @@
 """Whether a model holds its answer while the arm comes into view, judged offline (issue 36).
 
-    python benchmarks/check_arm_mask_offline.py \
+    python studies/check_arm_mask_offline.py \
         --case unmasked runs/t36/s0/checkpoints/kqv/single runs/t36-mask/single-test-unmasked.gva \
         --case masked runs/t36-mask/kqv-single-masked runs/t36-mask/single-test-masked.gva \
         --masks runs/t36-mask/single-test-masked.gva \
@@ -183,7 +183,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(
-            {"command": "python benchmarks/check_arm_mask_offline.py " + " ".join(
+            {"command": "python studies/check_arm_mask_offline.py " + " ".join(
                 sys.argv[1:] if argv is None else argv),
              "loop": LoopSettings().to_json(),
              "results": [asdict(r) for r in results]}, indent=2) + "\n")

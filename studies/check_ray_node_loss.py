@@ -1,6 +1,6 @@
 """A Ray node lost in the middle of a run: the run still finishes with every cell, none twice.
 
-    python benchmarks/check_ray_node_loss.py [--out benchmarks/results/ray_node_loss.json]
+    python studies/check_ray_node_loss.py [--out benchmarks/results/ray_node_loss.json]
 
 Starts a two-node Ray on this machine (``ray.cluster_utils.Cluster``: a head and a worker
 node of one CPU each, both seeing this machine's disk as a cluster sees shared storage), runs
