@@ -40,6 +40,7 @@ from experiments import tables
 from experiments.commands.arguments import integer, integers, names
 from experiments.table3 import jobs
 from experiments.table3 import settings as table3
+from harness.run_folder import differences, json_form
 from perception.catalog import CLUTTER_TYPES
 from perception.learning.learnable import LearnableModel
 from perception.learning.train import TrainConfig
@@ -50,7 +51,6 @@ from sim.tasks.scene_sampling import SeedStream, target_count
 from sim.tasks.task_spec import TaskSpec
 from sim.tasks.task_toml import load_task, task_to_toml
 from sim.trials.collector import CollectSettings, collect
-from sim.trials.run_folder import differences, json_form
 from sim.trials.trial_settings import task_identity
 from sim.world.sensor import SensorConfig, SensorKind, sensor_from_table
 

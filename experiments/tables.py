@@ -21,6 +21,7 @@ from typing import Any, Generic, Protocol, TypeVar
 
 from tqdm import tqdm
 
+from harness.run_folder import differences, json_form
 from perception.files import atomic_write
 from perception.learning.dataset_file import read_metadata
 from perception.model_config_file import ModelConfigFile
@@ -33,7 +34,6 @@ from sim.tasks.scene_specs import scene_camera
 from sim.tasks.task_sensor import seen_in_scene
 from sim.tasks.task_toml import load_task
 from sim.trials.collector import APPROACH_MASKED_KEY, CollectSettings
-from sim.trials.run_folder import differences, json_form
 from sim.trials.trial_settings import task_identity
 from sim.world.head_camera import CameraConfig, camera_config
 

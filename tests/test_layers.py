@@ -20,17 +20,19 @@ ROOT = Path(__file__).resolve().parent.parent
 PYBULLET = frozenset({"pybullet", "pybullet_data", "pybullet_utils"})
 
 # Which project packages each package may import (itself included): docs/design.md's
-# `experiments -> sim -> {control, perception}`, with `robots` (URDF data and its generator)
-# below them all. A package missing here (a new one) may import nothing of the project.
+# `experiments -> harness -> sim -> {control, perception}`, with `robots` (URDF data and its
+# generator) below them all. A package missing here (a new one) may import nothing of the project.
+EVERYTHING = frozenset({"experiments", "harness", "sim", "control", "perception", "robots"})
 ALLOWED: Mapping[str, frozenset[str]] = {
     "robots": frozenset({"robots"}),
     "control": frozenset({"control", "robots"}),
     "perception": frozenset({"perception", "robots"}),
     "sim": frozenset({"sim", "control", "perception", "robots"}),
-    "experiments": frozenset({"experiments", "sim", "control", "perception", "robots"}),
+    "harness": frozenset({"harness", "sim", "control", "perception", "robots"}),
+    "experiments": EVERYTHING,
     # Importers only: an example runs as it stands; nothing imports a benchmark.
-    "examples": frozenset({"experiments", "sim", "control", "perception", "robots"}),
-    "benchmarks": frozenset({"experiments", "sim", "control", "perception", "robots"}),
+    "examples": EVERYTHING,
+    "benchmarks": EVERYTHING,
 }
 
 # Outside libraries a package may not import. docs/design.md: control is pure math, "no simulator,

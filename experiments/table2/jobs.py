@@ -34,13 +34,13 @@ from experiments.tables import (
     refuse_other_settings,
     write_json,
 )
+from harness.jobs import JobResources
 from perception.learning.data import Dataset
 from perception.learning.dataset_file import DatasetError, load_dataset, save_dataset
 from perception.learning.evaluate import EvaluationResult, evaluate
 from perception.learning.train import TrainConfig, TrainReport
 from perception.model_config_file import ModelConfigFile
 from perception.registry import new_model
-from sim.jobs import JobResources
 from sim.tasks.scene_sampling import SeedStream
 from sim.trials.collector import CollectSettings, collect
 from sim.trials.trial_settings import torch_threads

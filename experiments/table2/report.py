@@ -295,7 +295,7 @@ def write_reports(settings: ReproduceSimSettings, out: Path, wall_time_s: float,
                   ) -> tuple[list[Path], list[dict[str, Any]], list[str]]:
     """Writes every report from the cells present: (paths written, failed cells, notes).
 
-    ``session``: the provenance of the run that writes them (:mod:`sim.trials.provenance`).
+    ``session``: the provenance of the run that writes them (:mod:`harness.provenance`).
     """
     cells, failed = read_cells(out)
     seeds = sorted({c["seed"] for c in cells})

@@ -39,10 +39,10 @@ from experiments.tables import (
     write_json,
     write_text,
 )
+from harness.paired_statistics import CONFIDENCE, SIGNIFICANCE
 from sim.tasks.task_spec import TargetSelection
 from sim.tasks.task_toml import load_task
 from sim.tasks.variants import variant_title
-from sim.trials.paired_statistics import CONFIDENCE, SIGNIFICANCE
 from sim.trials.records import TrialOutcome, TrialRecord
 from sim.world.sensor import SensorConfig
 
@@ -327,7 +327,7 @@ def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float
                   session: dict[str, Any] | None = None) -> Reports:
     """Writes ``table3.json`` and ``table3.md`` from what the folder holds.
 
-    ``session``: the provenance of the run that writes them (:mod:`sim.trials.provenance`).
+    ``session``: the provenance of the run that writes them (:mod:`harness.provenance`).
     """
     seeds = list(settings.training_seeds)
     sets = read_trial_sets(out, seeds, settings.n)
