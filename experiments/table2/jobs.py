@@ -25,7 +25,8 @@ from experiments.table2.settings import (
     checkpoint_folder,
     error_path,
 )
-from experiments.tables import (
+from harness.jobs import JobResources
+from harness.run_files import (
     Failed,
     dataset_path,
     dataset_present,
@@ -34,7 +35,6 @@ from experiments.tables import (
     refuse_other_settings,
     write_json,
 )
-from harness.jobs import JobResources
 from perception.learning.data import Dataset
 from perception.learning.dataset_file import DatasetError, load_dataset, save_dataset
 from perception.learning.evaluate import EvaluationResult, evaluate

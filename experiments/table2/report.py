@@ -27,15 +27,12 @@ from experiments.tables import (
     MODELS,
     NO_IMAGE,
     TASK_TITLES,
-    dataset_path,
-    duration,
     model_order,
     model_title,
     paper_row,
-    read_json,
-    write_json,
-    write_text,
 )
+from harness.run_files import dataset_path, read_json, write_json, write_text
+from harness.run_report import duration
 from perception.learning.data import Dataset
 from perception.learning.dataset_file import load_dataset
 from perception.learning.evaluate import label_mean_error_cm

@@ -34,21 +34,20 @@ from experiments.table3.settings import (
     trained_file,
     trials_folder,
 )
-from experiments.tables import (
-    TWO_PHASE_MODELS,
+from experiments.tables import TWO_PHASE_MODELS, model_config_file
+from harness.executors import open_pool
+from harness.jobs import ONE_CPU, JobResources
+from harness.run_files import (
     Failed,
-    cost_bar,
     dataset_present,
     guarded,
-    model_config_file,
     read_json,
     refuse_other_settings,
     write_json,
 )
-from harness.executors import open_pool
-from harness.jobs import ONE_CPU, JobResources
 from harness.run_folder import json_form
 from harness.run_loop import run_trials
+from harness.run_report import cost_bar
 from perception.learning.dataset_file import DatasetError, load_dataset
 from perception.learning.train import TrainConfig
 from perception.learning.validation import fit_checked, write_check

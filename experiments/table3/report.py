@@ -29,17 +29,10 @@ from experiments.table3.trial_sets import (
     read_trial_sets,
     variant_order,
 )
-from experiments.tables import (
-    ALL_TASKS,
-    TASK_TITLES,
-    TASKS,
-    duration,
-    model_order,
-    model_title,
-    write_json,
-    write_text,
-)
+from experiments.tables import ALL_TASKS, TASK_TITLES, TASKS, model_order, model_title
 from harness.paired_statistics import CONFIDENCE, SIGNIFICANCE
+from harness.run_files import write_json, write_text
+from harness.run_report import duration
 from sim.tasks.task_spec import TargetSelection
 from sim.tasks.task_toml import load_task
 from sim.tasks.variants import variant_title

@@ -18,13 +18,12 @@ from experiments.tables import (
     check_counts,
     check_model_configs,
     check_models,
-    dataset_path,
     model_config,
     model_config_file,
     model_config_options,
-    write_text,
 )
 from harness.jobs import LOCAL, Executor
+from harness.run_files import dataset_path, write_text
 from harness.run_folder import json_form
 from perception.learning.train import TrainConfig, available_threads
 from perception.learning.validation import CheckConfig

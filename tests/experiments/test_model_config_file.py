@@ -20,7 +20,8 @@ from experiments.cli import main
 from experiments.table2.settings import Cell, ReproduceSimSettings
 from experiments.table3 import jobs
 from experiments.table3.settings import ReproduceRealSettings, Unit
-from experiments.tables import model_config, refuse_other_settings
+from experiments.tables import model_config
+from harness.run_files import refuse_other_settings
 from harness.run_folder import json_form
 from perception.interface import InvalidInputError
 from perception.learning.checkpoint import read_config
