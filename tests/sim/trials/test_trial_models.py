@@ -16,9 +16,9 @@ from harness.trial_log import TrialLog
 from perception.interface import ConditionKind, LabelKind
 from perception.learning.checkpoint import read_config
 from perception.learning.learnable import ModelSpec
+from perception.learning.torch_pieces import LabelScaler
 from perception.learning.train import TrainConfig
 from perception.learning.validation import CHECK_FILE, HeldOutCheck
-from perception.models.base import LabelScaler
 from perception.models.kqv import KqvModel
 from sim.errors import InvalidInputError, RunFolderError
 from sim.tasks.task_toml import load_task, task_to_toml
