@@ -1,5 +1,8 @@
 """The layers of docs/design.md hold: imports point downward only, and no module import cycle.
 
+Inside ``sim``, ``perception`` and ``harness`` the same holds for their rooms (:data:`ROOMS`): a
+module imports its own room and the ones before it, and every module is in a room.
+
 Every ``import`` statement counts, wherever it stands: at the top of a module, inside a function,
 under ``if TYPE_CHECKING:`` or another condition. Files are found by walking the package folders,
 so a new module or sub-package is checked the day it appears.
@@ -226,6 +229,8 @@ def test_every_package_has_a_layer():
     find = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
     packages = {pattern.rstrip("*") for pattern in find["find"]["include"]}
     assert packages <= set(ALLOWED), f"give {sorted(packages - set(ALLOWED))} a row in ALLOWED"
+    mypy = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["mypy"]["packages"])
+    assert mypy == packages, "[tool.mypy] packages and the packages setuptools finds differ"
 
 
 def test_the_walk_finds_every_package(project_imports):
@@ -244,21 +249,88 @@ def test_no_import_cycle(project_imports):
     assert not messages, "\n".join(messages)
 
 
-# sim's rooms (docs/design.md), in order: each may import the rooms before it, never one after it.
-SIM_ROOMS = ("sim.world", "sim.tasks", "sim.trials", "sim.envs")
+# The rooms inside a package (docs/design.md), in order: a module may import its own room and the
+# rooms before it, never one after it. A room is a tuple of module names, each standing for the
+# module and everything under it. Every module of these packages (but the package's own
+# __init__) must be in a room, so a new module is placed the day it appears.
+ROOMS: Mapping[str, tuple[tuple[str, ...], ...]] = {
+    "sim": (
+        ("sim.errors",),
+        ("sim.world",),  # the PyBullet world, robot, head camera, looks
+        ("sim.tasks",),  # task files, variants, scene sampling, appearance
+        ("sim.trials",),  # one pick: runner, execution, records, collector, GIFs
+        ("sim.envs",),  # the Gymnasium environment
+    ),
+    "perception": (
+        # base: the interface, the data a model reads and returns, and checks of it
+        ("perception.errors", "perception.files", "perception.camera", "perception.poses",
+         "perception.sentences", "perception.sentence_reading", "perception.object_spec",
+         "perception.catalog", "perception.grasp_tolerance", "perception.grasp_judge",
+         "perception.grasps", "perception.interface", "perception.labels", "perception.checks",
+         "perception.drawing", "perception.plugins"),
+        ("perception.learning",),  # datasets, training, torch pieces, evaluation, checkpoints
+        ("perception.models",),  # KQV and the baselines
+        ("perception.registry", "perception.model_config_file"),  # models by name
+    ),
+    "harness": (
+        # a run's files: its folder, provenance, records' summary, trial log, job files
+        ("harness.run_folder", "harness.provenance", "harness.trial_summary", "harness.trial_log",
+         "harness.run_files"),
+        # statistics over runs: paired comparisons, the grasp judge over a run's records
+        ("harness.paired_statistics", "harness.compare", "harness.calibration",
+         "harness.judging"),
+        ("harness.jobs",),  # the local pool, and what every pool offers
+        ("harness.ray_jobs",),  # the Ray pool
+        ("harness.executors",),  # opens the pool a run asked for
+        ("harness.run_loop", "harness.run_report"),  # runs of trials, what a run did
+    ),
+}
 
 
-def _room(module: str) -> int | None:
-    return next((number for number, room in enumerate(SIM_ROOMS)
-                 if module == room or module.startswith(room + ".")), None)
+def room(module: str, rooms: Mapping[str, tuple[tuple[str, ...], ...]] = ROOMS) -> int | None:
+    """The number of ``module``'s room in its package; None outside every room."""
+    for number, members in enumerate(rooms.get(module.split(".")[0], ())):
+        if any(module == member or module.startswith(member + ".") for member in members):
+            return number
+    return None
 
 
-def test_sim_rooms_import_only_the_rooms_before_them(project_imports):
-    messages = [f"{imp.where()}: {imp.importer} imports {imp.target}"
-                for imp in project_imports
-                if imp.module is not None and None not in (_room(imp.importer), _room(imp.module))
-                and _room(imp.module) > _room(imp.importer)]
-    assert not messages, "imports up sim's rooms (world <- tasks <- trials <- envs):\n" + \
+def upward(found: Iterable[Import],
+           rooms: Mapping[str, tuple[tuple[str, ...], ...]] = ROOMS) -> list[str]:
+    """One message per import from a room of a package to a room after it."""
+    messages = []
+    for imp in found:
+        if imp.module is None or imp.module.split(".")[0] != imp.importer.split(".")[0]:
+            continue
+        here, there = room(imp.importer, rooms), room(imp.module, rooms)
+        if here is not None and there is not None and there > here:
+            messages.append(f"{imp.where()}: {imp.importer} imports {imp.target}, "
+                            f"room {there} of {imp.importer.split('.')[0]} from room {here}")
+    return messages
+
+
+def roomless(modules: Iterable[str],
+             rooms: Mapping[str, tuple[tuple[str, ...], ...]] = ROOMS) -> list[str]:
+    """The modules of a package with rooms that are in none (the package's __init__ aside)."""
+    return sorted(module for module in modules if module.split(".")[0] in rooms
+                  and "." in module and room(module, rooms) is None)
+
+
+def test_every_module_has_a_room():
+    missing = roomless(discover(ROOT, ROOMS))
+    assert not missing, f"give {missing} a room in ROOMS (and in docs/design.md)"
+
+
+def test_every_room_holds_a_module():
+    modules = discover(ROOT, ROOMS)
+    empty = [member for members in (m for rs in ROOMS.values() for m in rs) for member in members
+             if not any(name == member or name.startswith(member + ".") for name in modules)]
+    assert not empty, f"{empty} name no module: remove them from ROOMS"
+
+
+def test_rooms_import_only_the_rooms_before_them(project_imports):
+    messages = upward(project_imports)
+    assert not messages, "imports up a package's rooms (ROOMS, docs/design.md):\n" + \
         "\n".join(messages)
 
 
@@ -340,3 +412,56 @@ def test_a_cycle_through_a_function_level_import_is_found(tmp_path):
 def test_no_cycle_no_message(tmp_path):
     write(tmp_path, {"sim/__init__.py": "", "sim/a.py": "from sim import b\n", "sim/b.py": ""})
     assert cycles(imports(tmp_path, ["sim"])) == []
+
+
+def test_an_import_up_the_rooms_is_found_where_it_hides(tmp_path):
+    # The loop issue 65 removed, put back in the run layer: the executor opens the Ray pool
+    # inside a function, and the Ray pool reaches up to the run loop that opens the executor.
+    write(tmp_path, {
+        "harness/__init__.py": "",
+        "harness/jobs.py": "",
+        "harness/executors.py": "from harness.jobs import Pool\n\n\ndef open_pool():\n"
+                                "    from harness.ray_jobs import RayPool\n",
+        "harness/ray_jobs.py": "from harness.jobs import Job\n\n\ndef _sees():\n"
+                               "    from harness.run_loop import git_revision\n",
+        "harness/run_loop.py": "from harness.executors import open_pool\n",
+    })
+    found = imports(tmp_path, ["harness"])
+    assert upward(found) == ["harness/ray_jobs.py:5: harness.ray_jobs imports harness.run_loop, "
+                             "room 5 of harness from room 3"]
+    assert cycles(found) == [
+        "import cycle among harness.executors, harness.ray_jobs, harness.run_loop:\n"
+        "  harness/executors.py:5: harness.executors imports harness.ray_jobs\n"
+        "  harness/ray_jobs.py:5: harness.ray_jobs imports harness.run_loop\n"
+        "  harness/run_loop.py:1: harness.run_loop imports harness.executors",
+    ]
+
+
+def test_the_old_loop_through_modules_outside_the_rooms_is_found(tmp_path):
+    # Before issue 65: sim.trials.run_loop -> sim.executors -> (in a function) sim.ray_jobs ->
+    # sim.trials.provenance. No module cycle, but a room cycle through modules in no room.
+    write(tmp_path, {
+        "sim/__init__.py": "",
+        "sim/trials/__init__.py": "",
+        "sim/trials/provenance.py": "",
+        "sim/trials/run_loop.py": "from sim.executors import open_pool\n",
+        "sim/executors.py": "def open_pool():\n    from sim.ray_jobs import RayPool\n",
+        "sim/ray_jobs.py": "from sim.trials.provenance import git_revision\n",
+    })
+    assert cycles(imports(tmp_path, ["sim"])) == []
+    assert roomless(discover(tmp_path, ["sim"])) == ["sim.executors", "sim.ray_jobs"]
+
+
+def test_only_imports_up_the_rooms_are_reported(tmp_path):
+    write(tmp_path, {
+        "perception/__init__.py": "",
+        "perception/interface.py": "",
+        "perception/learning/__init__.py": "from perception import interface\n",
+        "perception/models/__init__.py": "",
+        "perception/models/kqv.py": "from typing import TYPE_CHECKING\n\nif TYPE_CHECKING:\n"
+                                    "    from perception.learning import train\n",
+        "perception/learning/train.py": "def f():\n    from perception.models import kqv\n",
+    })
+    assert upward(imports(tmp_path, ["perception"])) == [
+        "perception/learning/train.py:2: perception.learning.train imports "
+        "perception.models.kqv, room 2 of perception from room 1"]
