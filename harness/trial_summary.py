@@ -18,7 +18,7 @@ from sim.trials.records import TrialOutcome, TrialRecord
 
 @dataclass(frozen=True)
 class PickCounts:
-    """The grasp judge against the physics over some picks (:mod:`sim.trials.judging`).
+    """The grasp judge against the physics over some picks (:mod:`harness.judging`).
 
     Attributes:
         picks: Picks judged.
