@@ -44,13 +44,14 @@ from pathlib import Path
 from typing import Any
 
 from experiments.cli import main as gva
-from experiments.tables import SeedStream, dataset_path
+from harness.run_files import dataset_path
 from perception.learning.dataset_file import load_dataset
 from perception.learning.evaluate import evaluate
 from perception.model_config_file import read_model_config
 from perception.models.kqv import KqvModel
 from perception.models.kqv_config import INFERENCE_FIELDS
 from perception.registry import load_model
+from sim.tasks.scene_sampling import SeedStream
 
 ROWS_DIR = Path(__file__).resolve().parent / "ablation"
 RECIPE = "recipe"

@@ -37,8 +37,8 @@ from robots import yumi
 from sim.trials.closed_loop import remembered_points
 from sim.trials.loop_settings import LoopSettings
 from sim.trials.planner_setup import pick_obstacles
-from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
+from sim.trials.trial_scenes import trial_scene
 from sim.trials.trial_settings import TrialSettings, load_trial_model, torch_threads
 from sim.trials.view import hidden_share, in_plain_view
 

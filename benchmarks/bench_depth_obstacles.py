@@ -31,7 +31,7 @@ import pinocchio as pin  # coal's Python module is found through pinocchio's pat
 
 from control.depth_obstacles import GraspRegion, OccludedSpace, depth_obstacles
 from perception.catalog import clear_of_table
-from perception.learning.labels import nearest_rotation
+from perception.labels import nearest_rotation
 from perception.poses import Pose
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE

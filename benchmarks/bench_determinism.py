@@ -22,12 +22,12 @@ from typing import Any
 
 import torch
 
+from harness.provenance import provenance
 from perception.files import file_sha256
 from perception.learning.dataset_file import load_dataset
 from perception.learning.train import TrainConfig
 from perception.models.kqv import KqvConfig, KqvModel
 from sim.trials.collector import CollectSettings, collect
-from sim.trials.provenance import provenance
 
 
 def weights_sha256(model: KqvModel) -> str:

@@ -40,11 +40,11 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from harness.jobs import JobPool
 from perception.catalog import OBJECT_TYPES
 from perception.grasp_tolerance import AXES, READINGS, SIGNED_AXES, TOLERANCE_FORMAT
 from perception.interface import NO_CONDITION, Condition, Prediction, Target
 from perception.poses import rot_z
-from sim.jobs import JobPool
 from sim.tasks.scene_sampling import Scene, SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_toml import load_task

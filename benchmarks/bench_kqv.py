@@ -37,8 +37,8 @@ from perception.interface import ConditionKind, LabelKind
 from perception.learning.dataset_file import load_dataset
 from perception.learning.evaluate import evaluate
 from perception.learning.learnable import ModelSpec
+from perception.learning.torch_pieces import LabelScaler
 from perception.learning.train import TrainConfig, available_threads
-from perception.models.base import LabelScaler
 from perception.models.kqv import KqvConfig, KqvModel
 
 ERROR_BARS_CM = {"single": 2.0, "selected-type": 3.0}

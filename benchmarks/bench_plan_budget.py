@@ -32,8 +32,8 @@ from typing import Any
 from control.pick import PickPlannerConfig, PlanBudget
 from experiments.cli import main as gva
 from sim.trials.planner_setup import make_planner
-from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
+from sim.trials.trial_scenes import trial_scene
 from sim.trials.trial_settings import TrialSettings, load_trial_model, torch_threads
 
 WALL_FIELDS = ("wall_time_s",)

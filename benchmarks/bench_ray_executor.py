@@ -36,7 +36,7 @@ TABLE3 = ["reproduce", "real", "--tasks", "single", "--no-robustness", "--steps"
 STARTUP = """
 import time
 started = time.perf_counter()
-from sim.ray_jobs import ray, start_local_ray
+from harness.ray_jobs import ray, start_local_ray
 start_local_ray(2)
 ray.get(ray.remote(lambda: 0).remote())
 ray.shutdown()

@@ -12,7 +12,7 @@ heatmap):
 - a whole pose step (forward, loss, backward, Adam) and its parts: the photometric
   augmentation, the forward pass, the backward pass;
 - the Key normalisation of the cosine similarity, as ``F.normalize`` against the reciprocal
-  square root kqv uses (:func:`perception.models.base.unit`), forward and backward;
+  square root kqv uses (:func:`perception.learning.torch_pieces.unit`), forward and backward;
 - a step of the type head's phase (forward through the frozen network, the small head's
   backward);
 - the work of a pose step (``torch.utils.flop_counter``: forward and backward), the rate it
@@ -43,8 +43,8 @@ import torch
 from torch.utils.flop_counter import FlopCounterMode
 
 from perception.learning.data import Dataset
+from perception.learning.torch_pieces import images_to_tensor, unit
 from perception.learning.train import Batch, TrainConfig, batch_indices, photometric_augment
-from perception.models.base import images_to_tensor, unit
 from perception.models.kqv import KqvModel
 from perception.registry import new_model
 

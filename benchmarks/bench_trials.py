@@ -22,8 +22,8 @@ import time
 from collections import Counter
 from pathlib import Path
 
+from harness.run_loop import run_trials
 from perception.catalog import get_object_spec
-from sim.trials.run_loop import run_trials
 from sim.trials.trial_settings import TrialSettings
 from sim.world.yumi_world import World, WorldConfig
 

@@ -19,8 +19,8 @@ import gymnasium
 
 from sim.envs.episodes import oracle_policy, run_episode
 from sim.tasks.task_toml import load_task
-from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
+from sim.trials.trial_scenes import trial_scene
 
 
 def main() -> None:

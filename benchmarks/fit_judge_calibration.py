@@ -23,10 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
+from harness.calibration import Calibration
+from harness.judging import judge_run
 from perception.files import atomic_write
 from perception.grasp_tolerance import PlattScaling, ToleranceMap
-from sim.trials.calibration import Calibration
-from sim.trials.judging import judge_run
 
 DEFAULT_MAP = Path(__file__).resolve().parents[1] / "perception" / "grasp_tolerance.json"
 

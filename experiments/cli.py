@@ -21,7 +21,7 @@
 takes ``oracle`` or ``package.module:Class`` of a model that needs no weights.
 
 ``compare`` pairs two finished runs of ``trials`` on the same trial list (task, seed, n): exact
-McNemar test and the difference in success rate with its interval (:mod:`sim.trials.compare`);
+McNemar test and the difference in success rate with its interval (:mod:`harness.compare`);
 it exits with status 1 when the second run is significantly worse than the first.
 
 ``reproduce sim`` and ``reproduce real`` run the paper's Tables II and III

@@ -15,7 +15,7 @@ import numpy as np
 
 from perception.errors import InvalidInputError, InvalidPredictionError
 from perception.interface import LabelKind, ModelInput, PerceptionModel, Prediction, Target
-from perception.learning.labels import nearest_rotation
+from perception.labels import nearest_rotation
 
 
 def check_inputs(model: PerceptionModel, available: Set[ModelInput], where: str) -> None:

@@ -33,10 +33,10 @@ from pathlib import Path
 import numpy as np
 
 from perception.camera import RgbdFrame
+from perception.labels import split_label
 from perception.learning.data import Dataset
 from perception.learning.dataset_file import load_dataset
 from perception.learning.evaluate import predict_dataset
-from perception.learning.labels import split_label
 from perception.learning.learnable import ModelSpec
 from perception.registry import load_model
 from sim.trials.collector import APPROACH_MASKED_KEY

@@ -40,6 +40,8 @@ from experiments import tables
 from experiments.commands.arguments import integer, integers, names
 from experiments.table3 import jobs
 from experiments.table3 import settings as table3
+from harness import run_files, run_report
+from harness.run_folder import differences, json_form
 from perception.catalog import CLUTTER_TYPES
 from perception.learning.learnable import LearnableModel
 from perception.learning.train import TrainConfig
@@ -50,7 +52,6 @@ from sim.tasks.scene_sampling import SeedStream, target_count
 from sim.tasks.task_spec import TaskSpec
 from sim.tasks.task_toml import load_task, task_to_toml
 from sim.trials.collector import CollectSettings, collect
-from sim.trials.run_folder import differences, json_form
 from sim.trials.trial_settings import task_identity
 from sim.world.sensor import SensorConfig, SensorKind, sensor_from_table
 
@@ -119,8 +120,8 @@ def test_task(out: Path, spec: TaskSpec, task: str, variant: str, seed: int,
     folder = out / "test-scenes" / key / f"s{seed}"
     path, text = given or folder / "tasks" / f"{spec.name}.toml", task_to_toml(spec)
     if given is None and (not path.exists() or path.read_text(encoding="utf-8") != text):
-        tables.write_text(path, text)
-    return TestTask(spec, path, tables.dataset_path(folder, spec.name, SeedStream.TEST, n, seed))
+        run_files.write_text(path, text)
+    return TestTask(spec, path, run_files.dataset_path(folder, spec.name, SeedStream.TEST, n, seed))
 
 
 def candidate_entry(args: argparse.Namespace, candidate: str, task: str, seed: int,
@@ -136,16 +137,16 @@ def candidate_entry(args: argparse.Namespace, candidate: str, task: str, seed: i
     if path.exists() and (found := json_form(task_identity(load_task(path)))) != asked:
         raise RunFolderError(f"{path} holds the task of other settings ({differences(found, asked)}"
                              f", stored vs asked); remove {folder} or use another --out")
-    tables.write_text(path, f"# {task}, candidate {candidate}, written by "
+    run_files.write_text(path, f"# {task}, candidate {candidate}, written by "
                       f"{Path(__file__).name}\n" + task_to_toml(spec))
     identity = json_form(settings.train_identity(unit) | {"task": asked, "candidate": candidate})
     trained = table3.trained_file(folder, unit)
     if trained.exists():  # reused, unless trained with other settings
-        tables.refuse_other_settings(
-            [(str(trained), tables.read_json(trained)["identity"], identity)], "checkpoint(s)")
+        run_files.refuse_other_settings(
+            [(str(trained), run_files.read_json(trained)["identity"], identity)], "checkpoint(s)")
     else:
         demos = table3.dataset_file(folder, task, settings)
-        if not tables.dataset_present(demos, table3.SCENE, str(path), args.demos, seed,
+        if not run_files.dataset_present(demos, table3.SCENE, str(path), args.demos, seed,
                                       SeedStream.TRAIN):
             job = jobs.CollectJob(f"collect-{task}-s{seed}", task, settings, folder)
             steps.append(Step(job.name, jobs.COLLECT_S_PER_PICK * args.demos
@@ -174,7 +175,7 @@ def run_entry(args: argparse.Namespace, run: Path, task: str, seed: int, notes: 
                          f"{seed} ({checkpoint}); seed folders with one: "
                          f"{', '.join(have) or 'none'} (choose them with --seed and --seeds)")
     meta = next((p for p in (folder / "run.json", run / "run.json") if p.exists()), None)
-    stored = {} if meta is None else tables.read_json(meta)
+    stored = {} if meta is None else run_files.read_json(meta)
     sensor = (sensor_from_table(stored["sensor"], f"{meta}: sensor") if "sensor" in stored
               else SensorConfig())
     tests = []
@@ -194,7 +195,7 @@ def run_entry(args: argparse.Namespace, run: Path, task: str, seed: int, notes: 
 
 def collect_step(test: TestTask, seed: int, n: int) -> Step | None:
     """The collection of a test set, unless the cache holds it (another one there is refused)."""
-    if tables.dataset_present(test.dataset, table3.SCENE, str(test.task_path), n, seed,
+    if run_files.dataset_present(test.dataset, table3.SCENE, str(test.task_path), n, seed,
                               SeedStream.TEST):
         return None
     settings = CollectSettings(table3.SCENE, str(test.task_path), n, seed, SeedStream.TEST)
@@ -294,7 +295,7 @@ def main(argv: Sequence[str] | None = None) -> int:
               if (step := collect_step(test, seed, args.test_scenes)) is not None]
     print("".join(f"note: {note}\n" for note in notes) + f"{len(steps)} job(s) to run "
           f"({', '.join(s.name for s in steps) or 'none'}), {len(entries)} checkpoint(s) to score")
-    with tables.cost_bar(sum(s.cost_s for s in steps), "distractor offline",
+    with run_report.cost_bar(sum(s.cost_s for s in steps), "distractor offline",
                          not args.no_progress) as bar:
         for step in steps:
             bar.set_postfix_str(step.name)
@@ -311,7 +312,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                              if s.redrawn}.items():
         print(f"note: {dataset}: {redrawn} test scene(s) the oracle failed were replaced by "
               "later ones of the stream (not the trials' scenes)")
-    tables.write_json(args.json, json_form({
+    run_files.write_json(args.json, json_form({
         "benchmark": "distractor_offline",
         "command": shlex.join(["python", "studies/check_distractor_offline.py", *argv]),
         "settings": {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()}

@@ -15,7 +15,7 @@ import argparse
 import json
 from pathlib import Path
 
-from sim.trials.judging import judged_picks, trial_folders
+from harness.judging import judged_picks, trial_folders
 from sim.trials.records import TrialOutcome, read_trial_records
 
 THRESHOLDS = (0.5, 0.6, 0.7, 0.8, 0.85, 0.9, 0.93, 0.95, 0.97, 0.99)

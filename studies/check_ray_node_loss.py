@@ -28,7 +28,7 @@ from ray.cluster_utils import Cluster
 
 from experiments.table2.run import run_reproduce_sim
 from experiments.table2.settings import ReproduceSimSettings
-from sim.jobs import Executor, ExecutorKind
+from harness.jobs import Executor, ExecutorKind
 
 SETTINGS = ReproduceSimSettings(models=("kqv", "fcn"), tasks=("single",), sizes=(4, 20),
                                 seeds=1, steps=200, test_scenes=20, workers=2)

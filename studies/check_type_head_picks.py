@@ -28,12 +28,12 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
+from harness.paired_statistics import PairedCounts, mcnemar_exact_p, newcombe_paired_interval
+from harness.run_folder import PROVENANCE_KEY, differences, json_form
 from perception.interface import NO_CONDITION, Condition, Prediction, RgbdFrame
-from sim.trials.paired_statistics import PairedCounts, mcnemar_exact_p, newcombe_paired_interval
 from sim.trials.records import RECORD_FORMAT_VERSION
-from sim.trials.run_folder import PROVENANCE_KEY, differences, json_form
-from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
+from sim.trials.trial_scenes import trial_scene
 from sim.trials.trial_settings import TrialSettings, load_trial_model
 
 TASKS = ("single", "multiple", "selected-position")

@@ -109,7 +109,7 @@ def local_ray():
     """
     import ray
 
-    from sim.ray_jobs import start_local_ray
+    from harness.ray_jobs import start_local_ray
 
     start_local_ray(2)
     yield

@@ -26,10 +26,10 @@ from perception.interface import (
     Prediction,
     Target,
 )
+from perception.labels import label_vector
 from perception.learning.data import Dataset, DatasetMetadata
-from perception.learning.labels import label_vector
 from perception.learning.learnable import ModelSpec
-from perception.models.base import LabelScaler
+from perception.learning.torch_pieces import LabelScaler
 from perception.models.kqv import KqvModel
 
 TYPES = ("red", "green", "blue")

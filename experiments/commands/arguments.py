@@ -7,7 +7,7 @@ import shlex
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from sim.jobs import Executor, ExecutorKind
+from harness.jobs import Executor, ExecutorKind
 from sim.world.sensor import DEFAULT_SENSOR, SensorKind
 
 if TYPE_CHECKING:  # imported where used: a command's --help must not load torch
@@ -105,5 +105,5 @@ def add_executor_options(parser: argparse.ArgumentParser) -> None:
 
 
 def executor(args: argparse.Namespace) -> Executor:
-    """The :class:`~sim.jobs.Executor` the options ask for (it refuses an address without Ray)."""
+    """The :class:`~harness.jobs.Executor` the options ask for (refuses an address without Ray)."""
     return Executor(ExecutorKind(args.executor), args.ray_address)

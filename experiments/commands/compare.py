@@ -3,7 +3,7 @@
 More pairs of runs (one per seed, say) pool their pairs of trials into one comparison.
 
 Prints the pairs of outcomes, the exact McNemar test and B - A with its 95 % interval, overall
-and per object type (:mod:`sim.trials.compare` holds the statistics); ``--out`` also writes
+and per object type (:mod:`harness.compare` holds the statistics); ``--out`` also writes
 them as JSON. Exit status 1 when B is significantly worse than A, a CI job's signal; 0
 otherwise; 2 for bad input. No torch or pinocchio here.
 """
@@ -14,9 +14,9 @@ import argparse
 import json
 from pathlib import Path
 
+from harness.compare import compare_pooled
 from perception.files import atomic_write
 from sim.errors import InvalidInputError
-from sim.trials.compare import compare_pooled
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:

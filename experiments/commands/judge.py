@@ -4,7 +4,7 @@ Any run folder of ``gva trials`` or ``gva reproduce real``, also one made before
 existed. Prints per trial set (task, seed, model) the real and the predicted count, then over
 all picks the misses, the misses the judge flagged, the ones it did not and its false alarms,
 per object type; the judge scored as a probability (AUC, Brier score and skill, expected misses
-against observed, a reliability table: :mod:`sim.trials.calibration`); and each unflagged miss
+against observed, a reliability table: :mod:`harness.calibration`); and each unflagged miss
 and false alarm with its errors in the grasp frame. ``--json`` also gives each pick's
 probability.
 No torch, no physics: seconds for a Table III run.
@@ -16,10 +16,10 @@ import argparse
 import json
 from pathlib import Path
 
+from harness.judging import RunJudgement, describe_error, judge_run
 from perception.files import atomic_write
 from perception.grasp_tolerance import ToleranceMap, default_tolerance_map
 from sim.errors import InvalidInputError
-from sim.trials.judging import RunJudgement, describe_error, judge_run
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:

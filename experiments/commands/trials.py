@@ -18,13 +18,13 @@ from experiments.commands.arguments import (
     resume_command,
     sensor_kind,
 )
+from harness.run_loop import TRIAL_WORKERS, RunStopped, run_trials
+from harness.trial_summary import TrialSummary
 from robots import ROBOT_NAMES
 from sim.errors import InvalidInputError
 from sim.tasks.variants import builtin_variants
 from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.planner_setup import ObstacleSource
-from sim.trials.records import TrialSummary
-from sim.trials.run_loop import TRIAL_WORKERS, RunStopped, run_trials
 from sim.trials.trial_settings import TrialSettings, held_out_check
 
 

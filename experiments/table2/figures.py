@@ -20,10 +20,10 @@ from experiments.tables import (
     MODEL_TITLES,
     NO_IMAGE,
     TASK_TITLES,
-    dataset_path,
     model_order,
     model_title,
 )
+from harness.run_files import dataset_path
 from perception.drawing import draw_points, enlarge
 from perception.files import atomic_write
 from perception.interface import ConditionKind

@@ -25,7 +25,8 @@ from experiments.table2.settings import (
     checkpoint_folder,
     error_path,
 )
-from experiments.tables import (
+from harness.jobs import JobResources
+from harness.run_files import (
     Failed,
     dataset_path,
     dataset_present,
@@ -40,7 +41,6 @@ from perception.learning.evaluate import EvaluationResult, evaluate
 from perception.learning.train import TrainConfig, TrainReport
 from perception.model_config_file import ModelConfigFile
 from perception.registry import new_model
-from sim.jobs import JobResources
 from sim.tasks.scene_sampling import SeedStream
 from sim.trials.collector import CollectSettings, collect
 from sim.trials.trial_settings import torch_threads

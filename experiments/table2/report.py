@@ -27,15 +27,12 @@ from experiments.tables import (
     MODELS,
     NO_IMAGE,
     TASK_TITLES,
-    dataset_path,
-    duration,
     model_order,
     model_title,
     paper_row,
-    read_json,
-    write_json,
-    write_text,
 )
+from harness.run_files import dataset_path, read_json, write_json, write_text
+from harness.run_report import duration
 from perception.learning.data import Dataset
 from perception.learning.dataset_file import load_dataset
 from perception.learning.evaluate import label_mean_error_cm
@@ -295,7 +292,7 @@ def write_reports(settings: ReproduceSimSettings, out: Path, wall_time_s: float,
                   ) -> tuple[list[Path], list[dict[str, Any]], list[str]]:
     """Writes every report from the cells present: (paths written, failed cells, notes).
 
-    ``session``: the provenance of the run that writes them (:mod:`sim.trials.provenance`).
+    ``session``: the provenance of the run that writes them (:mod:`harness.provenance`).
     """
     cells, failed = read_cells(out)
     seeds = sorted({c["seed"] for c in cells})

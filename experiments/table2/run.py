@@ -23,11 +23,11 @@ from experiments.table2.jobs import (
 )
 from experiments.table2.report import write_reports
 from experiments.table2.settings import Cell, ReproduceSimSettings
-from experiments.tables import RunReport, cost_bar
-from sim.executors import open_pool
-from sim.jobs import Pool
-from sim.trials.provenance import provenance
-from sim.trials.run_folder import claim_run_folder, run_folder_lock
+from harness.executors import open_pool
+from harness.jobs import Pool
+from harness.provenance import provenance
+from harness.run_folder import claim_run_folder, run_folder_lock
+from harness.run_report import RunReport, cost_bar
 
 ReproduceSimReport = RunReport[CellOutcome, Cell]
 

@@ -25,12 +25,12 @@ from experiments.tables import (
     model_config_options,
     model_order,
 )
+from harness.jobs import LOCAL, Executor
+from harness.run_folder import json_form
 from perception.learning.train import TrainConfig, available_threads
 from perception.model_config_file import ModelConfigFile
-from sim.jobs import LOCAL, Executor
 from sim.tasks.task_sensor import seen_in_scene
 from sim.tasks.task_toml import load_task
-from sim.trials.run_folder import json_form
 from sim.trials.trial_settings import task_identity
 
 SIZES = (4, 20, 100)
@@ -89,7 +89,7 @@ class ReproduceSimSettings:
         workers: Processes running cells at once; None: the cores this process may use. One
             runs everything in this process.
         executor: Where the jobs run: this machine's process pool (default) or Ray
-            (:class:`~sim.jobs.Executor`); the results are the same.
+            (:class:`~harness.jobs.Executor`); the results are the same.
         model_configs: Settings of some of ``models`` read from files (``--model-config
             MODEL=FILE.toml``), at most one per model. They reach ``new_model`` and the
             model's hyper-parameters in each cell's identity, so a cell computed with other

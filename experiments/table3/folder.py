@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from experiments.table3.settings import seed_folder
-from experiments.tables import read_json
+from harness.run_files import read_json
 
 
 def read_gifs(out: Path, seeds: Sequence[int]) -> dict[str, dict[str, Any]]:

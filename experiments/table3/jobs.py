@@ -1,7 +1,7 @@
 """The jobs of ``gva reproduce real`` and the job graph that runs them (collect, train, try).
 
 Each job is a small frozen dataclass handed to a function that runs in a worker process
-(:mod:`sim.jobs`, or Ray: :mod:`sim.ray_jobs`); it writes its files itself and returns a
+(:mod:`harness.jobs`, or Ray: :mod:`harness.ray_jobs`); it writes its files itself and returns a
 :class:`JobOutcome`. A job that raises is recorded in ``OUT/errors/<job>.json`` (message and
 traceback) and the run goes on; the jobs that needed its output are left out and named.
 Finished work is found on disk before the run starts, so a re-run skips it; a job starts
@@ -34,28 +34,27 @@ from experiments.table3.settings import (
     trained_file,
     trials_folder,
 )
-from experiments.tables import (
-    TWO_PHASE_MODELS,
+from experiments.tables import TWO_PHASE_MODELS, model_config_file
+from harness.executors import open_pool
+from harness.jobs import ONE_CPU, JobResources
+from harness.run_files import (
     Failed,
-    cost_bar,
     dataset_present,
     guarded,
-    model_config_file,
     read_json,
     refuse_other_settings,
     write_json,
 )
+from harness.run_folder import json_form
+from harness.run_loop import run_trials
+from harness.run_report import cost_bar
 from perception.learning.dataset_file import DatasetError, load_dataset
 from perception.learning.train import TrainConfig
 from perception.learning.validation import fit_checked, write_check
 from perception.registry import new_model
-from sim.executors import open_pool
-from sim.jobs import ONE_CPU, JobResources
 from sim.tasks.scene_sampling import SeedStream, target_count
 from sim.tasks.task_toml import load_task
 from sim.trials.collector import CollectSettings, collect
-from sim.trials.run_folder import json_form
-from sim.trials.run_loop import run_trials
 from sim.trials.trial_settings import TrialSettings, torch_threads
 
 # Rough seconds per unit of work on one loaded core, only for the progress bar's time left.

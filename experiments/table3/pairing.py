@@ -1,7 +1,7 @@
 """Trial sets of a ``gva reproduce real`` folder paired trial for trial.
 
 Each baseline's plain trials against kqv's, and each model's trials under a variant against its
-own clean ones (:mod:`sim.trials.compare`), per task and seed; :mod:`experiments.table3.report`
+own clean ones (:mod:`harness.compare`), per task and seed; :mod:`experiments.table3.report`
 tabulates them.
 """
 
@@ -13,13 +13,13 @@ from typing import Any
 
 from experiments.table3.settings import OPEN_LOOP, PLAIN, REFERENCE_MODEL
 from experiments.table3.trial_sets import TrialSetResult
-from sim.trials.compare import Comparison, compare_records
-from sim.trials.paired_statistics import format_p
+from harness.compare import Comparison, compare_records
+from harness.paired_statistics import format_p
 
 
 @dataclass(frozen=True)
 class PairedSets:
-    """Two trial sets of one task and seed paired trial for trial (:mod:`sim.trials.compare`).
+    """Two trial sets of one task and seed paired trial for trial (:mod:`harness.compare`).
 
     A baseline against kqv (``variant`` plain; ``comparison`` has kqv as A, its difference
     baseline - kqv), or a model under a variant against its own plain trials (the plain set as

@@ -29,20 +29,13 @@ from experiments.table3.trial_sets import (
     read_trial_sets,
     variant_order,
 )
-from experiments.tables import (
-    ALL_TASKS,
-    TASK_TITLES,
-    TASKS,
-    duration,
-    model_order,
-    model_title,
-    write_json,
-    write_text,
-)
+from experiments.tables import ALL_TASKS, TASK_TITLES, TASKS, model_order, model_title
+from harness.paired_statistics import CONFIDENCE, SIGNIFICANCE
+from harness.run_files import write_json, write_text
+from harness.run_report import duration
 from sim.tasks.task_spec import TargetSelection
 from sim.tasks.task_toml import load_task
 from sim.tasks.variants import variant_title
-from sim.trials.paired_statistics import CONFIDENCE, SIGNIFICANCE
 from sim.trials.records import TrialOutcome, TrialRecord
 from sim.world.sensor import SensorConfig
 
@@ -327,7 +320,7 @@ def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float
                   session: dict[str, Any] | None = None) -> Reports:
     """Writes ``table3.json`` and ``table3.md`` from what the folder holds.
 
-    ``session``: the provenance of the run that writes them (:mod:`sim.trials.provenance`).
+    ``session``: the provenance of the run that writes them (:mod:`harness.provenance`).
     """
     seeds = list(settings.training_seeds)
     sets = read_trial_sets(out, seeds, settings.n)

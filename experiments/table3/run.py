@@ -15,9 +15,9 @@ from typing import Any
 from experiments.table3.jobs import JobOutcome, run_jobs
 from experiments.table3.report import write_reports
 from experiments.table3.settings import ReproduceRealSettings, seed_folder, write_run_tasks
-from experiments.tables import RunReport
-from sim.trials.provenance import provenance
-from sim.trials.run_folder import claim_run_folder, run_folder_lock
+from harness.provenance import provenance
+from harness.run_folder import claim_run_folder, run_folder_lock
+from harness.run_report import RunReport
 
 ReproduceRealReport = RunReport[JobOutcome, str]
 

@@ -18,25 +18,24 @@ from experiments.tables import (
     check_counts,
     check_model_configs,
     check_models,
-    dataset_path,
     model_config,
     model_config_file,
     model_config_options,
-    write_text,
 )
+from harness.jobs import LOCAL, Executor
+from harness.run_files import dataset_path, write_text
+from harness.run_folder import json_form
 from perception.learning.train import TrainConfig, available_threads
 from perception.learning.validation import CheckConfig
 from perception.model_config_file import ModelConfigFile
 from robots import ROBOT_NAMES, get_robot
 from sim.errors import InvalidInputError
-from sim.jobs import LOCAL, Executor
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.task_spec import TaskSpec, spaced_for
 from sim.tasks.task_toml import load_task, task_to_toml
 from sim.tasks.variants import read_variant, with_variant
 from sim.trials.execution import ExecutionSettings
 from sim.trials.loop_settings import Loop, LoopSettings
-from sim.trials.run_folder import json_form
 from sim.trials.trial_settings import TrialSettings, obstacle_identity, task_identity
 from sim.world.head_camera import CameraConfig, camera_config
 from sim.world.sensor import SensorConfig, SensorKind
@@ -131,7 +130,7 @@ class ReproduceRealSettings:
             paper's robot saw; the ideal pinhole is the world of earlier tables.
         workers: Processes at once; None: the cores this process may use.
         executor: Where the jobs run: this machine's process pool (default) or Ray
-            (:class:`~sim.jobs.Executor`); the results are the same.
+            (:class:`~harness.jobs.Executor`); the results are the same.
         check: How each training checks itself on demonstrations it holds out
             (:class:`~perception.learning.validation.CheckConfig`); a model that fails is
             marked in its checkpoint and in the tables.

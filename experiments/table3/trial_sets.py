@@ -14,7 +14,8 @@ from typing import Any
 
 from experiments.table3.settings import OPEN_LOOP, PLAIN, seed_folder
 from experiments.tables import ALL_TASKS, model_order
-from sim.trials.records import TrialRecord, TrialSummary
+from harness.trial_summary import TrialSummary
+from sim.trials.records import TrialRecord
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ from perception.interface import (
     LabelKind,
     condition_size,
 )
-from perception.learning.labels import LABEL_DIMS, check_rotations, split_label
+from perception.labels import LABEL_DIMS, check_rotations, split_label
 
 FORMAT_VERSION = 1
 TENSORS = ("images", "conditions", "labels")  # a dataset's arrays, in its file's order

@@ -26,11 +26,11 @@ from perception.interface import (
     PerceptionModel,
     Prediction,
 )
+from perception.labels import split_label
 from perception.learning.data import Dataset
 from perception.learning.judged_errors import JudgedErrors, judge_predictions
-from perception.learning.labels import split_label
 from perception.learning.learnable import LearnableModel
-from perception.models.rotations import symmetric_angle_rad
+from perception.learning.rotations import symmetric_angle_rad
 
 
 @dataclass(frozen=True)

@@ -19,8 +19,8 @@ from perception.catalog import get_object_spec
 from perception.grasp_judge import GraspVerdict, judge_grasp
 from perception.grasp_tolerance import ToleranceMap, default_tolerance_map
 from perception.interface import Prediction
+from perception.labels import split_label
 from perception.learning.data import Dataset
-from perception.learning.labels import split_label
 from perception.poses import Pose
 
 ERRORS = ("position_cm", "closing_mm", "across_mm", "approach_mm", "yaw_deg", "tilt_deg")

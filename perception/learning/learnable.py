@@ -36,8 +36,8 @@ from perception.interface import (
     check_image,
     condition_size,
 )
+from perception.labels import LABEL_DIMS
 from perception.learning.data import Dataset, DatasetMetadata
-from perception.learning.labels import LABEL_DIMS
 
 if TYPE_CHECKING:
     from perception.learning.train import TrainConfig, TrainReport

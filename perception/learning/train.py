@@ -28,7 +28,7 @@ from tqdm import tqdm
 
 from perception.interface import ConditionKind, InvalidInputError, PerceptionError
 from perception.learning.data import Dataset
-from perception.models.base import images_to_tensor
+from perception.learning.torch_pieces import images_to_tensor
 
 BRIGHTNESS = (0.7, 1.3)  # image gain: the yumi tasks light scenes at 0.3-1.0 brightness
 CONTRAST = (0.8, 1.2)  # scales each image about its mean grey level

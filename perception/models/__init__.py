@@ -1,4 +1,8 @@
-"""Learnable perception models, one file each over the shared pieces in :mod:`.base`.
+"""Learnable perception models, one file each, over what :mod:`perception.learning` shares.
+
+The torch pieces (:mod:`~perception.learning.torch_pieces`) and the rotation codes
+(:mod:`~perception.learning.rotations`) live there, below every model: nothing in
+``learning`` imports a model.
 
 ``kqv``: the paper's Key-Query-Value visual attention model (:class:`KqvModel`; its network
 in :mod:`.kqv_net`, its settings in :mod:`.kqv_config`).

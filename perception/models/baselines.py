@@ -42,8 +42,8 @@ from perception.learning.learnable import (
     check_number,
 )
 from perception.learning.mirror import MIRROR_FLAG, Mirror
+from perception.learning.torch_pieces import MLP, LabelScaler, normalise_images
 from perception.learning.train import Batch, TrainConfig, TrainReport
-from perception.models.base import MLP, LabelScaler, normalise_images
 from perception.models.torch_model import NetOutput, Phase, TorchModel, pose_size, split_pose
 
 RECONSTRUCTION_PX = (16, 32, 64)

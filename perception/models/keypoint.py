@@ -35,8 +35,8 @@ from torch import Tensor, nn
 
 from perception.interface import InvalidInputError
 from perception.learning.learnable import ModelSpec, check_choices, check_number
+from perception.learning.torch_pieces import coordinate_grid, softmax2d, spatial_expectation
 from perception.learning.train import Batch
-from perception.models.base import coordinate_grid, softmax2d, spatial_expectation
 from perception.models.baselines import (
     MOST,
     AutoencoderModel,

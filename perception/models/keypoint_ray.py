@@ -20,10 +20,10 @@ from torch import Tensor, nn
 
 from perception.interface import InvalidInputError, LabelKind
 from perception.learning.learnable import ModelSpec
-from perception.models.base import MLP
+from perception.learning.rotations import decode_rotation, rotation_size
+from perception.learning.torch_pieces import MLP
 from perception.models.baselines import BaselineNet, Encoding
 from perception.models.readout import CameraRays
-from perception.models.rotations import decode_rotation, rotation_size
 from perception.models.torch_model import NetOutput
 
 ROTATION_CODE = "6d"

@@ -28,9 +28,14 @@ from perception.learning.data import Dataset
 from perception.learning.evaluate import evaluate
 from perception.learning.learnable import ModelSpec
 from perception.learning.mirror import MIRROR_FLAG, Mirror
+from perception.learning.torch_pieces import (
+    LabelScaler,
+    images_to_tensor,
+    normalised_to_pixels,
+    unit,
+)
 from perception.learning.train import Batch, TrainConfig, TrainReport, train
 from perception.learning.validation import split_scenes
-from perception.models.base import LabelScaler, images_to_tensor, normalised_to_pixels, unit
 from perception.models.kqv_config import INFERENCE_FIELDS, KqvConfig
 from perception.models.kqv_net import KqvNet
 from perception.models.torch_model import Phase, TorchModel, present_mean

@@ -14,7 +14,7 @@ from typing import Any, ClassVar
 
 from perception.interface import InvalidInputError
 from perception.learning.learnable import check_choices, check_integer, check_number
-from perception.models.rotations import ROTATION_CODES
+from perception.learning.rotations import ROTATION_CODES
 
 QUERY_MODES = ("auto", "base", "conditioned", "conditioned+base", "paper")
 READOUTS = ("auto", "mlp", "ray")
@@ -114,7 +114,7 @@ class KqvConfig:
             camera sees its target (the label projected). The Query still chooses the object;
             the loss teaches where on it the point sits, and lets it find the objects at all
             (paper-sim ``selected-position``). 0: the paper's free attention.
-        rotation: How the head gives a grasp's rotation (:mod:`perception.models.rotations`):
+        rotation: How the head gives a grasp's rotation (:mod:`perception.learning.rotations`):
             ``"6d"`` (Zhou et al.) or ``"axis-line"`` (the approach axis and the closing axis's
             line tensor, the same for a grasp and its half-turn twin).
         mirror: Whether training also shows a random half of each batch mirrored across the

@@ -18,7 +18,8 @@ from torch import Tensor, nn
 
 from perception.interface import PICTURE_PX, ConditionKind, InvalidInputError, LabelKind
 from perception.learning.learnable import ModelSpec
-from perception.models.base import (
+from perception.learning.rotations import decode_rotation, rotation_size
+from perception.learning.torch_pieces import (
     MLP,
     CoordConv,
     LabelScaler,
@@ -32,7 +33,6 @@ from perception.models.base import (
 from perception.models.kqv_config import KqvConfig
 from perception.models.readout import CameraRays
 from perception.models.rise import RISE_SCALE_M, rise_above_table
-from perception.models.rotations import decode_rotation, rotation_size
 from perception.models.torch_model import NetOutput
 from perception.sentence_reading import TokenReader
 from robots.yumi import HEAD_CAMERA

@@ -15,7 +15,7 @@ from torch import Tensor, nn
 from perception.camera import PinholeCamera
 from perception.interface import InvalidInputError
 from perception.learning.learnable import ModelSpec
-from perception.models.base import LabelScaler, normalised_to_pixels, pixels_to_normalised
+from perception.learning.torch_pieces import LabelScaler, normalised_to_pixels, pixels_to_normalised
 
 UNDISTORT_STEPS = 6
 """Newton steps that undo the lens in the readout: a fixed count keeps it one graph for

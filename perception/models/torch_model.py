@@ -40,9 +40,9 @@ from perception.learning.checkpoint import (
 )
 from perception.learning.data import Dataset
 from perception.learning.learnable import LearnableModel, ModelSpec
+from perception.learning.rotations import axis_line_loss, rotation_from_6d, symmetric_chordal_loss
+from perception.learning.torch_pieces import LabelScaler, images_to_tensor, normalised_to_pixels
 from perception.learning.train import Batch, TrainConfig, TrainReport, train
-from perception.models.base import LabelScaler, images_to_tensor, normalised_to_pixels
-from perception.models.rotations import axis_line_loss, rotation_from_6d, symmetric_chordal_loss
 
 
 class NetOutput(NamedTuple):
@@ -53,7 +53,7 @@ class NetOutput(NamedTuple):
     points: Tensor | None = None  # (B, p, 2) attention points, (x, y) in [-1, 1]; None: none
     heatmaps: Tensor | None = None  # (B, p, h, w), each summing to 1; None where it has none
     rotation_lines: Tensor | None = None  # (B, q, 3, 4) axis-line codes; None: the loss reads
-    # the rotations (see perception.models.rotations)
+    # the rotations (see perception.learning.rotations)
     type_logits: Tensor | None = None  # (B, q, T) over the spec's object_types; None: the
     # network states no type
 

@@ -43,8 +43,8 @@ from sim.tasks.task_toml import load_task
 from sim.trials.execution import ExecutionSettings
 from sim.trials.pick_results import PickAttempt, Sighting, trial_result
 from sim.trials.records import TrialOutcome
-from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
+from sim.trials.trial_scenes import trial_scene
 from sim.world.sensor import SensorKind
 
 WORKSPACE_BOUND_M = 1.0

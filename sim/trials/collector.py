@@ -32,9 +32,9 @@ from tqdm import tqdm
 
 from perception.camera import RgbdFrame
 from perception.interface import Prediction
+from perception.labels import label_vector
 from perception.learning.data import JOINT_NAMES_KEY, Dataset, DatasetMetadata
 from perception.learning.dataset_file import save_dataset
-from perception.learning.labels import label_vector
 from perception.learning.mirror import MIRROR_FLAG
 from robots import ROBOT_NAMES, get_robot
 from sim.errors import InvalidInputError, SimError

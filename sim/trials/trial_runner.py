@@ -48,7 +48,7 @@ from perception.interface import (
     Prediction,
     Target,
 )
-from perception.learning.labels import nearest_rotation
+from perception.labels import nearest_rotation
 from perception.poses import Pose
 from robots.description import RobotDescription
 from robots.yumi import YUMI

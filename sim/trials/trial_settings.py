@@ -5,7 +5,7 @@ train`` writes one), checked against the task before the first trial; or a model
 built with no arguments: ``"package.module:Class"`` or the name an installed package registers
 (:mod:`perception.plugins`). A model that uses torch runs its inference on one torch thread: a
 trial predicts one image at a time, where more threads cost more than they save, and runs of
-trials side by side would fight for the cores. :mod:`sim.trials.run_loop` runs the trials.
+trials side by side would fight for the cores. :mod:`harness.run_loop` runs the trials.
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ import pytest
 from benchmark_scripts import load_benchmark
 from user_models import CAMERA, synthetic_dataset
 
-from experiments.tables import SeedStream, dataset_path
+from harness.run_files import dataset_path
 from perception.interface import LabelKind
 from perception.learning.dataset_file import save_dataset
 from perception.learning.evaluate import evaluate
@@ -18,6 +18,7 @@ from perception.learning.train import TrainConfig
 from perception.model_config_file import read_model_config
 from perception.models.kqv_config import PAPER, KqvConfig
 from perception.registry import new_model
+from sim.tasks.scene_sampling import SeedStream
 
 ROOT = Path(__file__).resolve().parents[2]
 

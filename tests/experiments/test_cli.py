@@ -15,9 +15,9 @@ from gva_cli import gva
 from experiments.cli import build_parser, main
 from experiments.table2.settings import ReproduceSimSettings
 from experiments.table3.settings import ReproduceRealSettings
+from harness.jobs import Executor, ExecutorKind
 from perception.learning.train import TrainConfig
 from perception.learning.validation import CheckConfig
-from sim.jobs import Executor, ExecutorKind
 from sim.trials.collector import CollectSettings
 from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.trial_settings import TrialSettings

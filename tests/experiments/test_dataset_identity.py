@@ -6,7 +6,7 @@ from dataclasses import replace
 
 import pytest
 
-from experiments.tables import dataset_path, dataset_present
+from harness.run_files import dataset_path, dataset_present
 from perception.learning.dataset_file import save_dataset
 from sim.errors import RunFolderError
 from sim.tasks.scene_sampling import SeedStream

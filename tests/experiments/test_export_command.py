@@ -9,9 +9,9 @@ import pytest
 from gva_cli import gva
 
 from perception.interface import ConditionKind, LabelKind
+from perception.labels import label_vector
 from perception.learning.data import Dataset, DatasetMetadata
 from perception.learning.dataset_file import save_dataset
-from perception.learning.labels import label_vector
 
 
 @pytest.fixture

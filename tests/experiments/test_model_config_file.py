@@ -20,7 +20,9 @@ from experiments.cli import main
 from experiments.table2.settings import Cell, ReproduceSimSettings
 from experiments.table3 import jobs
 from experiments.table3.settings import ReproduceRealSettings, Unit
-from experiments.tables import model_config, refuse_other_settings
+from experiments.tables import model_config
+from harness.run_files import refuse_other_settings
+from harness.run_folder import json_form
 from perception.interface import InvalidInputError
 from perception.learning.checkpoint import read_config
 from perception.learning.dataset_file import save_dataset
@@ -28,7 +30,6 @@ from perception.model_config_file import ModelConfigFile, read_model_config
 from perception.registry import trainable
 from sim.errors import InvalidInputError as SimInvalidInputError
 from sim.errors import RunFolderError
-from sim.trials.run_folder import json_form
 
 FAST = ["--steps", "3", "--batch-size", "4", "--threads", "1", "--holdout", "0", "--no-progress"]
 KQV_FILE = 'similarity = "dot"\nstarts = 1\nchannels = [8, 8]\n'

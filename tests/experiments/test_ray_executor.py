@@ -15,8 +15,8 @@ from experiments.table2.settings import ReproduceSimSettings
 from experiments.table3.jobs import CollectJob, TrainJob, job_resources
 from experiments.table3.run import run_reproduce_real
 from experiments.table3.settings import ReproduceRealSettings, Unit
-from sim.jobs import Executor, ExecutorKind, JobResources
-from sim.trials.run_loop import run_trials
+from harness.jobs import Executor, ExecutorKind, JobResources
+from harness.run_loop import run_trials
 from sim.trials.trial_settings import TrialSettings
 
 RAY = Executor(ExecutorKind.RAY)

@@ -116,11 +116,11 @@ def test_a_cell_computed_with_other_model_settings_is_refused(copied_run):
 
 
 def test_a_dataset_taken_with_another_camera_is_refused(copied_run, monkeypatch):
-    import experiments.tables
+    import harness.run_files
 
-    wider = dataclasses.replace(experiments.tables.scene_camera("paper-sim"),
+    wider = dataclasses.replace(harness.run_files.scene_camera("paper-sim"),
                                 vertical_fov_deg=90.0)
-    monkeypatch.setattr(experiments.tables, "scene_camera", lambda name: wider)
+    monkeypatch.setattr(harness.run_files, "scene_camera", lambda name: wider)
     cell_path(copied_run, Cell("kqv", "single", 4, 0)).unlink()  # to compute again
     with pytest.raises(RunFolderError, match=r"is not the dataset this run needs \(\{'camera."
                                              r"vertical_fov_deg': \(76.0, 90.0\)\}"):

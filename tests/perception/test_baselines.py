@@ -4,10 +4,10 @@ import torch
 from user_models import BACKGROUND, TYPES, synthetic_dataset
 
 from perception.interface import Condition, ConditionKind, InvalidInputError, LabelKind
-from perception.learning.labels import check_rotations
+from perception.labels import check_rotations
 from perception.learning.learnable import ModelSpec
+from perception.learning.torch_pieces import LabelScaler
 from perception.learning.train import TrainConfig, train
-from perception.models.base import LabelScaler
 from perception.models.baselines import GREY_WEIGHTS, Decoder
 from perception.models.conv_ae import ConvAeConfig, ConvAeModel
 from perception.models.dsae import DsaeConfig, DsaeModel

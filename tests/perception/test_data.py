@@ -10,6 +10,7 @@ from safetensors.numpy import save_file
 
 import perception.learning.dataset_file as dataset_file
 from perception.interface import ConditionKind, InvalidInputError, LabelKind
+from perception.labels import label_vector, split_label
 from perception.learning.data import FORMAT_VERSION, Dataset, DatasetMetadata
 from perception.learning.dataset_file import (
     HEADER_KEY,
@@ -18,7 +19,6 @@ from perception.learning.dataset_file import (
     read_metadata,
     save_dataset,
 )
-from perception.learning.labels import label_vector, split_label
 
 
 def rotations(rng: np.random.Generator, n: int) -> np.ndarray:

@@ -10,8 +10,8 @@ import pytest
 from user_models import synthetic_dataset
 
 from perception.interface import LabelKind, Prediction, Target
+from perception.labels import split_label
 from perception.learning.judged_errors import judge_predictions
-from perception.learning.labels import split_label
 from perception.poses import rot_z
 
 

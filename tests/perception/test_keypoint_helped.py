@@ -9,17 +9,17 @@ import torch
 from user_models import CAMERA, spec, synthetic_dataset
 
 from perception.interface import InvalidInputError, LabelKind
+from perception.labels import check_rotations
 from perception.learning.checkpoint import config_sha256
-from perception.learning.labels import check_rotations
 from perception.learning.mirror import MIRROR_FLAG
-from perception.learning.train import Batch, TrainConfig
-from perception.models.base import (
+from perception.learning.torch_pieces import (
     LabelScaler,
     coordinate_grid,
     images_to_tensor,
     pixels_to_normalised,
     spatial_expectation,
 )
+from perception.learning.train import Batch, TrainConfig
 from perception.models.baselines import BaselineConfig
 from perception.models.dsae import DsaeConfig, DsaeModel
 from perception.models.keypoint import KeypointConfig, KeypointModel

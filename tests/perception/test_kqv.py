@@ -15,10 +15,9 @@ from user_models import (
 )
 
 from perception.interface import Condition, ConditionKind, InvalidInputError, LabelKind, ModelInput
-from perception.learning.labels import check_rotations
+from perception.labels import check_rotations
 from perception.learning.learnable import ModelSpec
-from perception.learning.train import Batch, TrainConfig
-from perception.models.base import (
+from perception.learning.torch_pieces import (
     LabelScaler,
     coordinate_grid,
     images_to_tensor,
@@ -27,6 +26,7 @@ from perception.models.base import (
     softmax2d,
     spatial_expectation,
 )
+from perception.learning.train import Batch, TrainConfig
 from perception.models.kqv import KqvConfig, KqvModel
 
 
@@ -102,7 +102,7 @@ def test_replacing_the_query_moves_the_attention_point():
     image[8:16, 8:16] = COLOURS[0]  # a red square near the top left
     image[44:52, 40:48] = COLOURS[2]  # a blue one near the bottom right
     with torch.no_grad():
-        from perception.models.base import images_to_tensor
+        from perception.learning.torch_pieces import images_to_tensor
         keys = model.network.key_net((images_to_tensor(image[None]) - 0.5) / 0.25)
     # Queries taken from the Key at each square: attention goes where the Query matches
     at_red, at_blue = keys[0, :, 3, 3].numpy(), keys[0, :, 12, 11].numpy()  # 16 x 16 cells

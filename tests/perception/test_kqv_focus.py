@@ -7,7 +7,7 @@ import torch
 from user_models import CAMERA, spec
 
 from perception.interface import InvalidInputError, LabelKind
-from perception.models.base import coordinate_grid, focus, spatial_expectation
+from perception.learning.torch_pieces import coordinate_grid, focus, spatial_expectation
 from perception.models.kqv import KqvConfig, KqvModel
 from perception.models.kqv_net import FOCUS_WINDOW_PX
 

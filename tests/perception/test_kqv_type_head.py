@@ -10,8 +10,8 @@ from user_models import BACKGROUND, TYPES, spec, trained_scaler, typed_dataset
 from perception.interface import InvalidInputError, LabelKind
 from perception.learning.learnable import ModelSpec
 from perception.learning.mirror import Mirror
+from perception.learning.torch_pieces import images_to_tensor
 from perception.learning.train import Batch, TrainConfig
-from perception.models.base import images_to_tensor
 from perception.models.kqv import KqvConfig, KqvModel
 
 

@@ -13,10 +13,10 @@ import pyarrow.parquet as pq
 import pytest
 
 from perception.interface import PICTURE_PX, ConditionKind, InvalidInputError, LabelKind
+from perception.labels import label_vector
 from perception.learning import lerobot_format
 from perception.learning.data import Dataset, DatasetMetadata
 from perception.learning.dataset_file import save_dataset
-from perception.learning.labels import label_vector
 from perception.learning.lerobot_format import (
     IMAGE_KEY,
     LeRobotFolderError,

@@ -9,11 +9,11 @@ from user_models import CAMERA, COLOURS, synthetic_dataset
 
 from perception.camera import PinholeCamera
 from perception.interface import ConditionKind, InvalidInputError, LabelKind
-from perception.learning.labels import check_rotations
+from perception.labels import check_rotations
 from perception.learning.learnable import ModelSpec
 from perception.learning.mirror import MIRROR_FLAG, Mirror
+from perception.learning.torch_pieces import images_to_tensor
 from perception.learning.train import Batch, TrainConfig
-from perception.models.base import images_to_tensor
 from perception.models.kqv import KqvConfig, KqvModel
 
 

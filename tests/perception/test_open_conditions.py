@@ -35,11 +35,11 @@ from perception.interface import (
     Target,
     condition_size,
 )
+from perception.labels import label_vector
 from perception.learning.checkpoint import save_checkpoint
 from perception.learning.data import Dataset
 from perception.learning.dataset_file import load_dataset, save_dataset
 from perception.learning.evaluate import evaluate
-from perception.learning.labels import label_vector
 from perception.learning.train import Batch, TrainConfig, train
 from perception.models.kqv import KqvConfig, KqvModel
 

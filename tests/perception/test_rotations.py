@@ -6,8 +6,8 @@ import torch
 from user_models import DOWN, rot_z
 
 from perception.interface import InvalidInputError
-from perception.learning.labels import check_rotations
-from perception.models.rotations import (
+from perception.labels import check_rotations
+from perception.learning.rotations import (
     CLOSING_REFERENCE,
     FLIP_Z,
     axis_line_from_raw,

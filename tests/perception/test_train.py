@@ -18,10 +18,11 @@ from perception.interface import (
     Prediction,
     Target,
 )
+from perception.labels import split_label
 from perception.learning.dataset_file import save_dataset
 from perception.learning.evaluate import evaluate, label_mean_error_cm
-from perception.learning.labels import split_label
 from perception.learning.learnable import ModelSpec
+from perception.learning.torch_pieces import LabelScaler
 from perception.learning.train import (
     TrainConfig,
     TrainReport,
@@ -30,7 +31,6 @@ from perception.learning.train import (
     train,
     turn_hues,
 )
-from perception.models.base import LabelScaler
 from perception.models.kqv import KqvConfig, KqvModel
 
 FAST = TrainConfig(steps=60, batch_size=8, learning_rate=3e-3, log_every=10, threads=1)
@@ -224,7 +224,7 @@ def _with_positions(dataset, positions_m, choices):
     """``dataset`` with these (N, 1, 3) positions and these condition indices."""
     import dataclasses
 
-    from perception.learning.labels import label_vector
+    from perception.labels import label_vector
 
     n = len(positions_m)
     kept = dataset.subset(range(n))

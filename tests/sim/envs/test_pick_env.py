@@ -15,8 +15,8 @@ from robots import get_robot
 from sim.envs.episodes import oracle_policy, run_episode
 from sim.errors import InvalidInputError
 from sim.tasks.task_toml import builtin_tasks, load_task
-from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
+from sim.trials.trial_scenes import trial_scene
 
 ENV_ID = "sim.envs:gva/Pick-v0"  # the module prefix: no import of ours needed first
 

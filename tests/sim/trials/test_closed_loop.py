@@ -22,8 +22,8 @@ from sim.trials import closed_loop, trial_runner
 from sim.trials.loop_settings import Loop, LoopSettings, Reaction, reactions
 from sim.trials.oracle import OraclePerception
 from sim.trials.records import TrialOutcome
-from sim.trials.run_loop import trial_scene
 from sim.trials.trial_runner import TrialRunner
+from sim.trials.trial_scenes import trial_scene
 from sim.trials.view import ViewVerdict, hidden_share, in_plain_view, unheeded_reason
 from sim.world.head_camera import CameraConfig, HeadCamera
 from sim.world.yumi_world import World

@@ -7,8 +7,8 @@ from user_models import synthetic_dataset
 from experiments.cli import main
 from perception.camera import RgbdFrame
 from perception.interface import ConditionKind, LabelKind
+from perception.labels import split_label
 from perception.learning.dataset_file import DatasetError, load_dataset
-from perception.learning.labels import split_label
 from perception.learning.learnable import ModelSpec
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream

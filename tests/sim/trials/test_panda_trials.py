@@ -10,6 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from harness.run_loop import run_trials
 from perception.interface import ConditionKind, LabelKind
 from perception.learning.learnable import ModelSpec
 from perception.models.kqv import KqvConfig
@@ -23,8 +24,8 @@ from sim.tasks.task_spec import spaced_for
 from sim.tasks.task_toml import load_task
 from sim.trials.collector import CollectSettings, collect
 from sim.trials.records import TrialOutcome
-from sim.trials.run_loop import run_trials, trial_scene
 from sim.trials.trial_runner import TrialRunner
+from sim.trials.trial_scenes import trial_scene
 from sim.trials.trial_settings import TrialSettings, check_camera
 from sim.world.head_camera import CameraConfig, HeadCamera, camera_config
 

@@ -2,15 +2,10 @@ import json
 
 import pytest
 
+from harness.trial_log import TrialLog
+from harness.trial_summary import TrialSummary, wilson_interval
 from sim.errors import RunFolderError
-from sim.trials.records import (
-    TargetPick,
-    TrialLog,
-    TrialOutcome,
-    TrialRecord,
-    TrialSummary,
-    wilson_interval,
-)
+from sim.trials.records import TargetPick, TrialOutcome, TrialRecord
 
 
 def record(index: int, outcome=TrialOutcome.SUCCESS) -> TrialRecord:

@@ -11,17 +11,17 @@ import torch
 from user_models import synthetic_dataset
 
 from experiments.cli import build_parser, main
+from harness.run_loop import run_trials
+from harness.trial_log import TrialLog
 from perception.interface import ConditionKind, LabelKind
 from perception.learning.checkpoint import read_config
 from perception.learning.learnable import ModelSpec
+from perception.learning.torch_pieces import LabelScaler
 from perception.learning.train import TrainConfig
 from perception.learning.validation import CHECK_FILE, HeldOutCheck
-from perception.models.base import LabelScaler
 from perception.models.kqv import KqvModel
 from sim.errors import InvalidInputError, RunFolderError
 from sim.tasks.task_toml import load_task, task_to_toml
-from sim.trials.records import TrialLog
-from sim.trials.run_loop import run_trials
 from sim.trials.trial_settings import TrialSettings, load_trial_model
 from sim.world.d435 import D435Config
 from sim.world.sensor import SensorConfig, SensorKind

@@ -16,11 +16,11 @@ from typing import Any
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
+from harness.judging import judge_run
 from perception.catalog import SPONGE
 from perception.grasps import grasp_pose
 from perception.poses import Pose
 from sim.errors import InvalidInputError, RunFolderError
-from sim.trials.judging import judge_run
 from sim.trials.pick_results import pose_json
 from sim.trials.records import TrialOutcome, TrialRecord, read_trial_records
 

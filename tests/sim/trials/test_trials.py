@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from experiments.cli import main
+from harness.run_loop import run_trials
 from perception.catalog import OBJECT_TYPES, get_object_spec
 from perception.interface import (
     NO_CONDITION,
@@ -18,7 +19,6 @@ from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_toml import load_task
 from sim.trials.oracle import OraclePerception
 from sim.trials.planner_setup import ObstacleSource
-from sim.trials.run_loop import run_trials
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_settings import TrialSettings
 from sim.world.head_camera import HeadCamera

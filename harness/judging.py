@@ -16,13 +16,14 @@ from typing import Any
 
 import numpy as np
 
+from harness.calibration import Calibration
+from harness.trial_summary import PickCounts
 from perception.catalog import get_object_spec
 from perception.grasp_judge import GraspVerdict, judge_grasp
 from perception.grasp_tolerance import ToleranceMap, default_tolerance_map
 from perception.poses import Pose
 from sim.errors import InvalidInputError
-from sim.trials.calibration import Calibration
-from sim.trials.records import PickCounts, TrialOutcome, TrialRecord, read_trial_records
+from sim.trials.records import TrialOutcome, TrialRecord, read_trial_records
 
 
 def pose_of(data: dict[str, Any]) -> Pose:
@@ -158,7 +159,7 @@ class RunJudgement:
     """A run folder judged: each trial set, all their picks together, each pick missed.
 
     ``calibration`` scores the judge's probabilities over every pick
-    (:mod:`sim.trials.calibration`); ``probabilities`` lists each pick's (where, held, p).
+    (:mod:`harness.calibration`); ``probabilities`` lists each pick's (where, held, p).
     """
 
     sets: tuple[TrialSetJudgement, ...]

@@ -50,7 +50,7 @@ def claim_run_folder(folder: Path, settings: Mapping[str, Any], name: str = "run
 
     A new folder gets ``folder/name`` holding the settings (written atomically); a folder that
     has one is accepted only if it holds the same settings. ``provenance``
-    (:mod:`sim.trials.provenance`) is appended to the file's ``provenance`` list, one entry per
+    (:mod:`harness.provenance`) is appended to the file's ``provenance`` list, one entry per
     session that worked on the run; it is not part of what identifies the run.
 
     Raises:

@@ -6,8 +6,8 @@ import math
 
 import pytest
 
+from harness.calibration import Calibration
 from sim.errors import InvalidInputError
-from sim.trials.calibration import Calibration
 
 
 def test_a_perfect_ranking_has_auc_one_and_ties_count_half():

@@ -6,9 +6,8 @@ import math
 
 import pytest
 
-from sim.errors import InvalidInputError
-from sim.trials.compare import compare_records
-from sim.trials.paired_statistics import (
+from harness.compare import compare_records
+from harness.paired_statistics import (
     Interval,
     PairedCounts,
     PairedTest,
@@ -16,7 +15,9 @@ from sim.trials.paired_statistics import (
     mcnemar_exact_p,
     newcombe_paired_interval,
 )
-from sim.trials.records import TrialOutcome, TrialRecord, wilson_interval
+from harness.trial_summary import wilson_interval
+from sim.errors import InvalidInputError
+from sim.trials.records import TrialOutcome, TrialRecord
 
 # Complete response before and after consolidation therapy (Cavo et al. 2012), the worked
 # example of Fagerland, Lydersen & Laake, "Statistical Analysis of Contingency Tables" (CRC

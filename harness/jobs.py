@@ -15,7 +15,7 @@ the pool spawns its workers; each runs torch on one thread, and one worker runs 
 process instead. Workers ignore Ctrl-C: the main process gets it and stops them.
 
 This is the local executor, the default. :class:`Executor` names where a run's jobs go, and
-:func:`sim.executors.open_pool` opens its pool: this one, or :class:`sim.ray_jobs.RayPool`,
+:func:`harness.executors.open_pool` opens its pool: this one, or :class:`harness.ray_jobs.RayPool`,
 which runs the same functions on the same jobs as Ray tasks.
 """
 
@@ -46,7 +46,7 @@ class ExecutorKind(Enum):
     """Where a run's jobs run."""
 
     LOCAL = "local"  # this machine's process pool (:class:`JobPool`)
-    RAY = "ray"  # Ray tasks: a local Ray started for the run, or a cluster (:mod:`sim.ray_jobs`)
+    RAY = "ray"  # Ray tasks: a local Ray started for the run, or a cluster (:mod:`.ray_jobs`)
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,7 @@
 Each run's own Wilson interval (:class:`~sim.trials.records.TrialSummary`) says how well it did,
 not whether two models differ: on the same scenes their outcomes are paired. This module pairs
 them (used by ``gva compare`` and by ``gva reproduce real``'s report); the statistics are
-:mod:`sim.trials.paired_statistics`'.
+:mod:`harness.paired_statistics`'.
 
 A run is a folder ``gva trials`` wrote (``run.json``, ``trials.jsonl``, ``summary.json``);
 runs compare only when they ran the same trials: the same task, scene, seed and n (and, trial
@@ -18,15 +18,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sim.errors import InvalidInputError, RunFolderError
-from sim.trials.paired_statistics import (
+from harness.paired_statistics import (
     SIGNIFICANCE,
     PairedCounts,
     PairedTest,
     Verdict,
 )
+from harness.run_folder import differences
+from sim.errors import InvalidInputError, RunFolderError
 from sim.trials.records import TrialOutcome, TrialRecord, record_lines, record_of_line
-from sim.trials.run_folder import differences
 
 RUN_FILES = ("run.json", "trials.jsonl", "summary.json")
 """What a finished ``gva trials`` run folder holds."""

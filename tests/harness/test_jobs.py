@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
+from harness.jobs import JobPool
 from sim.errors import InvalidInputError
-from sim.jobs import JobPool
 
 
 def _square(value: int) -> int:
@@ -72,7 +72,7 @@ def test_workers_exit_when_the_main_process_is_killed(tmp_path: Path):
     pids = tmp_path / "pids"
     script = textwrap.dedent(f"""
         import os, time
-        from sim.jobs import JobPool
+        from harness.jobs import JobPool
 
         def job(_):
             with open({str(pids)!r}, "a") as handle:

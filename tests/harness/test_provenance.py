@@ -5,10 +5,10 @@ from __future__ import annotations
 import json
 from importlib import metadata
 
+from harness.provenance import git_revision, provenance
+from harness.run_loop import run_trials
 from perception.files import file_sha256
 from sim.tasks.task_toml import TASK_FILES
-from sim.trials.provenance import git_revision, provenance
-from sim.trials.run_loop import run_trials
 from sim.trials.trial_settings import TrialSettings
 
 

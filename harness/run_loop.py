@@ -1,7 +1,7 @@
 """Runs of pick trials: the resumable loop, side by side or not, and the summary.
 
 Trial ``i`` of a run with seed ``s`` runs test scene ``i`` of seed ``s`` (see
-:mod:`sim.tasks.scene_sampling`), so the same seed gives the same trials, and no trial runs on a
+:mod:`sim.trials.trial_scenes`), so the same seed gives the same trials, and no trial runs on a
 scene a model was trained on. Every finished trial is appended to ``trials.jsonl`` before the
 next one starts; running the same command again resumes where an interrupted run stopped. What
 a run is and how its model loads: :mod:`sim.trials.trial_settings`.
@@ -22,21 +22,18 @@ from typing import Any
 
 from tqdm import tqdm
 
+from harness.executors import open_pool
+from harness.jobs import LOCAL, Executor, ExecutorKind
+from harness.provenance import provenance
+from harness.run_folder import run_folder_lock
+from harness.trial_log import TrialLog
+from harness.trial_summary import TrialSummary
 from perception.files import atomic_write
 from sim.errors import InvalidInputError
-from sim.executors import open_pool
-from sim.jobs import LOCAL, Executor, ExecutorKind
-from sim.tasks.scene_sampling import (
-    Scene,
-    SeedStream,
-    sample_scene,
-)
-from sim.tasks.scene_specs import YUMI_SCENE
-from sim.tasks.task_spec import TaskSpec
-from sim.trials.provenance import provenance
-from sim.trials.records import TrialLog, TrialRecord, TrialSummary
-from sim.trials.run_folder import run_folder_lock
+from sim.tasks.scene_sampling import Scene
+from sim.trials.records import TrialRecord
 from sim.trials.trial_runner import TrialRunner
+from sim.trials.trial_scenes import trial_scene
 from sim.trials.trial_settings import (
     TrialModel,
     TrialSettings,
@@ -74,9 +71,9 @@ def run_trials(
 ) -> TrialSummary:
     """Runs (or resumes) ``settings.n`` trials into ``out_dir``; writes ``summary.json``.
 
-    The folder is locked for the run (:func:`~sim.trials.run_folder.run_folder_lock`). With
-    ``workers`` > 1 the trials run side by side in that many processes (:mod:`sim.jobs`), or
-    with the Ray executor as Ray tasks, one per trial (:mod:`sim.ray_jobs`); this process
+    The folder is locked for the run (:func:`~harness.run_folder.run_folder_lock`). With
+    ``workers`` > 1 the trials run side by side in that many processes (:mod:`harness.jobs`), or
+    with the Ray executor as Ray tasks, one per trial (:mod:`harness.ray_jobs`); this process
     appends each record as it comes. Every trial starts from a rebuilt world, so the records
     are those of one process, in the order they finish.
 
@@ -150,7 +147,7 @@ _WORKER_RUNNER: list[tuple[TrialSettings, TrialRunner]] = []
 
 
 def run_trial_job(job: TrialJob) -> TrialRecord:
-    """Runs one trial in a worker process (:mod:`sim.jobs` limits it to one torch thread)."""
+    """Runs one trial in a worker process (:mod:`harness.jobs` limits it to one torch thread)."""
     settings = job.settings
     if not _WORKER_RUNNER or _WORKER_RUNNER[0][0] != settings:
         for _, old in _WORKER_RUNNER:
@@ -162,11 +159,6 @@ def run_trial_job(job: TrialJob) -> TrialRecord:
     runner = _WORKER_RUNNER[0][1]
     scene = trial_scene(runner.task, settings.seed, job.index)
     return runner.run(scene, job.index, settings.seed, settings.model)
-
-
-def trial_scene(task: TaskSpec, seed: int, index: int) -> Scene:
-    """Trial ``index``'s scene: test scene ``index`` of the run's seed."""
-    return sample_scene(task, YUMI_SCENE, seed, SeedStream.TEST, index)
 
 
 def _write_summary(settings: TrialSettings, log: TrialLog, out: Path,

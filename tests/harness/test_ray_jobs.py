@@ -18,10 +18,10 @@ import pytest
 import ray
 from gva_cli import gva
 
+from harness.executors import open_pool
+from harness.jobs import Executor, ExecutorKind, JobPool, JobResources
+from harness.ray_jobs import RayPool, refuse_nodes
 from sim.errors import InvalidInputError
-from sim.executors import open_pool
-from sim.jobs import Executor, ExecutorKind, JobPool, JobResources
-from sim.ray_jobs import RayPool, refuse_nodes
 
 ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
 RAY = Executor(ExecutorKind.RAY)
@@ -127,8 +127,8 @@ def test_ctrl_c_stops_the_runs_tasks_and_keeps_what_finished(tmp_path):
     script = textwrap.dedent(f"""
         import os, signal, time
         from pathlib import Path
-        from sim.executors import open_pool
-        from sim.jobs import Executor, ExecutorKind
+        from harness.executors import open_pool
+        from harness.jobs import Executor, ExecutorKind
 
         HERE = Path({str(tmp_path)!r})
 

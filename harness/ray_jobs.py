@@ -1,6 +1,6 @@
 """The Ray executor: a run's jobs as Ray tasks, on a local Ray or on a cluster.
 
-The jobs and the functions are those of the local pool (:class:`sim.jobs.JobPool`); only where
+The jobs and the functions are those of the local pool (:class:`harness.jobs.JobPool`); only where
 they run changes. Every job still writes its files into the run folder itself, so on a cluster
 that folder must be storage every node mounts at the same path (NFS, a parallel file system).
 :func:`check_shared_folder` makes sure of it before the first job: a job's outputs (datasets,
@@ -22,9 +22,9 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from harness.jobs import ONE_CPU, Job, JobResources, ReadyJobs, Released, Result
+from harness.provenance import git_revision
 from sim.errors import InvalidInputError
-from sim.jobs import ONE_CPU, Job, JobResources, ReadyJobs, Released, Result
-from sim.trials.provenance import git_revision
 
 try:
     import ray

@@ -12,7 +12,7 @@ succeeded, the other failed) tell them apart:
   for the difference between binomial proportions based on paired data", Stat Med 17:2635-2650:
   each run's Wilson interval, squared and added with a correction for the pairs' correlation.
 
-:mod:`sim.trials.compare` pairs two runs' trials and applies them.
+:mod:`harness.compare` pairs two runs' trials and applies them.
 """
 
 from __future__ import annotations
@@ -26,8 +26,8 @@ from typing import Any
 
 from scipy.stats import binomtest, norm
 
+from harness.trial_summary import wilson_interval
 from sim.errors import InvalidInputError
-from sim.trials.records import wilson_interval
 
 CONFIDENCE = 0.95
 """Level of the interval of the difference (Newcombe's, from 95 % Wilson intervals)."""

@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 from gva_cli import gva
 
+from harness.judging import judge_run
+from harness.trial_summary import PickCounts, TrialSummary
 from perception.catalog import SPONGE, SPRAY_BOTTLE
 from perception.grasps import grasp_pose
 from perception.interface import NO_CONDITION, Prediction, Target
@@ -16,10 +18,9 @@ from perception.poses import Pose, rot_z
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_toml import load_task
-from sim.trials.judging import judge_run
 from sim.trials.oracle import OraclePerception
 from sim.trials.pick_results import pose_json
-from sim.trials.records import PickCounts, TrialOutcome, TrialRecord, TrialSummary
+from sim.trials.records import TrialOutcome, TrialRecord
 from sim.trials.trial_runner import TrialRunner
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sim.jobs import Executor, ExecutorKind, JobPool, Pool
+from harness.jobs import Executor, ExecutorKind, JobPool, Pool
 
 
 def open_pool(executor: Executor, workers: int, out: Path) -> Pool:
@@ -22,6 +22,6 @@ def open_pool(executor: Executor, workers: int, out: Path) -> Pool:
     """
     if executor.kind is ExecutorKind.LOCAL:
         return JobPool(workers)
-    from sim.ray_jobs import RayPool  # the optional extra, imported only when asked for
+    from harness.ray_jobs import RayPool  # the optional extra, imported only when asked for
 
     return RayPool(workers, executor.ray_address, out)
