@@ -27,6 +27,7 @@ from sim.tasks.task_toml import load_task
 from sim.trials.collector import APPROACH_MASKED_KEY, CollectSettings
 from sim.trials.trial_settings import task_identity
 from sim.world.head_camera import CameraConfig, camera_config
+from sim.world.sensor import SensorKind
 
 
 def write_json(path: Path, data: Any) -> None:
@@ -105,7 +106,7 @@ def dataset_path(out: Path, task: str, stream: SeedStream, size: int, seed: int)
 
 def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
                     stream: SeedStream, approach_hz: float | None = None,
-                    robot: str = "yumi") -> bool:
+                    robot: str = "yumi", sensor: SensorKind | None = None) -> bool:
     """Whether ``path`` holds the dataset asked for; refuses a file that holds another.
 
     ``task`` is a built-in task's name or a task file's path. Compared: scene, task name,
@@ -117,6 +118,7 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
     scene's camera (other images; in the yumi scene, ``robot``'s), the robot where it is not
     the YuMi, and the approach images' rate (``approach_hz``, if any) and whether the arm is
     masked out of them (datasets from before the mask have it in view: another dataset).
+    ``sensor``: the yumi scene's ``--sensor`` (None: the task file's), part of the definition.
 
     Raises:
         RunFolderError: ``path`` holds another dataset; the message names what differs.
@@ -125,7 +127,7 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
     if not path.exists():
         return False
     meta = read_metadata(path)
-    definition = seen_in_scene(load_task(task), scene)  # as collect sees it: its sensor named
+    definition = seen_in_scene(load_task(task), scene, sensor)  # as collect sees it
     asked = json_form({"scene": scene, "task": definition.name, "size": size, "seed": seed,
                        "stream": stream.name.lower(),
                        "every_condition": CollectSettings(scene, task, size, seed,

@@ -11,11 +11,13 @@ from pathlib import Path
 from experiments.commands.arguments import (
     add_executor_options,
     add_model_config_option,
+    add_sensor_option,
     executor,
     integer,
     integers,
     model_config_files,
     names,
+    sensor_kind,
 )
 from experiments.table2.run import run_reproduce_sim
 from experiments.table2.settings import SCENES, ReproduceSimSettings
@@ -49,6 +51,7 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scene", choices=SCENES, default=defaults.scene,
                         help="paper-sim (Table II) or yumi (the robot's demonstrations, "
                         "offline) (%(default)s)")
+    add_sensor_option(parser)
     add_executor_options(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
     parser.set_defaults(run=run)
@@ -60,6 +63,7 @@ def run(args: argparse.Namespace) -> int:
                                     seeds=args.seeds, seed=args.seed, steps=args.steps,
                                     test_scenes=args.test_scenes, workers=args.workers,
                                     executor=executor(args), scene=args.scene,
+                                    sensor=sensor_kind(args),
                                     model_configs=model_config_files(args))
     report = run_reproduce_sim(settings, args.out, progress=not args.no_progress)
     for line in report.summary_lines(

@@ -44,6 +44,7 @@ from perception.registry import new_model
 from sim.tasks.scene_sampling import SeedStream
 from sim.trials.collector import CollectSettings, collect
 from sim.trials.trial_settings import torch_threads
+from sim.world.sensor import SensorKind
 
 # datasets
 
@@ -58,6 +59,7 @@ class DatasetJob:
     sizes: tuple[int, ...]
     out: Path
     scene: str = SCENE
+    sensor: SensorKind | None = None  # the yumi scene's --sensor; None: the task file's
 
     @property
     def name(self) -> str:
@@ -68,7 +70,8 @@ class DatasetJob:
 def collect_datasets(job: DatasetJob) -> DatasetJob:
     """Collects the largest of ``job.sizes`` once and writes the smaller sets as its prefixes."""
     largest = max(job.sizes)
-    settings = CollectSettings(job.scene, job.task, largest, job.seed, job.stream)
+    settings = CollectSettings(job.scene, job.task, largest, job.seed, job.stream,
+                               sensor=job.sensor)
     full = collect(settings, dataset_path(job.out, job.task, job.stream, largest, job.seed),
                    progress=False)
     for size in job.sizes:
@@ -79,7 +82,8 @@ def collect_datasets(job: DatasetJob) -> DatasetJob:
 
 
 def dataset_jobs(out: Path, scene: str, tasks: Sequence[str], training_seeds: Sequence[int],
-                 sizes: Sequence[int], test_seed: int, test_scenes: int) -> list[DatasetJob]:
+                 sizes: Sequence[int], test_seed: int, test_scenes: int,
+                 sensor: SensorKind | None = None) -> list[DatasetJob]:
     """The collections still to do: training sets per task and seed, a test set per task."""
     wanted = [(task, seed, SeedStream.TRAIN, tuple(sizes)) for task in tasks
               for seed in training_seeds]
@@ -87,9 +91,10 @@ def dataset_jobs(out: Path, scene: str, tasks: Sequence[str], training_seeds: Se
     jobs = []
     for task, seed, stream, sizes in wanted:
         missing = tuple(sorted(s for s in sizes if not dataset_present(
-            dataset_path(out, task, stream, s, seed), scene, task, s, seed, stream)))
+            dataset_path(out, task, stream, s, seed), scene, task, s, seed, stream,
+            sensor=sensor)))
         if missing:
-            jobs.append(DatasetJob(task, seed, stream, missing, out, scene))
+            jobs.append(DatasetJob(task, seed, stream, missing, out, scene, sensor))
     return jobs
 
 

@@ -52,7 +52,7 @@ def run_reproduce_sim(settings: ReproduceSimSettings, out: str | Path,
         workers = settings.worker_count()
         collections = dataset_jobs(out, settings.scene, settings.tasks,
                                    settings.training_seeds, settings.sizes, settings.seed,
-                                   settings.test_scenes) if todo else []
+                                   settings.test_scenes, settings.sensor) if todo else []
         computed: list[CellOutcome] = []
         try:
             with open_pool(settings.executor, workers, out) as pool:

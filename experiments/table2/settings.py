@@ -29,9 +29,11 @@ from harness.jobs import LOCAL, Executor
 from harness.run_folder import json_form
 from perception.learning.train import TrainConfig, available_threads
 from perception.model_config_file import ModelConfigFile
+from sim.errors import InvalidInputError
 from sim.tasks.task_sensor import seen_in_scene
 from sim.tasks.task_toml import load_task
 from sim.trials.trial_settings import task_identity
+from sim.world.sensor import SensorKind
 
 SIZES = (4, 20, 100)
 """Training set sizes of Table II."""
@@ -86,6 +88,9 @@ class ReproduceSimSettings:
             :class:`~perception.learning.train.TrainConfig`'s, torch on one thread).
         test_scenes: Test scenes per task (the paper's 100; fewer for a quick check).
         scene: ``paper-sim`` (the paper's Table II) or ``yumi`` (the robot's scenes, offline).
+        sensor: ``yumi`` scene only: what the head camera renders through (``--sensor``),
+            replacing each task file's ``[camera] sensor``; None: the file's, else the D435
+            (:mod:`sim.tasks.task_sensor`). Named in the run's identity only where given.
         workers: Processes running cells at once; None: the cores this process may use. One
             runs everything in this process.
         executor: Where the jobs run: this machine's process pool (default) or Ray
@@ -106,11 +111,20 @@ class ReproduceSimSettings:
     test_scenes: int = 100
     workers: int | None = None
     scene: str = SCENE
+    sensor: SensorKind | None = None
     executor: Executor = LOCAL
     model_configs: tuple[ModelConfigFile, ...] = ()
 
     def __post_init__(self) -> None:
         check_choices("scene", (self.scene,), SCENES)
+        if self.sensor is not None:
+            if not isinstance(self.sensor, SensorKind):
+                raise InvalidInputError("sensor", self.sensor, "None or one of " + ", ".join(
+                    f"SensorKind.{k.name}" for k in SensorKind))
+            if self.scene != "yumi":
+                raise InvalidInputError("sensor", self.sensor.value, "none for the paper-sim "
+                                        "scene: it renders through its own camera, an ideal "
+                                        "pinhole (--sensor is for --scene yumi)")
         check_models(self.models)
         check_choices("tasks", self.tasks, ALL_TASKS)
         check_choices("sizes", self.sizes, SIZES)
@@ -136,9 +150,10 @@ class ReproduceSimSettings:
         """What every cell of a folder shares; ``run.json`` holds it."""
         train = asdict(TrainConfig(steps=self.steps, threads=CELL_THREADS))
         train.pop("seed")  # each cell's own
-        return {"format_version": FORMAT_VERSION, "experiment": "reproduce-sim",
-                "scene": self.scene,
-                "train": train, "test_seed": self.seed, "test_scenes": self.test_scenes}
+        sensor = {} if self.sensor is None else {"sensor": self.sensor.value}
+        return sensor | {"format_version": FORMAT_VERSION, "experiment": "reproduce-sim",
+                         "scene": self.scene, "train": train, "test_seed": self.seed,
+                         "test_scenes": self.test_scenes}
 
     def cell_identity(self, cell: Cell) -> dict[str, Any]:
         """What defines a cell's result, in JSON form: a cell file is reused only if equal.
@@ -149,7 +164,7 @@ class ReproduceSimSettings:
         return json_form(self.run_identity() | {
             "model": cell.model,
             "model_config": model_config(cell.model, cell.seed, self.model_settings(cell.model)),
-            "task": task_identity(seen_in_scene(load_task(cell.task), self.scene)),
+            "task": task_identity(seen_in_scene(load_task(cell.task), self.scene, self.sensor)),
             "size": cell.size, "seed": cell.seed})
 
     def model_config_file(self, model: str) -> ModelConfigFile | None:
@@ -174,6 +189,8 @@ class ReproduceSimSettings:
             parts.append(f"--test-scenes {self.test_scenes}")
         if self.scene != SCENE:
             parts.append(f"--scene {self.scene}")
+        if self.sensor is not None:
+            parts.append(f"--sensor {self.sensor.value}")
         return " ".join(parts + model_config_options(self.model_configs))
 
 

@@ -22,6 +22,7 @@ from experiments.table2.settings import Cell, ReproduceSimSettings, cell_path
 from experiments.tables import MODELS, model_config, model_order, paper_row
 from perception.learning.dataset_file import load_dataset
 from sim.errors import InvalidInputError, RunFolderError
+from sim.world.sensor import SensorKind
 
 TINY = ["--models", "kqv,fcn", "--tasks", "single", "--sizes", "4", "--seeds", "1",
         "--steps", "3", "--test-scenes", "5", "--no-progress"]
@@ -280,18 +281,30 @@ def test_the_same_sweep_runs_offline_on_the_yumi_scene(tmp_path):
     status, stdout, stderr = gva("reproduce", "sim", "--out", out, "--scene", "yumi",
                                  "--models", "kqv", "--tasks", "selected-type", "--sizes", "4",
                                  "--seeds", "1", "--steps", "3", "--test-scenes", "2",
-                                 "--workers", "1", "--no-progress")
+                                 "--sensor", "ideal", "--workers", "1", "--no-progress")
     assert status == 0, stdout + stderr
     cell = json.loads((out / "cells" / "kqv-selected-type-4-s0.json").read_text())
     assert set(cell["per_condition_error_cm"]) <= {"sponge", "spray_bottle", "mug"}
     assert cell["test_scenes"] == 2
     train = load_dataset(out / "datasets" / "selected-type-train-4-s0.gva")
     assert (train.metadata.scene, len(train), train.metadata.extra["scenes"]) == ("yumi", 12, 4)
+    assert train.metadata.camera["sensor"] == {"sensor": "ideal"}  # --sensor, not the D435
+    assert json.loads((out / "run.json").read_text())["sensor"] == "ideal"
     text = (out / "table2.md").read_text()
     assert text.startswith("# Offline on the `yumi` scene: mean grasp position error [cm]")
     assert "## Per condition and head, the worst training" in text
     assert "The paper's Table II" not in text
-    assert "--scene yumi" in json.loads((out / "table2.json").read_text())["settings"]["command"]
+    command = json.loads((out / "table2.json").read_text())["settings"]["command"]
+    assert "--scene yumi" in command and "--sensor ideal" in command
+
+
+def test_a_sensor_is_for_the_yumi_scene_and_named_only_where_given():
+    with pytest.raises(InvalidInputError, match=r"sensor = 'd435' is not allowed: none for the "
+                                                 r"paper-sim scene"):
+        ReproduceSimSettings(sensor=SensorKind.D435)
+    assert "sensor" not in ReproduceSimSettings(scene="yumi").run_identity()  # folders resume
+    assert ReproduceSimSettings(scene="yumi", sensor=SensorKind.IDEAL).run_identity()[
+        "sensor"] == "ideal"
 
 
 def test_the_papers_model_stands_beside_the_papers_kqv_row_and_variants_beside_none():
