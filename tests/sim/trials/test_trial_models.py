@@ -93,9 +93,9 @@ def test_trials_run_a_checkpoint_on_one_torch_thread(tmp_path, monkeypatch):
     threads, seen = torch.get_num_threads(), []
     original = KqvModel.predict_batch
 
-    def spy(self, images, conditions):
+    def spy(self, images, conditions, *more):
         seen.append(torch.get_num_threads())
-        return original(self, images, conditions)
+        return original(self, images, conditions, *more)
 
     monkeypatch.setattr(KqvModel, "predict_batch", spy)
     summary = run_trials(TrialSettings(str(folder), "single", n=1), tmp_path / "run",
