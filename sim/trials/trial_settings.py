@@ -48,11 +48,11 @@ from sim.world.head_camera import CameraConfig, camera_config
 from sim.world.sensor import SensorConfig, SensorKind, sensor_from_table
 from sim.world.yumi_world import check_wait_s
 
-MODELS: dict[str, ModelFactory] = {"oracle": OraclePerception}
+TRIAL_MODELS: dict[str, ModelFactory] = {"oracle": OraclePerception}
 """Perception models the trial runner builds by name; a checkpoint folder or
 ``"package.module:Class"`` names any other (see :func:`load_trial_model`)."""
 
-_ALLOWED_MODELS = (f"one of {', '.join(MODELS)}, a checkpoint folder (gva train writes one), "
+_ALLOWED_MODELS = (f"one of {', '.join(TRIAL_MODELS)}, a checkpoint folder (gva train writes one), "
                    "'package.module:Class' or the name an installed package registers in "
                    "'gva.models'")
 
@@ -60,7 +60,7 @@ _ALLOWED_MODELS = (f"one of {', '.join(MODELS)}, a checkpoint folder (gva train 
 class ModelSource(enum.Enum):
     """Where the model of a run of trials comes from."""
 
-    BUILT_IN = "built_in"  # a name in MODELS
+    BUILT_IN = "built_in"  # a name in TRIAL_MODELS
     CHECKPOINT = "checkpoint"  # a checkpoint folder of a learnable model
     CLASS = "class"  # "package.module:Class" or an installed plug-in's name: built with no
     # arguments
@@ -70,7 +70,7 @@ def model_source(model: str) -> ModelSource:
     """Where ``model`` (a name, a folder or ``"package.module:Class"``) comes from."""
     if not isinstance(model, str) or not model:
         raise InvalidInputError("model", model, _ALLOWED_MODELS)
-    if model in MODELS:
+    if model in TRIAL_MODELS:
         return ModelSource.BUILT_IN
     if Path(model).is_dir():
         return ModelSource.CHECKPOINT
@@ -107,7 +107,7 @@ class TrialSettings:
     """What a run of trials does; the fields of ``run.json``.
 
     Args:
-        model: ``"oracle"`` (see :data:`MODELS`), a checkpoint folder, or a model that builds
+        model: ``"oracle"`` (see :data:`TRIAL_MODELS`), a checkpoint folder, or a model that builds
             with no arguments: ``"package.module:Class"`` or an installed plug-in's name.
         task: A built-in task name, or the path of a task TOML file.
         n: Number of trials.
@@ -270,7 +270,7 @@ def load_trial_model(settings: TrialSettings) -> TrialModel:
     """
     source = model_source(settings.model)
     if source is ModelSource.BUILT_IN:
-        return TrialModel(MODELS[settings.model], settings.model, one_torch_thread=False)
+        return TrialModel(TRIAL_MODELS[settings.model], settings.model, one_torch_thread=False)
     model: PerceptionModel
     if source is ModelSource.CHECKPOINT:
         from perception.registry import load_model  # imports torch: not for the oracle
