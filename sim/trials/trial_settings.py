@@ -42,7 +42,7 @@ from sim.tasks.variants import load_task_variant, variant_file
 from sim.trials.execution import ExecutionSettings
 from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.oracle import OraclePerception
-from sim.trials.planner_setup import ObstacleSource, yumi_depth_config
+from sim.trials.planner_setup import ObstacleSource, depth_config
 from sim.trials.trial_runner import TRIAL_INPUTS, ModelFactory
 from sim.world.head_camera import CameraConfig, camera_config
 from sim.world.sensor import SensorConfig, SensorKind, sensor_from_table
@@ -94,10 +94,13 @@ def task_identity(task: TaskSpec) -> dict[str, Any]:
 
 
 def obstacle_identity(source: ObstacleSource) -> dict[str, Any]:
-    """What a run's picks are planned around, as ``run.json`` and ``summary.json`` show it."""
+    """What a run's picks are planned around, as ``run.json`` and ``summary.json`` show it.
+
+    Its depth settings are the YuMi's whatever robot picks, as identities have always held them.
+    """
     if source is not ObstacleSource.DEPTH:
         return {"source": source.value}
-    depth = asdict(yumi_depth_config())
+    depth = asdict(depth_config(YUMI))
     depth["occluded"] = depth["occluded"].value
     return {"source": source.value, "depth": depth}
 
@@ -286,13 +289,13 @@ def load_trial_model(settings: TrialSettings) -> TrialModel:
         label = model.name
     check_inputs(model, TRIAL_INPUTS, settings.model)
     check_model_fits_task(model, settings.task_spec, settings.model,
-                          settings.allow_sensor_change, settings.description())
+                          settings.allow_sensor_change, robot=settings.description())
     return TrialModel(lambda world, camera: model, label, one_torch_thread="torch" in sys.modules)
 
 
 def check_model_fits_task(model: PerceptionModel, task: TaskSpec, where: str,
-                          allow_sensor_change: bool = False,
-                          robot: RobotDescription = YUMI) -> None:
+                          allow_sensor_change: bool = False, *,
+                          robot: RobotDescription) -> None:
     """Raises unless ``model`` predicts grasp poses for what ``task`` asks in the yumi scene.
 
     A model with a :class:`~perception.learning.learnable.ModelSpec` must have been trained on
