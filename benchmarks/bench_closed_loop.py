@@ -109,7 +109,8 @@ def main(argv: list[str] | None = None) -> int:
     times: dict[str, list[float]] = {part: [] for part in PARTS}
     answers: list[str] = []
     rng = np.random.default_rng(args.seed)
-    with torch_threads(1), TrialRunner(settings.task_spec, model.factory) as runner:
+    with torch_threads(1), TrialRunner(settings.task_spec, model.factory,
+                                       robot=settings.description()) as runner:
         for index in range(args.n):
             answers.append(cycle(runner, index, args.seed, rng, times))
     medians = {part: statistics.median(values) for part, values in times.items() if values}

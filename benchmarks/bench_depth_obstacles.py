@@ -33,6 +33,7 @@ from control.depth_obstacles import GraspRegion, OccludedSpace, depth_obstacles
 from perception.catalog import clear_of_table
 from perception.labels import nearest_rotation
 from perception.poses import Pose
+from robots.yumi import YUMI
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_toml import load_task
@@ -75,7 +76,7 @@ def main() -> None:
     octree, render, plan_depth, plan_truth, cells = [], [], [], [], []
     for name in TASKS:
         task = dataclasses.replace(load_task(name), camera=sensor)
-        with TrialRunner(task) as runner:
+        with TrialRunner(task, robot=YUMI) as runner:
             occupied = dataclasses.replace(runner.depth, occluded=OccludedSpace.OCCUPIED)
             for index in range(args.scenes):
                 scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, index)

@@ -45,6 +45,7 @@ from perception.catalog import OBJECT_TYPES
 from perception.grasp_tolerance import AXES, READINGS, SIGNED_AXES, TOLERANCE_FORMAT
 from perception.interface import NO_CONDITION, Condition, Prediction, Target
 from perception.poses import rot_z
+from robots.yumi import YUMI
 from sim.tasks.scene_sampling import Scene, SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_toml import load_task
@@ -148,7 +149,7 @@ def _runner() -> TrialRunner:
     """The worker's runner, made at its first pick and kept for its life."""
     global _RUNNER
     if _RUNNER is None:
-        _RUNNER = TrialRunner(load_task(TASK), _perturbed)
+        _RUNNER = TrialRunner(load_task(TASK), _perturbed, robot=YUMI)
     return _RUNNER
 
 

@@ -29,11 +29,12 @@ from tqdm import tqdm
 
 from control.depth_obstacles import OccludedSpace
 from perception.interface import NO_CONDITION, Condition, Prediction
+from robots.yumi import YUMI
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_toml import load_task
 from sim.trials.oracle import OraclePerception
-from sim.trials.planner_setup import yumi_depth_config
+from sim.trials.planner_setup import depth_config
 from sim.trials.trial_runner import TrialRunner
 
 TASKS = ("single", "multiple", "selected-type", "selected-position")
@@ -51,13 +52,13 @@ class UntypedOracle(OraclePerception):
 def run(variant: str, task_name: str, n: int, seed: int) -> dict[str, Any]:
     task = load_task(task_name)
     model = UntypedOracle if variant == "untyped" else OraclePerception
-    depth = dataclasses.replace(yumi_depth_config(), occluded=OccludedSpace.OCCUPIED) \
+    depth = dataclasses.replace(depth_config(YUMI), occluded=OccludedSpace.OCCUPIED) \
         if variant == "occupied" else None
     outcomes: Counter[str] = Counter()
     picked: dict[str, list[int]] = {}
     failures: list[dict[str, Any]] = []
     started = time.perf_counter()
-    with TrialRunner(task, model, depth=depth) as runner:
+    with TrialRunner(task, model, depth=depth, robot=YUMI) as runner:
         for index in tqdm(range(n), desc=f"{variant} / {task_name} / seed {seed}", unit="trial"):
             scene = sample_scene(task, YUMI_SCENE, seed, SeedStream.TEST, index)
             record = runner.run(scene, index, seed, f"oracle-{variant}")

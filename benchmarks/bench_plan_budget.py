@@ -69,7 +69,8 @@ def run(checkpoint: Path, task: str, n: int, seed: int) -> dict[str, Any]:
         stack.enter_context(torch_threads(1))
         runners = {name: stack.enter_context(TrialRunner(
             settings.task_spec, model.factory, settings.settle_s, settings.execution,
-            planner=make_planner(settings.description(), config))) for name, config in
+            planner=make_planner(settings.description(), config),
+            robot=settings.description())) for name, config in
             configs.items()}
         for index in range(n):
             for name, runner in runners.items():

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from experiments.cli import build_parser, main
-from experiments.tables import MODELS
+from experiments.tables import PAPER_MODELS
 
 
 def record(folder: Path, measured_s: float | None) -> dict[str, Any]:
@@ -50,8 +50,8 @@ def record(folder: Path, measured_s: float | None) -> dict[str, Any]:
         "steps": table["settings"]["train"]["steps"],
         "seeds": table["settings"]["seeds"],
         "median_train_s": {m: round(statistics.median(train_s[m]), 1)
-                           for m in MODELS if m in train_s},
-        "total_train_s": {m: round(sum(train_s[m]), 1) for m in MODELS if m in train_s},
+                           for m in PAPER_MODELS if m in train_s},
+        "total_train_s": {m: round(sum(train_s[m]), 1) for m in PAPER_MODELS if m in train_s},
         "judged": judged(table["cells"]),
         "machine": machine(),
     }

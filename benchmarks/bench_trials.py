@@ -24,13 +24,14 @@ from pathlib import Path
 
 from harness.run_loop import run_trials
 from perception.catalog import get_object_spec
+from robots.yumi import YUMI
 from sim.trials.trial_settings import TrialSettings
 from sim.world.yumi_world import World, WorldConfig
 
 
 def resting_step_ms(sleeping: bool, steps: int = 480, repeats: int = 5) -> float:
     """Median over ``repeats`` of a step's wall time [ms], three objects at rest on the table."""
-    with World(WorldConfig(object_sleeping=sleeping)) as world:
+    with World(WorldConfig(object_sleeping=sleeping), robot=YUMI) as world:
         for name, xy in (("sponge", (0.35, 0.1)), ("spray_bottle", (0.4, -0.1)),
                          ("mug", (0.3, 0.0))):
             world.add_object(get_object_spec(name), xy, 0.3)
@@ -69,7 +70,7 @@ def main() -> None:
                      "run_wall_s": round(elapsed, 2)})
         print(f"seed {seed}: {summary.headline()}  ({elapsed:.1f} s for the run)")
 
-    with World() as world:
+    with World(robot=YUMI) as world:
         rebuild_s = []
         for _ in range(args.rebuilds):
             started = time.perf_counter()

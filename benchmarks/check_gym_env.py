@@ -17,6 +17,7 @@ from pathlib import Path
 
 import gymnasium
 
+from robots.yumi import YUMI
 from sim.envs.episodes import oracle_policy, run_episode
 from sim.tasks.task_toml import load_task
 from sim.trials.trial_runner import TrialRunner
@@ -33,7 +34,7 @@ def main() -> None:
     for task in args.tasks.split(","):
         started = time.perf_counter()
         spec = load_task(task)
-        with TrialRunner(spec) as runner:
+        with TrialRunner(spec, robot=YUMI) as runner:
             trials = [runner.run(trial_scene(spec, 0, i), i, 0, "oracle") for i in range(args.n)]
         trial_s = time.perf_counter() - started
         env = gymnasium.make("sim.envs:gva/Pick-v0", task=task)

@@ -16,6 +16,7 @@ import numpy as np
 from perception.catalog import get_object_spec
 from perception.drawing import write_png
 from perception.grasps import grasp_pose
+from robots.yumi import YUMI
 from sim.world.head_camera import HeadCamera, Lighting
 from sim.world.yumi_world import World
 
@@ -26,7 +27,7 @@ placements = {  # object type: (x, y) on the table [m], yaw [rad]
     "mug": ((0.40, -0.17), 2.2),
 }
 
-with World() as world:
+with World(robot=YUMI) as world:
     for name, (xy, yaw) in placements.items():
         world.add_object(get_object_spec(name), xy, yaw)
     world.step(round(0.25 / world.config.time_step_s))  # let them settle on the table

@@ -21,15 +21,16 @@ from control.pick import PickRequest
 from perception.catalog import get_object_spec
 from perception.grasps import grasp_pose
 from robots import yumi
+from robots.yumi import YUMI
 from sim.trials.execution import ExecutionSettings, execute_pick
-from sim.trials.planner_setup import make_yumi_planner, table_obstacle, yumi_depth_config
+from sim.trials.planner_setup import depth_config, make_planner, table_obstacle
 from sim.world.head_camera import HeadCamera
 from sim.world.yumi_world import World
 
 
 def main() -> None:
-    planner = make_yumi_planner()
-    with World() as world:
+    planner = make_planner(YUMI)
+    with World(robot=YUMI) as world:
         world.reset_scene(yumi.HOME)
         sponge = get_object_spec("sponge")
         body = world.add_object(sponge, position_xy_m=(0.42, -0.08), yaw_rad=0.6)
@@ -42,7 +43,7 @@ def main() -> None:
         frame = HeadCamera().render_rgbd(world.client)  # colour, depth, calibration
         started = time.perf_counter()
         seen = depth_obstacles(frame.points_world(), np.asarray(frame.camera.position_m),
-                               yumi_depth_config(), GraspRegion(T_world_grasp,
+                               depth_config(YUMI), GraspRegion(T_world_grasp,
                                                                 sponge.grasp.opening_m))
         print(f"depth obstacles: {seen.to_record()} in "
               f"{1000 * (time.perf_counter() - started):.1f} ms")

@@ -16,10 +16,10 @@ from typing import Any
 
 from perception.model_config_file import ModelConfigFile
 from perception.registry import MODELS as REGISTERED
-from perception.registry import PRESETS, trainable
+from perception.registry import PRESETS, resolve_model_config
 from sim.errors import InvalidInputError
 
-MODELS = ("kqv", "keypoint-16", "keypoint-min", "dsae-16", "conv-ae", "fcn")
+PAPER_MODELS = ("kqv", "keypoint-16", "keypoint-min", "dsae-16", "conv-ae", "fcn")
 """The paper's models, in its row order (names :func:`perception.registry.new_model` takes)."""
 TASKS = ("single", "multiple", "selected-type", "selected-position")
 """The paper's tasks (its Table I), in its column order."""
@@ -62,7 +62,7 @@ def paper_row(model: str) -> str | None:
     A paper model's own; the paper's KQV for ``kqv-paper`` (that model as written); None for
     gva's variants and plug-ins.
     """
-    return "kqv" if model == "kqv-paper" else model if model in MODELS else None
+    return "kqv" if model == "kqv-paper" else model if model in PAPER_MODELS else None
 
 
 def allowed_models() -> tuple[str, ...]:
@@ -92,8 +92,8 @@ def model_config(model: str, seed: int, settings: Mapping[str, Any] | None = Non
     field the config class lists in ``SINCE`` (added later) is left out at the value that
     behaves as before it, so folders made before it still resume.
     """
-    cls, preset = trainable(model)
-    config = asdict(cls.config_class(**{**preset, **(settings or {})}, seed=seed))
+    cls, resolved = resolve_model_config(model, seed, settings)
+    config = asdict(resolved)
     since: Mapping[str, Any] = getattr(cls.config_class, "SINCE", {})
     return {key: value for key, value in config.items()
             if key not in since or value != since[key]}

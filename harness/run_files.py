@@ -18,7 +18,7 @@ from typing import Any, TypeVar
 from harness.run_folder import differences, json_form
 from perception.files import atomic_write
 from perception.learning.dataset_file import read_metadata
-from robots import get_robot
+from robots.description import RobotDescription
 from sim.errors import RunFolderError
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import scene_camera
@@ -105,8 +105,8 @@ def dataset_path(out: Path, task: str, stream: SeedStream, size: int, seed: int)
 
 
 def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
-                    stream: SeedStream, approach_hz: float | None = None,
-                    robot: str = "yumi", sensor: SensorKind | None = None) -> bool:
+                    stream: SeedStream, approach_hz: float | None = None, *,
+                    robot: RobotDescription, sensor: SensorKind | None = None) -> bool:
     """Whether ``path`` holds the dataset asked for; refuses a file that holds another.
 
     ``task`` is a built-in task's name or a task file's path. Compared: scene, task name,
@@ -115,10 +115,11 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
     asked every condition
     (:class:`sim.trials.collector.CollectSettings` ``every_condition``, at its default for the
     stream), the task's definition (a task whose TOML changed since is another dataset), the
-    scene's camera (other images; in the yumi scene, ``robot``'s), the robot where it is not
-    the YuMi, and the approach images' rate (``approach_hz``, if any) and whether the arm is
-    masked out of them (datasets from before the mask have it in view: another dataset).
-    ``sensor``: the yumi scene's ``--sensor`` (None: the task file's), part of the definition.
+    scene's camera (other images; in the yumi scene, ``robot``'s: the robot that collects,
+    resolved where the run starts), the robot where it is not the YuMi, and the approach
+    images' rate (``approach_hz``, if any) and whether the arm is masked out of them (datasets
+    from before the mask have it in view: another dataset). ``sensor``: the yumi scene's
+    ``--sensor`` (None: the task file's), part of the definition.
 
     Raises:
         RunFolderError: ``path`` holds another dataset; the message names what differs.
@@ -134,10 +135,10 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
                                                           stream).asks_every_condition,
                        "definition": task_identity(definition),
                        "camera": asdict(scene_camera(scene) if scene != "yumi" else
-                                        camera_config(get_robot(robot)))}
+                                        camera_config(robot))}
                       | ({} if approach_hz is None else {"approach_hz": approach_hz,
                                                          APPROACH_MASKED_KEY: True})
-                      | ({} if robot == "yumi" else {"robot": robot}))
+                      | ({} if robot.name == "yumi" else {"robot": robot.name}))
     scenes = meta.extra.get("scenes", meta.size)  # a scene may give several samples
     found = {"scene": meta.scene, "task": meta.task, "size": scenes, "seed": meta.seed,
              "stream": meta.extra.get("stream"),

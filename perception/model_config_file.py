@@ -31,7 +31,7 @@ from typing import Any
 from perception.interface import InvalidInputError
 from perception.learning.learnable import LearnableModel
 from perception.models.torch_model import TorchModel
-from perception.registry import trainable
+from perception.registry import resolve_model_config, trainable
 
 MAX_MODEL_CONFIG_BYTES = 64 * 1024
 """A model config file is a few lines; a bigger file is refused unread (a dataset, a model)."""
@@ -95,7 +95,7 @@ def read_model_config(path: str | Path, model: str) -> dict[str, Any]:
             message names the file, the key, the value and what is allowed.
 
     """
-    cls, preset = trainable(model)
+    cls = trainable(model).cls
     source = str(path)
     data = _read_toml(Path(path), source)
     config_class = cls.config_class
@@ -125,7 +125,7 @@ def read_model_config(path: str | Path, model: str) -> dict[str, Any]:
             raise InvalidInputError(field, _brief(value), " or ".join(_KINDS[k] for k in kinds))
         settings[key] = value
     try:
-        config_class(**{**preset, **settings})
+        resolve_model_config(model, None, settings)
     except InvalidInputError as error:  # the config's own check, told where the value came from
         raise InvalidInputError(f"model config {source}: {error.field}", error.value,
                                 error.allowed) from None

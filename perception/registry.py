@@ -6,6 +6,7 @@
     model_class("my_lab.models:TinyNet")    # imported with importlib; must be a PerceptionModel
     model_class("tiny-net")                 # a name an installed package registers (gva.models)
     new_model("keypoint-16", dataset, seed=0)   # a fresh model for a dataset, preset applied
+    resolve_model_config("keypoint-16", 0, {"lr": 1e-3})  # -> (KeypointModel, its checked config)
     load_model("runs/kqv-single")           # reads config.json's model name, then Class.load
 
 A checkpoint names its model but never says where to import code from: loading a checkpoint of
@@ -95,6 +96,42 @@ def trainable(name_or_path: str) -> Trainable:
     return Trainable(cls, preset)
 
 
+class ResolvedModel(NamedTuple):
+    """A model name resolved: its class, and the checked config it is built with."""
+
+    cls: type[TorchModel]
+    config: Any  # an instance of cls.config_class
+
+
+def resolve_model_config(name_or_path: str, seed: int | None,
+                         overrides: Mapping[str, Any] | None = None) -> ResolvedModel:
+    """The class and config a model is built with: its preset, then ``overrides``, then ``seed``.
+
+    The one place that merges them: :func:`new_model` builds with it, a run's identities record
+    it (:func:`experiments.tables.model_config`), a model config file is checked with it
+    (:func:`perception.model_config_file.read_model_config`).
+
+    Args:
+        name_or_path: As :func:`new_model` takes it.
+        seed: Seeds the initial weights; None: the config's own default (a model config
+            file's check, which sets no seed).
+        overrides: Fields of the config that differ from the defaults and the preset's.
+
+    Raises:
+        InvalidInputError: An unknown model, one that does not train from a dataset, a field
+            the model's config does not have (the message lists those it has), or a value the
+            config refuses.
+
+    """
+    cls, preset = trainable(name_or_path)
+    settings = {**preset, **(overrides or {})} | ({} if seed is None else {"seed": seed})
+    allowed = [field.name for field in dataclasses.fields(cls.config_class)]
+    if unknown := sorted(set(settings) - set(allowed)):
+        raise InvalidInputError("hyper-parameters", unknown, f"fields of {cls.name}'s "
+                                f"{cls.config_class.__name__}: {', '.join(allowed)}")
+    return ResolvedModel(cls, cls.config_class(**settings))
+
+
 def new_model(name_or_path: str, dataset: Dataset, *, seed: int = 0,
               **hyperparameters: Any) -> LearnableModel:
     """A fresh, untrained model for ``dataset``'s task, its weights seeded with ``seed``.
@@ -112,13 +149,8 @@ def new_model(name_or_path: str, dataset: Dataset, *, seed: int = 0,
             hyper-parameter the model's config does not have (the message lists those it has).
 
     """
-    cls, preset = trainable(name_or_path)
-    settings = {**preset, **hyperparameters, "seed": seed}
-    allowed = [field.name for field in dataclasses.fields(cls.config_class)]
-    if unknown := sorted(set(settings) - set(allowed)):
-        raise InvalidInputError("hyper-parameters", unknown, f"fields of {cls.name}'s "
-                                f"{cls.config_class.__name__}: {', '.join(allowed)}")
-    return cls.for_dataset(dataset, cls.config_class(**settings))
+    cls, config = resolve_model_config(name_or_path, seed, hyperparameters)
+    return cls.for_dataset(dataset, config)
 
 
 def model_class(name_or_path: str) -> type[PerceptionModel]:

@@ -47,6 +47,7 @@ from perception.learning.learnable import LearnableModel
 from perception.learning.train import TrainConfig
 from perception.models.kqv import KqvModel
 from perception.registry import load_model
+from robots.yumi import YUMI
 from sim.errors import RunFolderError, SimError
 from sim.tasks.scene_sampling import SeedStream, target_count
 from sim.tasks.task_spec import TaskSpec
@@ -147,7 +148,7 @@ def candidate_entry(args: argparse.Namespace, candidate: str, task: str, seed: i
     else:
         demos = table3.dataset_file(folder, task, settings)
         if not run_files.dataset_present(demos, table3.SCENE, str(path), args.demos, seed,
-                                      SeedStream.TRAIN):
+                                         SeedStream.TRAIN, robot=settings.description()):
             job = jobs.CollectJob(f"collect-{task}-s{seed}", task, settings, folder)
             steps.append(Step(job.name, jobs.COLLECT_S_PER_PICK * args.demos
                               * target_count(spec), partial(finish, job)))
@@ -196,7 +197,7 @@ def run_entry(args: argparse.Namespace, run: Path, task: str, seed: int, notes: 
 def collect_step(test: TestTask, seed: int, n: int) -> Step | None:
     """The collection of a test set, unless the cache holds it (another one there is refused)."""
     if run_files.dataset_present(test.dataset, table3.SCENE, str(test.task_path), n, seed,
-                              SeedStream.TEST):
+                                 SeedStream.TEST, robot=YUMI):
         return None
     settings = CollectSettings(table3.SCENE, str(test.task_path), n, seed, SeedStream.TEST)
     return Step(f"collect test {test.spec.name} s{seed}",

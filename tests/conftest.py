@@ -11,6 +11,7 @@ from control.planner import PickPlanner
 from control.robot_model import RobotModel
 from control.trajectory import JointLimits
 from robots import yumi
+from robots.yumi import YUMI
 
 
 @pytest.fixture(scope="session")
@@ -44,9 +45,9 @@ def yumi_checker(yumi_model: RobotModel) -> CollisionChecker:
 
 @pytest.fixture(scope="session")
 def yumi_planner() -> PickPlanner:
-    from sim.trials.planner_setup import make_yumi_planner
+    from sim.trials.planner_setup import make_planner
 
-    return make_yumi_planner()
+    return make_planner(YUMI)
 
 
 def top_down(x: float, y: float, z: float, yaw: float = np.pi / 2) -> pin.SE3:
@@ -66,7 +67,7 @@ class DepthView:
         from sim.world.head_camera import HeadCamera
         from sim.world.yumi_world import World
 
-        self.world, self.camera = World(), HeadCamera()
+        self.world, self.camera = World(robot=YUMI), HeadCamera()
         self.world.reset_scene()
 
     def obstacles(self, boxes, grasp: pin.SE3 | None = None, opening_m: float = 0.05):
@@ -74,7 +75,7 @@ class DepthView:
         import pybullet
 
         from control.depth_obstacles import GraspRegion, depth_obstacles
-        from sim.trials.planner_setup import yumi_depth_config
+        from sim.trials.planner_setup import depth_config
 
         client, bodies = self.world.client, []
         for box in boxes:
@@ -90,7 +91,7 @@ class DepthView:
                 client.removeBody(body)
         region = None if grasp is None else GraspRegion(grasp, opening_m)
         seen = depth_obstacles(frame.points_world(), np.asarray(frame.camera.position_m),
-                               yumi_depth_config(), region)
+                               depth_config(YUMI), region)
         return seen.obstacles, seen.target_obstacles
 
 

@@ -41,6 +41,7 @@ from perception.learning.evaluate import EvaluationResult, evaluate
 from perception.learning.train import TrainConfig, TrainReport
 from perception.model_config_file import ModelConfigFile
 from perception.registry import new_model
+from robots.yumi import YUMI
 from sim.tasks.scene_sampling import SeedStream
 from sim.trials.collector import CollectSettings, collect
 from sim.trials.trial_settings import torch_threads
@@ -92,7 +93,7 @@ def dataset_jobs(out: Path, scene: str, tasks: Sequence[str], training_seeds: Se
     for task, seed, stream, sizes in wanted:
         missing = tuple(sorted(s for s in sizes if not dataset_present(
             dataset_path(out, task, stream, s, seed), scene, task, s, seed, stream,
-            sensor=sensor)))
+            robot=YUMI, sensor=sensor)))  # reproduce sim collects in the YuMi's workcell
         if missing:
             jobs.append(DatasetJob(task, seed, stream, missing, out, scene, sensor))
     return jobs

@@ -24,8 +24,8 @@ from experiments.table2.settings import (
 )
 from experiments.tables import (
     ALL_TASKS,
-    MODELS,
     NO_IMAGE,
+    PAPER_MODELS,
     TASK_TITLES,
     model_order,
     model_title,
@@ -182,7 +182,7 @@ def table2_markdown(cells: Sequence[Mapping[str, Any]], failed: Sequence[Mapping
         count, worst = above[(model, task, size)]
         ours[model][(task, size)] = _shown(mean, std) + (f" (n={n})" if n < most else "") + (
             f" [{count}/{n} > {BOLD_BELOW_CM:g}, worst {worst:.1f}]" if count and n > 1 else "")
-    rows = [row for row in MODELS if row in {paper_row(m) for m in models}]
+    rows = [row for row in PAPER_MODELS if row in {paper_row(m) for m in models}]
     paper = {m: {(t, s): _shown(PAPER_TABLE2_CM[m][t][SIZES.index(s)], None)
                  if t in PAPER_TABLE2_CM[m] else "—" for t in tasks for s in sizes}
              for m in rows}

@@ -13,7 +13,7 @@ from typing import Any
 
 from experiments.tables import (
     ALL_TASKS,
-    MODELS,
+    PAPER_MODELS,
     TASKS,
     TWO_PHASE_MODELS,
     check_choices,
@@ -78,8 +78,9 @@ class ReproduceSimSettings:
     """What ``gva reproduce sim`` runs; its fields' defaults are the command's.
 
     Args:
-        models: Models, names ``new_model`` takes (the paper's :data:`~experiments.tables.MODELS`
-            by default; a preset such as ``kqv-paper`` or a plug-in too).
+        models: Models, names ``new_model`` takes (the paper's
+            :data:`~experiments.tables.PAPER_MODELS` by default; a preset such as ``kqv-paper``
+            or a plug-in too).
         tasks: Tasks, from :data:`~experiments.tables.ALL_TASKS` (default: the paper's).
         sizes: Training set sizes, from :data:`SIZES`.
         seeds: Number of training seeds.
@@ -102,7 +103,7 @@ class ReproduceSimSettings:
 
     """
 
-    models: tuple[str, ...] = MODELS
+    models: tuple[str, ...] = PAPER_MODELS
     tasks: tuple[str, ...] = TASKS
     sizes: tuple[int, ...] = SIZES
     seeds: int = 3
@@ -180,7 +181,7 @@ class ReproduceSimSettings:
         """The ``gva reproduce sim`` command line of these settings (workers left out)."""
         parts = ["gva reproduce sim", f"--out {out}", f"--seeds {self.seeds}",
                  f"--seed {self.seed}", f"--steps {self.steps}"]
-        for name, given, everything in (("models", self.models, MODELS),
+        for name, given, everything in (("models", self.models, PAPER_MODELS),
                                         ("tasks", self.tasks, TASKS),
                                         ("sizes", self.sizes, SIZES)):
             if set(given) != set(everything):

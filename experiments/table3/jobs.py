@@ -290,7 +290,7 @@ def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
     collects_todo = [j for j in collects if not dataset_present(
         dataset_file(j.out, j.task, j.settings), SCENE, str(task_file(j.out, j.task)),
         j.settings.demos, j.settings.seed, SeedStream.TRAIN, j.settings.approach_hz,
-        j.settings.robot)]
+        robot=j.settings.description())]
     trains_todo = [j for j in trains if not trained_file(j.out, j.unit).exists()]
     skipped = [j.name for j in collects if j not in collects_todo]
     skipped += [j.name for j in trains if j not in trains_todo]

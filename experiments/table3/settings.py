@@ -29,6 +29,7 @@ from perception.learning.train import TrainConfig, available_threads
 from perception.learning.validation import CheckConfig
 from perception.model_config_file import ModelConfigFile
 from robots import ROBOT_NAMES, get_robot
+from robots.description import RobotDescription
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.task_spec import TaskSpec, spaced_for
@@ -228,7 +229,7 @@ class ReproduceRealSettings:
         are spaced for the robot's hand (:func:`~sim.tasks.task_spec.spaced_for`).
         """
         task = spaced_for(variant_task(trial_set.unit.task, trial_set.variant, self.sensor,
-                                       self.world), get_robot(self.robot).neighbour_spacing_m)
+                                       self.world), self.description().neighbour_spacing_m)
         if self.balance_types and task.draws_one_type and not task.balance_types:
             task = replace(task, balance_types=True)
         return task
@@ -275,9 +276,13 @@ class ReproduceRealSettings:
                           "camera": asdict(self.camera_config()), "seed": self.seed,
                           "train": self.train_config(), "check": asdict(self.check)})
 
+    def description(self) -> RobotDescription:
+        """The robot that picks: ``robot`` resolved, the one place this run names it by name."""
+        return get_robot(self.robot)
+
     def camera_config(self) -> CameraConfig:
         """The camera the run's demonstrations and trials see through: its robot's."""
-        return camera_config(get_robot(self.robot))
+        return camera_config(self.description())
 
     def model_settings(self, model: str) -> dict[str, Any]:
         """The settings ``model_configs`` give ``model`` (``new_model``'s keywords); {}: none."""

@@ -9,6 +9,7 @@ import numpy as np
 
 from perception.catalog import get_object_spec
 from perception.drawing import write_png
+from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import Scene
 from sim.tasks.task_spec import TaskSpec
@@ -39,7 +40,7 @@ def render_scene(scene: Scene, task: TaskSpec | None = None) -> np.ndarray:
             paper.settle()
             return paper.render(brightness)
     look = scene.look
-    with World() as world:
+    with World(robot=YUMI) as world:  # the yumi scene is the YuMi's workcell
         world.reset_scene()
         for index, placed in enumerate(scene.objects):
             world.add_object(get_object_spec(placed.object_type), placed.position_xy_m,

@@ -37,6 +37,7 @@ from perception.learning.data import JOINT_NAMES_KEY, Dataset, DatasetMetadata
 from perception.learning.dataset_file import save_dataset
 from perception.learning.mirror import MIRROR_FLAG
 from robots import ROBOT_NAMES, get_robot
+from robots.description import RobotDescription
 from sim.errors import InvalidInputError, SimError
 from sim.tasks.mirror_symmetry import mirror_symmetric
 from sim.tasks.scene_sampling import (
@@ -151,7 +152,11 @@ class CollectSettings:
         """
         task = seen_in_scene(load_task_variant(self.task, self.variant), self.scene,
                              self.sensor)
-        return spaced_for(task, get_robot(self.robot).neighbour_spacing_m)
+        return spaced_for(task, self.description().neighbour_spacing_m)
+
+    def description(self) -> RobotDescription:
+        """The robot that collects: ``robot`` resolved (the one place a collection does)."""
+        return get_robot(self.robot)
 
     @property
     def asks_every_condition(self) -> bool:
@@ -329,7 +334,7 @@ def _collect_yumi(
     # closed loop: it re-reads the truth; without approach_hz only the pick images are kept.
     loop = None if settings.approach_hz is None and task.disturbance is None else LoopSettings(
         Loop.CLOSED, settings.approach_hz or LoopSettings.replan_hz)
-    with TrialRunner(task, loop=loop, robot=get_robot(settings.robot)) as runner:
+    with TrialRunner(task, loop=loop, robot=settings.description()) as runner:
         images = _PickImages(runner)
         runner.observer = images
         while kept < settings.size:

@@ -10,7 +10,7 @@ drawn on the left, the robot's
 view on the right, a caption strip on top::
 
     recorder = TrialRecorder()
-    with TrialRunner(task, model, observer=recorder) as runner:
+    with TrialRunner(task, model, observer=recorder, robot=robot) as runner:
         recorder.start("kqv / single, trial 0")
         record = runner.run(scene, 0, seed, "kqv")
         frames = recorder.finish(record.outcome.value)

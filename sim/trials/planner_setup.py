@@ -1,7 +1,9 @@
-"""The YuMi's pick planner and the obstacles of a scene, as the planner wants them.
+"""A robot's pick planner and the obstacles of a scene, as the planner wants them.
 
-A pick is planned against the table (a fixed, known fixture) and what the head camera's depth
-image shows (:func:`yumi_depth_config`, :mod:`control.depth_obstacles`): the default, and the
+Every function takes the robot that picks (a :class:`~robots.description.RobotDescription`,
+resolved once where a run starts). A pick is planned against the table (a fixed, known fixture)
+and what the head camera's depth image shows (:func:`depth_config`,
+:mod:`control.depth_obstacles`): the default, and the
 only source of the paper's tables. :attr:`ObstacleSource.TRUTH` gives the planner the
 simulator's true object shapes instead; it exists to debug the planner (does a failure come
 from what the camera saw?) and reads what no real robot knows.
@@ -23,7 +25,6 @@ from control.planner import PickPlanner
 from control.robot_model import RobotModel
 from perception.camera import RgbdFrame
 from perception.catalog import PrimitiveKind, obstacle_shapes
-from robots import yumi
 from robots.description import RobotDescription
 from sim.trials.pick_results import PickObstacles
 from sim.world.yumi_world import TABLE_HALF_SIZE_M, World, WorldConfig
@@ -40,17 +41,12 @@ class ObstacleSource(enum.Enum):
 PLANNER_IK_OPTIONS = IkOptions(max_restarts=3)
 
 
-def make_planner(robot: RobotDescription = yumi.YUMI, config: PickPlannerConfig | None = None
+def make_planner(robot: RobotDescription, config: PickPlannerConfig | None = None
                  ) -> PickPlanner:
     """A pick planner for every arm of ``robot`` (the YuMi's two), nearer arm first."""
     model = RobotModel.from_urdf(robot.urdf_path, robot.srdf_path)
     checker = CollisionChecker(model, robot.urdf_path, robot.srdf_path)
     return PickPlanner(model, checker, build_arm_specs(robot), config, PLANNER_IK_OPTIONS)
-
-
-def make_yumi_planner(config: PickPlannerConfig | None = None) -> PickPlanner:
-    """A pick planner for both YuMi arms, nearer arm first."""
-    return make_planner(yumi.YUMI, config)
 
 
 DEPTH_PADDING_M = 0.005
@@ -62,7 +58,7 @@ docs/decisions/d435-sensor.md) shifts what it sees by 2.6 mm at the table; with 
 the depth image placed 2 mm away, and touched it (issue 36)."""
 
 
-def depth_config(robot: RobotDescription = yumi.YUMI, config: WorldConfig | None = None
+def depth_config(robot: RobotDescription, config: WorldConfig | None = None
                  ) -> DepthObstacleConfig:
     """Depth obstacles over the table top in front of ``robot``'s base.
 
@@ -76,11 +72,6 @@ def depth_config(robot: RobotDescription = yumi.YUMI, config: WorldConfig | None
     fingers = FingerBox(f.tip_beyond_tcp_m, f.length_m, f.half_width_m, f.thickness_m)
     return DepthObstacleConfig(fingers, x_range_m=(robot.footprint_m[0][1], cx + hx),
                                y_range_m=(cy - hy, cy + hy), padding_m=DEPTH_PADDING_M)
-
-
-def yumi_depth_config(config: WorldConfig | None = None) -> DepthObstacleConfig:
-    """:func:`depth_config` of the YuMi."""
-    return depth_config(yumi.YUMI, config)
 
 
 def table_obstacle(world: World) -> Obstacle:

@@ -51,7 +51,6 @@ from perception.interface import (
 from perception.labels import nearest_rotation
 from perception.poses import Pose
 from robots.description import RobotDescription
-from robots.yumi import YUMI
 from sim.errors import InvalidInputError, SimError
 from sim.tasks.disturbance import scene_disturbance
 from sim.tasks.scene_sampling import Scene
@@ -131,7 +130,7 @@ class TrialRunner:
             default), or the simulator's true shapes (for debugging the planner only).
         depth: How depth points become obstacles; the YuMi workcell's when None.
         loop: Whether picks re-predict while the arm approaches; open when None.
-        robot: The robot that picks (the YuMi by default), seen through its workcell's camera.
+        robot: The robot that picks (resolved where the run starts), seen through its camera.
 
     """
 
@@ -146,7 +145,8 @@ class TrialRunner:
         obstacles: ObstacleSource = ObstacleSource.DEPTH,
         depth: DepthObstacleConfig | None = None,
         loop: LoopSettings | None = None,
-        robot: RobotDescription = YUMI,
+        *,
+        robot: RobotDescription,
     ) -> None:
         if not isinstance(obstacles, ObstacleSource):
             allowed = ", ".join(f"ObstacleSource.{s.name}" for s in ObstacleSource)

@@ -42,17 +42,17 @@ from sim.tasks.variants import load_task_variant, variant_file
 from sim.trials.execution import ExecutionSettings
 from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.oracle import OraclePerception
-from sim.trials.planner_setup import ObstacleSource, yumi_depth_config
+from sim.trials.planner_setup import ObstacleSource, depth_config
 from sim.trials.trial_runner import TRIAL_INPUTS, ModelFactory
 from sim.world.head_camera import CameraConfig, camera_config
 from sim.world.sensor import SensorConfig, SensorKind, sensor_from_table
 from sim.world.yumi_world import check_wait_s
 
-MODELS: dict[str, ModelFactory] = {"oracle": OraclePerception}
+TRIAL_MODELS: dict[str, ModelFactory] = {"oracle": OraclePerception}
 """Perception models the trial runner builds by name; a checkpoint folder or
 ``"package.module:Class"`` names any other (see :func:`load_trial_model`)."""
 
-_ALLOWED_MODELS = (f"one of {', '.join(MODELS)}, a checkpoint folder (gva train writes one), "
+_ALLOWED_MODELS = (f"one of {', '.join(TRIAL_MODELS)}, a checkpoint folder (gva train writes one), "
                    "'package.module:Class' or the name an installed package registers in "
                    "'gva.models'")
 
@@ -60,7 +60,7 @@ _ALLOWED_MODELS = (f"one of {', '.join(MODELS)}, a checkpoint folder (gva train 
 class ModelSource(enum.Enum):
     """Where the model of a run of trials comes from."""
 
-    BUILT_IN = "built_in"  # a name in MODELS
+    BUILT_IN = "built_in"  # a name in TRIAL_MODELS
     CHECKPOINT = "checkpoint"  # a checkpoint folder of a learnable model
     CLASS = "class"  # "package.module:Class" or an installed plug-in's name: built with no
     # arguments
@@ -70,7 +70,7 @@ def model_source(model: str) -> ModelSource:
     """Where ``model`` (a name, a folder or ``"package.module:Class"``) comes from."""
     if not isinstance(model, str) or not model:
         raise InvalidInputError("model", model, _ALLOWED_MODELS)
-    if model in MODELS:
+    if model in TRIAL_MODELS:
         return ModelSource.BUILT_IN
     if Path(model).is_dir():
         return ModelSource.CHECKPOINT
@@ -94,10 +94,13 @@ def task_identity(task: TaskSpec) -> dict[str, Any]:
 
 
 def obstacle_identity(source: ObstacleSource) -> dict[str, Any]:
-    """What a run's picks are planned around, as ``run.json`` and ``summary.json`` show it."""
+    """What a run's picks are planned around, as ``run.json`` and ``summary.json`` show it.
+
+    Its depth settings are the YuMi's whatever robot picks, as identities have always held them.
+    """
     if source is not ObstacleSource.DEPTH:
         return {"source": source.value}
-    depth = asdict(yumi_depth_config())
+    depth = asdict(depth_config(YUMI))
     depth["occluded"] = depth["occluded"].value
     return {"source": source.value, "depth": depth}
 
@@ -107,7 +110,7 @@ class TrialSettings:
     """What a run of trials does; the fields of ``run.json``.
 
     Args:
-        model: ``"oracle"`` (see :data:`MODELS`), a checkpoint folder, or a model that builds
+        model: ``"oracle"`` (see :data:`TRIAL_MODELS`), a checkpoint folder, or a model that builds
             with no arguments: ``"package.module:Class"`` or an installed plug-in's name.
         task: A built-in task name, or the path of a task TOML file.
         n: Number of trials.
@@ -270,7 +273,7 @@ def load_trial_model(settings: TrialSettings) -> TrialModel:
     """
     source = model_source(settings.model)
     if source is ModelSource.BUILT_IN:
-        return TrialModel(MODELS[settings.model], settings.model, one_torch_thread=False)
+        return TrialModel(TRIAL_MODELS[settings.model], settings.model, one_torch_thread=False)
     model: PerceptionModel
     if source is ModelSource.CHECKPOINT:
         from perception.registry import load_model  # imports torch: not for the oracle
@@ -286,13 +289,13 @@ def load_trial_model(settings: TrialSettings) -> TrialModel:
         label = model.name
     check_inputs(model, TRIAL_INPUTS, settings.model)
     check_model_fits_task(model, settings.task_spec, settings.model,
-                          settings.allow_sensor_change, settings.description())
+                          settings.allow_sensor_change, robot=settings.description())
     return TrialModel(lambda world, camera: model, label, one_torch_thread="torch" in sys.modules)
 
 
 def check_model_fits_task(model: PerceptionModel, task: TaskSpec, where: str,
-                          allow_sensor_change: bool = False,
-                          robot: RobotDescription = YUMI) -> None:
+                          allow_sensor_change: bool = False, *,
+                          robot: RobotDescription) -> None:
     """Raises unless ``model`` predicts grasp poses for what ``task`` asks in the yumi scene.
 
     A model with a :class:`~perception.learning.learnable.ModelSpec` must have been trained on

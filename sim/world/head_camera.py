@@ -203,7 +203,7 @@ class CameraConfig:
             math.radians(self.vertical_fov_deg) / 2)
 
 
-def camera_config(robot: RobotDescription = yumi.YUMI) -> CameraConfig:
+def camera_config(robot: RobotDescription) -> CameraConfig:
     """The camera settings of ``robot``'s workcell.
 
     Its camera mount and the heatmap focus derived for it; every other setting the head

@@ -22,6 +22,7 @@ import numpy as np
 
 from perception.catalog import get_object_spec
 from perception.interface import PICTURE_PX
+from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.world.head_camera import CameraConfig, HeadCamera, Lighting
 from sim.world.paper_world import PaperWorld
@@ -103,7 +104,7 @@ def _rendered(scene: str, object_type: str, split: str, number: int) -> np.ndarr
 def _world(scene: str) -> World | PaperWorld:
     """The process's picture world of ``scene`` (kept: building one takes a few tenths of s)."""
     if scene == "yumi":
-        return World()
+        return World(robot=YUMI)  # the yumi scene is the YuMi's workcell
     if scene == "paper-sim":
         return PaperWorld()
     raise InvalidInputError("scene", scene, "paper-sim or yumi")

@@ -1,4 +1,4 @@
-"""A simulated robot (the YuMi): joints by name, position-controlled arms, force-limited grips."""
+"""A simulated robot: joints by name, position-controlled arms, force-limited grips."""
 
 from __future__ import annotations
 
@@ -10,7 +10,6 @@ import numpy as np
 import pybullet
 
 from perception.poses import Pose
-from robots import yumi
 from robots.description import GripperDescription, RobotDescription
 from sim.errors import InvalidInputError
 
@@ -114,13 +113,13 @@ class SimRobot:
         config: Controller and finger settings.
         step: Advances the physics one step and must call :meth:`before_step` first (the world's
             ``step``, which also keeps the clock); when None the robot steps the client itself.
-        robot: What the body is (the YuMi by default): its grippers and home pose.
+        robot: What the body is (required: the caller's robot): its grippers and home pose.
 
     """
 
     def __init__(
         self, client: Any, body_id: int, config: RobotConfig | None = None,
-        step: Callable[[], None] | None = None, robot: RobotDescription = yumi.YUMI,
+        step: Callable[[], None] | None = None, *, robot: RobotDescription,
     ) -> None:
         self.client = client
         self.body_id = body_id

@@ -1,4 +1,4 @@
-"""The headless PyBullet scene: checker floor, wooden table, a robot (the YuMi), catalog objects."""
+"""The headless PyBullet scene: checker floor, wooden table, a robot, catalog objects."""
 
 from __future__ import annotations
 
@@ -15,7 +15,6 @@ from pybullet_utils import bullet_client
 
 from perception.catalog import ObjectSpec, PrimitiveKind
 from perception.poses import Pose, rot_z
-from robots import yumi
 from robots.description import RobotDescription
 from sim.errors import InvalidInputError, SimulationError
 from sim.world.looks import ObjectLook, dress_object, dress_table
@@ -91,15 +90,15 @@ class WorldConfig:
 
 
 class World:
-    """One headless PyBullet world with a robot (the YuMi) at the origin on a table top at z = 0.
+    """One headless PyBullet world with ``robot`` at the origin on a table top at z = 0.
 
     Use it as a context manager, or call :meth:`close`. :meth:`reset_scene` keeps the client
     and the robot and only removes the objects; :meth:`rebuild` starts the physics afresh (a
     trial does, so that it depends on no earlier one).
     """
 
-    def __init__(self, config: WorldConfig | None = None,
-                 robot: RobotDescription = yumi.YUMI) -> None:
+    def __init__(self, config: WorldConfig | None = None, *,
+                 robot: RobotDescription) -> None:
         self.config = WorldConfig() if config is None else config
         self.config.check_robot(robot)
         self.description = robot  # the robot standing at the origin

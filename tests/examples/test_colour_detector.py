@@ -12,6 +12,7 @@ from perception.catalog import OBJECT_TYPES
 from perception.errors import InvalidPredictionError
 from perception.interface import Condition, ConditionKind
 from perception.plugins import build_plugin
+from robots.yumi import YUMI
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_toml import load_task
@@ -32,7 +33,7 @@ def detector():
 
 @pytest.fixture(scope="module")
 def runner(detector):
-    with TrialRunner(load_task("single"), lambda world, camera: detector) as runner:
+    with TrialRunner(load_task("single"), lambda world, camera: detector, robot=YUMI) as runner:
         yield runner  # sets up and renders any task's scenes: they share the light
 
 

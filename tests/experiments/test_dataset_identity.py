@@ -8,6 +8,7 @@ import pytest
 
 from harness.run_files import dataset_path, dataset_present
 from perception.learning.dataset_file import save_dataset
+from robots.yumi import YUMI
 from sim.errors import RunFolderError
 from sim.tasks.scene_sampling import SeedStream
 from sim.trials.collector import APPROACH_MASKED_KEY, CollectSettings, collect
@@ -18,9 +19,10 @@ def test_approach_images_from_before_the_arm_mask_are_another_dataset(tmp_path):
     arm in view, as the first closed-loop runs had it) is refused, naming what differs."""
     path = dataset_path(tmp_path, "single", SeedStream.TRAIN, 1, 0)
     dataset = collect(CollectSettings("yumi", "single", 1, approach_hz=5.0), path, progress=False)
-    assert dataset_present(path, "yumi", "single", 1, 0, SeedStream.TRAIN, approach_hz=5.0)
+    assert dataset_present(path, "yumi", "single", 1, 0, SeedStream.TRAIN, approach_hz=5.0,
+                           robot=YUMI)
     extra = {k: v for k, v in dataset.metadata.extra.items() if k != APPROACH_MASKED_KEY}
     save_dataset(replace(dataset, metadata=replace(dataset.metadata, extra=extra)), path)
     with pytest.raises(RunFolderError, match=r"not the dataset this run needs \(\{'"
                                              r"approach_robot_masked': \(False, True\)\}"):
-        dataset_present(path, "yumi", "single", 1, 0, SeedStream.TRAIN, approach_hz=5.0)
+        dataset_present(path, "yumi", "single", 1, 0, SeedStream.TRAIN, approach_hz=5.0, robot=YUMI)

@@ -22,6 +22,7 @@ from experiments.table3.settings import (
 from experiments.table3.trial_sets import TrialSetResult
 from perception.learning.dataset_file import read_metadata
 from perception.registry import load_model
+from robots.yumi import YUMI
 from sim.errors import InvalidInputError, RunFolderError
 from sim.tasks.task_toml import load_task
 from sim.trials.records import TrialOutcome, TrialRecord
@@ -96,7 +97,7 @@ def test_the_variants_are_task_files_the_checkpoint_is_accepted_for(tiny_run):
     assert (distractor.name, distractor.distractors) == ("single+block", ("block",))
     model = load_model(seed0 / "checkpoints" / "kqv" / "single")
     for task in (dark, distractor):
-        check_model_fits_task(model, task, "kqv")  # trained on `single`: accepted
+        check_model_fits_task(model, task, "kqv", robot=YUMI)  # trained on `single`: accepted
     def scenes(name):
         log = seed0 / "trials" / "kqv" / name / "trials.jsonl"
         return {r["index"]: r["objects"] for r in map(json.loads, log.read_text().splitlines())}

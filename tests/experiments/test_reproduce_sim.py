@@ -19,7 +19,7 @@ from experiments.table2.report import (
 )
 from experiments.table2.run import run_reproduce_sim
 from experiments.table2.settings import Cell, ReproduceSimSettings, cell_path
-from experiments.tables import MODELS, model_config, model_order, paper_row
+from experiments.tables import PAPER_MODELS, model_config, model_order, paper_row
 from perception.learning.dataset_file import load_dataset
 from sim.errors import InvalidInputError, RunFolderError
 from sim.world.sensor import SensorKind
@@ -233,7 +233,7 @@ def test_the_no_image_reference_is_scored_on_the_runs_own_datasets(tiny_run):
 
 
 def test_the_papers_table_is_complete():
-    assert set(PAPER_TABLE2_CM) == set(MODELS)
+    assert set(PAPER_TABLE2_CM) == set(PAPER_MODELS)
     assert PAPER_TABLE2_CM["kqv"]["selected-position"] == (32.81, 4.85, 3.95)
     assert PAPER_TABLE2_CM["dsae-16"]["single"][2] == 60.05
 
@@ -242,7 +242,7 @@ def test_model_config_is_what_new_model_builds(tiny_run):
     from perception.registry import new_model
 
     dataset = load_dataset(tiny_run / "datasets" / "single-train-4-s0.gva")
-    for name in MODELS:
+    for name in PAPER_MODELS:
         built = new_model(name, dataset, seed=3)
         since = getattr(type(built.config), "SINCE", {})  # fields added later, at old values
         assert model_config(name, 3) == {k: v for k, v in dataclasses.asdict(built.config)

@@ -15,6 +15,7 @@ from perception.catalog import SPONGE, SPRAY_BOTTLE
 from perception.grasps import grasp_pose
 from perception.interface import NO_CONDITION, Prediction, Target
 from perception.poses import Pose, rot_z
+from robots.yumi import YUMI
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_toml import load_task
@@ -33,7 +34,7 @@ def _oracle_trial(turn_deg: float, index: int) -> TrialRecord:
                 math.radians(turn_deg)), t.object_type) for t in targets))
 
     task = load_task("single")
-    with TrialRunner(task, Turned) as runner:
+    with TrialRunner(task, Turned, robot=YUMI) as runner:
         return runner.run(sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, index), index, 0,
                           "turned")
 

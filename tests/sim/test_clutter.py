@@ -24,6 +24,7 @@ from perception.catalog import (
     catalog_names,
     get_object_spec,
 )
+from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.tasks.mirror_symmetry import mirror_symmetric, object_is_mirror_symmetric
 from sim.tasks.scene_picture import render_scene
@@ -50,7 +51,7 @@ CLUTTER_TASK = ('name = "clutter"\n[objects]\nchoose = "one_of_each"\ncount = 3\
 
 @pytest.fixture(scope="module")
 def world() -> Iterator[World]:
-    with World() as w:
+    with World(robot=YUMI) as w:
         yield w
 
 

@@ -12,6 +12,7 @@ from gymnasium.utils.env_checker import check_env
 from gymnasium.vector import AsyncVectorEnv, AutoresetMode
 
 from robots import get_robot
+from robots.yumi import YUMI
 from sim.envs.episodes import oracle_policy, run_episode
 from sim.errors import InvalidInputError
 from sim.tasks.task_toml import builtin_tasks, load_task
@@ -28,7 +29,7 @@ def make(**kwargs):
 def trial_outcomes(task: str, n: int) -> dict[int, tuple[str, str]]:
     """What ``gva trials --model oracle --seed 0`` records for test scenes 0..n-1."""
     spec = load_task(task)
-    with TrialRunner(spec) as runner:
+    with TrialRunner(spec, robot=YUMI) as runner:
         records = [runner.run(trial_scene(spec, 0, i), i, 0, "oracle") for i in range(n)]
     return {r.index: (r.outcome.value, r.reason) for r in records}
 

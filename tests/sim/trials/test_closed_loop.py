@@ -15,6 +15,7 @@ from perception.camera import RgbdFrame
 from perception.catalog import get_object_spec
 from perception.interface import NO_CONDITION, Prediction, Target
 from robots import yumi
+from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.tasks.disturbance import Disturbance
 from sim.tasks.task_toml import load_task
@@ -38,7 +39,7 @@ def single_moved():
 
 
 def run(task, loop: Loop, index: int):
-    with TrialRunner(task, loop=LoopSettings(loop)) as runner:
+    with TrialRunner(task, loop=LoopSettings(loop), robot=YUMI) as runner:
         return runner.run(trial_scene(task, 0, index), index, 0, "oracle")
 
 
@@ -116,7 +117,7 @@ def test_the_share_of_a_footprint_the_arm_hides():
 def test_a_grasp_in_plain_view_has_its_footprint_seen_and_something_standing_there():
     """Where the arm hides the target followed, a grasp named in plain view over an object is
     heeded (a target moved out from under the arm); one on bare table or behind the arm not."""
-    with World() as world:
+    with World(robot=YUMI) as world:
         world.reset_scene()
         world.add_object(get_object_spec("spray_bottle"), (0.45, 0.1), 0.0)
         frame = HeadCamera().render_rgbd(world.client, self_body=world.robot.body_id)
@@ -210,7 +211,7 @@ def run_closed(model: type[_Later]):
     model.calls = 0
     task = load_task("single")
     with TrialRunner(task, lambda world, camera: model(),
-                     loop=LoopSettings(Loop.CLOSED)) as runner:
+                     loop=LoopSettings(Loop.CLOSED), robot=YUMI) as runner:
         record = runner.run(trial_scene(task, 0, 0), 0, 0, "test")
         arm = record.picks[0].get("arm", "r")
         return record, runner.world.robot.link_pose(yumi.TCP_FRAME[arm]).position
@@ -271,7 +272,7 @@ def test_an_approach_that_never_settles_stops_looking_and_the_trial_ends(monkeyp
     MAX_APPROACH_S the loop stops looking, says so, and the pick runs its last plan."""
     monkeypatch.setattr(closed_loop, "MAX_APPROACH_S", 1.0)
     task = load_task("single")
-    with TrialRunner(task, _Wandering, loop=LoopSettings(Loop.CLOSED)) as runner:
+    with TrialRunner(task, _Wandering, loop=LoopSettings(Loop.CLOSED), robot=YUMI) as runner:
         record = runner.run(trial_scene(task, 0, 1), 1, 0, "wandering")
     [pick] = record.picks
     looks = pick["repredictions"]

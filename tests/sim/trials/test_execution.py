@@ -11,12 +11,13 @@ from control.depth_obstacles import GraspRegion, depth_obstacles
 from control.pick import PickRequest, PlanStatus
 from perception.catalog import get_object_spec
 from perception.grasps import grasp_pose
+from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_spec import ObjectChoice, TaskSpec
 from sim.trials.execution import ExecutionSettings, execute_pick
-from sim.trials.planner_setup import object_obstacles, table_obstacle, yumi_depth_config
+from sim.trials.planner_setup import depth_config, object_obstacles, table_obstacle
 from sim.trials.records import TrialOutcome
 from sim.trials.trial_settings import TrialSettings
 from sim.world.head_camera import HeadCamera
@@ -43,7 +44,7 @@ def test_every_wait_of_the_physics_is_finite_and_bounded(build) -> None:
 
 @pytest.fixture(scope="module")
 def world():
-    with World() as w:
+    with World(robot=YUMI) as w:
         yield w
 
 
@@ -58,7 +59,7 @@ def plan_for(planner, world, target, others, grasp=None, with_obstacles=True, so
     elif with_obstacles:
         frame = HeadCamera().render_rgbd(world.client)
         seen = depth_obstacles(frame.points_world(), np.asarray(frame.camera.position_m),
-                               yumi_depth_config(), GraspRegion(grasp, spec.grasp.opening_m))
+                               depth_config(YUMI), GraspRegion(grasp, spec.grasp.opening_m))
         obstacles, own = [table_obstacle(world), *seen.obstacles], list(seen.target_obstacles)
     q_start = planner.robot.q_from_dict(world.robot.joint_positions())
     return planner.plan(PickRequest(grasp, q_start, obstacles=tuple(obstacles),

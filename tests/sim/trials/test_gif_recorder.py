@@ -10,6 +10,7 @@ from PIL import Image
 from user_models import NotARotation, Raises
 
 from perception.interface import LabelKind, PerceptionModel, Prediction, Target
+from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
@@ -49,10 +50,10 @@ def _comparable(record):
 def test_recording_a_trial_calls_the_hook_and_changes_nothing():
     task = load_task("single")
     scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 1)
-    with TrialRunner(task) as runner:
+    with TrialRunner(task, robot=YUMI) as runner:
         plain = runner.run(scene, 1, 0, "oracle")
     recorder = CountingRecorder()
-    with TrialRunner(task, observer=recorder) as runner:
+    with TrialRunner(task, observer=recorder, robot=YUMI) as runner:
         recorder.start("oracle / single, trial 1")
         recorded = runner.run(scene, 1, 0, "oracle")
         time_step_s = runner.world.config.time_step_s
@@ -71,7 +72,7 @@ def test_a_trial_refused_before_the_robot_moves_still_gets_a_frame():
     task = load_task("single")
     scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 0)
     recorder = TrialRecorder()
-    with TrialRunner(task, observer=recorder) as runner:
+    with TrialRunner(task, observer=recorder, robot=YUMI) as runner:
         oracle = runner.model
 
         class FarAway(PerceptionModel):  # a grasp 80 cm beyond the target: no arm reaches it
@@ -97,7 +98,7 @@ def test_a_trial_that_fails_in_perception_still_shows_what_the_model_saw(model):
     task = load_task("single")
     scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 0)
     recorder = CountingRecorder()
-    with TrialRunner(task, lambda world, camera: model, observer=recorder) as runner:
+    with TrialRunner(task, lambda world, camera: model, observer=recorder, robot=YUMI) as runner:
         recorder.start("misbehaving / single, trial 0")
         record = runner.run(scene, 0, 0, "misbehaving")
         frames = recorder.finish(record.outcome.value)
@@ -107,7 +108,7 @@ def test_a_trial_that_fails_in_perception_still_shows_what_the_model_saw(model):
 
 
 def test_a_runner_without_an_observer_leaves_the_world_unhooked():
-    with TrialRunner(load_task("single")) as runner:
+    with TrialRunner(load_task("single"), robot=YUMI) as runner:
         assert runner.observer is None and runner.world.step_hook is None
 
 
@@ -136,7 +137,7 @@ def test_a_closed_loop_gif_shows_the_grasp_follow_the_moved_target():
                                disturbance=Disturbance(move_m=(0.06, 0.06)))
     scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 0)
     recorder = CountingRecorder()
-    with TrialRunner(task, observer=recorder, loop=LoopSettings(Loop.CLOSED)) as runner:
+    with TrialRunner(task, observer=recorder, loop=LoopSettings(Loop.CLOSED), robot=YUMI) as runner:
         recorder.start("oracle / single-moved, trial 0")
         record = runner.run(scene, 0, 0, "oracle")
         frames = recorder.finish(record.outcome.value)

@@ -12,6 +12,7 @@ from perception.interface import (
     LabelKind,
     PerceptionModel,
 )
+from robots.yumi import YUMI
 from sim.errors import TargetNotFoundError
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
@@ -44,7 +45,7 @@ def test_a_text_task_hands_the_model_the_sentence_and_records_it(tmp_path):
         def predict(self, image, condition=NO_CONDITION):
             return self.inner.predict(image, condition)
 
-    with TrialRunner(task) as runner:
+    with TrialRunner(task, robot=YUMI) as runner:
         runner.model = Model(Listens(runner.world, runner.camera))
         record = runner.run(scene, 0, 0, "listens")
     wanted = {"sponge": "the absorbent scourer", "spray_bottle": "the atomiser",
@@ -58,7 +59,7 @@ def test_the_oracle_is_told_what_the_sentence_stands_for(tmp_path):
     """The referee's demonstrator picks a text task's target from the truth, as it picks poses."""
     task = TrialSettings("oracle", "selected-type-text").task_spec
     scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 1)
-    with TrialRunner(task) as runner:
+    with TrialRunner(task, robot=YUMI) as runner:
         record = runner.run(scene, 1, 0, "oracle")
         assert runner.model.named == scene.condition
     assert record.outcome.value == "success", record.reason

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from harness.run_loop import run_trials
+from robots.yumi import YUMI
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_toml import load_task
@@ -28,9 +29,9 @@ def second_record_after_another_and_alone(task):
         fields.pop("wall_time_s")
         return fields
 
-    with TrialRunner(task) as runner:
+    with TrialRunner(task, robot=YUMI) as runner:
         after_another = [record(runner, i) for i in (0, 1)][1]
-    with TrialRunner(task) as runner:
+    with TrialRunner(task, robot=YUMI) as runner:
         alone = record(runner, 1)  # as a resumed run, or another worker, runs it
     return after_another, alone
 
@@ -57,7 +58,7 @@ def test_trials_side_by_side_write_the_records_of_one_process(tmp_path):
 
 def test_a_d435_runner_seeds_each_frame_by_scene_and_pick():
     scenes = [sample_scene(D435_SINGLE, YUMI_SCENE, 0, SeedStream.TEST, i) for i in range(2)]
-    with TrialRunner(D435_SINGLE) as runner:
+    with TrialRunner(D435_SINGLE, robot=YUMI) as runner:
         def sights(scene):  # the frames of a scene's first two picks
             body = runner.setup(scene)[scene.targets[0]]
             return runner.sight(body).frame, runner.sight(body).frame

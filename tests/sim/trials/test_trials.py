@@ -13,6 +13,7 @@ from perception.interface import (
     Prediction,
     Target,
 )
+from robots.yumi import YUMI
 from sim.errors import InvalidInputError, TargetNotFoundError
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
@@ -27,7 +28,7 @@ from sim.world.yumi_world import World
 
 @pytest.fixture(scope="module")
 def world():
-    with World() as w:
+    with World(robot=YUMI) as w:
         yield w
 
 
@@ -116,7 +117,7 @@ def changed_oracle_trial(change, task="single", index=0):
             return Prediction(tuple(change(t) for t in super().predict(image, condition).targets))
 
     spec = load_task(task)
-    with TrialRunner(spec, Changed) as runner:
+    with TrialRunner(spec, Changed, robot=YUMI) as runner:
         return runner.run(sample_scene(spec, YUMI_SCENE, 0, SeedStream.TEST, index), index, 0,
                           "changed")
 
@@ -197,7 +198,7 @@ def sealed_planning(monkeypatch):
 @pytest.mark.parametrize(("task", "index"), [("multiple", 0), ("selected-type", 1)])
 def test_planning_reads_nothing_of_the_true_scene(sealed_planning, task, index):
     spec = load_task(task)
-    with TrialRunner(spec) as runner:
+    with TrialRunner(spec, robot=YUMI) as runner:
         record = runner.run(sample_scene(spec, YUMI_SCENE, 0, SeedStream.TEST, index), index, 0,
                             "oracle")
     assert sealed_planning == []
@@ -208,7 +209,7 @@ def test_planning_reads_nothing_of_the_true_scene(sealed_planning, task, index):
 
 def test_the_seal_catches_a_planner_that_reads_the_truth(sealed_planning):
     task = load_task("single")
-    with TrialRunner(task, obstacles=ObstacleSource.TRUTH) as runner:
+    with TrialRunner(task, obstacles=ObstacleSource.TRUTH, robot=YUMI) as runner:
         record = runner.run(sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 0), 0, 0, "x")
     assert sealed_planning == ["objects"]
     assert record.outcome.value == "error"
@@ -263,7 +264,7 @@ def test_grasp_of_a_missing_object_is_a_recorded_outcome():
 
     task = load_task("single")
     scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 0)
-    with TrialRunner(task) as runner:
+    with TrialRunner(task, robot=YUMI) as runner:
         missing = next(t for t in OBJECT_TYPES if t != scene.objects[0].object_type)
         runner.model = AsksFor(missing, runner.world, runner.camera)
         record = runner.run(scene, 0, 0, "asks-for")

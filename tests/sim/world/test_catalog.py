@@ -30,6 +30,7 @@ from perception.grasps import grasp_pose
 from perception.interface import InvalidInputError
 from perception.poses import Pose
 from robots import yumi
+from robots.yumi import YUMI
 from sim.world.yumi_world import World
 
 FLIP = pin.SE3(pin.utils.rotate("z", math.pi), np.zeros(3))  # the gripper's own symmetry
@@ -37,7 +38,7 @@ FLIP = pin.SE3(pin.utils.rotate("z", math.pi), np.zeros(3))  # the gripper's own
 
 @pytest.fixture(scope="session")
 def world() -> Iterator[World]:
-    with World() as w:
+    with World(robot=YUMI) as w:
         yield w
 
 

@@ -13,6 +13,7 @@ from perception.camera import PinholeCamera, RgbdFrame
 from perception.catalog import get_object_spec
 from perception.interface import InvalidInputError as PerceptionInputError
 from robots import get_robot
+from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.world.head_camera import CameraConfig, HeadCamera, Lighting, camera_config
@@ -26,7 +27,7 @@ OBJECT_EXTENTS_M = ((0.07, 0.0), (0.07, 0.07), (0.045, 0.09), (0.02, 0.17))
 
 @pytest.fixture(scope="session")
 def world() -> Iterator[World]:
-    with World() as w:
+    with World(robot=YUMI) as w:
         yield w
 
 

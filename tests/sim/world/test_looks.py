@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from perception.catalog import SPONGE, get_object_spec
+from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.world.head_camera import CameraConfig, HeadCamera, Lighting
 from sim.world.looks import (
@@ -28,7 +29,7 @@ WHERE = (0.47, 0.0)
 
 def picture(look: ObjectLook | None = None, table: str | None = None,
             lighting: Lighting | None = None, config: CameraConfig | None = None) -> np.ndarray:
-    with World() as world:
+    with World(robot=YUMI) as world:
         world.add_object(SPONGE, WHERE, 0.0, look)
         if table is not None:
             world.dress_table(table)
@@ -42,7 +43,7 @@ def today() -> np.ndarray:
 
 def sponge_pixels(image: np.ndarray, today: np.ndarray) -> np.ndarray:
     """The pixels where an empty table differs from today's picture: the sponge's."""
-    with World() as world:
+    with World(robot=YUMI) as world:
         empty = HeadCamera().render(world.client)
     return np.abs(today.astype(int) - empty).sum(axis=2) > 30
 
@@ -131,7 +132,7 @@ def test_textures_are_seeded_files_in_the_patterns_range(tmp_path, monkeypatch):
 
 
 def test_a_look_with_the_wrong_number_of_colours_is_refused():
-    with World() as world, pytest.raises(InvalidInputError, match=r"mug look colours = "
+    with World(robot=YUMI) as world, pytest.raises(InvalidInputError, match=r"mug look colours = "
                                          r"\['#000000', '#ffffff'\] is not allowed: 1 colours"):
         world.add_object(get_object_spec("mug"), WHERE, 0.0, ObjectLook(("#000000", "#ffffff")))
     assert rgb_from_hex("#FF8000") == (1.0, 128 / 255, 0.0)

@@ -11,6 +11,7 @@ import pytest
 from scipy import ndimage
 
 from robots import yumi
+from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.world.d435 import D435Config
 from sim.world.head_camera import CameraConfig, HeadCamera, Lighting
@@ -40,7 +41,7 @@ def _on_table(uv: tuple[float, float], height_m: float) -> np.ndarray:
 @pytest.fixture(scope="module")
 def world():
     """The yumi world at HOME with a red ball at the centre and near two corners of the image."""
-    world = World()
+    world = World(robot=YUMI)
     world.reset_scene(yumi.HOME)
     centres = np.array([_on_table(uv, 0.03) for uv in SPOTS_PX])
     for centre in centres:

@@ -15,6 +15,7 @@ from control.robot_model import RobotModel
 from perception.catalog import get_object_spec
 from perception.grasps import grasp_pose
 from robots import yumi
+from robots.yumi import YUMI
 from sim.errors import InvalidInputError, SimError
 from sim.world.yumi_world import MAX_WAIT_S, World, WorldConfig
 
@@ -23,7 +24,7 @@ ARMS = [*yumi.ARM_JOINTS["r"], *yumi.ARM_JOINTS["l"]]
 
 @pytest.fixture(scope="session")
 def world() -> Iterator[World]:
-    with World() as w:
+    with World(robot=YUMI) as w:
         yield w
 
 
@@ -42,7 +43,8 @@ def test_config_errors_name_field_value_and_allowed() -> None:
         WorldConfig(time_step_s=0.1)
     with pytest.raises(InvalidInputError, match=r"table_center_xy_m = .* under the yumi's base, "
                                                 r"x -0.36..0.135 m"):
-        World(WorldConfig(table_center_xy_m=(0.6, 0.0)))  # refused before PyBullet starts
+        # refused before PyBullet starts
+        World(WorldConfig(table_center_xy_m=(0.6, 0.0)), robot=YUMI)
     with pytest.raises(SimError):  # the package's base catches it too
         WorldConfig(solver_iterations=0)
     with pytest.raises(InvalidInputError, match=r"object_sleeping = 'yes' is not allowed: True "):
@@ -178,7 +180,7 @@ def test_reset_scene_removes_objects_and_restores_home(fresh: World) -> None:
 def test_a_sleeping_object_stays_put_and_wakes_when_something_falls_on_it() -> None:
     landed = {}
     for sleeping in (True, False):
-        with World(WorldConfig(object_sleeping=sleeping)) as world:
+        with World(WorldConfig(object_sleeping=sleeping), robot=YUMI) as world:
             below = world.add_object(get_object_spec("sponge"), (0.4, 0.0), 0.0)
             above = world.add_object(get_object_spec("sponge"), (0.4, 0.3), 0.0)
             world.step(_seconds(world, 0.25))
@@ -200,7 +202,7 @@ def test_a_sleeping_object_stays_put_and_wakes_when_something_falls_on_it() -> N
 
 
 def test_worlds_are_independent(fresh: World) -> None:
-    with World() as other:
+    with World(robot=YUMI) as other:
         body = other.add_object(get_object_spec("mug"), (0.4, 0.0), 0.0)
         other.robot.open_gripper("r")
         other.step(120)
