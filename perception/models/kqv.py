@@ -17,13 +17,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from perception.interface import (
-    Condition,
-    ConditionKind,
-    InvalidInputError,
-    ModelInput,
-    Prediction,
-)
+from perception.interface import Condition, ConditionKind, InvalidInputError, ModelInput, Prediction
 from perception.learning.data import Dataset
 from perception.learning.evaluate import evaluate
 from perception.learning.learnable import ModelSpec
@@ -38,6 +32,7 @@ from perception.learning.train import Batch, TrainConfig, TrainReport, train
 from perception.learning.validation import split_scenes
 from perception.models.kqv_config import INFERENCE_FIELDS, KqvConfig
 from perception.models.kqv_net import KqvNet
+from perception.models.rise import checked_depths
 from perception.models.torch_model import Phase, TorchModel, present_mean
 from perception.sentence_reading import TokenReader, fit_token_reader, read_target
 from perception.sentences import token_embeddings
@@ -112,10 +107,9 @@ class KqvModel(TorchModel):
         stays the targets'. A dataset that names no target's type trains no type phase.
         """
         config = config or TrainConfig()
-        if self.config.depth_input and dataset.depths_m is None:
+        if self.config.depth_input and dataset.depths_m is None:  # paper-sim's; older ones'
             raise InvalidInputError("depth_input", True, "false for a dataset without depth "
-                                    "images (the paper-sim scene's, or one made before depth "
-                                    "was kept)")
+                                    "images")
         if self.config.hue_jitter:  # the model's setting reaches the training loop
             config = replace(config, hue_jitter=self.config.hue_jitter)
         fresh = self.scaler is None  # a first fit may try several starts; a later one not
@@ -336,14 +330,8 @@ class KqvModel(TorchModel):
 
     def _depths(self, depths_m: np.ndarray | None, batch: int) -> Tensor | None:
         """The depth images a depth-reading network is given, checked; None for the others."""
-        if not self.config.depth_input:
-            return None
         shape = (batch, self.spec.image_height_px, self.spec.image_width_px)
-        if depths_m is None or np.shape(depths_m) != shape:
-            raise InvalidInputError("depths_m", None if depths_m is None else
-                                    f"shape {np.shape(depths_m)}", f"depth images of shape "
-                                    f"{shape} [m], for a kqv model with depth_input = true")
-        return torch.as_tensor(np.asarray(depths_m, dtype=np.float32))
+        return checked_depths(depths_m, shape) if self.config.depth_input else None
 
     def read_with(self, **settings: Any) -> KqvModel:
         """The same trained weights read under other inference settings (:data:`INFERENCE_FIELDS`).

@@ -11,8 +11,11 @@ height-ish above it (along the ray), 0 where the sensor gave no depth. A model t
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 from torch import Tensor
+
+from perception.errors import InvalidInputError
 
 FIT_STRIDE = 4
 """The plane is fitted on every this-th pixel of each row and column (a 128 px image: 1,024
@@ -55,3 +58,15 @@ def rise_above_table(depths_m: Tensor) -> Tensor:
     plane_m = 1.0 / torch.einsum("hwk,bk->bhw", basis, coefficients).clamp(min=1e-6)
     rise = torch.where(valid & fitted, plane_m - depth_m, 0.0).clamp(-RISE_MOST_M, RISE_MOST_M)
     return rise.to(depths_m.dtype)  # (B, H, W)
+
+
+def checked_depths(depths_m: np.ndarray | None, shape: tuple[int, int, int]) -> Tensor:
+    """Depth images (B, H, W) [m] a depth-reading model was given, as a tensor.
+
+    Refused, in one line naming ``depths_m``, where they are missing or of another ``shape``.
+    """
+    if depths_m is None or np.shape(depths_m) != shape:
+        raise InvalidInputError("depths_m", None if depths_m is None else
+                                f"shape {np.shape(depths_m)}", f"depth images of shape "
+                                f"{shape} [m], for a kqv model with depth_input = true")
+    return torch.as_tensor(np.asarray(depths_m, dtype=np.float32))

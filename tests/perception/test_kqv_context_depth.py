@@ -1,0 +1,80 @@
+"""kqv's options for worlds whose colours name no type: a wider view and the depth's rise."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+from user_models import BACKGROUND, CAMERA, COLOURS, spec, synthetic_dataset
+
+from perception.interface import InvalidInputError, LabelKind, ModelInput
+from perception.learning.train import TrainConfig
+from perception.models.kqv import KqvConfig, KqvModel
+
+
+@pytest.mark.parametrize(("layers", "reach_px"), [(0, 6), (2, 18)])
+def test_context_layers_let_a_key_see_as_far_as_their_receptive_field(layers, reach_px):
+    # A Key at the image's centre changes with a pixel as far as its receptive field reaches
+    # (13 px wide at 0 context layers: 6 px either side; 37 px at 2: 18 either side) and not
+    # one pixel beyond: the context module is what lets a Key see an object's outline.
+    config = KqvConfig(seed=3, context_layers=layers, stride=2)
+    key_net = KqvModel(spec(), config).network.key_net.eval()
+    image = torch.rand(1, 3, 128, 128, generator=torch.Generator().manual_seed(0))
+
+    def key_changes(offset_px: int) -> bool:
+        moved = image.clone()
+        moved[0, :, 64, 64 + offset_px] += 1.0
+        with torch.no_grad():
+            return bool((key_net(moved) - key_net(image))[0, :, 32, 32].abs().max() > 0)
+
+    assert key_changes(reach_px - 1)
+    assert not key_changes(reach_px + 1)
+
+
+def test_context_layers_are_bounded_and_left_out_of_identities_at_zero():
+    with pytest.raises(InvalidInputError, match=r"context_layers = 5 is not allowed: an integer "
+                                                 r">= 0 and <= 4"):
+        KqvConfig(context_layers=5)
+    assert KqvConfig.SINCE["context_layers"] == KqvConfig().context_layers == 0
+
+
+def _raised_twins(size: int, seed: int):
+    """Grasp scenes of two squares in one colour, square k standing 3 (k + 1) cm off the table:
+    only the depth tells the targets apart."""
+    dataset = synthetic_dataset(size, targets=2, kind=LabelKind.GRASP_POSE, seed=seed,
+                                camera=CAMERA)
+    table = np.broadcast_to(BACKGROUND, dataset.images.shape[1:])
+    images = np.where((dataset.images != table).any(-1, keepdims=True), COLOURS[0], table)
+    depths = np.full(dataset.images.shape[:3], 0.6, np.float32)
+    for n, scene in enumerate(dataset.scenes):
+        for k, (v, u) in enumerate(scene["corners_px"]):
+            depths[n, v:v + 8, u:u + 8] -= 0.03 * (k + 1)
+    return replace(dataset, images=images.astype(np.uint8), depths_m=depths)
+
+
+def test_depth_input_tells_apart_twins_the_colour_cannot():
+    train, test = _raised_twins(24, seed=3), _raised_twins(16, seed=4)
+    errors = {}
+    for depth in (False, True):
+        model = KqvModel.for_dataset(train, KqvConfig(starts=1, warmup_steps=50,
+                                                      depth_input=depth, seed=1))
+        model.fit(train, TrainConfig(steps=250, batch_size=8, threads=1), progress=False)
+        predicted = np.array([[t.position_m for t in p.targets] for p in model.predict_batch(
+            test.images, test.conditions, test.depths_m)])  # (N, 2, 3)
+        errors[depth] = np.median(np.linalg.norm(predicted - test.labels[..., :3], axis=-1))
+    assert errors[True] < 0.02 < errors[False], errors  # the squares lie about 10 cm apart
+
+
+def test_a_depth_reading_kqv_says_so_and_refuses_what_has_no_depth():
+    dataset = _raised_twins(4, seed=0)
+    model = KqvModel.for_dataset(dataset, KqvConfig(depth_input=True))
+    assert model.inputs == frozenset({ModelInput.RGB, ModelInput.DEPTH})
+    assert KqvModel.for_dataset(dataset).inputs == frozenset({ModelInput.RGB})
+    with pytest.raises(InvalidInputError, match=r"depths_m = None is not allowed: depth images "
+                                                 r"of shape \(4, 64, 64\)"):
+        model.predict_batch(dataset.images, dataset.conditions)
+    with pytest.raises(InvalidInputError, match=r"depth_input = True is not allowed: false for "
+                                                 r"a dataset without depth images"):
+        model.fit(replace(dataset, depths_m=None), TrainConfig(steps=1), progress=False)
+    with pytest.raises(InvalidInputError, match=r"depth_input = 1 is not allowed: True or False"):
+        KqvConfig(depth_input=1)
