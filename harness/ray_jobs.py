@@ -39,9 +39,14 @@ the job raised: that would only raise again)."""
 LOCAL_OBJECT_STORE_BYTES = 256 * 2**20
 """The object store of a Ray started for one run: jobs return small results (a cell's error,
 a trial's record), and Ray's default (30 % of memory) would take gigabytes from training."""
-LOCAL_SYSTEM_CONFIG = {"worker_niceness": 0}
-"""A Ray started for a run gives its workers the local pool's priority: Ray's default, 15, lets
-any other process on the machine starve them (docs/decisions/ray-executor.md)."""
+LOCAL_HEALTH_CHECK_FAILURES = 100
+"""Missed health checks (3 s apart) before a Ray started for one run calls its own node dead.
+Ray's default, 5, is for a cluster's network; on one busy machine a starved raylet misses 5
+in 15 s, and Ray then ends itself and the run's process (docs/decisions/ray-executor.md)."""
+LOCAL_SYSTEM_CONFIG = {"worker_niceness": 0,
+                       "health_check_failure_threshold": LOCAL_HEALTH_CHECK_FAILURES}
+"""A Ray started for a run gives its workers the local pool's priority (Ray's default niceness,
+15, lets any other process on the machine starve them) and never gives up on its own node."""
 WAIT_S = 0.5
 """The longest this process waits in Ray before it looks at signals again [s]."""
 CHECK_TIMEOUT_S = 120.0

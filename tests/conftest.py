@@ -103,12 +103,17 @@ def depth_view():
 
 
 @pytest.fixture(scope="session")
-def local_ray():
+def local_ray(request):
     """A local Ray of 2 CPUs, as CI's machine has, shared by every Ray test (started once).
 
     A pool that finds Ray running joins it and leaves it running, so each test pays no start.
+    Only tests marked ``ray`` may take it: make test runs those alone, after the rest.
     """
     import ray
+
+    for item in request.session.items:
+        if "local_ray" in getattr(item, "fixturenames", ()) and not item.get_closest_marker("ray"):
+            pytest.fail(f"{item.nodeid} uses local_ray: mark its module pytest.mark.ray")
 
     from harness.ray_jobs import start_local_ray
 

@@ -10,6 +10,8 @@ import dataclasses
 import json
 from pathlib import Path
 
+import pytest
+
 from experiments.table2.run import run_reproduce_sim
 from experiments.table2.settings import ReproduceSimSettings
 from experiments.table3.jobs import CollectJob, TrainJob, job_resources
@@ -19,6 +21,7 @@ from harness.jobs import Executor, ExecutorKind, JobResources
 from harness.run_loop import run_trials
 from sim.trials.trial_settings import TrialSettings
 
+pytestmark = pytest.mark.ray  # make test runs these alone, after the rest
 RAY = Executor(ExecutorKind.RAY)
 
 
