@@ -15,6 +15,9 @@ if TYPE_CHECKING:
 
 ROBOT_NAMES = ("yumi", "panda")
 """The robots gva describes."""
+DEFAULT_ROBOT = "yumi"
+"""The robot a run uses when its user names none: the paper's. The one default of a robot;
+below the settings a user fills, every function takes its robot resolved (docs/design.md)."""
 
 
 def get_robot(name: str) -> RobotDescription:
@@ -30,4 +33,4 @@ def get_robot(name: str) -> RobotDescription:
     raise InvalidInputError("robot", name, f"one of {', '.join(ROBOT_NAMES)}")
 
 
-__all__ = ["ROBOT_NAMES", "get_robot"]
+__all__ = ["DEFAULT_ROBOT", "ROBOT_NAMES", "get_robot"]

@@ -168,7 +168,7 @@ ROBOT_TITLES = {"yumi": "a simulated ABB YuMi", "panda": "a simulated Franka Pan
 def table3_markdown(sets: Sequence[TrialSetResult], made_by: str,
                     gifs: Mapping[str, Mapping[str, Any]] | None = None,
                     failed: Sequence[Mapping[str, Any]] = (),
-                    checks: Sequence[Mapping[str, Any]] = (), robot: str = "yumi") -> str:
+                    checks: Sequence[Mapping[str, Any]] = (), *, robot: str) -> str:
     """``table3.md``: the paper's row, ours, the variants' rows, then why trials failed."""
     by_key = {(s.model, s.variant, s.task): s for s in sets}
     lines = [
@@ -350,7 +350,7 @@ def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float
         "checks": checks, "provenance": session}
     paths = [out / "table3.json", out / "table3.md"]
     write_json(paths[0], table)
-    text = table3_markdown(sets, made_by, gifs, failed, checks, settings.robot)
+    text = table3_markdown(sets, made_by, gifs, failed, checks, robot=settings.robot)
     write_text(paths[1], text)
     notes = [] if sets else ["no trials in this folder yet: the tables are empty"]
     notes += [f"WARNING: {c['model']} {c['task']} seed {c['seed']} failed its held-out check: "

@@ -28,7 +28,7 @@ from harness.run_folder import json_form
 from perception.learning.train import TrainConfig, available_threads
 from perception.learning.validation import CheckConfig
 from perception.model_config_file import ModelConfigFile
-from robots import ROBOT_NAMES, get_robot
+from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot
 from robots.description import RobotDescription
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream
@@ -172,7 +172,7 @@ class ReproduceRealSettings:
     check: CheckConfig = field(default_factory=CheckConfig)
     model_configs: tuple[ModelConfigFile, ...] = ()
     loop: LoopSettings = field(default_factory=LoopSettings)
-    robot: str = "yumi"
+    robot: str = DEFAULT_ROBOT
     world: str | None = None
 
     def __post_init__(self) -> None:

@@ -33,7 +33,7 @@ from perception.interface import (
     Target,
     condition_size,
 )
-from robots import ROBOT_NAMES, get_robot
+from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import condition_choices
 from sim.tasks.scene_specs import YUMI_SCENE
@@ -99,7 +99,7 @@ class PickEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
 
     def __init__(self, task: str | Path | TaskSpec = "single", render_mode: str | None = None,
                  first_index: int = 0, index_step: int = 1,
-                 execution: ExecutionSettings | None = None, robot: str = "yumi",
+                 execution: ExecutionSettings | None = None, robot: str = DEFAULT_ROBOT,
                  sensor: str | SensorKind | None = None) -> None:
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise InvalidInputError("render_mode", render_mode, "None or 'rgb_array'")

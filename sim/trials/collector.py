@@ -36,7 +36,7 @@ from perception.labels import label_vector
 from perception.learning.data import JOINT_NAMES_KEY, Dataset, DatasetMetadata
 from perception.learning.dataset_file import save_dataset
 from perception.learning.mirror import MIRROR_FLAG
-from robots import ROBOT_NAMES, get_robot
+from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot
 from robots.description import RobotDescription
 from sim.errors import InvalidInputError, SimError
 from sim.tasks.mirror_symmetry import mirror_symmetric
@@ -112,7 +112,7 @@ class CollectSettings:
     stream: SeedStream = SeedStream.TRAIN
     every_condition: bool | None = None
     approach_hz: float | None = None
-    robot: str = "yumi"
+    robot: str = DEFAULT_ROBOT
     variant: str | None = None
     sensor: SensorKind | None = None
 

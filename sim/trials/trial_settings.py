@@ -25,7 +25,7 @@ from perception.interface import LabelKind, PerceptionModel
 from perception.learning.learnable import LearnableModel, ModelSpec
 from perception.learning.validation import HeldOutCheck, read_check
 from perception.plugins import build_plugin, installed_models, is_class_path, plugin_class
-from robots import ROBOT_NAMES, get_robot
+from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot
 from robots.description import RobotDescription
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError
@@ -150,7 +150,7 @@ class TrialSettings:
     phrases: str | None = None
     allow_sensor_change: bool = False
     loop: LoopSettings = field(default_factory=LoopSettings)
-    robot: str = "yumi"
+    robot: str = DEFAULT_ROBOT
     variant: str | None = None
     sensor: SensorKind | None = None
 

@@ -196,7 +196,7 @@ def test_table3_pairs_each_baseline_with_kqv_per_task_and_seed():
     assert (seed0.model_a, seed0.model_b) == ("kqv", "kp")  # A: kqv, B: the baseline
     assert seed0.overall.counts.only_a == 14 and seed0.overall.p_value < 0.001
     assert seed1.n == 12 and seed1.overall.p_value == 1.0  # the 12 trials both have
-    text = table3_markdown(sets, "Made by x.")
+    text = table3_markdown(sets, "Made by x.", robot="yumi")
     section = text[text.index("## Baselines against Ours (kqv, q=min)"):]
     assert "| Key Point (q=16), seed 0 | -47 % (-64 to -25), p = 0.00012 | — | — | — |" \
         in section
@@ -208,7 +208,7 @@ def test_table3_pairs_each_baseline_with_kqv_per_task_and_seed():
     assert [(e["seed"], e["n"], e["unfinished"]) for e in entries] == [(0, 30, False),
                                                                        (1, 12, True)]
     assert entries[0]["mcnemar_exact_p"] == seed0.overall.p_value
-    only_kqv = table3_markdown([kqv], "Made by x.")
+    only_kqv = table3_markdown([kqv], "Made by x.", robot="yumi")
     assert "## Baselines against" not in only_kqv
     assert table3_json([kqv])["against_kqv"]["models"] == {}
 

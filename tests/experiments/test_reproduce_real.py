@@ -319,7 +319,7 @@ def test_the_markdown_has_the_papers_row_ours_and_the_failure_reasons():
     sets = [TrialSetResult("kqv", "single", "plain", ((0, tuple(plain)),), 30),
             TrialSetResult("fcn", "single", "plain", ((0, tuple(plain[:20])),), 30),
             TrialSetResult("kqv", "single", "block", ((0, tuple(plain[-5:])),), 5)]
-    text = table3_markdown(sets, "Made by `gva reproduce real`.")
+    text = table3_markdown(sets, "Made by `gva reproduce real`.", robot="yumi")
     lines = text.splitlines()
     paper = lines.index("| Paper (real YuMi, 20 demonstrations) | 27/30 | 28/30 | 26/30 | 27/30 |")
     assert lines[paper + 1] == "| Ours (kqv, q=min) | 28/30 | — | — | — |"
@@ -347,7 +347,7 @@ def test_over_seeds_a_cell_is_the_mean_and_spread_with_each_count():
     entry = result.entry()
     assert (entry["successes"], entry["n"]) == (86, 90)
     assert entry["std"] == pytest.approx(1.5275, abs=1e-4)
-    text = table3_markdown([result], "Made by `gva reproduce real`.")
+    text = table3_markdown([result], "Made by `gva reproduce real`.", robot="yumi")
     assert "| Ours (kqv, q=min) | 28.7 ± 1.5 (29, 27, 30) | — | — | — |" in text
     assert "seed 1 trial 27 (sponge, 1.0 cm off): missed" in text
 
@@ -378,7 +378,7 @@ def test_a_failed_held_out_check_is_named_in_the_table():
     assert lines[3] == ("- **FAILED**: kqv selected-type seed 1 after 2 attempt(s): condition "
                         "'mug': 3.10 cm > 2.00 cm")
     assert checks_markdown([]) == []
-    text = table3_markdown([], "Made by x.", checks=checks)
+    text = table3_markdown([], "Made by x.", checks=checks, robot="yumi")
     assert text.index("## Held-out checks") < text.index("## Failure reasons")
 
 
