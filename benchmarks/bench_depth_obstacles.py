@@ -85,7 +85,7 @@ def main() -> None:
                 frame = runner.sense()
                 prediction = runner.model.predict(frame.rgb, scene.condition)
                 target = prediction.targets[0]
-                grip = grip_of(target)
+                grip = grip_of(target, runner.world.description.max_opening_m)
                 rotation = nearest_rotation("predicted rotation", target.rotation)
                 grasp, _ = clear_of_table(Pose(target.position_m, rotation), grip.opening_m)
                 region = GraspRegion(pin.SE3(grasp.matrix), grip.opening_m)

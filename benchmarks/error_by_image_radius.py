@@ -26,8 +26,9 @@ import numpy as np
 
 from experiments.table3.settings import TASKS
 from perception.camera import PinholeCamera
+from robots.yumi import YUMI
 from sim.trials.records import read_trial_records
-from sim.world.head_camera import CameraConfig
+from sim.world.head_camera import camera_config
 
 BIN_WIDTH = 0.1
 """The figure's radius bins: a tenth of the half-diagonal each, out to the farthest target."""
@@ -132,7 +133,7 @@ def main() -> None:
     parser.add_argument("--figure", type=Path,
                         default=Path("docs/figures/error_by_image_radius.png"))
     args = parser.parse_args()
-    camera = CameraConfig().pinhole  # the calibration every run's model was handed
+    camera = camera_config(YUMI).pinhole  # the YuMi's: the calibration every run's model had
     seeds = None if args.seeds is None else {int(s) for s in args.seeds.split(",")}
     groups: dict[str, dict[str, Any]] = {}
     for run in args.runs:

@@ -17,7 +17,7 @@ from perception.catalog import get_object_spec
 from perception.drawing import write_png
 from perception.grasps import grasp_pose
 from robots.yumi import YUMI
-from sim.world.head_camera import HeadCamera, Lighting
+from sim.world.head_camera import HeadCamera, Lighting, camera_config
 from sim.world.yumi_world import World
 
 out = Path(sys.argv[1] if len(sys.argv) > 1 else "runs/renders")
@@ -32,7 +32,7 @@ with World(robot=YUMI) as world:
         world.add_object(get_object_spec(name), xy, yaw)
     world.step(round(0.25 / world.config.time_step_s))  # let them settle on the table
 
-    camera = HeadCamera()
+    camera = HeadCamera(camera_config(YUMI))  # the YuMi head camera
     start = time.perf_counter()
     image = camera.render(world.client)  # (128, 128, 3) uint8, row 0 at the top
     render_ms = (time.perf_counter() - start) * 1e3

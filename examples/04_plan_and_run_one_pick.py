@@ -24,7 +24,7 @@ from robots import yumi
 from robots.yumi import YUMI
 from sim.trials.execution import ExecutionSettings, execute_pick
 from sim.trials.planner_setup import depth_config, make_planner, table_obstacle
-from sim.world.head_camera import HeadCamera
+from sim.world.head_camera import HeadCamera, camera_config
 from sim.world.yumi_world import World
 
 
@@ -40,7 +40,7 @@ def main() -> None:
         T_world_grasp = pin.SE3(grasp_pose(sponge, world.object_pose(body)).matrix)
         print("grasp TCP position [m]:", T_world_grasp.translation.round(4))
 
-        frame = HeadCamera().render_rgbd(world.client)  # colour, depth, calibration
+        frame = HeadCamera(camera_config(YUMI)).render_rgbd(world.client)  # RGB-D, calibration
         started = time.perf_counter()
         seen = depth_obstacles(frame.points_world(), np.asarray(frame.camera.position_m),
                                depth_config(YUMI), GraspRegion(T_world_grasp,

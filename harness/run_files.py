@@ -26,7 +26,7 @@ from sim.tasks.task_sensor import seen_in_scene
 from sim.tasks.task_toml import load_task
 from sim.trials.collector import APPROACH_MASKED_KEY, CollectSettings
 from sim.trials.trial_settings import task_identity
-from sim.world.head_camera import CameraConfig, camera_config
+from sim.world.head_camera import CameraConfig
 from sim.world.sensor import SensorKind
 
 
@@ -134,8 +134,7 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
                        "every_condition": CollectSettings(scene, task, size, seed,
                                                           stream).asks_every_condition,
                        "definition": task_identity(definition),
-                       "camera": asdict(scene_camera(scene) if scene != "yumi" else
-                                        camera_config(robot))}
+                       "camera": asdict(scene_camera(scene, robot))}
                       | ({} if approach_hz is None else {"approach_hz": approach_hz,
                                                          APPROACH_MASKED_KEY: True})
                       | ({} if robot.name == "yumi" else {"robot": robot.name}))

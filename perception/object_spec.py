@@ -18,17 +18,21 @@ from perception.errors import InvalidInputError
 from perception.poses import Pose, rot_rpy
 from robots.yumi import YUMI
 
-GRIPPER = YUMI.arms[0].gripper
-"""The gripper grasps are stated for and checked against: the YuMi's Smart Gripper."""
-FINGERTIP_BEYOND_TCP_M = GRIPPER.fingers.tip_beyond_tcp_m
+CATALOG_GRIPPER = YUMI.arms[0].gripper
+"""The gripper the catalog's grasps are stated for and checked against: the YuMi's Smart
+Gripper, the hand of the paper whose objects the catalog holds. A fact of the catalog, not a
+default robot: the constants below are this gripper's, and a run's own hand (its
+:class:`~robots.description.RobotDescription`) reaches a catalog grasp through
+:mod:`sim.world.grip`, which takes its stroke from the caller."""
+FINGERTIP_BEYOND_TCP_M = CATALOG_GRIPPER.fingers.tip_beyond_tcp_m
 """How far the fingertips reach past the TCP along the approach axis [m] (about 21.5 mm)."""
-FINGER_HALF_WIDTH_M = GRIPPER.fingers.half_width_m
-FINGER_THICKNESS_M = GRIPPER.fingers.thickness_m
-FINGER_LENGTH_M = GRIPPER.fingers.length_m
-MAX_OPENING_M = GRIPPER.max_opening_m
+FINGER_HALF_WIDTH_M = CATALOG_GRIPPER.fingers.half_width_m
+FINGER_THICKNESS_M = CATALOG_GRIPPER.fingers.thickness_m
+FINGER_LENGTH_M = CATALOG_GRIPPER.fingers.length_m
+MAX_OPENING_M = CATALOG_GRIPPER.max_opening_m
 MIN_FINGERTIP_HEIGHT_M = 0.005
 """Fingertips must stay this far above the table at the grasp [m]."""
-MAX_PAYLOAD_KG = GRIPPER.max_payload_kg
+MAX_PAYLOAD_KG = CATALOG_GRIPPER.max_payload_kg
 MAX_PRIMITIVES = 16
 """PyBullet builds at most 16 shapes into one compound (``MAX_COMPOUND_COLLISION_SHAPES``)."""
 

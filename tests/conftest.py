@@ -64,10 +64,10 @@ class DepthView:
     """
 
     def __init__(self) -> None:
-        from sim.world.head_camera import HeadCamera
+        from sim.world.head_camera import HeadCamera, camera_config
         from sim.world.yumi_world import World
 
-        self.world, self.camera = World(robot=YUMI), HeadCamera()
+        self.world, self.camera = World(robot=YUMI), HeadCamera(camera_config(YUMI))
         self.world.reset_scene()
 
     def obstacles(self, boxes, grasp: pin.SE3 | None = None, opening_m: float = 0.05):

@@ -10,7 +10,6 @@ image with the model's attention points (numbered by head) beside a camera watch
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +19,7 @@ from sim.tasks.scene_specs import YUMI_SCENE
 from sim.trials.gif_recorder import TrialRecorder, join_trials, write_gif
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_settings import TrialSettings, load_trial_model, torch_threads
-from sim.world.head_camera import CameraConfig
+from sim.world.head_camera import Lighting
 
 
 def record_gif(model_name: str, trials: TrialSettings, count: int, path: Path
@@ -33,7 +32,7 @@ def record_gif(model_name: str, trials: TrialSettings, count: int, path: Path
     """
     model = load_trial_model(trials)
     task = trials.task_spec
-    lighting = dataclasses.replace(CameraConfig().lighting, brightness=task.brightness)
+    lighting = Lighting(brightness=task.brightness)  # the camera's light, dimmed
     recorder = TrialRecorder(lighting=lighting)
     recorded: list[list[Any]] = []
     shown: list[dict[str, Any]] = []

@@ -13,7 +13,7 @@ from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import Scene
 from sim.tasks.task_spec import TaskSpec
-from sim.world.head_camera import CameraConfig, HeadCamera
+from sim.world.head_camera import HeadCamera, camera_config
 from sim.world.looks import lighting_for, moved_camera
 from sim.world.sensor import SensorSeed
 from sim.world.yumi_world import World
@@ -48,7 +48,7 @@ def render_scene(scene: Scene, task: TaskSpec | None = None) -> np.ndarray:
         if look is not None:
             world.dress_table(look.table)
         world.step(round(SETTLE_S / world.config.time_step_s))
-        config = moved_camera(CameraConfig(), None if look is None else look.mount)
+        config = moved_camera(camera_config(YUMI), None if look is None else look.mount)
         camera = HeadCamera(config, None if task is None else task.sensor)
         lighting = lighting_for(dataclasses.replace(config.lighting, brightness=brightness),
                                 None if look is None else look.light)

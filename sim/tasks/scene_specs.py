@@ -17,8 +17,9 @@ from dataclasses import dataclass
 
 from perception.catalog import CLUTTER_TYPES, DISTRACTOR_TYPES, LOOK_ALIKE_TYPES, OBJECT_TYPES
 from perception.interface import LabelKind
+from robots.description import RobotDescription
 from sim.errors import InvalidInputError
-from sim.world.head_camera import CameraConfig
+from sim.world.head_camera import CameraConfig, camera_config
 
 
 @dataclass(frozen=True)
@@ -81,11 +82,14 @@ def get_scene_spec(name: str) -> SceneSpec:
     raise InvalidInputError("scene", name, f"one of {', '.join(SCENE_NAMES)}")
 
 
-def scene_camera(name: str) -> CameraConfig:
-    """The head camera that takes the images of the scene called ``name``."""
+def scene_camera(name: str, robot: RobotDescription) -> CameraConfig:
+    """The head camera that takes the images of the scene called ``name``.
+
+    The yumi scene's is ``robot``'s (the run's robot, whose workcell it is); paper-sim's its own.
+    """
     get_scene_spec(name)  # an unknown name lists the allowed ones
     if name == "yumi":
-        return CameraConfig()
+        return camera_config(robot)
     from sim.world.paper_world import PaperWorldConfig
 
     return PaperWorldConfig().camera

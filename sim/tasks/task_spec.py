@@ -65,6 +65,7 @@ from typing import Any
 
 from perception.interface import ConditionKind
 from perception.interface import InvalidInputError as PerceptionInputError
+from robots.description import CameraMount
 from sim.errors import InvalidInputError
 from sim.tasks.appearance import Appearance
 from sim.tasks.disturbance import Disturbance
@@ -92,6 +93,9 @@ MAX_NAME_CHARS = 100
 """A task's name is 1-100 printable characters: it is shown in progress bars and one-line errors."""
 MAX_DESCRIPTION_CHARS = 1000
 """A description is a sentence or two for people."""
+_LENS_CHECK_CAMERA = CameraConfig.for_mount(CameraMount((0.0, 0.0, 1.0), (1.0, 0.0, 0.0)))
+"""The head camera's image (size, fields of view) on an arbitrary mount: a task's lens is checked
+over the image alone, which every robot's camera shares (``camera_config``), not its placement."""
 
 
 class ObjectChoice(enum.Enum):
@@ -257,7 +261,7 @@ class TaskSpec:
         self.appearance.check(bad)
         lens = self.sensor.d435.colour_distortion_k1_k2_p1_p2_k3
         try:  # one-to-one over the head camera's image (and beyond): PinholeCamera checks it
-            replace(CameraConfig().pinhole, distortion_k1_k2_p1_p2_k3=lens)
+            replace(_LENS_CHECK_CAMERA.pinhole, distortion_k1_k2_p1_p2_k3=lens)
         except PerceptionInputError as error:
             raise bad("camera.colour_distortion_k1_k2_p1_p2_k3", list(lens),
                       error.allowed) from None

@@ -39,14 +39,15 @@ from perception.drawing import (
 )
 from perception.files import atomic_write
 from perception.interface import Prediction
+from robots.description import CameraMount
 from sim.errors import InvalidInputError
 from sim.world.head_camera import CameraConfig, HeadCamera, Lighting
 from sim.world.yumi_world import World
 
 GRASP_DOT_PX = 2.0
 """Radius of a predicted grasp's dot on the head camera's panel [px]."""
-ROBOT_VIEW = CameraConfig(position_m=(1.1, -0.5, 0.6), target_m=(0.28, 0.0, 0.2),
-                          vertical_fov_deg=52.0, horizontal_fov_deg=None)
+ROBOT_VIEW = CameraConfig.for_mount(CameraMount((1.1, -0.5, 0.6), (0.28, 0.0, 0.2)),
+                                   vertical_fov_deg=52.0, horizontal_fov_deg=None)
 """A camera in front of the robot, to its right, that sees both arms and the workspace."""
 CAPTION_PX = CAPTION_LINE_PX
 """Height of the caption strip above the two panels."""

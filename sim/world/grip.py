@@ -72,20 +72,21 @@ DEFAULT_GRIP = Grip(MAX_OPENING_M, DEFAULT_PREGRASP_DISTANCE_M, GripSource.DEFAU
 """The grip of a target the model says nothing about (see the module docstring)."""
 
 
-def catalog_opening_m(catalog_m: float, max_opening_m: float = MAX_OPENING_M) -> float:
-    """A catalog opening on a hand opening ``max_opening_m`` at most [m].
+def catalog_opening_m(catalog_m: float, max_opening_m: float) -> float:
+    """A catalog opening on a hand opening ``max_opening_m`` at most [m] (the run's robot's).
 
-    An opening at the YuMi's full stroke (every catalog grasp's) opens the hand fully; a
-    narrower one keeps its width.
+    An opening at the catalog gripper's full stroke (the YuMi's, every catalog grasp's:
+    :data:`perception.object_spec.CATALOG_GRIPPER`) opens the hand fully; a narrower one
+    keeps its width.
     """
     return max_opening_m if catalog_m >= MAX_OPENING_M else catalog_m
 
 
-def grip_of(target: Target, max_opening_m: float = MAX_OPENING_M) -> Grip:
+def grip_of(target: Target, max_opening_m: float) -> Grip:
     """The grip ``target`` asks for: its type's catalog grasp, its opening, or the default.
 
     A stated opening overrides the type's. ``max_opening_m``: the stroke of the hand that
-    picks (the YuMi's by default); a grip that opens fully opens it fully.
+    picks (the run's robot's ``max_opening_m``); a grip that opens fully opens it fully.
 
     Raises:
         InvalidInputError: The type is not in the catalog, or the opening is not within the

@@ -19,7 +19,6 @@ from scipy import ndimage
 
 from perception.camera import PinholeCamera, RgbdFrame
 from perception.interface import InvalidInputError as PerceptionInputError
-from robots import yumi
 from robots.description import CameraMount, RobotDescription
 from robots.errors import InvalidInputError as RobotInputError
 from sim.errors import InvalidInputError
@@ -40,6 +39,11 @@ SELF_FILTER_PADDING_PX = 2
 """How far a frame's self filter grows the robot's own pixels [px]: about 6 mm at the table
 (128 px over 37 deg, 0.6 m away), over twice what the hand-eye rotation error's RMS (0.25 deg,
 ``D435Config``) moves an edge there (2.6 mm), so the arm's silhouette leaves no rim behind."""
+
+FOCUS_BEFORE_RECORDED_PX = (24, 18)
+"""The heatmap focus (window, box) [px] a camera record from before records stated it read its
+heatmaps with (:meth:`CameraConfig.from_json`): the one focus every model had then, the YuMi
+head camera's (``robots.yumi.HEAD_CAMERA``), so those datasets and runs still resume."""
 
 
 @dataclass(frozen=True)
@@ -106,8 +110,12 @@ class TintedLighting(Lighting):
 class CameraConfig:
     """Intrinsics, placement and lighting of the head camera (world frame, [m] and [deg]).
 
-    The defaults put the optical centre 5 cm above the front edge of the body's top (z = 0.47 m,
-    x = 0.09 m), between the two shoulders, tilted down toward x = 0.49 m on the table. From
+    The placement and the heatmap focus are a camera mount's (:class:`robots.description.
+    CameraMount`), given by the caller: :meth:`for_mount`, or :func:`camera_config` for a
+    robot's own; no robot is assumed. The other fields default to the D435-like head camera.
+    The YuMi's mount puts the optical centre 5 cm above the front edge of the body's top
+    (z = 0.47 m, x = 0.09 m), between the two shoulders, tilted down toward x = 0.49 m on the
+    table. From
     there no arm link at HOME hides any part of the workspace (x 0.30-0.55 m, y ±0.25 m, objects
     up to 17 cm tall; checked by ray casts): from further back or higher, the forward-pointing
     first links of the arms cut off the workspace's near corners. The image is the part of the
@@ -126,16 +134,22 @@ class CameraConfig:
         horizontal_fov_deg: Horizontal field of view [deg]; None: square pixels, the horizontal
             field following the image's aspect. Given, the image is a crop resized to
             ``width_px x height_px``, its pixels stretched where the two disagree.
-        position_m: Optical centre in the world.
-        target_m: The point the optical axis passes through.
+        position_m: Optical centre in the world (keyword only, required: the mount's).
+        target_m: The point the optical axis passes through (keyword only, required).
         up: World direction that appears up in the image.
         near_m: Near clipping distance.
         far_m: Far clipping distance.
         lighting: The light the image is rendered with.
         focus_window_px: The attention heatmap focus derived for this camera's images
-            (:class:`robots.description.CameraMount`; 0: none derived). A dataset records it
-            with the camera, and a model trained there reads its heatmaps so.
-        focus_box_px: The side of the focus's densest square [px]; 0 without a focus.
+            (:class:`robots.description.CameraMount`; 0: none derived; keyword only,
+            required). A dataset records it with the camera, and a model trained there reads
+            its heatmaps so.
+        focus_box_px: The side of the focus's densest square [px]; 0 without a focus (keyword
+            only, required).
+
+    The four mount fields keep their place among the fields (``asdict``, and so every run
+    identity and dataset record, lists them as before); only the constructor takes them by
+    keyword.
 
     """
 
@@ -143,14 +157,14 @@ class CameraConfig:
     height_px: int = 128
     vertical_fov_deg: float = 37.0
     horizontal_fov_deg: float | None = 58.0
-    position_m: tuple[float, float, float] = yumi.HEAD_CAMERA.position_m
-    target_m: tuple[float, float, float] = yumi.HEAD_CAMERA.target_m
+    position_m: tuple[float, float, float] = field(kw_only=True)
+    target_m: tuple[float, float, float] = field(kw_only=True)
     up: tuple[float, float, float] = (0.0, 0.0, 1.0)
     near_m: float = 0.05
     far_m: float = 3.0
     lighting: Lighting = field(default_factory=Lighting)
-    focus_window_px: int = yumi.HEAD_CAMERA.focus_window_px
-    focus_box_px: int = yumi.HEAD_CAMERA.focus_box_px
+    focus_window_px: int = field(kw_only=True)
+    focus_box_px: int = field(kw_only=True)
 
     def __post_init__(self) -> None:
         for name in ("width_px", "height_px"):
@@ -174,17 +188,32 @@ class CameraConfig:
                                     error.allowed) from None
 
     @classmethod
+    def for_mount(cls, mount: CameraMount, **overrides: Any) -> CameraConfig:
+        """The head camera on ``mount``: its placement and focus, the other fields the defaults.
+
+        ``overrides`` replaces any field (e.g. ``width_px``, ``lighting``), the mount's too.
+        """
+        placed: dict[str, Any] = {"position_m": mount.position_m, "target_m": mount.target_m,
+                                  "focus_window_px": mount.focus_window_px,
+                                  "focus_box_px": mount.focus_box_px}
+        return cls(**placed | overrides)
+
+    @classmethod
     def from_json(cls, data: dict[str, Any]) -> CameraConfig:
         """The config a dataset's metadata recorded (``asdict`` as JSON; lists back to tuples).
 
-        A camera recorded before ``horizontal_fov_deg`` existed had square pixels (None). The
-        record's ``sensor`` (:meth:`HeadCamera.record`) is the sensor's, not this config's.
+        A camera recorded before ``horizontal_fov_deg`` existed had square pixels (None); one
+        recorded before the focus was (issue 39) read its heatmaps with
+        :data:`FOCUS_BEFORE_RECORDED_PX`. The record's ``sensor`` (:meth:`HeadCamera.record`)
+        is the sensor's, not this config's.
         """
         def plain(fields: dict[str, Any]) -> dict[str, Any]:
             return {k: tuple(v) if isinstance(v, list) else v for k, v in fields.items()
                     if k != "sensor"}
 
-        fields = {"horizontal_fov_deg": None} | plain(data)
+        window_px, box_px = FOCUS_BEFORE_RECORDED_PX
+        fields = {"horizontal_fov_deg": None, "focus_window_px": window_px,
+                  "focus_box_px": box_px} | plain(data)
         fields["lighting"] = Lighting(**plain(data.get("lighting", {})))
         return cls(**fields)
 
@@ -209,9 +238,7 @@ def camera_config(robot: RobotDescription) -> CameraConfig:
     Its camera mount and the heatmap focus derived for it; every other setting the head
     camera's (the D435-like crop, the image size, the light).
     """
-    mount = robot.camera
-    return replace(CameraConfig(), position_m=mount.position_m, target_m=mount.target_m,
-                   focus_window_px=mount.focus_window_px, focus_box_px=mount.focus_box_px)
+    return CameraConfig.for_mount(robot.camera)
 
 
 class HeadCamera:
@@ -223,14 +250,15 @@ class HeadCamera:
     :meth:`project` and every frame keep the calibration (:attr:`pinhole`), as a robot does.
 
     Args:
-        config: Intrinsics, placement and lighting; the head camera's when None.
+        config: Intrinsics, placement and lighting (a robot's: :func:`camera_config`).
         sensor: What renders the frames; the ideal pinhole when None.
 
     """
 
-    def __init__(self, config: CameraConfig | None = None,
-                 sensor: SensorConfig | None = None) -> None:
-        self.config = CameraConfig() if config is None else config
+    def __init__(self, config: CameraConfig, sensor: SensorConfig | None = None) -> None:
+        if not isinstance(config, CameraConfig):
+            raise InvalidInputError("config", config, "a CameraConfig (a robot's: camera_config)")
+        self.config = config
         self.sensor = SensorConfig() if sensor is None else sensor
         if not isinstance(self.sensor, SensorConfig):
             raise InvalidInputError("sensor", self.sensor, "a SensorConfig")

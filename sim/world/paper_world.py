@@ -20,6 +20,7 @@ import pybullet
 import pybullet_data
 from pybullet_utils import bullet_client
 
+from robots.description import CameraMount
 from sim.errors import InvalidInputError
 from sim.world.head_camera import CameraConfig, HeadCamera
 from sim.world.quiet import silenced_output
@@ -57,8 +58,11 @@ def _paper_camera() -> CameraConfig:
     # field of view frames the workspace with a 10 cm object about 16 px wide.
     distance_m, elevation = 0.50, math.radians(65.0)
     eye = (-distance_m * math.cos(elevation), 0.0, distance_m * math.sin(elevation))
-    return CameraConfig(position_m=eye, target_m=(0.0, 0.0, 0.0), vertical_fov_deg=76.0,
-                        horizontal_fov_deg=None)
+    # Its focus is the one the paper-sim datasets and runs have always recorded (the YuMi head
+    # camera's, then every camera's): records state it, and a changed one would not resume.
+    return CameraConfig.for_mount(CameraMount(eye, (0.0, 0.0, 0.0), focus_window_px=24,
+                                              focus_box_px=18),
+                                  vertical_fov_deg=76.0, horizontal_fov_deg=None)
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,7 @@ import numpy as np
 
 from perception.catalog import get_object_spec
 from perception.interface import PICTURE_PX
+from robots.description import CameraMount
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.world.head_camera import CameraConfig, HeadCamera, Lighting
@@ -86,10 +87,10 @@ def _rendered(scene: str, object_type: str, split: str, number: int) -> np.ndarr
         fov_deg = math.degrees(2 * math.atan(0.75 * extent / distance)) * rng.uniform(0.9, 1.2)
         light = Lighting(direction=(float(rng.uniform(-1, 1)), float(rng.uniform(-1, 1)), 1.0),
                          brightness=float(rng.uniform(*BRIGHTNESS)))
-        camera = HeadCamera(CameraConfig(
-            width_px=2 * PICTURE_PX, height_px=2 * PICTURE_PX, vertical_fov_deg=fov_deg,
-            horizontal_fov_deg=None, position_m=tuple(eye), target_m=tuple(centre),
-            near_m=0.02, lighting=light))
+        mount = CameraMount(tuple(eye), tuple(centre))  # no heatmap focus: no model reads it
+        camera = HeadCamera(CameraConfig.for_mount(
+            mount, width_px=2 * PICTURE_PX, height_px=2 * PICTURE_PX, vertical_fov_deg=fov_deg,
+            horizontal_fov_deg=None, near_m=0.02, lighting=light))
         image = camera.render(world.client).astype(np.float32)  # (64, 64, 3)
     finally:
         if isinstance(world, World):

@@ -21,6 +21,7 @@ from experiments.table2.run import run_reproduce_sim
 from experiments.table2.settings import Cell, ReproduceSimSettings, cell_path
 from experiments.tables import PAPER_MODELS, model_config, model_order, paper_row
 from perception.learning.dataset_file import load_dataset
+from robots.yumi import YUMI
 from sim.errors import InvalidInputError, RunFolderError
 from sim.world.sensor import SensorKind
 
@@ -119,9 +120,9 @@ def test_a_cell_computed_with_other_model_settings_is_refused(copied_run):
 def test_a_dataset_taken_with_another_camera_is_refused(copied_run, monkeypatch):
     import harness.run_files
 
-    wider = dataclasses.replace(harness.run_files.scene_camera("paper-sim"),
+    wider = dataclasses.replace(harness.run_files.scene_camera("paper-sim", YUMI),
                                 vertical_fov_deg=90.0)
-    monkeypatch.setattr(harness.run_files, "scene_camera", lambda name: wider)
+    monkeypatch.setattr(harness.run_files, "scene_camera", lambda name, robot: wider)
     cell_path(copied_run, Cell("kqv", "single", 4, 0)).unlink()  # to compute again
     with pytest.raises(RunFolderError, match=r"is not the dataset this run needs \(\{'camera."
                                              r"vertical_fov_deg': \(76.0, 90.0\)\}"):

@@ -34,7 +34,7 @@ from sim.tasks.task_spec import MAX_OBJECTS
 from sim.tasks.task_toml import load_task, task_from_toml, task_to_toml
 from sim.trials.collector import _task_json
 from sim.trials.trial_settings import task_identity
-from sim.world.head_camera import CameraConfig
+from sim.world.head_camera import camera_config
 from sim.world.sensor import SensorConfig
 from sim.world.yumi_world import World
 
@@ -168,7 +168,7 @@ def test_per_scene_draws_every_count_distinct_clutter_and_leaves_the_scene_alone
     assert counts == {0, 1, 2, 3, 4}
     again = sample_scene(task, YUMI_SCENE, 3, SeedStream.TEST, 5)
     assert again == sample_scene(task, YUMI_SCENE, 3, SeedStream.TEST, 5)  # seeded
-    assert mirror_symmetric(task, YUMI_SCENE, CameraConfig())
+    assert mirror_symmetric(task, YUMI_SCENE, camera_config(YUMI))
 
 
 @pytest.mark.parametrize(("per_scene", "message"), [

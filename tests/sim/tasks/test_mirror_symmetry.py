@@ -14,10 +14,11 @@ from perception.catalog import (
 )
 from perception.grasps import grasp_pose
 from perception.poses import Pose
+from robots.yumi import YUMI
 from sim.tasks.mirror_symmetry import MIRROR_Y, mirror_symmetric, object_is_mirror_symmetric
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_toml import load_task, task_from_toml
-from sim.world.head_camera import CameraConfig
+from sim.world.head_camera import CameraConfig, camera_config
 
 CATALOG = OBJECT_TYPES + DISTRACTOR_TYPES
 
@@ -46,7 +47,7 @@ def test_an_object_with_a_part_off_its_mirror_plane_is_not_symmetric():
 
 
 def test_the_papers_tasks_may_be_mirrored_and_others_are_refused_with_reason():
-    camera = CameraConfig()
+    camera = camera_config(YUMI)
     papers = ("single", "multiple", "selected-type", "selected-position")
     assert all(mirror_symmetric(load_task(name), YUMI_SCENE, camera) for name in papers)
     assert mirror_symmetric(load_task("selected-type-text"), YUMI_SCENE, camera)
@@ -56,5 +57,5 @@ def test_the_papers_tasks_may_be_mirrored_and_others_are_refused_with_reason():
     assert not mirror_symmetric(two_sponges, YUMI_SCENE, camera)  # targets ordered by y
     left_half = task_from_toml('name = "left"\n[placement]\ny_m = [0.0, 0.2]')
     assert not mirror_symmetric(left_half, YUMI_SCENE, camera)
-    aside = CameraConfig(position_m=(0.09, 0.05, 0.52))
+    aside = CameraConfig.for_mount(YUMI.camera, position_m=(0.09, 0.05, 0.52))
     assert not mirror_symmetric(load_task("single"), YUMI_SCENE, aside)

@@ -26,7 +26,7 @@ from sim.trials.records import TrialOutcome
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_scenes import trial_scene
 from sim.trials.view import ViewVerdict, hidden_share, in_plain_view, unheeded_reason
-from sim.world.head_camera import CameraConfig, HeadCamera
+from sim.world.head_camera import HeadCamera, camera_config
 from sim.world.yumi_world import World
 
 MOVED = Disturbance(move_m=(0.05, 0.07), turn_deg=(-30.0, 30.0))
@@ -95,7 +95,7 @@ def test_a_move_after_the_last_re_prediction_is_seen_on_arrival(single_moved, mo
 
 def test_the_share_of_a_footprint_the_arm_hides():
     """A footprint is hidden where the robot's pixels or the image's edge cover it."""
-    camera = CameraConfig().pinhole
+    camera = camera_config(YUMI).pinhole
     size = (camera.height_px, camera.width_px)
     rgb, depth = np.zeros((*size, 3), np.uint8), np.ones(size, np.float32)
     center = np.array([0.45, 0.0, 0.03])
@@ -120,7 +120,8 @@ def test_a_grasp_in_plain_view_has_its_footprint_seen_and_something_standing_the
     with World(robot=YUMI) as world:
         world.reset_scene()
         world.add_object(get_object_spec("spray_bottle"), (0.45, 0.1), 0.0)
-        frame = HeadCamera().render_rgbd(world.client, self_body=world.robot.body_id)
+        camera = HeadCamera(camera_config(YUMI))
+        frame = camera.render_rgbd(world.client, self_body=world.robot.body_id)
     bottle, bare = np.array([0.45, 0.1, 0.08]), np.array([0.45, -0.1, 0.08])
     assert frame.robot_mask is not None
     assert in_plain_view(frame, bottle, 0.045)

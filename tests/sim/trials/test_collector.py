@@ -10,13 +10,14 @@ from perception.interface import ConditionKind, LabelKind
 from perception.labels import split_label
 from perception.learning.dataset_file import DatasetError, load_dataset
 from perception.learning.learnable import ModelSpec
+from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import get_scene_spec
 from sim.tasks.task_toml import load_task, task_to_toml
 from sim.trials.collector import APPROACH_MASKED_KEY, CollectSettings, collect
 from sim.trials.view import hidden_share
-from sim.world.head_camera import CameraConfig
+from sim.world.head_camera import CameraConfig, camera_config
 from sim.world.sensor import SensorConfig, SensorKind
 
 
@@ -216,8 +217,8 @@ def test_a_d435_dataset_records_its_sensor_and_keeps_the_calibration(tmp_path):
     sensor = SensorConfig(SensorKind.D435).to_json()
     meta = data.metadata
     assert meta.camera["sensor"] == sensor and meta.extra["task"]["camera"] == sensor
-    assert CameraConfig.from_json(meta.camera) == CameraConfig()
-    assert ModelSpec.from_metadata(meta).camera == CameraConfig().pinhole  # the nominal one
+    assert CameraConfig.from_json(meta.camera) == camera_config(YUMI)
+    assert ModelSpec.from_metadata(meta).camera == camera_config(YUMI).pinhole  # the nominal one
     assert data.depths_m is not None and (data.depths_m == 0.0).any()  # the sensor's holes
 
 

@@ -20,7 +20,7 @@ from sim.trials.execution import ExecutionSettings, execute_pick
 from sim.trials.planner_setup import depth_config, object_obstacles, table_obstacle
 from sim.trials.records import TrialOutcome
 from sim.trials.trial_settings import TrialSettings
-from sim.world.head_camera import HeadCamera
+from sim.world.head_camera import HeadCamera, camera_config
 from sim.world.paper_world import PaperWorldConfig
 from sim.world.yumi_world import MAX_WAIT_S, World, check_wait_s
 
@@ -57,7 +57,7 @@ def plan_for(planner, world, target, others, grasp=None, with_obstacles=True, so
     if with_obstacles and source == "shapes":
         obstacles = [table_obstacle(world), *object_obstacles(world, others)]
     elif with_obstacles:
-        frame = HeadCamera().render_rgbd(world.client)
+        frame = HeadCamera(camera_config(YUMI)).render_rgbd(world.client)
         seen = depth_obstacles(frame.points_world(), np.asarray(frame.camera.position_m),
                                depth_config(YUMI), GraspRegion(grasp, spec.grasp.opening_m))
         obstacles, own = [table_obstacle(world), *seen.obstacles], list(seen.target_obstacles)

@@ -4,7 +4,7 @@ own stand camera, and the YuMi's camera is what it was."""
 from __future__ import annotations
 
 import json
-from dataclasses import replace
+from dataclasses import asdict, replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -29,15 +29,24 @@ from sim.trials.trial_scenes import trial_scene
 from sim.trials.trial_settings import TrialSettings, check_camera
 from sim.world.head_camera import CameraConfig, HeadCamera, camera_config
 
+HEAD_CAMERA_RECORD = (
+    '{"width_px": 128, "height_px": 128, "vertical_fov_deg": 37.0, "horizontal_fov_deg": 58.0, '
+    '"position_m": [0.09, 0.0, 0.52], "target_m": [0.49, 0.0, 0.0], "up": [0.0, 0.0, 1.0], '
+    '"near_m": 0.05, "far_m": 3.0, "lighting": {"direction": [0.4, 0.3, 1.0], "brightness": '
+    '1.0, "ambient_coeff": 0.6, "diffuse_coeff": 0.5, "specular_coeff": 0.05, "shadows": true}, '
+    '"focus_window_px": 24, "focus_box_px": 18}')
+"""The YuMi head camera as every run identity and dataset has recorded it (``asdict``)."""
+
 
 def test_the_yumis_workcell_camera_is_the_head_camera():
-    assert camera_config(yumi.YUMI) == CameraConfig()  # run identities stay as they were
+    record = json.dumps(asdict(camera_config(yumi.YUMI)))
+    assert record == HEAD_CAMERA_RECORD  # run identities stay as they were, field order too
 
 
 def test_the_panda_sees_through_its_stand_camera():
-    panda = camera_config(get_robot("panda"))
-    assert panda.position_m == get_robot("panda").camera.position_m != CameraConfig().position_m
-    assert panda.width_px == CameraConfig().width_px  # the same sensor, mounted elsewhere
+    panda, head = camera_config(get_robot("panda")), camera_config(yumi.YUMI)
+    assert panda.position_m == get_robot("panda").camera.position_m != head.position_m
+    assert panda.width_px == head.width_px  # the same sensor, mounted elsewhere
 
 
 @pytest.mark.slow
@@ -127,4 +136,4 @@ def test_each_robots_camera_records_the_heatmap_focus_derived_for_it():
     assert CameraConfig.from_json(panda_record) == camera_config(get_robot("panda"))
     with pytest.raises(InvalidInputError, match=r"focus_box_px = 0 is not allowed: 0 with no "
                                                 r"focus window, >= 1 with one"):
-        replace(CameraConfig(), focus_box_px=0)
+        replace(camera_config(yumi.YUMI), focus_box_px=0)

@@ -22,7 +22,7 @@ from sim.trials.oracle import OraclePerception
 from sim.trials.planner_setup import ObstacleSource
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_settings import TrialSettings
-from sim.world.head_camera import HeadCamera
+from sim.world.head_camera import HeadCamera, camera_config
 from sim.world.yumi_world import World
 
 
@@ -51,7 +51,7 @@ def test_oracle_returns_the_canonical_grasp(world):
     down = np.array([0.0, 0.0, -1.0])
     hand = np.column_stack([closing, np.cross(down, closing), down])
     assert closing[1] > 0.9 and np.allclose(hand[:, 1], [0.92044, -0.39088, 0.0], atol=1e-4)
-    oracle = OraclePerception(world, HeadCamera())
+    oracle = OraclePerception(world, HeadCamera(camera_config(YUMI)))
     oracle.candidates = (sponge, bottle, mug)  # as a trial sets them: the block is no target
     image = np.zeros((128, 128, 3), np.uint8)
     asked = {
@@ -76,7 +76,7 @@ def test_oracle_returns_the_canonical_grasp(world):
 def test_oracle_names_a_missing_object(world):
     world.reset_scene()
     world.add_object(get_object_spec("sponge"), (0.42, -0.1), 0.0)
-    oracle = OraclePerception(world, HeadCamera())
+    oracle = OraclePerception(world, HeadCamera(camera_config(YUMI)))
     mug = Condition(ConditionKind.OBJECT_TYPE, "mug", OBJECT_TYPES)
     with pytest.raises(TargetNotFoundError, match="object_type = 'mug' names no object in the "
                        r"scene \(present: sponge\)"):

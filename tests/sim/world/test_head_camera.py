@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterator
-from dataclasses import asdict
+from dataclasses import asdict, fields, replace
 
 import numpy as np
 import pybullet
@@ -16,9 +17,20 @@ from robots import get_robot
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.tasks.scene_specs import YUMI_SCENE
-from sim.world.head_camera import CameraConfig, HeadCamera, Lighting, camera_config
+from sim.world.head_camera import (
+    FOCUS_BEFORE_RECORDED_PX,
+    CameraConfig,
+    HeadCamera,
+    Lighting,
+    camera_config,
+)
 from sim.world.paper_world import PaperWorldConfig
 from sim.world.yumi_world import World
+
+MOUNT = YUMI.camera
+"""The YuMi head camera's mount: the camera these tests render through."""
+HEAD = camera_config(YUMI)
+"""The YuMi head camera (its mount, the D435-like image)."""
 
 # (how far an object reaches from its centre [m], at what height [m]): the mug's handle reaches
 # 6.7 cm low down, its rim 4.5 cm at 9 cm; only the bottle (radius 1.9 cm) stands 17 cm tall.
@@ -33,7 +45,7 @@ def world() -> Iterator[World]:
 
 @pytest.fixture(scope="session")
 def camera() -> HeadCamera:
-    return HeadCamera()
+    return HeadCamera(HEAD)
 
 
 def _marker(world: World, position: list[float]) -> int:
@@ -56,7 +68,7 @@ def test_render_gives_uint8_rgb_of_the_configured_size(world: World, camera: Hea
     world.reset_scene()
     image = camera.render(world.client)
     assert image.dtype == np.uint8 and image.shape == (128, 128, 3)
-    wide = HeadCamera(CameraConfig(width_px=96, height_px=64)).render(world.client)
+    wide = HeadCamera(CameraConfig.for_mount(MOUNT, width_px=96, height_px=64)).render(world.client)
     assert wide.shape == (64, 96, 3)
 
 
@@ -104,7 +116,7 @@ def test_the_pandas_stand_camera_frames_the_workspace_as_densely_and_the_arm_hid
     """The Panda's workcell camera (issue 39): every part of any object in view with a margin,
     none behind the arm at home, at 85-90 % of the head camera's pixels per cm."""
     panda = get_robot("panda")
-    stand, head = HeadCamera(camera_config(panda)), HeadCamera()
+    stand, head = HeadCamera(camera_config(panda)), HeadCamera(HEAD)
     points = np.array([[x + reach * np.cos(angle), y + reach * np.sin(angle), z]
                        for x in np.linspace(*YUMI_SCENE.workspace_x_m, 7)
                        for y in np.linspace(*YUMI_SCENE.workspace_y_m, 9)
@@ -152,9 +164,9 @@ def test_darker_lighting_darkens_the_image(world: World, camera: HeadCamera) -> 
 
 def test_a_crop_stretches_pixels_along_its_narrower_field() -> None:
     """A 2 : 1 crop of a square frame's field, rendered square, doubles horizontal distances."""
-    square = HeadCamera(CameraConfig(vertical_fov_deg=40.0, horizontal_fov_deg=None))
+    square = HeadCamera(replace(HEAD, vertical_fov_deg=40.0, horizontal_fov_deg=None))
     fov_deg = 2 * np.degrees(np.arctan(0.5 * np.tan(np.radians(20.0))))  # half the tangent
-    crop = HeadCamera(CameraConfig(vertical_fov_deg=40.0, horizontal_fov_deg=fov_deg))
+    crop = HeadCamera(replace(HEAD, vertical_fov_deg=40.0, horizontal_fov_deg=fov_deg))
     points = np.array([[0.45, -0.1, 0.0], [0.45, 0.1, 0.0], [0.5, 0.0, 0.05]])
     centre = np.array([64.0, 63.0])  # the optical axis (see project's pixel-centre offsets)
     np.testing.assert_allclose(crop.project(points) - centre,
@@ -163,18 +175,18 @@ def test_a_crop_stretches_pixels_along_its_narrower_field() -> None:
 
 def test_config_errors_name_field_value_and_allowed() -> None:
     with pytest.raises(InvalidInputError, match=r"vertical_fov_deg = 0.5 .* in \[1, 170\] deg"):
-        CameraConfig(vertical_fov_deg=0.5)
+        CameraConfig.for_mount(MOUNT, vertical_fov_deg=0.5)
     with pytest.raises(InvalidInputError, match=r"horizontal_fov_deg = 180.0 .* None or in \[1, "):
-        CameraConfig(horizontal_fov_deg=180.0)
+        CameraConfig.for_mount(MOUNT, horizontal_fov_deg=180.0)
     with pytest.raises(InvalidInputError, match=r"up = .* not along the optical axis"):
-        CameraConfig(position_m=(0.0, 0.0, 1.0), target_m=(0.0, 0.0, 0.0))
+        CameraConfig.for_mount(MOUNT, position_m=(0.0, 0.0, 1.0), target_m=(0.0, 0.0, 0.0))
     with pytest.raises(InvalidInputError, match=r"brightness = 3.0 .* in \[0, 2\]"):
         Lighting(brightness=3.0)
     with pytest.raises(InvalidInputError, match=r"points_world = \(4,\) .* shape \(N, 3\)"):
-        HeadCamera().project(np.zeros(4))
+        HeadCamera(HEAD).project(np.zeros(4))
 
 
-@pytest.mark.parametrize("config", [CameraConfig(), CameraConfig(horizontal_fov_deg=None),
+@pytest.mark.parametrize("config", [HEAD, CameraConfig.for_mount(MOUNT, horizontal_fov_deg=None),
                                     PaperWorldConfig().camera])
 def test_the_pinhole_geometry_agrees_with_pybullets_matrices(config: CameraConfig) -> None:
     camera = HeadCamera(config)
@@ -189,7 +201,7 @@ def test_the_pinhole_geometry_agrees_with_pybullets_matrices(config: CameraConfi
 
 
 def test_a_pixels_ray_passes_through_the_point_seen_there() -> None:
-    pinhole = CameraConfig().pinhole
+    pinhole = HEAD.pinhole
     points = np.array([[0.45, 0.1, 0.0], [0.5, -0.2, 0.15], [0.4, 0.0, 0.07]])
     rays = pinhole.rays(pinhole.project(points))  # (3, 3)
     along = points - np.asarray(pinhole.position_m)  # (3, 3)
@@ -199,13 +211,35 @@ def test_a_pixels_ray_passes_through_the_point_seen_there() -> None:
 
 
 def test_the_pinhole_camera_reads_back_from_a_datasets_record() -> None:
-    record = asdict(CameraConfig(lighting=Lighting(brightness=0.5)))  # as a dataset keeps it
-    assert PinholeCamera.from_json(record) == CameraConfig().pinhole  # lighting is not geometry
-    assert PinholeCamera.from_json(CameraConfig().pinhole.to_json()) == CameraConfig().pinhole
+    record = asdict(replace(HEAD, lighting=Lighting(brightness=0.5)))  # as a dataset keeps it
+    assert PinholeCamera.from_json(record) == HEAD.pinhole  # lighting is not geometry
+    assert PinholeCamera.from_json(HEAD.pinhole.to_json()) == HEAD.pinhole
     with pytest.raises(PerceptionInputError, match=r"camera.*target_m"):
         PinholeCamera.from_json({"position_m": [0, 0, 1]})
     with pytest.raises(PerceptionInputError, match="vertical_fov_deg"):
-        PinholeCamera.from_json(asdict(CameraConfig()) | {"vertical_fov_deg": 190})
+        PinholeCamera.from_json(asdict(HEAD) | {"vertical_fov_deg": 190})
+
+
+def test_a_camera_config_takes_its_mount_from_the_caller() -> None:
+    """No robot is assumed: the mount's four fields are required, and for_mount fills them."""
+    with pytest.raises(TypeError, match="position_m"):
+        CameraConfig()  # type: ignore[call-arg]
+    panda = get_robot("panda").camera
+    config = CameraConfig.for_mount(panda, width_px=96)
+    assert (config.position_m, config.target_m, config.focus_window_px, config.focus_box_px,
+            config.width_px) == (panda.position_m, panda.target_m, panda.focus_window_px,
+                                 panda.focus_box_px, 96)
+    assert [f.name for f in fields(CameraConfig)] == [  # the order every record keeps
+        "width_px", "height_px", "vertical_fov_deg", "horizontal_fov_deg", "position_m",
+        "target_m", "up", "near_m", "far_m", "lighting", "focus_window_px", "focus_box_px"]
+
+
+def test_a_record_from_before_the_focus_reads_back_with_the_focus_then_in_force() -> None:
+    record = json.loads(json.dumps(asdict(HEAD)))
+    assert CameraConfig.from_json(record) == HEAD
+    old = {k: v for k, v in record.items() if not k.startswith("focus_")}
+    assert CameraConfig.from_json(old) == HEAD  # the YuMi head camera's, as before issue 39
+    assert FOCUS_BEFORE_RECORDED_PX == (MOUNT.focus_window_px, MOUNT.focus_box_px)
 
 
 def test_depth_reads_back_the_table_and_an_objects_top_where_they_are(
@@ -227,7 +261,7 @@ def test_depth_reads_back_the_table_and_an_objects_top_where_they_are(
 
 
 def test_points_from_depth_inverts_the_projection() -> None:
-    camera = CameraConfig().pinhole
+    camera = HEAD.pinhole
     rng = np.random.default_rng(0)
     flat = rng.choice(camera.width_px * camera.height_px, 50, replace=False)
     v, u = np.unravel_index(flat, (camera.height_px, camera.width_px))
@@ -244,7 +278,7 @@ def test_points_from_depth_inverts_the_projection() -> None:
 
 
 def test_a_frame_s_robot_mask_is_a_bool_image_of_its_size() -> None:
-    camera = CameraConfig().pinhole
+    camera = HEAD.pinhole
     size = (camera.height_px, camera.width_px)
     rgb, depth = np.zeros((*size, 3), np.uint8), np.full(size, np.inf, np.float32)
     assert RgbdFrame(rgb, depth, camera).robot_mask is None
@@ -255,7 +289,7 @@ def test_a_frame_s_robot_mask_is_a_bool_image_of_its_size() -> None:
             RgbdFrame(rgb, depth, camera, robot_mask=wrong)
 
 
-@pytest.mark.parametrize("config", [CameraConfig(), CameraConfig(horizontal_fov_deg=None)])
+@pytest.mark.parametrize("config", [HEAD, CameraConfig.for_mount(MOUNT, horizontal_fov_deg=None)])
 def test_k_and_the_optical_frame_project_as_the_camera_does(config: CameraConfig) -> None:
     camera = config.pinhole
     rng = np.random.default_rng(1)

@@ -10,7 +10,7 @@ import pytest
 from perception.catalog import SPONGE, get_object_spec
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError
-from sim.world.head_camera import CameraConfig, HeadCamera, Lighting
+from sim.world.head_camera import CameraConfig, HeadCamera, Lighting, camera_config
 from sim.world.looks import (
     LightLook,
     MountOffset,
@@ -33,7 +33,8 @@ def picture(look: ObjectLook | None = None, table: str | None = None,
         world.add_object(SPONGE, WHERE, 0.0, look)
         if table is not None:
             world.dress_table(table)
-        return HeadCamera(config).render(world.client, lighting)
+        camera = HeadCamera(camera_config(YUMI) if config is None else config)  # the YuMi's
+        return camera.render(world.client, lighting)
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +45,7 @@ def today() -> np.ndarray:
 def sponge_pixels(image: np.ndarray, today: np.ndarray) -> np.ndarray:
     """The pixels where an empty table differs from today's picture: the sponge's."""
     with World(robot=YUMI) as world:
-        empty = HeadCamera().render(world.client)
+        empty = HeadCamera(camera_config(YUMI)).render(world.client)
     return np.abs(today.astype(int) - empty).sum(axis=2) > 30
 
 
@@ -78,7 +79,7 @@ def test_a_table_look_changes_the_table_not_the_sponge(today):
 
 
 def test_a_warm_lamp_renders_warmer_than_daylight(today):
-    base = CameraConfig().lighting
+    base = camera_config(YUMI).lighting
     warm = picture(lighting=lighting_for(base, LightLook(36.87, 63.43, 2700.0, 0.6, 0.5)))
     red_over_blue = (warm[..., 0].mean() / warm[..., 2].mean(),
                      today[..., 0].mean() / today[..., 2].mean())
@@ -86,7 +87,7 @@ def test_a_warm_lamp_renders_warmer_than_daylight(today):
 
 
 def test_the_drawn_default_light_is_the_cameras_own(today):
-    base = CameraConfig().lighting
+    base = camera_config(YUMI).lighting
     same = lighting_for(base, LightLook(math.degrees(math.atan2(0.3, 0.4)),
                                         math.degrees(math.atan2(1.0, 0.5)), None, 0.6, 0.5))
     assert np.allclose(np.asarray(same.direction) / np.linalg.norm(same.direction),
@@ -107,7 +108,7 @@ def test_the_planckian_locus_meets_the_cie_illuminants():
 
 
 def test_a_moved_mount_moves_what_the_camera_sees():
-    config = CameraConfig()
+    config = camera_config(YUMI)
     point = np.array([[0.47, 0.0, 0.0]])
     still = HeadCamera(config).project(point)[0]
     assert moved_camera(config, None) is config

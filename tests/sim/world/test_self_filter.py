@@ -10,7 +10,7 @@ from conftest import top_down
 from control.pick import PickRequest
 from robots import yumi
 from robots.yumi import YUMI
-from sim.world.head_camera import HeadCamera
+from sim.world.head_camera import HeadCamera, camera_config
 from sim.world.sensor import SensorConfig, SensorKind, SensorSeed
 from sim.world.yumi_world import World
 
@@ -19,7 +19,7 @@ from sim.world.yumi_world import World
 def test_the_arm_in_view_leaves_no_depth_and_no_colour_of_itself(yumi_planner, yumi_home, kind):
     plan = yumi_planner.plan(PickRequest(top_down(0.45, -0.08, 0.035), yumi_home)).plan
     q_pre = plan.segment("approach").trajectory.positions[-1]  # the hand over the table
-    camera, seed = HeadCamera(sensor=SensorConfig(kind)), SensorSeed(0)
+    camera, seed = HeadCamera(camera_config(YUMI), sensor=SensorConfig(kind)), SensorSeed(0)
     with World(robot=YUMI) as world:
         world.reset_scene(dict(zip(yumi.ARM_JOINTS[plan.arm], q_pre, strict=True)))
         plain = camera.render_rgbd(world.client, seed=seed)

@@ -14,9 +14,14 @@ from robots import yumi
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.world.d435 import D435Config
-from sim.world.head_camera import CameraConfig, HeadCamera, Lighting
+from sim.world.head_camera import CameraConfig, HeadCamera, Lighting, camera_config
 from sim.world.sensor import SensorConfig, SensorKind, SensorSeed
 from sim.world.yumi_world import World
+
+MOUNT = YUMI.camera
+"""The YuMi head camera's mount: the camera these tests render through."""
+HEAD = camera_config(YUMI)
+"""The YuMi head camera (its mount, the D435-like image)."""
 
 RADIUS_M = 0.012
 SPOTS_PX = ((64.0, 64.0), (14.0, 108.0), (112.0, 16.0))  # the centre and two far corners
@@ -32,7 +37,7 @@ OFF = SensorConfig(SensorKind.D435, D435Config(
 
 def _on_table(uv: tuple[float, float], height_m: float) -> np.ndarray:
     """The point at ``height_m`` the calibrated camera sees at pixel ``uv``."""
-    nominal = CameraConfig().pinhole
+    nominal = HEAD.pinhole
     ray = nominal.rays(np.array([uv]))[0]
     origin = np.asarray(nominal.position_m)
     return origin + ray * (height_m - origin[2]) / ray[2]
@@ -88,31 +93,31 @@ def _red_blobs(rgb: np.ndarray) -> np.ndarray:
 
 def test_the_ideal_sensor_renders_bit_for_bit_as_before(world):
     dim = Lighting(brightness=0.5)
-    for camera in (HeadCamera(), HeadCamera(sensor=SensorConfig())):
+    for camera in (HeadCamera(HEAD), HeadCamera(HEAD, sensor=SensorConfig())):
         for light, seed in ((None, None), (dim, SensorSeed(4, 1, 2, 1))):
             frame = camera.render_rgbd(world.client, light, seed)  # an ideal one ignores seeds
             rgb, depth = _old_frame(camera, world.client, light or camera.config.lighting)
             assert np.array_equal(frame.rgb, rgb) and frame.rgb.dtype == np.uint8
             assert np.array_equal(frame.depth_m, depth) and frame.depth_m.dtype == np.float32
-            assert frame.camera == camera.pinhole == CameraConfig().pinhole
+            assert frame.camera == camera.pinhole == HEAD.pinhole
 
 
 def test_d435_frames_are_the_same_for_a_seed_and_differ_for_another(world):
     seed = SensorSeed(seed=0, stream=1, index=2, frame=0)
-    first = HeadCamera(sensor=D435).render_rgbd(world.client, seed=seed)
-    again = HeadCamera(sensor=D435).render_rgbd(world.client, seed=seed)  # a fresh camera
+    first = HeadCamera(HEAD, sensor=D435).render_rgbd(world.client, seed=seed)
+    again = HeadCamera(HEAD, sensor=D435).render_rgbd(world.client, seed=seed)  # a fresh camera
     assert np.array_equal(first.rgb, again.rgb) and np.array_equal(first.depth_m, again.depth_m)
     for other in (replace(seed, frame=1), replace(seed, index=3), replace(seed, stream=0)):
-        frame = HeadCamera(sensor=D435).render_rgbd(world.client, seed=other)
+        frame = HeadCamera(HEAD, sensor=D435).render_rgbd(world.client, seed=other)
         assert not np.array_equal(frame.rgb, first.rgb)
         assert not np.array_equal(frame.depth_m, first.depth_m)
-    camera = HeadCamera(sensor=D435)
+    camera = HeadCamera(HEAD, sensor=D435)
     assert camera.mount_error(0) == camera.mount_error(0) != camera.mount_error(1)
     assert camera.true_camera(0) != camera.true_camera(1)
 
 
 def test_d435_depth_is_the_sensors_millimetres_with_zero_where_it_has_none(world):
-    frame = HeadCamera(sensor=D435).render_rgbd(world.client, seed=SensorSeed())
+    frame = HeadCamera(HEAD, sensor=D435).render_rgbd(world.client, seed=SensorSeed())
     depth = frame.depth_m.astype(float)
     valid = depth > 0.0
     assert np.isfinite(depth).all() and 0.9 < valid.mean() < 1.0  # shadows left of the balls
@@ -121,14 +126,14 @@ def test_d435_depth_is_the_sensors_millimetres_with_zero_where_it_has_none(world
 
 def test_a_d435_frame_needs_its_seed(world):
     with pytest.raises(InvalidInputError, match=r"seed = None is not allowed: a SensorSeed"):
-        HeadCamera(sensor=D435).render_rgbd(world.client)
+        HeadCamera(HEAD, sensor=D435).render_rgbd(world.client)
 
 
 def test_the_frame_keeps_the_calibration_while_the_image_follows_the_true_camera(world):
-    camera = HeadCamera(sensor=OFF)
+    camera = HeadCamera(HEAD, sensor=OFF)
     frame = camera.render_rgbd(world.client, seed=SensorSeed(seed=3))
     nominal, true = frame.camera, camera.true_camera(3)
-    assert nominal == CameraConfig().pinhole and not nominal.is_distorted  # factory: zeros
+    assert nominal == HEAD.pinhole and not nominal.is_distorted  # factory: zeros
     assert true.is_distorted and true.position_m != nominal.position_m
     seen = _red_blobs(frame.rgb)  # (3, 2)
     through_true = true.project(world.centres)
@@ -158,7 +163,7 @@ def test_d435_depth_lines_up_with_its_distorted_colour_through_the_lens(world):
     The lens (k1 = -0.1 here) moves the corner balls by pixels; a depth image registered by
     anything but the same lens map (a central crop of the wide render, say) lands them apart.
     """
-    camera = HeadCamera(sensor=OFF)
+    camera = HeadCamera(HEAD, sensor=OFF)
     frame = camera.render_rgbd(world.client, seed=SensorSeed(seed=3))
     true = camera.true_camera(3)
     rays = true.rays(np.array([(u, v) for v in range(true.height_px)
@@ -172,11 +177,11 @@ def test_d435_depth_lines_up_with_its_distorted_colour_through_the_lens(world):
 
 
 def test_the_camera_record_names_the_sensor_and_its_parameters():
-    ideal, d435 = HeadCamera().record(), HeadCamera(sensor=OFF).record()
+    ideal, d435 = HeadCamera(HEAD).record(), HeadCamera(HEAD, sensor=OFF).record()
     assert ideal["sensor"] == {"sensor": "ideal"}
     assert d435["sensor"]["sensor"] == "d435" and d435["sensor"]["subpixel_rms_px"] == 0.01
     assert d435["sensor"]["colour_distortion_k1_k2_p1_p2_k3"] == [-0.1, 0.0, 0.0, 0.0, 0.0]
-    assert CameraConfig.from_json(d435) == CameraConfig()  # the config reads past the sensor
+    assert CameraConfig.from_json(d435) == HEAD  # the config reads past the sensor
 
 
 def test_a_lens_that_folds_the_image_is_refused_by_field():
@@ -184,4 +189,4 @@ def test_a_lens_that_folds_the_image_is_refused_by_field():
         colour_distortion_k1_k2_p1_p2_k3=(-2.0, 0.0, 0.0, 0.0, 0.0)))
     with pytest.raises(InvalidInputError, match=r"camera\.colour_distortion_k1_k2_p1_p2_k3 = "
                        r"\(-2\.0, 0\.0, 0\.0, 0\.0, 0\.0\) is not allowed: a distortion"):
-        HeadCamera(sensor=folding)
+        HeadCamera(HEAD, sensor=folding)
