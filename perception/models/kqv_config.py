@@ -19,6 +19,7 @@ from perception.learning.rotations import ROTATION_CODES
 QUERY_MODES = ("auto", "base", "conditioned", "conditioned+base", "paper")
 READOUTS = ("auto", "mlp", "ray")
 INPUT_NORMS = ("auto", "fixed", "per-image")
+VALUE_INPUTS = ("image", "depth")
 SENTENCE_READINGS = ("auto", "tokens", "nearest", "prototypes", "embedding")
 INFERENCE_FIELDS = frozenset({"focus_window_px", "focus_box_px"})
 """KqvConfig fields that only change how a trained network is read (``KqvModel.read_with``):
@@ -156,6 +157,11 @@ class KqvConfig:
             the depth image (:mod:`perception.models.rise`): the objects' shapes whatever their
             colours and prints. The model then reads a frame's depth (datasets without depth
             are refused). False (default): the colour image alone, as the paper.
+        value_input: What FCN2, the Value map the pose and type heads read, sees: ``"image"``
+            (default) what FCN1 sees; ``"depth"`` the rise above the table alone (needs
+            ``depth_input``). The Key still finds the target by colour and shape; what the
+            heads read of it is its geometry, which a print or a colourway never seen does not
+            change (grasps from depth alone: GG-CNN, Morrison et al., RSS 2018).
 
     """
 
@@ -190,10 +196,12 @@ class KqvConfig:
     hue_jitter: float = 0.0
     context_layers: int = 0
     depth_input: bool = False
+    value_input: str = "image"
     seed: int = 0
 
     SINCE: ClassVar[Mapping[str, Any]] = MappingProxyType({"hue_jitter": 0.0, "context_layers": 0,
-                                                       "depth_input": False})
+                                                       "depth_input": False,
+                                                       "value_input": "image"})
     """Fields added later, at the value that trains as before them: left out of a run's
     identity there, so folders made before them resume (``experiments.tables.model_config``)."""
 
@@ -233,6 +241,10 @@ class KqvConfig:
                 raise InvalidInputError(name, getattr(self, name), "None, True or False")
         if not isinstance(self.depth_input, bool):
             raise InvalidInputError("depth_input", self.depth_input, "True or False")
+        check_choices("value_input", self.value_input, VALUE_INPUTS)
+        if self.value_input == "depth" and not self.depth_input:
+            raise InvalidInputError("value_input", self.value_input,
+                                    "'image', or 'depth' with depth_input = true")
         if self.head_coords not in (True, False):
             raise InvalidInputError("head_coords", self.head_coords, "True or False")
         if not isinstance(self.seed, int) or self.seed < 0:

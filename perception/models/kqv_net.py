@@ -140,6 +140,7 @@ class KqvNet(nn.Module):
         dilations = [2 ** (i + 1) for i in range(c.context_layers)]
         self.depth_input = c.depth_input  # a fourth input channel: the rise above the table
         colours = 4 if self.depth_input else 3
+        self.values_from_depth = c.value_input == "depth"  # FCN2 reads the rise alone
         self.key_net = nn.Sequential(  # FCN1 with CoordConv: (B, 3, H, W) -> (B, Ck + 2, h, w)
             CoordConv(colours, wide1, 5, first),
             CoordConv(wide1 + 2, wide2, 3, second),
@@ -147,7 +148,7 @@ class KqvNet(nn.Module):
             CoordConv(wide2 + 2, key, 3, 1, activation=False),
         )
         self.value_net = nn.Sequential(  # FCN2, own weights: (B, 3, H, W) -> (B, Cv, h, w)
-            nn.Conv2d(colours, wide1, 5, first, 2), nn.ReLU(),
+            nn.Conv2d(1 if self.values_from_depth else colours, wide1, 5, first, 2), nn.ReLU(),
             nn.Conv2d(wide1, wide2, 3, second, 1), nn.ReLU(),
             *(layer for d in dilations
               for layer in (nn.Conv2d(wide2, wide2, 3, 1, d, d), nn.ReLU())),
@@ -290,7 +291,7 @@ class KqvNet(nn.Module):
             rise = rise_above_table(depths_m.to(images)) / RISE_SCALE_M  # (B, H, W)
             x = torch.cat([x, rise[:, None]], dim=1)  # (B, 4, H, W)
         keys = self.key_net(x)  # (B, Ck + 2, h, w)
-        values = self.value_net(x)  # (B, Cv, h, w)
+        values = self.value_net(x[:, 3:] if self.values_from_depth else x)  # (B, Cv, h, w)
         height, width = keys.shape[-2:]
         if self.similarity == "cosine":
             keys = unit(keys, dim=1)  # (B, Ck + 2, h, w), unit per cell

@@ -78,3 +78,32 @@ def test_a_depth_reading_kqv_says_so_and_refuses_what_has_no_depth():
         model.fit(replace(dataset, depths_m=None), TrainConfig(steps=1), progress=False)
     with pytest.raises(InvalidInputError, match=r"depth_input = 1 is not allowed: True or False"):
         KqvConfig(depth_input=1)
+
+
+def test_values_from_depth_read_the_rise_and_not_the_colours():
+    # value_input = "depth": the Value map (what the pose and type heads read) changes with the
+    # depth and not with the colours, while the Key map still reads both.
+    dataset = _raised_twins(2, seed=0)
+    network = KqvModel.for_dataset(dataset, KqvConfig(depth_input=True, value_input="depth",
+                                                      seed=2)).network.eval()
+    images = torch.rand(1, 3, 64, 64, generator=torch.Generator().manual_seed(0))
+    depths = torch.as_tensor(dataset.depths_m[:1])
+    queries = network.queries(torch.as_tensor(dataset.conditions[:1]))
+    value_maps: list[torch.Tensor] = []
+    network.value_net.register_forward_hook(lambda _m, _i, out: value_maps.append(out))
+    with torch.no_grad():
+        plain = network.attend(images, queries, depths)
+        recoloured = network.attend(1.0 - images, queries, depths)
+        network.attend(images, queries, depths - 0.03 * torch.rand(depths.shape))
+    assert not torch.allclose(plain.heatmaps, recoloured.heatmaps)  # the Key sees colour
+    assert torch.equal(value_maps[0], value_maps[1])  # the Values do not
+    assert not torch.allclose(value_maps[0], value_maps[2])  # but see the rise
+
+
+def test_values_from_depth_need_the_depth():
+    with pytest.raises(InvalidInputError, match=r"value_input = 'depth' is not allowed: 'image', "
+                                                 r"or 'depth' with depth_input = true"):
+        KqvConfig(value_input="depth")
+    with pytest.raises(InvalidInputError, match=r"value_input = 'rgb' is not allowed"):
+        KqvConfig(value_input="rgb", depth_input=True)
+    assert KqvConfig.SINCE["value_input"] == KqvConfig().value_input == "image"
