@@ -32,6 +32,7 @@ from perception.learning.train import Batch, TrainConfig, TrainReport, train
 from perception.learning.validation import split_scenes
 from perception.models.kqv_config import INFERENCE_FIELDS, KqvConfig
 from perception.models.kqv_net import KqvNet
+from perception.models.repaint import Repaint
 from perception.models.rise import checked_depths
 from perception.models.torch_model import Phase, TorchModel, present_mean
 from perception.sentence_reading import TokenReader, fit_token_reader, read_target
@@ -87,6 +88,7 @@ class KqvModel(TorchModel):
     _reader: TokenReader | None = None  # what a sentence names, from its words; first fit
     _steps_taken = 0  # training steps of the current fit, for the temperature warm-up
     _mirror: Mirror | None = None  # mirrors training samples (KqvConfig.mirror)
+    _repaint: Repaint | None = None  # repaints what the Value map sees (KqvConfig.repaint)
 
     def fit(self, dataset: Dataset, config: TrainConfig | None = None,
             progress: bool = True) -> TrainReport:
@@ -110,6 +112,11 @@ class KqvModel(TorchModel):
         if self.config.depth_input and dataset.depths_m is None:  # paper-sim's; older ones'
             raise InvalidInputError("depth_input", True, "false for a dataset without depth "
                                     "images")
+        if self.config.repaint and dataset.depths_m is None:  # objects are found by depth
+            raise InvalidInputError("repaint", self.config.repaint, "0 for a dataset without "
+                                    "depth images")
+        self._repaint = Repaint(self.config.repaint, config.seed) if self.config.repaint \
+            else None
         if self.config.hue_jitter:  # the model's setting reaches the training loop
             config = replace(config, hue_jitter=self.config.hue_jitter)
         fresh = self.scaler is None  # a first fit may try several starts; a later one not
@@ -279,7 +286,8 @@ class KqvModel(TorchModel):
         self._steps_taken += 1
         if self._mirror is not None:
             batch = self._mirror(batch)
-        out = self.network(batch.images, batch.conditions, depths_m=batch.depths_m)
+        out = self.network(batch.images, batch.conditions, depths_m=batch.depths_m,
+                           value_images=self._repainted(batch))
         loss = self.target_loss(out, batch.labels, batch.present)
         camera = self.network.seen
         if camera is not None and c.point_loss_weight > 0 and out.points is not None:
@@ -287,6 +295,12 @@ class KqvModel(TorchModel):
             loss = loss + c.point_loss_weight * present_mean(
                 (out.points - seen).square().sum(-1), batch.present)
         return loss
+
+    def _repainted(self, batch: Batch) -> Tensor | None:
+        """The batch's images as the Value map sees them in training (None: as the Key does)."""
+        if self._repaint is None or batch.depths_m is None:
+            return None
+        return self._repaint(batch.images, batch.depths_m)
 
     def type_loss(self, batch: Batch) -> Tensor:
         """The type head's cross-entropy on the frozen network's attended features.
@@ -303,8 +317,8 @@ class KqvModel(TorchModel):
                                     "a network with a type head and a batch with type_indices")
         with torch.no_grad():  # the pose network stays as the pose training left it
             queries = self.network.queries(batch.conditions)  # (B, q, Ck + 2)
-            features = self.network.attend(batch.images, queries,
-                                           batch.depths_m).features  # (B, q, Cv)
+            features = self.network.attend(batch.images, queries, batch.depths_m,
+                                           self._repainted(batch)).features  # (B, q, Cv)
         logits = head(features)  # (B, q, T)
         known = indices >= 0  # (B, q)
         if not known.any():

@@ -162,6 +162,10 @@ class KqvConfig:
             ``depth_input``). The Key still finds the target by colour and shape; what the
             heads read of it is its geometry, which a print or a colourway never seen does not
             change (grasps from depth alone: GG-CNN, Morrison et al., RSS 2018).
+        repaint: The share of training images whose objects the Value map sees painted in a
+            random pattern (:mod:`perception.models.repaint`; the Key sees them as they are),
+            so the heads read a pose from an object's outline and not from its print. Needs
+            training data with depth. 0 (default): none.
 
     """
 
@@ -197,11 +201,13 @@ class KqvConfig:
     context_layers: int = 0
     depth_input: bool = False
     value_input: str = "image"
+    repaint: float = 0.0
     seed: int = 0
 
     SINCE: ClassVar[Mapping[str, Any]] = MappingProxyType({"hue_jitter": 0.0, "context_layers": 0,
                                                        "depth_input": False,
-                                                       "value_input": "image"})
+                                                       "value_input": "image",
+                                                       "repaint": 0.0})
     """Fields added later, at the value that trains as before them: left out of a run's
     identity there, so folders made before them resume (``experiments.tables.model_config``)."""
 
@@ -241,6 +247,7 @@ class KqvConfig:
                 raise InvalidInputError(name, getattr(self, name), "None, True or False")
         if not isinstance(self.depth_input, bool):
             raise InvalidInputError("depth_input", self.depth_input, "True or False")
+        check_number("repaint", self.repaint, 0.0, 1.0)
         check_choices("value_input", self.value_input, VALUE_INPUTS)
         if self.value_input == "depth" and not self.depth_input:
             raise InvalidInputError("value_input", self.value_input,

@@ -275,23 +275,25 @@ class KqvNet(nn.Module):
         cosines = unit(embeddings, dim=-1) @ unit(self.prototypes, dim=-1).T  # (B, k)
         return torch.softmax(cosines / self.sentence_temperature, dim=-1)
 
-    def attend(self, images: Tensor, queries: Tensor, depths_m: Tensor | None = None
-               ) -> Attention:
+    def attend(self, images: Tensor, queries: Tensor, depths_m: Tensor | None = None,
+               value_images: Tensor | None = None) -> Attention:
         """Selection and extraction: images (B, 3, H, W) in [0, 1], queries (B, q', Ck + 2).
 
         At inference each heatmap is first focused on its densest part (``focus_window_px``);
         the returned heatmaps are the ones read. ``depths_m`` (B, H, W): the images' depth,
-        which a network built with ``depth_input`` reads (and needs).
+        which a network built with ``depth_input`` reads (and needs). ``value_images``: other
+        images for the Value map alone (training's repainted copies, ``KqvConfig.repaint``).
         """
         x = normalise_images(images, self.per_image)  # (B, 3, H, W)
+        seen = x if value_images is None else normalise_images(value_images, self.per_image)
         if self.depth_input:
             if depths_m is None:
                 raise InvalidInputError("depth", None, "each image's depth, for a kqv model "
                                         "with depth_input = true")
-            rise = rise_above_table(depths_m.to(images)) / RISE_SCALE_M  # (B, H, W)
-            x = torch.cat([x, rise[:, None]], dim=1)  # (B, 4, H, W)
+            rise = rise_above_table(depths_m.to(images))[:, None] / RISE_SCALE_M  # (B, 1, H, W)
+            x, seen = torch.cat([x, rise], dim=1), torch.cat([seen, rise], dim=1)  # (B, 4, H, W)
         keys = self.key_net(x)  # (B, Ck + 2, h, w)
-        values = self.value_net(x[:, 3:] if self.values_from_depth else x)  # (B, Cv, h, w)
+        values = self.value_net(seen[:, 3:] if self.values_from_depth else seen)  # (B, Cv, h, w)
         height, width = keys.shape[-2:]
         if self.similarity == "cosine":
             keys = unit(keys, dim=1)  # (B, Ck + 2, h, w), unit per cell
@@ -307,13 +309,14 @@ class KqvNet(nn.Module):
                          spatial_expectation(heatmaps, values))  # (B, q', Cv)
 
     def forward(self, images: Tensor, conditions: Tensor, queries: Tensor | None = None,
-                depths_m: Tensor | None = None) -> NetOutput:
+                depths_m: Tensor | None = None, value_images: Tensor | None = None
+                ) -> NetOutput:
         """Targets for images (B, 3, H, W) in [0, 1] under conditions (B, C) (or given Queries).
 
-        ``depths_m`` (B, H, W): as :meth:`attend` reads it.
+        ``depths_m`` (B, H, W) and ``value_images``: as :meth:`attend` reads them.
         """
         attention = self.attend(images, self.queries(conditions) if queries is None else queries,
-                                depths_m)
+                                depths_m, value_images)
         batch, heads = attention.coords.shape[:2]
         parts = [attention.coords] if self.head_coords else []  # (B, q, 2)
         if self.head_features:

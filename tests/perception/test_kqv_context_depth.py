@@ -10,6 +10,7 @@ from user_models import BACKGROUND, CAMERA, COLOURS, spec, synthetic_dataset
 from perception.interface import InvalidInputError, LabelKind, ModelInput
 from perception.learning.train import TrainConfig
 from perception.models.kqv import KqvConfig, KqvModel
+from perception.models.repaint import Repaint
 
 
 @pytest.mark.parametrize(("layers", "reach_px"), [(0, 6), (2, 18)])
@@ -107,3 +108,38 @@ def test_values_from_depth_need_the_depth():
     with pytest.raises(InvalidInputError, match=r"value_input = 'rgb' is not allowed"):
         KqvConfig(value_input="rgb", depth_input=True)
     assert KqvConfig.SINCE["value_input"] == KqvConfig().value_input == "image"
+
+
+def test_repaint_paints_the_objects_the_depth_finds_and_nothing_else():
+    dataset = _raised_twins(4, seed=5)
+    images = torch.from_numpy(dataset.images).permute(0, 3, 1, 2).float() / 255.0
+    depths = torch.from_numpy(dataset.depths_m)
+    painted = Repaint(1.0, seed=0)(images, depths)
+    changed = (painted != images).any(dim=1)  # (B, H, W)
+    raised = torch.from_numpy(dataset.depths_m < 0.6 - 0.01)  # the squares, 3 and 6 cm up
+    assert not (changed & ~raised).any()  # the table is never painted
+    assert changed[raised].float().mean() > 0.9  # the squares are (a pattern may match a pixel)
+    again = Repaint(1.0, seed=0)(images, depths)
+    assert torch.equal(painted, again)  # seeded
+    assert torch.equal(Repaint(1e-9, seed=0)(images, depths), images)  # none chosen
+
+
+def test_a_repainting_kqv_paints_only_what_its_values_see_and_needs_depth():
+    dataset = _raised_twins(8, seed=6)
+    model = KqvModel.for_dataset(dataset, KqvConfig(depth_input=True, repaint=1.0, starts=1,
+                                                    warmup_steps=2, type_steps=1))
+    seen: list[torch.Tensor] = []
+    model.network.key_net.register_forward_hook(lambda _m, inputs, _o: seen.append(inputs[0]))
+    model.network.value_net.register_forward_hook(lambda _m, inputs, _o: seen.append(inputs[0]))
+    model.fit(dataset, TrainConfig(steps=1, batch_size=4, threads=1, augment=False),
+              progress=False)
+    key_input, value_input = seen[0], seen[1]
+    assert torch.equal(key_input[:, 3], value_input[:, 3])  # the same rise
+    assert not torch.equal(key_input[:, :3], value_input[:, :3])  # other colours
+    with pytest.raises(InvalidInputError, match=r"repaint = 0.5 is not allowed: 0 for a "
+                                                 r"dataset without depth images"):
+        KqvModel.for_dataset(dataset, KqvConfig(repaint=0.5)).fit(
+            replace(dataset, depths_m=None), TrainConfig(steps=1), progress=False)
+    with pytest.raises(InvalidInputError, match=r"repaint = 1.5 is not allowed"):
+        KqvConfig(repaint=1.5)
+    assert KqvConfig.SINCE["repaint"] == KqvConfig().repaint == 0.0
