@@ -79,7 +79,8 @@ def test_a_checkpoint_trained_without_a_file_records_none(dataset, tmp_path):
 
 @pytest.mark.parametrize(("text", "message"), [
     ("simil = 1\n", r"model config {path}: simil = 1 is not allowed: a known key, one of the "
-                    r"fields of KqvConfig: channels, key_dim, .*context_layers, depth_input, value_input, repaint$"),
+                    r"fields of KqvConfig: channels, key_dim, .*context_layers, depth_input, "
+                    r"value_input, repaint$"),
     ('similarity = "l2"\n', r"model config {path}: similarity = 'l2' is not allowed: one of "
                             r"'cosine', 'dot'$"),
     ("seed = 3\n", r"model config {path}: seed = 3 is not allowed: set by --seed, not by the "
