@@ -40,14 +40,9 @@ from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot
 from robots.description import RobotDescription
 from sim.errors import InvalidInputError, SimError
 from sim.tasks.mirror_symmetry import mirror_symmetric
-from sim.tasks.scene_sampling import (
-    Scene,
-    SeedStream,
-    check_task_fits,
-    condition_choices,
-    sample_scene,
-)
+from sim.tasks.scene_sampling import Scene, SeedStream, sample_scene
 from sim.tasks.scene_specs import SCENE_NAMES, SceneSpec, get_scene_spec
+from sim.tasks.task_in_scene import check_task_fits, condition_choices
 from sim.tasks.task_sensor import seen_in_scene
 from sim.tasks.task_spec import TaskSpec, spaced_for
 from sim.tasks.variants import load_task_variant

@@ -29,12 +29,8 @@ from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot
 from robots.description import RobotDescription
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError
-from sim.tasks.scene_sampling import (
-    check_task_fits,
-    condition_choices,
-    target_count,
-)
 from sim.tasks.scene_specs import YUMI_SCENE
+from sim.tasks.task_in_scene import check_task_fits, condition_choices, target_count
 from sim.tasks.task_sensor import seen_through
 from sim.tasks.task_spec import SIDES, TaskSpec, spaced_for
 from sim.tasks.task_toml import TASK_FILES, with_test_phrases
