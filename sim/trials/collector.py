@@ -274,7 +274,7 @@ def _collect_paper(
 class _PickImages:
     """Watches a demonstration: the image before each pick, every target's label just then.
 
-    A :class:`~sim.trials.trial_runner.TrialObserver`; ``saw`` comes after the image is taken
+    A :class:`~sim.trials.runner_hooks.TrialObserver`; ``saw`` comes after the image is taken
     and before the plan, so the world is as the image shows it. A target already set aside keeps
     the label it had when it was last on the table. An approach image in which the arm hides
     any of a target's footprint is left out (counted): a closed loop does not heed such a

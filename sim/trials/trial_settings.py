@@ -39,7 +39,7 @@ from sim.trials.execution import ExecutionSettings
 from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.oracle import OraclePerception
 from sim.trials.planner_setup import ObstacleSource, depth_config
-from sim.trials.trial_runner import TRIAL_INPUTS, ModelFactory
+from sim.trials.runner_hooks import TRIAL_INPUTS, ModelFactory
 from sim.world.head_camera import CameraConfig, camera_config
 from sim.world.sensor import SensorConfig, SensorKind, sensor_from_table
 from sim.world.yumi_world import check_wait_s
