@@ -77,7 +77,8 @@ from sim.world.grip import grip_of
 from sim.world.head_camera import HeadCamera, camera_config
 from sim.world.looks import SceneLook, lighting_for, moved_camera
 from sim.world.sensor import SensorSeed
-from sim.world.yumi_world import World, check_wait_s
+from sim.world.world_config import check_wait_s
+from sim.world.yumi_world import World
 
 _PLAN_OUTCOMES = {
     PlanStatus.UNREACHABLE: TrialOutcome.IK_UNREACHABLE,

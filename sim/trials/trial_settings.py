@@ -41,7 +41,7 @@ from sim.trials.planner_setup import ObstacleSource, depth_config
 from sim.trials.runner_hooks import TRIAL_INPUTS, ModelFactory
 from sim.world.head_camera import CameraConfig, camera_config
 from sim.world.sensor import SensorConfig, SensorKind
-from sim.world.yumi_world import check_wait_s
+from sim.world.world_config import check_wait_s
 
 TRIAL_MODELS: dict[str, ModelFactory] = {"oracle": OraclePerception}
 """Perception models the trial runner builds by name; a checkpoint folder or
