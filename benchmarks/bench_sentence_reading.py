@@ -47,8 +47,8 @@ from perception.interface import Condition, ConditionKind
 from perception.sentence_reading import fit_token_reader, read_target
 from perception.sentences import embed, token_embeddings
 from sim.tasks.queries import query_for
-from sim.tasks.scene_sampling import condition_choices
 from sim.tasks.scene_specs import get_scene_spec
+from sim.tasks.task_in_scene import condition_choices
 from sim.tasks.task_spec import SIDES
 from sim.tasks.task_toml import load_task, with_test_phrases
 

@@ -26,7 +26,8 @@ from harness.run_loop import run_trials
 from perception.catalog import get_object_spec
 from robots.yumi import YUMI
 from sim.trials.trial_settings import TrialSettings
-from sim.world.yumi_world import World, WorldConfig
+from sim.world.world_config import WorldConfig
+from sim.world.yumi_world import World
 
 
 def resting_step_ms(sleeping: bool, steps: int = 480, repeats: int = 5) -> float:

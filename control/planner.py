@@ -17,14 +17,15 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import numpy as np
 import pinocchio as pin
 
 from control.collision import CollisionChecker, CollisionReport
 from control.errors import InvalidInputError
-from control.ik import ArmIk, IkOptions, IkResult
+from control.ik import ArmIk, IkOptions
+from control.ik_candidates import GRIPPER_TURNS, Candidate, follow, ik_candidates
 from control.pick import (
     ArmSpec,
     GripperCommand,
@@ -45,21 +46,6 @@ REPLAN_CHECK_STEP_RAD = 0.01
 moves more than this between two checked ones [rad]: finer than a full-speed transit's 240 Hz
 samples are apart (0.013 rad on the YuMi's joints 1-3 and 7, 0.029 rad on 4-6), while the
 slow descend and lift, sampled every 0.005 rad, are checked at about every other sample."""
-
-
-@dataclass
-class _Candidate:
-    arm: str
-    T_grasp: pin.SE3
-    q_pre: np.ndarray
-    q_grasp: np.ndarray
-    q_lift: np.ndarray
-    cost: float
-    notes: list[str] = field(default_factory=list)
-
-
-_FLIP = pin.SE3(pin.utils.rotate("z", np.pi), np.zeros(3))
-_GRIPPER_TURNS = 2  # _candidates solves each attempt for the grasp and its half turn (_FLIP)
 
 
 class PickPlanner:
@@ -125,8 +111,10 @@ class PickPlanner:
                 if budget is not None and attempted >= budget.max_ik_attempts:
                     spent = f"{attempted} IK attempts"
                     break
-                candidates = self._candidates(arm, T_grasp, q0, distance_m, rng, attempts)
-                attempted += _GRIPPER_TURNS * len(attempts)
+                candidates = ik_candidates(
+                    self.robot, self._ik[arm], self._indices[arm], arm, T_grasp, q0, distance_m,
+                    self.config.lift_height_m, self.config.max_joint_jump_rad, rng, attempts)
+                attempted += GRIPPER_TURNS * len(attempts)
                 found = found or bool(candidates)
                 for candidate in candidates:
                     if budget is not None and tried >= budget.max_candidates:
@@ -234,44 +222,7 @@ class PickPlanner:
         every = range(self.config.ik_solutions_per_grasp)
         return (every,) if moving is None else (every[:1], every[1:])
 
-    def _candidates(
-        self, arm: str, T_grasp: pin.SE3, q0: np.ndarray, pregrasp_m: float,
-        rng: np.random.Generator, attempts: range,
-    ) -> list[_Candidate]:
-        ik, index = self._ik[arm], self._indices[arm]
-        lift = pin.SE3(np.eye(3), np.array([0.0, 0.0, self.config.lift_height_m]))
-        back_off = pin.SE3(np.eye(3), np.array([0.0, 0.0, -pregrasp_m]))
-        found: list[_Candidate] = []
-        for T_g in (T_grasp, T_grasp * _FLIP):
-            T_pre, T_lift = T_g * back_off, lift * T_g
-            for attempt in attempts:
-                q_init = q0.copy()
-                if attempt > 0:
-                    lower, upper = self.robot.lower_rad[index], self.robot.upper_rad[index]
-                    q_init[index] = rng.uniform(lower, upper)
-                pre = ik.solve(T_pre, q_init, rng=rng)
-                if not pre.solved:
-                    continue
-                grasp = self._follow(ik, T_g, pre.q)
-                lifted = self._follow(ik, T_lift, grasp.q) if grasp is not None else None
-                if grasp is None or lifted is None:
-                    continue
-                if any(np.max(np.abs(c.q_pre[index] - pre.q[index])) < 1e-3 for c in found):
-                    continue  # the same solution again
-                cost = float(np.sum(np.abs(pre.q[index] - q0[index])))
-                found.append(_Candidate(arm, T_g, pre.q, grasp.q, lifted.q, cost))
-        return sorted(found, key=lambda c: c.cost)
-
-    def _follow(self, ik: ArmIk, T_target: pin.SE3, q_previous: np.ndarray) -> IkResult | None:
-        """IK seeded from a neighbouring solution; None if it fails or jumps branch."""
-        result = ik.solve(T_target, q_previous)
-        if not result.solved:
-            return None
-        if np.max(np.abs(result.q - q_previous)) > self.config.max_joint_jump_rad:
-            return None
-        return result
-
-    def _timed_plan(self, c: _Candidate, q0: np.ndarray, moving: JointState | None
+    def _timed_plan(self, c: Candidate, q0: np.ndarray, moving: JointState | None
                     ) -> tuple[PickPlan | None, str]:
         approach, blocked = self._transit(c.arm, q0, c.q_pre, self.transit_limits(c.arm),
                                           moving=moving)
@@ -281,7 +232,7 @@ class PickPlanner:
             return self._timed_rest(c, q0, approach)
 
     def _timed_rest(
-        self, c: _Candidate, q0: np.ndarray, approach: JointTrajectory
+        self, c: Candidate, q0: np.ndarray, approach: JointTrajectory
     ) -> tuple[PickPlan | None, str]:
         arm = c.arm
         fast = self._limits[(arm, self.config.transit_velocity_scale)]
@@ -409,7 +360,7 @@ class PickPlanner:
         if depth >= 4:
             return None
         T_mid = pin.SE3.Interpolate(T_a, T_b, 0.5)
-        middle = self._follow(self._ik[arm], T_mid, q_a)
+        middle = follow(self._ik[arm], T_mid, q_a, self.config.max_joint_jump_rad)
         if middle is None:
             return None
         first = self._bisect(arm, q_a, middle.q, T_a, T_mid, limits, depth + 1)

@@ -49,7 +49,8 @@ from perception.models.kqv import KqvModel
 from perception.registry import load_model
 from robots.yumi import YUMI
 from sim.errors import RunFolderError, SimError
-from sim.tasks.scene_sampling import SeedStream, target_count
+from sim.tasks.scene_sampling import SeedStream
+from sim.tasks.task_in_scene import target_count
 from sim.tasks.task_spec import TaskSpec
 from sim.tasks.task_toml import load_task, task_to_toml
 from sim.trials.collector import CollectSettings, collect

@@ -34,8 +34,8 @@ import numpy as np
 from sklearn.linear_model import LogisticRegression
 
 from perception.sentences import embed
-from sim.tasks.scene_sampling import condition_choices
 from sim.tasks.scene_specs import get_scene_spec
+from sim.tasks.task_in_scene import condition_choices
 from sim.tasks.task_spec import SIDES
 from sim.tasks.task_toml import load_task, with_test_phrases
 

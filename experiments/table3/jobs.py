@@ -52,7 +52,8 @@ from perception.learning.dataset_file import DatasetError, load_dataset
 from perception.learning.train import TrainConfig
 from perception.learning.validation import fit_checked, write_check
 from perception.registry import new_model
-from sim.tasks.scene_sampling import SeedStream, target_count
+from sim.tasks.scene_sampling import SeedStream
+from sim.tasks.task_in_scene import target_count
 from sim.tasks.task_toml import load_task
 from sim.trials.collector import CollectSettings, collect
 from sim.trials.trial_settings import TrialSettings, torch_threads

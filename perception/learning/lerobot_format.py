@@ -35,13 +35,23 @@ from PIL import Image
 from tqdm import tqdm
 
 from perception.files import FileError
-from perception.interface import InvalidInputError, LabelKind
-from perception.learning.data import JOINT_NAMES_KEY, Dataset, DatasetMetadata
+from perception.interface import InvalidInputError
+from perception.learning.data import Dataset, DatasetMetadata
 from perception.learning.dataset_file import (
     contents_sha256,
     load_dataset,
     metadata_from_json,
     metadata_to_json,
+)
+from perception.learning.lerobot_features import (
+    CONDITION_KEY,
+    DEPTH_KEY,
+    FPS,
+    IMAGE_KEY,
+    PRESENT_KEY,
+    STATE_KEY,
+    all_stats,
+    info_features,
 )
 
 try:
@@ -51,18 +61,11 @@ except ImportError as missing:  # an optional extra: say which
     raise ImportError("LeRobot folders need pyarrow: pip install 'gva[lerobot]'") from missing
 
 CODEBASE_VERSION = "v3.0"  # LeRobot's dataset format, checked by its loader
-FPS = 1  # pick stages are not sampled at a rate: timestamp = frame_index / FPS [s]
 CHUNKS_SIZE = 1000  # LeRobot's defaults: files per chunk folder, MB per data / video file
 DATA_FILES_SIZE_IN_MB = 100
 VIDEO_FILES_SIZE_IN_MB = 200
-IMAGE_KEY = "observation.images.head"
-CONDITION_KEY = "observation.condition"
-STATE_KEY = "observation.state"  # the robot's joint positions [rad, m] when the image was taken
-DEPTH_KEY = "observation.depth.head"  # float32 depth along the optical axis [m], per pixel
-PRESENT_KEY = "action.target_present"  # not observation.* nor "action": policies skip it
 GVA_PATH = "meta/gva.json"
 GVA_FORMAT = "gva-lerobot/1"
-QUANTILES = {"q01": 0.01, "q10": 0.10, "q50": 0.50, "q90": 0.90, "q99": 0.99}
 _DATA_PATH = "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
 _EPISODES_PATH = "meta/episodes/chunk-000/file-000.parquet"
 _IMAGE_TYPE = pa.struct([("bytes", pa.binary()), ("path", pa.string())])  # HF datasets' Image
@@ -74,12 +77,6 @@ _TASKS_PANDAS = json.dumps({
                  "metadata": None} for name, kind, numpy in (("task_index", "int64", "int64"),
                                                              ("task", "unicode", "object"))]})
 _GVA_KEYS = {"metadata", "scenes", "condition_size", "contents_sha256"}
-_INDEX_KEYS = ("frame_index", "episode_index", "index", "task_index")
-_LABEL_NAMES = {LabelKind.POSITION: ("x_m", "y_m", "z_m"),
-                LabelKind.GRASP_POSE: ("x_m", "y_m", "z_m", "r00", "r01", "r02",
-                                       "r10", "r11", "r12", "r20", "r21", "r22")}
-
-
 class LeRobotFolderError(FileError):
     """A folder gva cannot import: not LeRobot v3.0, not exported by gva, or changed since."""
 
@@ -250,11 +247,11 @@ def _write_folder(data: Dataset, root: Path, progress: bool) -> int:
         columns[CONDITION_KEY] = data.conditions  # (N, C) float32
     if data.joint_positions is not None:
         columns[STATE_KEY] = data.joint_positions  # (N, J) float32
-    features = _features(data)
+    features = info_features(data)
     pngs = [_png_bytes(image) for image in tqdm(data.images, desc="export lerobot: images",
                                                 unit="image", disable=not progress)]
     files, episodes = _write_data(root, columns, pngs, bounds, data.depths_m)
-    stats_rows = [_all_stats(columns, data.images[start:stop], _part(data.depths_m, start, stop))
+    stats_rows = [all_stats(columns, data.images[start:stop], _part(data.depths_m, start, stop))
                   for start, stop in bounds]
     for e, (start, stop) in enumerate(bounds):
         episodes[e] |= {"episode_index": e, "length": stop - start,
@@ -279,7 +276,7 @@ def _write_folder(data: Dataset, root: Path, progress: bool) -> int:
             "data_path": _DATA_PATH, "video_path": None,
             "features": features}
     _write_json(root / "meta/info.json", info)
-    _write_json(root / "meta/stats.json", _all_stats(columns, data.images, data.depths_m))
+    _write_json(root / "meta/stats.json", all_stats(columns, data.images, data.depths_m))
     _write_json(root / GVA_PATH, {"files_sha256": _files_sha256(root)} | {
         "format": GVA_FORMAT, "metadata": metadata_to_json(meta), "scenes": list(data.scenes),
         "condition_size": int(data.conditions.shape[1]), "contents_sha256": contents_sha256(data),
@@ -326,61 +323,6 @@ def _write_data(root: Path, columns: dict[str, np.ndarray], pngs: list[bytes],
         files.append(path)
         episodes += [{"data/chunk_index": chunk, "data/file_index": file} for _ in group]
     return files, episodes
-
-
-def _features(data: Dataset) -> dict[str, dict[str, Any]]:
-    """info.json's features: dtype, shape and names of every column."""
-    meta, condition_size = data.metadata, data.conditions.shape[1]
-    h, w = meta.image_height_px, meta.image_width_px
-    features: dict[str, dict[str, Any]] = {
-        IMAGE_KEY: {"dtype": "image", "shape": [h, w, 3], "names": ["height", "width", "channels"]},
-        "action": {"dtype": "float32", "shape": [meta.targets * meta.label_dim],
-                   "names": [f"target{k}.{name}" for k in range(meta.targets)
-                             for name in _LABEL_NAMES[meta.label_kind]]},
-        PRESENT_KEY: {"dtype": "float32", "shape": [meta.targets],
-                      "names": [f"target{k}" for k in range(meta.targets)]},
-    }
-    if condition_size:
-        names = (list(meta.condition_choices) if meta.condition_kind.one_hot
-                 else [f"c{i}" for i in range(condition_size)])
-        features[CONDITION_KEY] = {"dtype": "float32", "shape": [condition_size], "names": names}
-    if data.joint_positions is not None:
-        joints = list(meta.extra[JOINT_NAMES_KEY])
-        features[STATE_KEY] = {"dtype": "float32", "shape": [len(joints)], "names": joints}
-    if data.depths_m is not None:
-        features[DEPTH_KEY] = {"dtype": "float32", "shape": [h, w], "names": ["height", "width"]}
-    features["timestamp"] = {"dtype": "float32", "shape": [1], "names": None}
-    features |= {key: {"dtype": "int64", "shape": [1], "names": None} for key in _INDEX_KEYS}
-    for feature in features.values():
-        feature["fps"] = FPS
-    return features
-
-
-def _all_stats(columns: dict[str, np.ndarray], images: np.ndarray,
-               depths_m: np.ndarray | None) -> dict[str, dict]:
-    """LeRobot's stats per feature: images per channel in [0, 1] as (3, 1, 1), vectors per entry.
-
-    Depth gets one set over all its finite pixels, shape (1,) (it broadcasts over the image;
-    a pixel that sees nothing holds inf, which JSON cannot).
-    """
-    stats = {IMAGE_KEY: _stats(images.reshape(-1, 3) / 255.0, len(images), (3, 1, 1))}
-    if depths_m is not None:
-        finite = depths_m[np.isfinite(depths_m)].astype(np.float64).reshape(-1, 1)
-        stats[DEPTH_KEY] = _stats(finite, len(depths_m), (1,))
-    for key, column in columns.items():
-        values = column.astype(np.float64).reshape(len(column), -1)
-        stats[key] = _stats(values, len(column), (values.shape[1],))
-    return stats
-
-
-def _stats(values: np.ndarray, count: int, shape: tuple[int, ...]) -> dict[str, list]:
-    """min, max, mean, std, count and quantiles of ``values`` (M, D) over M, each as ``shape``."""
-    result = {"min": values.min(axis=0), "max": values.max(axis=0),
-              "mean": values.mean(axis=0), "std": values.std(axis=0)}
-    result |= {key: np.quantile(values, q, axis=0) for key, q in QUANTILES.items()}
-    out: dict[str, list] = {key: value.reshape(shape).tolist() for key, value in result.items()}
-    out["count"] = [count]
-    return out
 
 
 def _part(array: np.ndarray | None, start: int, stop: int) -> np.ndarray | None:

@@ -35,8 +35,8 @@ from perception.interface import (
 )
 from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot
 from sim.errors import InvalidInputError
-from sim.tasks.scene_sampling import condition_choices
 from sim.tasks.scene_specs import YUMI_SCENE
+from sim.tasks.task_in_scene import condition_choices
 from sim.tasks.task_sensor import seen_through
 from sim.tasks.task_spec import TaskSpec, spaced_for
 from sim.tasks.task_toml import load_task

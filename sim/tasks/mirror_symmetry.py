@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 
 from perception.catalog import ObjectSpec, PrimitiveKind, get_object_spec
-from sim.tasks.scene_sampling import target_count
 from sim.tasks.scene_specs import SceneSpec
+from sim.tasks.task_in_scene import target_count
 from sim.tasks.task_spec import ObjectChoice, TaskSpec
 from sim.world.head_camera import CameraConfig
 

@@ -7,7 +7,7 @@ the Gymnasium env; ``gva reproduce real`` writes its choice into each task file 
    ``gva reproduce real --sensor`` does;
 2. else the task file's ``[camera] sensor``;
 3. else a fallback the command knows: a checkpoint's trials, the sensor its datasets were
-   rendered by (:func:`sim.trials.trial_settings.trained_sensor`), so a model is tried in the
+   rendered by (:func:`sim.trials.model_fit.trained_sensor`), so a model is tried in the
    world it was trained in;
 4. else :data:`~sim.world.sensor.DEFAULT_SENSOR`, the D435.
 

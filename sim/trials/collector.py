@@ -40,14 +40,9 @@ from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot
 from robots.description import RobotDescription
 from sim.errors import InvalidInputError, SimError
 from sim.tasks.mirror_symmetry import mirror_symmetric
-from sim.tasks.scene_sampling import (
-    Scene,
-    SeedStream,
-    check_task_fits,
-    condition_choices,
-    sample_scene,
-)
+from sim.tasks.scene_sampling import Scene, SeedStream, sample_scene
 from sim.tasks.scene_specs import SCENE_NAMES, SceneSpec, get_scene_spec
+from sim.tasks.task_in_scene import check_task_fits, condition_choices
 from sim.tasks.task_sensor import seen_in_scene
 from sim.tasks.task_spec import TaskSpec, spaced_for
 from sim.tasks.variants import load_task_variant
@@ -279,7 +274,7 @@ def _collect_paper(
 class _PickImages:
     """Watches a demonstration: the image before each pick, every target's label just then.
 
-    A :class:`~sim.trials.trial_runner.TrialObserver`; ``saw`` comes after the image is taken
+    A :class:`~sim.trials.runner_hooks.TrialObserver`; ``saw`` comes after the image is taken
     and before the plan, so the world is as the image shows it. A target already set aside keeps
     the label it had when it was last on the table. An approach image in which the arm hides
     any of a target's footprint is left out (counted): a closed loop does not heed such a

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 from control.pick import GripperCommand, PickPlan
 from sim.errors import InvalidInputError
 from sim.trials.records import TrialOutcome
-from sim.world.yumi_world import MAX_WAIT_S, World
+from sim.world.world_config import MAX_WAIT_S
+from sim.world.yumi_world import World
 
 TOUCH_DISTANCE_M = 1e-4
 """Contact points closer than this count as touching [m]."""

@@ -1,6 +1,6 @@
 """Recordings of pick trials: what the model saw beside what the robot did, as a GIF.
 
-A :class:`TrialRecorder` is a :class:`~sim.trials.trial_runner.TrialObserver`: the runner hands it
+A :class:`TrialRecorder` is a :class:`~sim.trials.runner_hooks.TrialObserver`: the runner hands it
 each image a prediction was made from, with the prediction, and calls it after every physics
 step.
 Every ``frame_every_s`` of simulated time it renders a second, wider camera that looks at the

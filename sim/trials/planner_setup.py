@@ -27,7 +27,8 @@ from perception.camera import RgbdFrame
 from perception.catalog import PrimitiveKind, obstacle_shapes
 from robots.description import RobotDescription
 from sim.trials.pick_results import PickObstacles
-from sim.world.yumi_world import TABLE_HALF_SIZE_M, World, WorldConfig
+from sim.world.world_config import TABLE_HALF_SIZE_M, WorldConfig
+from sim.world.yumi_world import World
 
 TABLE_THICKNESS_M = 0.05  # table/table.urdf's top slab
 

@@ -23,9 +23,7 @@ from __future__ import annotations
 import dataclasses
 import time
 import traceback
-from collections.abc import Callable
 from pathlib import Path
-from typing import Protocol
 
 import numpy as np
 import pinocchio as pin
@@ -42,7 +40,6 @@ from perception.grasp_judge import judge_grasp, yaw_of
 from perception.grasps import grasp_pose
 from perception.interface import (
     LabelKind,
-    ModelInput,
     PerceptionError,
     PerceptionModel,
     Prediction,
@@ -75,11 +72,13 @@ from sim.trials.planner_setup import (
     table_obstacle,
 )
 from sim.trials.records import TrialOutcome, TrialRecord
+from sim.trials.runner_hooks import TRIAL_INPUTS, ModelFactory, TrialObserver
 from sim.world.grip import grip_of
 from sim.world.head_camera import HeadCamera, camera_config
 from sim.world.looks import SceneLook, lighting_for, moved_camera
 from sim.world.sensor import SensorSeed
-from sim.world.yumi_world import World, check_wait_s
+from sim.world.world_config import check_wait_s
+from sim.world.yumi_world import World
 
 _PLAN_OUTCOMES = {
     PlanStatus.UNREACHABLE: TrialOutcome.IK_UNREACHABLE,
@@ -87,31 +86,6 @@ _PLAN_OUTCOMES = {
     PlanStatus.START_IN_COLLISION: TrialOutcome.PLAN_COLLISION,
     PlanStatus.RETARGET_FAILED: TrialOutcome.PLAN_COLLISION,  # a closed loop's re-plan only
 }
-
-
-class TrialObserver(Protocol):
-    """Watches trials as they run, e.g. to record them (:mod:`sim.trials.gif_recorder`).
-
-    Watching must not change what happens: an observer reads the world, never moves it.
-    """
-
-    def saw(self, frame: RgbdFrame, prediction: Prediction | None) -> None:
-        """The RGB-D frame a pick's prediction was made from, and the prediction.
-
-        None: the model gave nothing the robot can act on (it raised, or its prediction was
-        refused); the pick ends ``perception_failed``, and the image is still what it saw.
-        """
-
-    def stepped(self, world: World) -> None:
-        """Called after every physics step of the runner's world."""
-
-
-TRIAL_INPUTS = frozenset(ModelInput)
-"""What a trial gives each prediction: the head camera's RGB, depth and calibration."""
-
-ModelFactory = Callable[[World, HeadCamera], PerceptionModel]
-"""Builds a trial's perception model from the runner's world and head camera: the oracle reads
-the world; any other model ignores both (e.g. ``lambda world, camera: model``)."""
 
 
 class TrialRunner:

@@ -24,7 +24,7 @@ from robots.description import CameraMount
 from sim.errors import InvalidInputError
 from sim.world.head_camera import CameraConfig, HeadCamera
 from sim.world.quiet import silenced_output
-from sim.world.yumi_world import check_wait_s
+from sim.world.world_config import check_wait_s
 
 PAPER_OBJECT_TYPES: tuple[str, ...] = ("duck", "soccer_ball", "mug")
 """The scene's object types, in one-hot (and target) order."""

@@ -25,8 +25,8 @@ from perception.registry import load_model
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError, RunFolderError
 from sim.tasks.task_toml import load_task
+from sim.trials.model_fit import check_model_fits_task
 from sim.trials.records import TrialOutcome, TrialRecord
-from sim.trials.trial_settings import check_model_fits_task
 from sim.world.sensor import SensorConfig, SensorKind
 
 TINY = ["--tasks", "single", "--demos", "2", "--n", "2", "--steps", "3", "--workers", "1",

@@ -14,11 +14,11 @@ import pytest
 
 from perception.interface import PICTURE_PX, ConditionKind, InvalidInputError, LabelKind
 from perception.labels import label_vector
-from perception.learning import lerobot_format
+from perception.learning import lerobot_features, lerobot_format
 from perception.learning.data import Dataset, DatasetMetadata
 from perception.learning.dataset_file import save_dataset
+from perception.learning.lerobot_features import IMAGE_KEY
 from perception.learning.lerobot_format import (
-    IMAGE_KEY,
     LeRobotFolderError,
     export_lerobot,
     import_lerobot,
@@ -107,7 +107,7 @@ def test_the_folder_obeys_the_v3_layout(tmp_path, case):
     root = export_lerobot(original, tmp_path / "out").folder
     info = json.loads((root / "meta/info.json").read_text())
     assert set(info) == INFO_KEYS and info["codebase_version"] == "v3.0"
-    assert info["video_path"] is None and info["fps"] == lerobot_format.FPS
+    assert info["video_path"] is None and info["fps"] == lerobot_features.FPS
     episodes = pq.read_table(root / "meta/episodes/chunk-000/file-000.parquet").to_pylist()
     paths = {info["data_path"].format(chunk_index=e["data/chunk_index"],
                                       file_index=e["data/file_index"]) for e in episodes}
@@ -154,12 +154,12 @@ def test_the_folder_obeys_the_v3_layout(tmp_path, case):
     assert all(set(s) == STATS for s in stats.values())
     assert np.shape(stats[IMAGE_KEY]["mean"]) == (3, 1, 1)
     assert np.allclose(stats["action"]["mean"], original.labels.reshape(len(original), -1).mean(0))
-    has = {lerobot_format.DEPTH_KEY, lerobot_format.STATE_KEY} <= set(info["features"])
+    has = {lerobot_features.DEPTH_KEY, lerobot_features.STATE_KEY} <= set(info["features"])
     assert has == (original.depths_m is not None)
     if has:  # depth's stats over its finite pixels: JSON holds no inf
-        assert np.isclose(stats[lerobot_format.DEPTH_KEY]["max"][0],
+        assert np.isclose(stats[lerobot_features.DEPTH_KEY]["max"][0],
                           original.depths_m[np.isfinite(original.depths_m)].max())
-        assert info["features"][lerobot_format.STATE_KEY]["names"] == ["j1", "j2", "gripper"]
+        assert info["features"][lerobot_features.STATE_KEY]["names"] == ["j1", "j2", "gripper"]
 
 
 def test_one_episode_per_demonstration_holds_its_pick_stages(tmp_path):

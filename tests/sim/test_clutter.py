@@ -28,8 +28,9 @@ from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.tasks.mirror_symmetry import mirror_symmetric, object_is_mirror_symmetric
 from sim.tasks.scene_picture import render_scene
-from sim.tasks.scene_sampling import SeedStream, check_task_fits, sample_scene
+from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
+from sim.tasks.task_in_scene import check_task_fits
 from sim.tasks.task_spec import MAX_OBJECTS
 from sim.tasks.task_toml import load_task, task_from_toml, task_to_toml
 from sim.trials.collector import _task_json

@@ -6,14 +6,9 @@ import pytest
 
 from perception.interface import ConditionKind
 from sim.errors import InvalidInputError
-from sim.tasks.scene_sampling import (
-    MAX_PLACEMENT_CANDIDATES,
-    SeedStream,
-    check_task_fits,
-    max_spaced_points,
-    sample_scene,
-)
+from sim.tasks.scene_sampling import MAX_PLACEMENT_CANDIDATES, SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE, get_scene_spec
+from sim.tasks.task_in_scene import check_task_fits, max_spaced_points
 from sim.tasks.task_spec import MAX_OBJECTS
 from sim.tasks.task_toml import builtin_tasks, load_task, task_from_toml
 

@@ -22,7 +22,8 @@ from sim.trials.records import TrialOutcome
 from sim.trials.trial_settings import TrialSettings
 from sim.world.head_camera import HeadCamera, camera_config
 from sim.world.paper_world import PaperWorldConfig
-from sim.world.yumi_world import MAX_WAIT_S, World, check_wait_s
+from sim.world.world_config import MAX_WAIT_S, check_wait_s
+from sim.world.yumi_world import World
 
 CLUTTER = TaskSpec(name="clutter", objects=ObjectChoice.RANDOM, count=3, min_spacing_m=0.11)
 

@@ -23,10 +23,11 @@ from sim.tasks.task_sensor import seen_through
 from sim.tasks.task_spec import spaced_for
 from sim.tasks.task_toml import load_task
 from sim.trials.collector import CollectSettings, collect
+from sim.trials.model_fit import check_camera
 from sim.trials.records import TrialOutcome
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_scenes import trial_scene
-from sim.trials.trial_settings import TrialSettings, check_camera
+from sim.trials.trial_settings import TrialSettings
 from sim.world.head_camera import CameraConfig, HeadCamera, camera_config
 
 HEAD_CAMERA_RECORD = (

@@ -17,7 +17,8 @@ from perception.grasps import grasp_pose
 from robots import yumi
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError, SimError
-from sim.world.yumi_world import MAX_WAIT_S, World, WorldConfig
+from sim.world.world_config import MAX_WAIT_S, WorldConfig
+from sim.world.yumi_world import World
 
 ARMS = [*yumi.ARM_JOINTS["r"], *yumi.ARM_JOINTS["l"]]
 
