@@ -17,11 +17,11 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from perception.interface import Condition, ConditionKind, InvalidInputError, ModelInput, Prediction
+from perception.interface import Condition, InvalidInputError, ModelInput, Prediction
 from perception.learning.data import Dataset
 from perception.learning.evaluate import evaluate
 from perception.learning.learnable import ModelSpec
-from perception.learning.mirror import MIRROR_FLAG, Mirror
+from perception.learning.mirror import Mirror
 from perception.learning.torch_pieces import (
     LabelScaler,
     images_to_tensor,
@@ -32,6 +32,7 @@ from perception.learning.train import Batch, TrainConfig, TrainReport, train
 from perception.learning.validation import split_scenes
 from perception.models.kqv_config import INFERENCE_FIELDS, KqvConfig
 from perception.models.kqv_net import KqvNet
+from perception.models.kqv_samples import mirror_for, named_dataset
 from perception.models.repaint import Repaint
 from perception.models.rise import checked_depths
 from perception.models.torch_model import Phase, TorchModel, present_mean
@@ -130,8 +131,9 @@ class KqvModel(TorchModel):
             if self.network.reader is not None:  # which words name which target
                 self._reader = self._fit_reader(dataset)
                 self.network.reader.load_state_dict(self._reader.state_dict())
-        self._mirror = self._mirror_for(dataset, config.seed)
-        named = self._named(dataset)
+        self._mirror = mirror_for(self.spec, self.config.mirror, dataset, self.network.prototypes,
+                                  config.seed)
+        named = named_dataset(dataset, self.network.prototypes)
         try:
             pose = self._fit_pose(dataset, named, fresh, config, progress)
         finally:
@@ -163,41 +165,6 @@ class KqvModel(TorchModel):
         self.report = replace(TrainReport.chain([start, rest], ("starts", "targets")),
                               config=config)
         return self.report
-
-    def _named(self, dataset: Dataset) -> Dataset:
-        """The dataset as the Queries train on it: each sentence replaced by what it names.
-
-        A model that reads a sentence by prototypes gives it the Query of the target it reads
-        as. A training sentence that reads as another target (MiniLM puts "left" and "right"
-        close) would then train that target's Query on this one's object, half a table away.
-        The scene records say what each sentence names, so each training sentence becomes its
-        named target's prototype (at unit length), which reads as that target: every target's
-        Query trains on exactly the scenes that name it. Other datasets are returned as given.
-        """
-        prototypes = self.network.prototypes
-        if prototypes is None:
-            return dataset
-        rows = prototypes.numpy()  # (k, C); zeros for a choice no sample names (none is asked)
-        units = rows / np.maximum(np.linalg.norm(rows, axis=1, keepdims=True), 1e-12)
-        choices = dataset.metadata.condition_choices
-        named = [choices.index(name) for name in dataset.condition_names()]
-        return replace(dataset, conditions=units[named].astype(np.float32))
-
-    def _mirror_for(self, dataset: Dataset, seed: int) -> Mirror | None:
-        """The mirror :attr:`KqvConfig.mirror` asks for (None: where the dataset allows it).
-
-        A sentence task mirrors only where each sentence trains as its named target's row (the
-        prototype readings): the mirrored sample gets the other side's row. One that reads the
-        embedding itself cannot say which side a sentence names, so it is not mirrored.
-        """
-        prototypes = self.network.prototypes
-        rows = None if prototypes is None else unit(prototypes, dim=-1).numpy()
-        mirror = self.config.mirror
-        if mirror is None:
-            mirror = dataset.metadata.extra.get(MIRROR_FLAG) is True and (
-                self.spec.condition_kind is not ConditionKind.TEXT or rows is not None)
-        return Mirror(self.spec, seed, rows if self.spec.condition_kind is
-                      ConditionKind.TEXT else None) if mirror else None
 
     def _fit_reader(self, dataset: Dataset) -> TokenReader:
         """A :class:`TokenReader` trained on ``dataset``'s distinct sentences and their targets.
@@ -250,7 +217,7 @@ class KqvModel(TorchModel):
         short = replace(config, steps=self.config.start_steps,
                         batch_size=self.config.start_batch_size or config.batch_size)
         kept, held = split_scenes(dataset, self.config.start_holdout, config.seed)
-        kept = self._named(kept)
+        kept = named_dataset(kept, self.network.prototypes)
         tried: list[tuple[float, float, float, int, KqvNet, TrainReport]] = []
         for number in range(self.config.starts):
             seed = self.config.seed if number == 0 else int(

@@ -127,9 +127,9 @@ def test_kqv_mirrors_samples_when_told_or_when_the_dataset_allows_it(mirror, fla
     seen = []
     original = model.network.forward
 
-    def recording(images, conditions, queries=None, depths_m=None):
+    def recording(images, conditions, queries=None, depths_m=None, value_images=None):
         seen.append(images.clone())
-        return original(images, conditions, queries, depths_m)
+        return original(images, conditions, queries, depths_m, value_images)
 
     model.network.forward = recording  # type: ignore[method-assign]
     model.fit(dataset, TrainConfig(steps=3, batch_size=8, augment=False, threads=1),
