@@ -17,7 +17,8 @@ from perception.catalog import get_object_spec
 from perception.drawing import write_png
 from perception.grasps import grasp_pose
 from robots.yumi import YUMI
-from sim.world.head_camera import HeadCamera, Lighting, camera_config
+from sim.world.head_camera import HeadCamera, camera_config
+from sim.world.lighting import Lighting
 from sim.world.yumi_world import World
 
 out = Path(sys.argv[1] if len(sys.argv) > 1 else "runs/renders")

@@ -19,7 +19,7 @@ from sim.tasks.scene_specs import YUMI_SCENE
 from sim.trials.gif_recorder import TrialRecorder, join_trials, write_gif
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_settings import TrialSettings, load_trial_model, torch_threads
-from sim.world.head_camera import Lighting
+from sim.world.lighting import Lighting
 
 
 def record_gif(model_name: str, trials: TrialSettings, count: int, path: Path

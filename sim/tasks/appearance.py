@@ -37,7 +37,7 @@ import numpy as np
 from perception.catalog import OBJECT_TYPES, get_object_spec
 from sim.errors import InvalidInputError
 from sim.tasks.toml_file import read_toml_file
-from sim.world.head_camera import Lighting
+from sim.world.lighting import Lighting
 from sim.world.looks import (
     TABLE_LOOKS,
     LightLook,

@@ -32,7 +32,7 @@ from sim.tasks.queries import query_for
 from sim.tasks.scene_specs import SceneSpec
 from sim.tasks.task_in_scene import check_task_fits, describe_region, placement_region
 from sim.tasks.task_spec import SIDES, ObjectChoice, TargetSelection, TaskSpec
-from sim.world.head_camera import Lighting
+from sim.world.lighting import Lighting
 from sim.world.looks import SceneLook
 
 MAX_PLACEMENT_TRIES = 200

@@ -41,7 +41,8 @@ from perception.files import atomic_write
 from perception.interface import Prediction
 from robots.description import CameraMount
 from sim.errors import InvalidInputError
-from sim.world.head_camera import CameraConfig, HeadCamera, Lighting
+from sim.world.head_camera import CameraConfig, HeadCamera
+from sim.world.lighting import Lighting
 from sim.world.yumi_world import World
 
 GRASP_DOT_PX = 2.0

@@ -3,7 +3,7 @@
 A :class:`SceneLook` is drawn per scene by :mod:`sim.tasks.appearance` from a task's
 appearance conditions and applied here: :func:`dress_object` recolours and textures a body,
 :func:`dress_table` the table top, :func:`lighting_for` turns a drawn light into the renderer's
-:class:`~sim.world.head_camera.Lighting`, :func:`moved_camera` moves the head camera's mount.
+:class:`~sim.world.lighting.Lighting`, :func:`moved_camera` moves the head camera's mount.
 Nothing here changes a body's shape or physics: a look is for the camera only, so the same
 scene picks the same way whatever it looks like.
 
@@ -26,7 +26,8 @@ import numpy as np
 
 from perception.catalog import ObjectSpec
 from sim.errors import InvalidInputError
-from sim.world.head_camera import CameraConfig, Lighting, TintedLighting
+from sim.world.head_camera import CameraConfig
+from sim.world.lighting import Lighting, TintedLighting
 from sim.world.textures import TextureKind, texture_file
 
 HEX_DIGITS = 6

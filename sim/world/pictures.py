@@ -25,7 +25,8 @@ from perception.interface import PICTURE_PX
 from robots.description import CameraMount
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError
-from sim.world.head_camera import CameraConfig, HeadCamera, Lighting
+from sim.world.head_camera import CameraConfig, HeadCamera
+from sim.world.lighting import Lighting
 from sim.world.paper_world import PaperWorld
 from sim.world.yumi_world import World
 

@@ -17,13 +17,8 @@ from robots import get_robot
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.tasks.scene_specs import YUMI_SCENE
-from sim.world.head_camera import (
-    FOCUS_BEFORE_RECORDED_PX,
-    CameraConfig,
-    HeadCamera,
-    Lighting,
-    camera_config,
-)
+from sim.world.head_camera import FOCUS_BEFORE_RECORDED_PX, CameraConfig, HeadCamera, camera_config
+from sim.world.lighting import Lighting
 from sim.world.paper_world import PaperWorldConfig
 from sim.world.yumi_world import World
 

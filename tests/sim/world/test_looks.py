@@ -10,7 +10,8 @@ import pytest
 from perception.catalog import SPONGE, get_object_spec
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError
-from sim.world.head_camera import CameraConfig, HeadCamera, Lighting, camera_config
+from sim.world.head_camera import CameraConfig, HeadCamera, camera_config
+from sim.world.lighting import Lighting
 from sim.world.looks import (
     LightLook,
     MountOffset,

@@ -14,7 +14,8 @@ from robots import yumi
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.world.d435 import D435Config
-from sim.world.head_camera import CameraConfig, HeadCamera, Lighting, camera_config
+from sim.world.head_camera import CameraConfig, HeadCamera, camera_config
+from sim.world.lighting import Lighting
 from sim.world.sensor import SensorConfig, SensorKind, SensorSeed
 from sim.world.yumi_world import World
 
