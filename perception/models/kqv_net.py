@@ -285,13 +285,16 @@ class KqvNet(nn.Module):
         images for the Value map alone (training's repainted copies, ``KqvConfig.repaint``).
         """
         x = normalise_images(images, self.per_image)  # (B, 3, H, W)
-        seen = x if value_images is None else normalise_images(value_images, self.per_image)
+        seen = None if value_images is None else normalise_images(value_images, self.per_image)
         if self.depth_input:
             if depths_m is None:
                 raise InvalidInputError("depth", None, "each image's depth, for a kqv model "
                                         "with depth_input = true")
             rise = rise_above_table(depths_m.to(images))[:, None] / RISE_SCALE_M  # (B, 1, H, W)
-            x, seen = torch.cat([x, rise], dim=1), torch.cat([seen, rise], dim=1)  # (B, 4, H, W)
+            x = torch.cat([x, rise], dim=1)  # (B, 4, H, W)
+            if seen is not None:
+                seen = torch.cat([seen, rise], dim=1)
+        seen = x if seen is None else seen  # the Value map's input: the Key's, or repainted
         keys = self.key_net(x)  # (B, Ck + 2, h, w)
         values = self.value_net(seen[:, 3:] if self.values_from_depth else seen)  # (B, Cv, h, w)
         height, width = keys.shape[-2:]
