@@ -294,6 +294,10 @@ class PickPlanner:
             why = f"{error.result} ({error.detail or error})"
         if moving is not None and not self._moving_vias:
             return None, why
+        far = q0.copy()
+        far[index] = q_far[index]
+        if self.checker.check(far).in_collision:  # every via option ends (or starts) there
+            return None, f"{why}, and no via pose clears it"
         for height_m in self.config.via_heights_m:
             near_via = self._raised(arm, q0, height_m)
             far_via = self._raised(arm, q_far, height_m)
