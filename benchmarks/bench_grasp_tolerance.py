@@ -12,9 +12,10 @@ the approach, where too deep and too shallow differ) and for the turn. The physi
 exactly as in ``gva trials`` (the same runner, planner and depth obstacles). The record is what
 :mod:`perception.grasp_tolerance` reads; it keeps how it was made under ``how``.
 
-The grid was measured in two passes (:data:`FIRST_PASS`, then the rows and columns the second
-added where the first went from every pick held to none within one step); each cell's scenes
-and signs follow from its place in its pass, so a run from scratch measures the same picks.
+The grid was measured in passes (:data:`PASSES`: each adds rows and columns where the one before
+went from every pick held to none within one step, or stopped while all held); each cell's
+scenes and signs follow from its place in its pass, so a run from scratch measures the same
+picks.
 ``--extend FILE`` keeps the cells FILE holds and measures the rest.
 
 ``--joint N`` adds, per object type, N picks with every error at once, each drawn uniformly
@@ -65,17 +66,27 @@ FIRST_PASS_OFFSETS_MM = {
     "across": (0.0, 5.0, 10.0, 20.0, 30.0, 40.0),
     "approach": (-20.0, -10.0, -5.0, 0.0, 5.0, 10.0, 20.0),
 }
-FIRST_PASS = (FIRST_PASS_YAW_DEG, FIRST_PASS_OFFSETS_MM)
-"""The first grid. The second adds turns of 25, 35 and 40 degrees (the sponge and the bottle
-went from 5 of 5 to none between 20 and 45), closing offsets of 7 and 8 mm (the bottle: 5 of 5
-at 6 mm, none at 9) and of 30 and 40 mm (the mug still held 3 of 5 at 25), across offsets of
-15 and 50 mm, and an approach 15 mm deeper (the bottle: all at 10, none at 20)."""
-YAW_DEG = (0.0, 10.0, 20.0, 25.0, 30.0, 35.0, 40.0, 45.0, 60.0, 90.0)
-OFFSETS_MM = {
+SECOND_PASS_OFFSETS_MM = {
     "closing": (0.0, 3.0, 6.0, 7.0, 8.0, 9.0, 12.0, 16.0, 20.0, 25.0, 30.0, 40.0),
     "across": (0.0, 5.0, 10.0, 15.0, 20.0, 30.0, 40.0, 50.0),
     "approach": (-20.0, -10.0, -5.0, 0.0, 5.0, 10.0, 15.0, 20.0),
 }
+YAW_DEG = (0.0, 10.0, 20.0, 25.0, 30.0, 35.0, 40.0, 45.0, 60.0, 90.0)
+OFFSETS_MM = {**SECOND_PASS_OFFSETS_MM,
+              "approach": (-40.0, -30.0, *SECOND_PASS_OFFSETS_MM["approach"], 30.0, 40.0)}
+PASSES = (
+    (FIRST_PASS_YAW_DEG, FIRST_PASS_OFFSETS_MM),
+    (YAW_DEG, SECOND_PASS_OFFSETS_MM),
+    (YAW_DEG, OFFSETS_MM),
+)
+"""The grids, in the order they were measured; each pass measures the cells its grid adds.
+
+The second adds turns of 25, 35 and 40 degrees (the sponge and the bottle went from 5 of 5 to
+none between 20 and 45), closing offsets of 7 and 8 mm (the bottle: 5 of 5 at 6 mm, none at 9)
+and of 30 and 40 mm (the mug still held 3 of 5 at 25), across offsets of 15 and 50 mm, and an
+approach 15 mm deeper (the bottle: all at 10, none at 20). The third adds approaches 30 and
+40 mm short and deep: every type held 5 of 5 at 20 mm short, and trained models' picks came
+29 mm short (issue 63: bottles the judge read by extrapolation at p = 0.97 missed)."""
 THRESHOLD = 0.5
 """The estimated chance at or above which the judge predicts a pick holds (fixed a priori)."""
 TASK = "single"
@@ -234,20 +245,21 @@ def _grid(yaws: tuple[float, ...], offsets: dict[str, tuple[float, ...]]
 
 
 def cells(n: int) -> list[Cell]:
-    """Every cell of the map: the first pass's, then the second's (see :data:`FIRST_PASS`)."""
+    """Every cell of the map, pass by pass (see :data:`PASSES`)."""
     pools = scenes_by_type(SCENES_PER_TYPE)
-    first = _grid(*FIRST_PASS)
-    second = [key for key in _grid(YAW_DEG, OFFSETS_MM) if key not in set(first)]
+    passes: list[list[tuple[str, float, float]]] = []
+    for grid in PASSES:
+        earlier = {key for keys in passes for key in keys}
+        passes.append([key for key in _grid(*grid) if key not in earlier])
     made: list[Cell] = []
     for object_type in OBJECT_TYPES:
         pool = pools[object_type]
         kind = OBJECT_TYPES.index(object_type)
-        numbered = [*((k, MAP_SEED + 1000 * kind + k, key) for k, key in enumerate(first)),
-                    *((1000 + k, MAP_SEED + 100_000 + 1000 * kind + k, key)
-                      for k, key in enumerate(second))]
-        for number, seed, (axis, offset, yaw) in numbered:
-            scenes = tuple(pool[(number * n + j) % len(pool)] for j in range(n))
-            made.append(Cell(object_type, axis, offset, yaw, scenes, seed))
+        for p, keys in enumerate(passes):
+            for k, (axis, offset, yaw) in enumerate(keys):
+                number, seed = 1000 * p + k, MAP_SEED + 100_000 * p + 1000 * kind + k
+                scenes = tuple(pool[(number * n + j) % len(pool)] for j in range(n))
+                made.append(Cell(object_type, axis, offset, yaw, scenes, seed))
     return made
 
 
