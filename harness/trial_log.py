@@ -15,7 +15,7 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-from harness.run_folder import claim_run_folder
+from harness.run_folder import PROVENANCE_KEY, claim_run_folder, json_form
 from harness.trial_summary import TrialSummary
 from sim.errors import RunFolderError
 from sim.trials.records import RECORD_FORMAT_VERSION, TrialRecord, record_lines, record_of_line
@@ -36,8 +36,8 @@ class TrialLog:
                  provenance: Mapping[str, Any] | None = None) -> None:
         self.folder = Path(folder)
         self.path = self.folder / "trials.jsonl"
-        self.settings = claim_run_folder(self.folder, {"format_version": RECORD_FORMAT_VERSION,
-                                                       **settings}, provenance=provenance)
+        self.settings = claim_run_folder(self.folder, log_identity(settings),
+                                         provenance=provenance)
         self.records: dict[int, TrialRecord] = dict(self._read())
 
     def _read(self) -> Iterator[tuple[int, TrialRecord]]:
@@ -71,3 +71,24 @@ class TrialLog:
     def summary(self, n: int) -> TrialSummary:
         """The summary of trials ``0 .. n-1``."""
         return TrialSummary.of([self.records[i] for i in range(n) if i in self.records])
+
+
+def log_identity(settings: Mapping[str, Any]) -> dict[str, Any]:
+    """What a trial folder's ``run.json`` holds to identify the run ``settings`` identify."""
+    return json_form({"format_version": RECORD_FORMAT_VERSION, **settings})
+
+
+def stored_identity(folder: Path) -> dict[str, Any] | None:
+    """The identity ``folder``'s ``run.json`` holds (its sessions left out); None: none yet.
+
+    With :func:`log_identity`, a caller can refuse a folder begun with other settings before
+    any trial runs (:func:`harness.run_files.refuse_other_settings`), not when it opens it.
+    """
+    path = folder / "run.json"
+    if not path.exists():
+        return None
+    try:
+        stored = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise RunFolderError(f"{path} is damaged ({error}); use another --out") from None
+    return {key: value for key, value in stored.items() if key != PROVENANCE_KEY}

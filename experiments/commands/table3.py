@@ -45,8 +45,9 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         help=f"comma-separated (default the paper's: {','.join(defaults.tasks)}; "
                         f"beyond it: {','.join(BEYOND_TASKS)})")
     parser.add_argument("--models", type=names, default=defaults.models,
-                        help="comma-separated names gva train takes, e.g. kqv,keypoint-16,fcn "
-                        f"(default {','.join(defaults.models)})")
+                        help="comma-separated names gva train takes, e.g. kqv,keypoint-16,fcn, "
+                        "or plug-ins package.module:Class, tried untrained on the same scenes "
+                        f"(docs/plugins.md; default {','.join(defaults.models)})")
     add_model_config_option(parser)
     parser.add_argument("--n", type=integer(1), default=defaults.n,
                         help="trials per model and task (%(default)s)")

@@ -6,7 +6,7 @@ Each job is a small frozen dataclass handed to a function that runs in a worker 
 traceback) and the run goes on; the jobs that needed its output are left out and named.
 Finished work is found on disk before the run starts, so a re-run skips it; a job starts
 as soon as what it needs is there (a training its task's demonstrations, trials their
-checkpoint), so both cores stay busy across tasks and seeds.
+checkpoint; a plug-in's trials nothing), so both cores stay busy across tasks and seeds.
 """
 
 from __future__ import annotations
@@ -48,6 +48,7 @@ from harness.run_files import (
 from harness.run_folder import json_form
 from harness.run_loop import run_trials
 from harness.run_report import cost_bar
+from harness.trial_log import log_identity, stored_identity
 from perception.learning.dataset_file import DatasetError, load_dataset
 from perception.learning.train import TrainConfig
 from perception.learning.validation import fit_checked, write_check
@@ -278,11 +279,18 @@ def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
     collects: list[CollectJob] = []
     trains: list[TrainJob] = []
     for run_settings, folder in runs:
-        units = run_settings.units()
+        plugins = run_settings.plugins()
+        units = [unit for unit in run_settings.units() if unit.model not in plugins]
         refuse_other_settings(
             [(str(path), read_json(path)["identity"], run_settings.train_identity(unit))
              for unit in units if (path := trained_file(folder, unit)).exists()],
             "checkpoint(s)")
+        refuse_other_settings(  # a plug-in's identity: what gva trials records in run.json
+            [(str(trials_folder(folder, s)), stored,
+              log_identity(run_settings.trial_settings(folder, s).identity()))
+             for s in run_settings.trial_sets() if s.unit.model in plugins
+             and (stored := stored_identity(trials_folder(folder, s))) is not None],
+            "plug-in trial set(s)")
         tasks = sorted({u.task for u in units}, key=[u.task for u in units].index)
         collects += [CollectJob(f"collect-{t}-s{run_settings.seed}", t, run_settings, folder)
                      for t in tasks]
@@ -372,9 +380,11 @@ def _trial_jobs(settings: ReproduceRealSettings, out: Path, unit: Unit | None = 
     """
     todo: list[Job] = []
     skipped: list[str] = []
+    plugins = settings.plugins()
     for trial_set in settings.trial_sets():
-        if unit not in (None, trial_set.unit) or not trained_file(out, trial_set.unit).exists():
-            continue  # its training failed: its error file names it
+        if unit not in (None, trial_set.unit) or not (
+                trial_set.unit.model in plugins or trained_file(out, trial_set.unit).exists()):
+            continue  # its training failed (its error file names it); a plug-in needs none
         trials = settings.trial_settings(out, trial_set)
         job = TrialsJob(f"trials-{trial_set.name}-s{settings.seed}", trial_set, trials, out)
         candidates: list[tuple[Job, bool]] = [(job, trials_done(job))]

@@ -338,6 +338,9 @@ def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float
                "process(es). Last run: "
                f"{duration(wall_time_s)} wall time; every run into this folder together: "
                f"{duration(all_runs_s)}.")
+    if plugins := settings.plugins():  # tried as they are: no demonstrations, no training
+        made_by += (" Plug-ins, untrained, on the same test scenes: "
+                    + ", ".join(f"`{plugin}`" for plugin in plugins) + ".")
     table = {"seeds": seeds} | table3_json(sets) | {
         "gifs": gifs,
         "settings": settings.shared_identity() | {
@@ -345,7 +348,8 @@ def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float
             "tasks": list(settings.tasks), "variants": list(settings.variants),
             "balance_types": settings.balance_types,
             "sensor": SensorConfig(settings.sensor).to_json(), "workers": settings.worker_count(),
-            "model_configs": {f.model: f.to_json() for f in settings.model_configs}},
+            "model_configs": {f.model: f.to_json() for f in settings.model_configs}} | (
+                {"plugins": list(plugins)} if plugins else {}),
         "wall_time_s": wall_time_s, "wall_time_all_runs_s": all_runs_s, "failed": failed,
         "checks": checks, "provenance": session}
     paths = [out / "table3.json", out / "table3.md"]

@@ -1,8 +1,8 @@
 """What ``gva reproduce real`` runs: settings, units, trial sets, and where a folder keeps them.
 
-A unit is one model trained on one task; a trial set is a unit's trials under a variant (as
-trained, or under one of the run's variants: darker light, the block, other looks). Each
-seed's run has its own folder ``OUT/s<seed>/``.
+A unit is one model on one task (trained, or a plug-in tried as it is); a trial set is a
+unit's trials under a variant (as trained, or under one of the run's variants: darker light,
+the block, other looks). Each seed's run has its own folder ``OUT/s<seed>/``.
 """
 
 from __future__ import annotations
@@ -11,6 +11,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from experiments.table3.plugins import check_plugins, is_plugin
 from experiments.tables import (
     ALL_TASKS,
     TASKS,
@@ -75,7 +76,7 @@ def variant_task(task: str, variant: str, sensor: SensorKind = SensorKind.IDEAL,
 
 @dataclass(frozen=True)
 class Unit:
-    """One model trained on one task."""
+    """One model on one task: trained on it, or a plug-in tried as it is (:mod:`.plugins`)."""
 
     model: str
     task: str
@@ -110,7 +111,9 @@ class ReproduceRealSettings:
     """What ``gva reproduce real`` runs; its fields' defaults are the command's.
 
     Args:
-        models: Models to train, names :func:`~perception.registry.new_model` takes.
+        models: Models to train, names :func:`~perception.registry.new_model` takes, or
+            plug-ins without weights (``package.module:Class``), tried untrained on the same
+            scenes (:mod:`experiments.table3.plugins`).
         tasks: Tasks, from :data:`~experiments.tables.ALL_TASKS` (default: the paper's).
         n: Trials per model and task (the paper's 30).
         demos: Demonstrations per task (the paper's 20).
@@ -189,6 +192,7 @@ class ReproduceRealSettings:
             raise InvalidInputError("sensor", self.sensor,
                                     f"one of {', '.join(k.value for k in SensorKind)}")
         check_models(self.models)
+        check_plugins(self.plugins(), self.tasks, self.sensor, self.robot)
         check_choices("tasks", self.tasks, ALL_TASKS)
         check_model_configs([(f.model, f.path) for f in self.model_configs], self.models)
         check_counts(self, {"n": 1, "demos": 1, "steps": 1, "seed": 0, "seeds": 1,
@@ -202,6 +206,10 @@ class ReproduceRealSettings:
     def for_seed(self, seed: int) -> ReproduceRealSettings:
         """The settings of one seed's run (its folder is :func:`seed_folder`)."""
         return replace(self, seed=seed, seeds=1)
+
+    def plugins(self) -> tuple[str, ...]:
+        """The models tried untrained: plug-ins without weights (:func:`.plugins.is_plugin`)."""
+        return tuple(model for model in self.models if is_plugin(model))
 
     def units(self) -> list[Unit]:
         """Every unit: models in the given order, tasks in the paper's, then those beyond it."""
@@ -290,8 +298,10 @@ class ReproduceRealSettings:
         return {} if file is None else file.hyperparameters()
 
     def trial_settings(self, out: Path, trial_set: TrialSet) -> TrialSettings:
-        """The :class:`~sim.trials.trial_settings.TrialSettings` of a set (checkpoint present)."""
-        return TrialSettings(model=str(checkpoint_folder(out, trial_set.unit)),
+        """A set's :class:`~sim.trials.trial_settings.TrialSettings`: checkpoint or plug-in."""
+        model = trial_set.unit.model
+        return TrialSettings(model=model if model in self.plugins() else
+                             str(checkpoint_folder(out, trial_set.unit)),
                              task=str(task_file(out, trial_set.task_name)), n=self.n,
                              seed=self.seed, loop=self.trial_loop(trial_set),
                              robot=self.robot)

@@ -1,0 +1,59 @@
+"""Plug-in models in ``gva reproduce real``: tried as they are, on the trained models' scenes.
+
+A ``--models`` entry ``package.module:Class`` whose class has no weights (not a
+:class:`~perception.learning.learnable.LearnableModel`; ``docs/plugins.md``) needs no
+demonstrations or training: its trial sets run the same task files, seeds and trial indices as
+a trained model's, so the reports pair it with them unchanged. A learnable class named so is
+trained as before. A plug-in is named and checked the way ``gva trials --model`` names and
+checks it (:func:`~sim.trials.trial_settings.load_trial_model`), so its trial folders record
+the identity ``gva trials`` records.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from experiments.tables import allowed_models
+from perception.errors import InvalidInputError as PluginError
+from perception.learning.learnable import LearnableModel
+from perception.plugins import is_class_path, plugin_class
+from sim.errors import InvalidInputError
+from sim.trials.trial_settings import TrialSettings, load_trial_model
+from sim.world.sensor import SensorKind
+
+
+def is_plugin(model: str) -> bool:
+    """Whether ``model`` (a ``--models`` entry) is a plug-in tried untrained.
+
+    True for ``package.module:Class`` of a class without weights; False for a registered name
+    or preset, and for a learnable class (trained like a registered model).
+
+    Raises:
+        InvalidInputError: ``model`` is ``package.module:Class`` and the class cannot be found
+            (its module does not import, it lacks the class, or the class is no model); the
+            message names ``models``, the spec and why.
+
+    """
+    if model in allowed_models() or not is_class_path(model):
+        return False
+    try:
+        cls = plugin_class(model)
+    except PluginError as error:
+        raise InvalidInputError("models", model, f"one of {', '.join(allowed_models())}, or "
+                                f"'package.module:Class' of a model ({error.allowed})") from None
+    return not issubclass(cls, LearnableModel)
+
+
+def check_plugins(plugins: Sequence[str], tasks: Sequence[str], sensor: SensorKind,
+                  robot: str) -> None:
+    """Raises unless each plug-in serves each task as ``gva trials --model SPEC`` requires.
+
+    Each is built and checked against each task by
+    :func:`~sim.trials.trial_settings.load_trial_model` (built with no arguments, a name, the
+    inputs a trial gives, grasp poses), in a few milliseconds: a run refuses a plug-in before
+    it writes anything, with the message ``gva trials`` gives.
+    """
+    for plugin in plugins:
+        for task in tasks:
+            load_trial_model(TrialSettings(model=plugin, task=task, n=1, sensor=sensor,
+                                           robot=robot))
