@@ -3,7 +3,9 @@
 The grasp judge gives each pick a probability of holding (its tolerance map's success rate).
 Scored as a probability, not as a yes or no: how well it ranks picks (AUC), how close it is
 (Brier score, and its skill over always saying the base rate), whether it expects as many misses
-as happened (the expected count and its 95 % range under the judge's own probabilities), and a
+as happened, read both ways: the expected count inside the observed count's 95 % interval (the
+sampling noise of the misses that happened; issue 63's bar), and the observed count inside the
+expected count's 95 % range under the judge's own probabilities (their spread); and a
 reliability table (the rate observed in each bin of the probability).
 """
 
@@ -14,6 +16,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from harness.trial_summary import wilson_interval
 from sim.errors import InvalidInputError
 
 BINS = 5
@@ -54,6 +57,8 @@ class Calibration:
         expected_misses: The misses the probabilities expect, the sum of ``1 - p``.
         expected_low, expected_high: Its 95 % range: ``expected ± 1.96 sqrt(sum p (1 - p))``
             (the misses' count is a sum of independent Bernoulli trials).
+        observed_low, observed_high: The observed misses' 95 % interval (Wilson's, of the
+            miss rate, times the picks).
         reliability: The observed success rate per bin of probability.
 
     """
@@ -67,6 +72,8 @@ class Calibration:
     expected_misses: float
     expected_low: float
     expected_high: float
+    observed_low: float
+    observed_high: float
     reliability: tuple[ReliabilityBin, ...]
 
     @classmethod
@@ -89,10 +96,17 @@ class Calibration:
         base = rate * (1.0 - rate)
         expected = sum(1.0 - p for p, _ in pairs)
         spread = Z_95 * math.sqrt(sum(p * (1.0 - p) for p, _ in pairs))
+        low, high = wilson_interval(n - sum(held), n, Z_95)
         return cls(picks=n, misses=n - sum(held), auc=_auc(pairs), brier=brier,
                    base_brier=base, skill=None if base == 0.0 else 1.0 - brier / base,
                    expected_misses=expected, expected_low=max(0.0, expected - spread),
-                   expected_high=expected + spread, reliability=_bins(pairs))
+                   expected_high=expected + spread, observed_low=low * n,
+                   observed_high=high * n, reliability=_bins(pairs))
+
+    @property
+    def expected_as_observed(self) -> bool:
+        """Whether the expected misses lie within the observed count's 95 % interval."""
+        return self.observed_low <= self.expected_misses <= self.observed_high
 
     @property
     def misses_as_expected(self) -> bool:
@@ -103,11 +117,12 @@ class Calibration:
         """One line for the report."""
         auc = "-" if self.auc is None else f"{self.auc:.3f}"
         skill = "-" if self.skill is None else f"{100 * self.skill:.0f} %"
-        verdict = "within" if self.misses_as_expected else "outside"
         return (f"AUC {auc}, Brier {self.brier:.4f} (base rate {self.base_brier:.4f}, skill "
                 f"{skill}); expected misses {self.expected_misses:.1f} (95 % range "
-                f"{self.expected_low:.1f}-{self.expected_high:.1f}), observed {self.misses}: "
-                f"{verdict}")
+                f"{self.expected_low:.1f}-{self.expected_high:.1f}), observed {self.misses} "
+                f"(95 % interval {self.observed_low:.1f}-{self.observed_high:.1f}): observed "
+                f"{_inside(self.misses_as_expected)} the expected range, expected "
+                f"{_inside(self.expected_as_observed)} the observed interval")
 
     def to_json(self) -> dict[str, Any]:
         """The score as ``gva judge --json`` writes it."""
@@ -116,7 +131,13 @@ class Calibration:
                 "expected_misses": self.expected_misses,
                 "expected_misses_95": [self.expected_low, self.expected_high],
                 "misses_as_expected": self.misses_as_expected,
+                "observed_misses_95": [self.observed_low, self.observed_high],
+                "expected_as_observed": self.expected_as_observed,
                 "reliability": [b.to_json() for b in self.reliability]}
+
+
+def _inside(inside: bool) -> str:
+    return "within" if inside else "outside"
 
 
 def _auc(pairs: Sequence[tuple[float, bool]]) -> float | None:

@@ -7,6 +7,7 @@ import math
 import pytest
 
 from harness.calibration import Calibration
+from harness.trial_summary import wilson_interval
 from sim.errors import InvalidInputError
 
 
@@ -27,12 +28,28 @@ def test_brier_skill_and_expected_misses_by_hand():
     spread = 1.959964 * math.sqrt(3 * 0.09 + 0.24)
     assert score.expected_high == pytest.approx(0.7 + spread)
     assert score.misses == 1 and score.misses_as_expected
+    low, high = wilson_interval(1, 4)
+    assert (score.observed_low, score.observed_high) == pytest.approx((4 * low, 4 * high))
+    assert score.expected_as_observed  # 0.7 expected, inside 1 observed's interval
+
+
+def test_the_two_readings_of_expected_misses_can_disagree():
+    """Certain probabilities leave the expected count no range; the observed count keeps its
+    sampling noise (issue 63's bar reads the expected count against the observed)."""
+    pairs = [(0.0, False)] * 10 + [(1.0, False)] * 2 + [(1.0, True)] * 988
+    score = Calibration.of(pairs)
+    assert score.expected_misses == 10 and score.misses == 12
+    assert score.expected_low == score.expected_high == 10 and not score.misses_as_expected
+    assert score.observed_low < 10 < score.observed_high and score.expected_as_observed
+    assert "observed outside the expected range, expected within the observed interval" in (
+        score.line())
 
 
 def test_a_pessimistic_judge_expects_more_misses_than_happen():
     pairs = [(0.5, True)] * 100  # says a coin flip; every pick held
     score = Calibration.of(pairs)
     assert score.expected_misses == 50 and score.misses == 0 and not score.misses_as_expected
+    assert not score.expected_as_observed  # 0 observed: the interval stops near 4
     assert score.skill is None  # every pick ended alike: no base rate to beat
     assert "outside" in score.line()
 
