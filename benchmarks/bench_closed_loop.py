@@ -86,7 +86,8 @@ def cycle(runner: TrialRunner, index: int, seed: int, rng: np.random.Generator,
                                  remembered=remembered)
     whole_ms = (time.perf_counter() - started) * 1e3
     # the obstacles alone, to split the plan phase into perception of space and planning
-    raised, _ = clear_of_table(read.predicted, read.grip.opening_m)
+    raised, _ = clear_of_table(read.predicted, read.grip.opening_m,
+                               runner.world.description.arms[0].gripper.fingers)
     region = GraspRegion(pin.SE3(raised.matrix), read.grip.opening_m)
     timed(times, "depth obstacles", lambda: pick_obstacles(
         runner.world, runner.obstacle_source, runner.depth, sighting.frame, region, remembered))

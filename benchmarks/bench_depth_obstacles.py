@@ -87,7 +87,8 @@ def main() -> None:
                 target = prediction.targets[0]
                 grip = grip_of(target, runner.world.description.max_opening_m)
                 rotation = nearest_rotation("predicted rotation", target.rotation)
-                grasp, _ = clear_of_table(Pose(target.position_m, rotation), grip.opening_m)
+                grasp, _ = clear_of_table(Pose(target.position_m, rotation), grip.opening_m,
+                                          YUMI.arms[0].gripper.fingers)
                 region = GraspRegion(pin.SE3(grasp.matrix), grip.opening_m)
                 points, camera = frame.points_world(), np.asarray(frame.camera.position_m)
                 unknown = frame.unknown_rays()

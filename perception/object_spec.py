@@ -16,6 +16,7 @@ import numpy as np
 
 from perception.errors import InvalidInputError
 from perception.poses import Pose, rot_rpy
+from robots.description import FingerGeometry
 from robots.yumi import YUMI
 
 CATALOG_GRIPPER = YUMI.arms[0].gripper
@@ -153,28 +154,31 @@ class GraspSpec:
 
     def lowest_finger_point_z_m(self) -> float:
         """Height of the lowest fingertip corner above the table at the grasp [m]."""
-        return lowest_fingertip_z_m(self.T_object_grasp, self.opening_m)
+        return lowest_fingertip_z_m(self.T_object_grasp, self.opening_m, CATALOG_GRIPPER.fingers)
 
 
-def lowest_fingertip_z_m(T_tcp: Pose, opening_m: float) -> float:
+def lowest_fingertip_z_m(T_tcp: Pose, opening_m: float, fingers: FingerGeometry) -> float:
     """The lowest z of the open gripper's fingertip corners with its TCP at ``T_tcp`` [m]."""
     x, y, z = T_tcp.rotation.T
-    outer = opening_m / 2 + FINGER_THICKNESS_M  # outer finger faces, from the TCP
-    tip = T_tcp.position + FINGERTIP_BEYOND_TCP_M * z
-    corners = [tip + sx * outer * x + sy * FINGER_HALF_WIDTH_M * y
+    outer = opening_m / 2 + fingers.thickness_m  # outer finger faces, from the TCP
+    tip = T_tcp.position + fingers.tip_beyond_tcp_m * z
+    corners = [tip + sx * outer * x + sy * fingers.half_width_m * y
                for sx in (-1.0, 1.0) for sy in (-1.0, 1.0)]
     return float(min(c[2] for c in corners))
 
 
-def clear_of_table(T_world_tcp: Pose, opening_m: float) -> tuple[Pose, float]:
-    """``T_world_tcp`` raised just enough that the fingertips keep clear of the table.
+def clear_of_table(T_world_tcp: Pose, opening_m: float, fingers: FingerGeometry
+                   ) -> tuple[Pose, float]:
+    """``T_world_tcp`` raised just enough that ``fingers``' tips keep clear of the table.
 
     A predicted grasp a few millimetres too low would put the fingertips into the table (z = 0),
     where no plan exists; the workcell knows its table, so the grasp is lifted along the world z
     until its lowest fingertip corner is :data:`MIN_FINGERTIP_HEIGHT_M` above it. Returns the
-    pose and how far it was raised [m] (0 when it was clear already).
+    pose and how far it was raised [m] (0 when it was clear already). The fingers are the hand's
+    that picks (the Panda's tips end 9.5 mm past its TCP, the YuMi's 21.5 mm).
     """
-    raise_m = max(0.0, MIN_FINGERTIP_HEIGHT_M - lowest_fingertip_z_m(T_world_tcp, opening_m))
+    raise_m = max(0.0, MIN_FINGERTIP_HEIGHT_M
+                  - lowest_fingertip_z_m(T_world_tcp, opening_m, fingers))
     if raise_m == 0.0:
         return T_world_tcp, 0.0
     return Pose(T_world_tcp.position + np.array([0.0, 0.0, raise_m]), T_world_tcp.rotation), raise_m

@@ -350,7 +350,9 @@ class TrialRunner:
         if read.outcome is not None or read.predicted is None or read.grip is None:
             return read
         grasp, grip = read.predicted, read.grip
-        raised, raised_m = clear_of_table(grasp, grip.opening_m)
+        raised, raised_m = max(  # clear for whichever of the robot's hands picks
+            (clear_of_table(grasp, grip.opening_m, arm.gripper.fingers)
+             for arm in self.world.description.arms), key=lambda lifted: lifted[1])
         obstacles = pick_obstacles(self.world, self.obstacle_source, self.depth, frame,
                                    GraspRegion(pin.SE3(raised.matrix), grip.opening_m), remembered)
         request = PickRequest(

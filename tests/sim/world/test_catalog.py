@@ -30,6 +30,7 @@ from perception.grasps import grasp_pose
 from perception.interface import InvalidInputError
 from perception.poses import Pose
 from robots import yumi
+from robots.panda import FINGERS as PANDA_FINGERS
 from robots.yumi import YUMI
 from sim.world.yumi_world import World
 
@@ -54,15 +55,29 @@ def test_catalog_names_and_unknown_name() -> None:
 def test_a_grasp_into_the_table_is_raised_just_clear_of_it() -> None:
     sponge = get_object_spec("sponge")
     canonical = Pose.from_xy_yaw(0.45, 0.1, 0.3).compose(sponge.grasp.T_object_grasp)
-    kept, raised_m = clear_of_table(canonical, sponge.grasp.opening_m)
+    fingers = YUMI.arms[0].gripper.fingers
+    kept, raised_m = clear_of_table(canonical, sponge.grasp.opening_m, fingers)
     assert raised_m == 0.0 and kept is canonical  # the catalog grasp is clear already
     low = Pose(canonical.position - np.array([0.0, 0.0, 0.01]), canonical.rotation)
-    lifted, raised_m = clear_of_table(low, sponge.grasp.opening_m)
+    lifted, raised_m = clear_of_table(low, sponge.grasp.opening_m, fingers)
     spare_m = sponge.grasp.lowest_finger_point_z_m() - MIN_FINGERTIP_HEIGHT_M  # 1.5 mm
     assert raised_m == pytest.approx(0.01 - spare_m)
     np.testing.assert_allclose(lifted.position[:2], low.position[:2])
     np.testing.assert_array_equal(lifted.rotation, low.rotation)
-    assert clear_of_table(lifted, sponge.grasp.opening_m)[1] == pytest.approx(0.0, abs=1e-12)
+    assert clear_of_table(lifted, sponge.grasp.opening_m, fingers)[1] == pytest.approx(
+        0.0, abs=1e-12)
+
+
+def test_a_hand_with_shorter_fingers_is_raised_less() -> None:
+    """The Panda's tips end 12 mm nearer its TCP than the YuMi's: a grasp 1 cm low clears."""
+    sponge = get_object_spec("sponge")
+    low = Pose.from_xy_yaw(0.45, 0.1, 0.3).compose(sponge.grasp.T_object_grasp)
+    low = Pose(low.position - np.array([0.0, 0.0, 0.01]), low.rotation)
+    shorter = PANDA_FINGERS.tip_beyond_tcp_m
+    longer = YUMI.arms[0].gripper.fingers.tip_beyond_tcp_m
+    assert longer - shorter == pytest.approx(0.012)
+    assert clear_of_table(low, sponge.grasp.opening_m, PANDA_FINGERS)[1] == 0.0
+    assert clear_of_table(low, sponge.grasp.opening_m, YUMI.arms[0].gripper.fingers)[1] > 0.008
 
 
 def _inside(kind: PrimitiveKind, size: tuple[float, float, float], pose: Pose,
