@@ -170,7 +170,9 @@ def test_gva_train_says_loudly_that_a_starved_training_failed(tmp_path):
 
     A `paper-sim` `selected-type` dataset asked every condition, but starved: the duck's
     question is kept in one training scene only (still asked in every scene held out). The
-    trained kqv finds the others and not the duck; `gva train` marks it and exits 1.
+    trained kqv finds the others and not the duck; `gva train` marks it and exits 1. 250
+    steps (500 until issue 65's time budget): the others already lie within half the duck's
+    error.
     """
     from sim.trials.collector import CollectSettings, collect
 
@@ -184,12 +186,14 @@ def test_gva_train_says_loudly_that_a_starved_training_failed(tmp_path):
                or record["index"] == min(set(range(12)) - held_scenes)]
     save_dataset(full.subset(starved), tmp_path / "starved.gva")
     status, stdout, stderr = gva("train", "--model", "kqv", "--data", tmp_path / "starved.gva",
-                                 "--out", tmp_path / "ckpt", "--steps", "500", "--attempts",
+                                 "--out", tmp_path / "ckpt", "--steps", "250", "--attempts",
                                  "1", "--check-limit-cm", "2", "--threads", "1",
                                  "--no-progress")
     assert status == 1, stdout + stderr
     check = read_check(tmp_path / "ckpt")
     assert not check.passed and "condition 'duck'" in check.reason
-    assert check.per_condition_mean_position_error_cm["duck"] > 2.0
+    errors_cm = check.per_condition_mean_position_error_cm
+    assert errors_cm["duck"] > 2.0
+    assert max(e for c, e in errors_cm.items() if c != "duck") < errors_cm["duck"] / 2, errors_cm
     assert "WARNING: " in stderr and "failed its held-out check" in stderr
     assert "held-out check FAILED: " in stdout
