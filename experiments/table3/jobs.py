@@ -1,12 +1,10 @@
-"""The jobs of ``gva reproduce real`` and the job graph that runs them (collect, train, try).
+"""The jobs of ``gva reproduce real`` (collect, train, try, GIF); :mod:`.job_graph` runs them.
 
 Each job is a small frozen dataclass handed to a function that runs in a worker process
 (:mod:`harness.jobs`, or Ray: :mod:`harness.ray_jobs`); it writes its files itself and returns a
 :class:`JobOutcome`. A job that raises is recorded in ``OUT/errors/<job>.json`` (message and
-traceback) and the run goes on; the jobs that needed its output are left out and named.
-Finished work is found on disk before the run starts, so a re-run skips it; a job starts
-as soon as what it needs is there (a training its task's demonstrations, trials their
-checkpoint; a plug-in's trials nothing), so both cores stay busy across tasks and seeds.
+traceback) and the run goes on. :func:`trials_done` and :func:`gif_done` find finished work
+on disk, so a re-run skips it.
 """
 
 from __future__ import annotations
@@ -19,8 +17,6 @@ from typing import Any
 
 from experiments.table3.gifs import record_gif
 from experiments.table3.settings import (
-    GIF_TRIALS,
-    PLAIN,
     SCENE,
     ReproduceRealSettings,
     TrialSet,
@@ -29,26 +25,20 @@ from experiments.table3.settings import (
     dataset_file,
     error_file,
     gif_file,
-    seed_folder,
     task_file,
     trained_file,
     trials_folder,
 )
 from experiments.tables import TWO_PHASE_MODELS, model_config_file
-from harness.executors import open_pool
 from harness.jobs import ONE_CPU, JobResources
 from harness.run_files import (
     Failed,
-    dataset_present,
     guarded,
     read_json,
-    refuse_other_settings,
     write_json,
 )
 from harness.run_folder import json_form
 from harness.run_loop import run_trials
-from harness.run_report import cost_bar
-from harness.trial_log import log_identity, stored_identity
 from perception.learning.dataset_file import DatasetError, load_dataset
 from perception.learning.train import TrainConfig
 from perception.learning.validation import fit_checked, write_check
@@ -145,20 +135,21 @@ def job_resources(job: Job) -> JobResources:
     return ONE_CPU
 
 
-def _targets(task: str) -> int:
+def task_targets(task: str) -> int:
+    """How many targets a trial of ``task`` picks (``multiple``: three)."""
     return target_count(load_task(task))
 
 
 def cost(job: Job) -> float:
     """The job's estimated seconds on one core (for the progress bar)."""
     if isinstance(job, CollectJob):
-        return COLLECT_S_PER_PICK * job.settings.demos * _targets(job.task)
+        return COLLECT_S_PER_PICK * job.settings.demos * task_targets(job.task)
     if isinstance(job, TrainJob):
         phases = 1.5 if job.unit.model in TWO_PHASE_MODELS else 1.0
         return TRAIN_S_PER_STEP * job.settings.steps * phases
     if isinstance(job, TrialsJob):
-        return TRIAL_S_PER_PICK * job.trials.n * _targets(job.trial_set.unit.task)
-    return GIF_S_PER_PICK * job.count * _targets(job.unit.task)
+        return TRIAL_S_PER_PICK * job.trials.n * task_targets(job.trial_set.unit.task)
+    return GIF_S_PER_PICK * job.count * task_targets(job.unit.task)
 
 
 def run_job(job: Job) -> JobOutcome:
@@ -261,140 +252,3 @@ def gif_done(job: GifJob) -> bool:
     return (gif_file(job.out, job.unit).exists() and meta.exists()
             and read_json(meta).get("identity") == gif_identity(job))
 
-
-# the phases
-
-
-def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
-             ) -> tuple[list[JobOutcome], list[str]]:
-    """Runs every unfinished job of every seed as a job graph: (outcomes run, names skipped).
-
-    A collection releases its task's trainings and a training its trial sets and GIF, so a
-    worker starts the next job as soon as one is ready (trials of one task while the next
-    task trains) rather than wait for the slowest job of a phase. Ready jobs start by the
-    longest chain of work they lead to, so the slowest chain never starts last.
-    """
-    runs = [(settings.for_seed(seed), seed_folder(out, seed))
-            for seed in settings.training_seeds]
-    collects: list[CollectJob] = []
-    trains: list[TrainJob] = []
-    for run_settings, folder in runs:
-        plugins = run_settings.plugins()
-        units = [unit for unit in run_settings.units() if unit.model not in plugins]
-        refuse_other_settings(
-            [(str(path), read_json(path)["identity"], run_settings.train_identity(unit))
-             for unit in units if (path := trained_file(folder, unit)).exists()],
-            "checkpoint(s)")
-        refuse_other_settings(  # a plug-in's identity: what gva trials records in run.json
-            [(str(trials_folder(folder, s)), stored,
-              log_identity(run_settings.trial_settings(folder, s).identity()))
-             for s in run_settings.trial_sets() if s.unit.model in plugins
-             and (stored := stored_identity(trials_folder(folder, s))) is not None],
-            "plug-in trial set(s)")
-        tasks = sorted({u.task for u in units}, key=[u.task for u in units].index)
-        collects += [CollectJob(f"collect-{t}-s{run_settings.seed}", t, run_settings, folder)
-                     for t in tasks]
-        trains += [TrainJob(f"train-{u.name}-s{run_settings.seed}", u, run_settings,
-                            run_settings.train_identity(u), folder) for u in units]
-    collects_todo = [j for j in collects if not dataset_present(
-        dataset_file(j.out, j.task, j.settings), SCENE, str(task_file(j.out, j.task)),
-        j.settings.demos, j.settings.seed, SeedStream.TRAIN, j.settings.approach_hz,
-        robot=j.settings.description())]
-    trains_todo = [j for j in trains if not trained_file(j.out, j.unit).exists()]
-    skipped = [j.name for j in collects if j not in collects_todo]
-    skipped += [j.name for j in trains if j not in trains_todo]
-    waiting = {j.name for j in collects_todo}
-    trains_after: dict[str, list[TrainJob]] = {}  # a collection's name: the trainings it feeds
-    ready: list[Job] = list(collects_todo)
-    for job in trains_todo:
-        collect_name = f"collect-{job.unit.task}-s{job.settings.seed}"
-        if collect_name in waiting:
-            trains_after.setdefault(collect_name, []).append(job)
-        elif dataset_file(job.out, job.unit.task, job.settings).exists():
-            ready.append(job)
-    for run_settings, folder in runs:  # trials of the checkpoints that are there already
-        todo, skipped_now = _trial_jobs(run_settings, folder)
-        ready += todo
-        skipped += skipped_now
-    # Trials are not known to be finished before their checkpoint exists: estimate them as
-    # to do unless their summary is there, and make the bar exact as they are released.
-    later = {j.name: sum(_trials_estimate(j.settings, j.out, t)
-                         for t in j.settings.trial_sets() if t.unit == j.unit)
-             for j in trains_todo}
-    total = sum(map(cost, ready)) + sum(cost(j) for jobs in trains_after.values()
-                                        for j in jobs) + sum(later.values())
-    computed: list[JobOutcome] = []
-    by_name: dict[str, Job] = {job.name: job for job in ready}
-    by_name |= {j.name: j for jobs in trains_after.values() for j in jobs}
-
-    def chain(job: Job) -> float:
-        """The estimated seconds of the longest chain of jobs that starts with ``job``."""
-        if isinstance(job, CollectJob):
-            return cost(job) + max((chain(j) for j in trains_after.get(job.name, ())),
-                                   default=0.0)
-        return cost(job) + (later.get(job.name, 0.0) if isinstance(job, TrainJob) else 0.0)
-
-    with open_pool(settings.executor, settings.worker_count(), out) as pool, \
-            cost_bar(total, "reproduce real", progress) as bar:
-        def done(outcome: JobOutcome) -> list[Job]:
-            computed.append(outcome)
-            shown = "FAILED" if outcome.failure else outcome.result
-            bar.set_postfix_str(f"{len(computed)} job(s) done; last {outcome.name}: "
-                                f"{shown}", refresh=False)
-            job = by_name[outcome.name]
-            bar.update(cost(job))
-            released: list[Job] = []
-            if isinstance(job, CollectJob):
-                released += trains_after.get(job.name, [])
-                if outcome.failure is not None:  # its trainings are left out, and their trials
-                    bar.total -= sum(chain(j) for j in released)
-                    released = []
-            elif isinstance(job, TrainJob):
-                if outcome.failure is None:
-                    released, skipped_now = _trial_jobs(job.settings, job.out, job.unit)
-                    skipped.extend(skipped_now)
-                bar.total += sum(map(cost, released)) - later[job.name]  # the estimate, exact
-            bar.refresh()
-            by_name.update((j.name, j) for j in released)
-            return released  # a failed job's error file names it; what needed it is left out
-
-        pool.run(run_job, ready, done, job_resources, order=lambda job: -chain(job))
-    return computed, skipped
-
-
-def _trials_estimate(settings: ReproduceRealSettings, out: Path, trial_set: TrialSet) -> float:
-    """A set's estimated cost, and its GIF's, unless they look finished already."""
-    targets = _targets(trial_set.unit.task)
-    summary = trials_folder(out, trial_set) / "summary.json"
-    estimate = 0.0 if summary.exists() else TRIAL_S_PER_PICK * settings.n * targets
-    if trial_set.variant == PLAIN and not gif_file(out, trial_set.unit).exists():
-        estimate += GIF_S_PER_PICK * min(GIF_TRIALS, settings.n) * targets
-    return estimate
-
-
-def _trial_jobs(settings: ReproduceRealSettings, out: Path, unit: Unit | None = None
-                ) -> tuple[list[Job], list[str]]:
-    """(trial and GIF jobs to run, names of those finished) of units with a checkpoint.
-
-    ``unit``: only that unit's (its training just finished); None: every unit's.
-    """
-    todo: list[Job] = []
-    skipped: list[str] = []
-    plugins = settings.plugins()
-    for trial_set in settings.trial_sets():
-        if unit not in (None, trial_set.unit) or not (
-                trial_set.unit.model in plugins or trained_file(out, trial_set.unit).exists()):
-            continue  # its training failed (its error file names it); a plug-in needs none
-        trials = settings.trial_settings(out, trial_set)
-        job = TrialsJob(f"trials-{trial_set.name}-s{settings.seed}", trial_set, trials, out)
-        candidates: list[tuple[Job, bool]] = [(job, trials_done(job))]
-        if trial_set.variant == PLAIN:
-            gif = GifJob(f"gif-{trial_set.unit.name}-s{settings.seed}", trial_set.unit, trials,
-                         min(GIF_TRIALS, settings.n), out)
-            candidates.append((gif, gif_done(gif)))
-        for candidate, finished in candidates:
-            if finished:
-                skipped.append(candidate.name)
-            else:
-                todo.append(candidate)
-    return todo, skipped

@@ -12,7 +12,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from experiments.table3.jobs import JobOutcome, run_jobs
+from experiments.table3.job_graph import run_jobs
+from experiments.table3.jobs import JobOutcome
 from experiments.table3.report import write_reports
 from experiments.table3.settings import ReproduceRealSettings, seed_folder, write_run_tasks
 from harness.provenance import provenance
