@@ -15,10 +15,12 @@ from typing import Any
 from experiments.table3.job_graph import run_jobs
 from experiments.table3.jobs import JobOutcome
 from experiments.table3.report import write_reports
-from experiments.table3.settings import ReproduceRealSettings, seed_folder, write_run_tasks
+from experiments.table3.settings import ReproduceRealSettings, seed_folder, task_file
 from harness.provenance import provenance
+from harness.run_files import write_text
 from harness.run_folder import claim_run_folder, run_folder_lock
 from harness.run_report import RunReport
+from sim.tasks.task_toml import task_to_toml
 
 ReproduceRealReport = RunReport[JobOutcome, str]
 
@@ -29,6 +31,20 @@ def append_history(out: Path, entry: dict[str, Any]) -> None:
         handle.write(json.dumps(entry, sort_keys=True) + "\n")
         handle.flush()
         os.fsync(handle.fileno())
+
+
+def write_run_tasks(settings: ReproduceRealSettings, out: Path) -> None:
+    """Writes the task TOML of every set the run needs, plain or a variant (when it changed).
+
+    Each is the task as run, under the run's sensor, so a reader sees what was run.
+    """
+    for trial_set in settings.trial_sets():
+        path = task_file(out, trial_set.task_name)
+        text = (f"# the task {trial_set.unit.task} ({trial_set.variant}, sensor "
+                f"{settings.sensor.value}), written by gva reproduce real\n"
+                + task_to_toml(settings.run_task(trial_set)))
+        if not path.exists() or path.read_text(encoding="utf-8") != text:
+            write_text(path, text)
 
 
 def run_reproduce_real(settings: ReproduceRealSettings, out: str | Path,

@@ -24,7 +24,7 @@ from experiments.tables import (
     model_config_options,
 )
 from harness.jobs import LOCAL, Executor
-from harness.run_files import dataset_path, write_text
+from harness.run_files import dataset_path
 from harness.run_folder import json_form
 from perception.learning.train import TrainConfig, available_threads
 from perception.learning.validation import CheckConfig
@@ -34,7 +34,7 @@ from robots.description import RobotDescription
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.task_spec import TaskSpec, spaced_for
-from sim.tasks.task_toml import load_task, task_to_toml
+from sim.tasks.task_toml import load_task
 from sim.tasks.variants import read_variant, with_variant
 from sim.trials.execution import ExecutionSettings
 from sim.trials.loop_settings import Loop, LoopSettings
@@ -382,17 +382,3 @@ def gif_file(out: Path, unit: Unit) -> Path:
 def error_file(out: Path, job: str) -> Path:
     """The record of a job that raised."""
     return out / "errors" / f"{job}.json"
-
-
-def write_run_tasks(settings: ReproduceRealSettings, out: Path) -> None:
-    """Writes the task TOML of every set the run needs, plain or a variant (when it changed).
-
-    Each is the task as run, under the run's sensor, so a reader sees what was run.
-    """
-    for trial_set in settings.trial_sets():
-        path = task_file(out, trial_set.task_name)
-        text = (f"# the task {trial_set.unit.task} ({trial_set.variant}, sensor "
-                f"{settings.sensor.value}), written by gva reproduce real\n"
-                + task_to_toml(settings.run_task(trial_set)))
-        if not path.exists() or path.read_text(encoding="utf-8") != text:
-            write_text(path, text)
