@@ -58,6 +58,10 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--holdout", type=float, default=CheckConfig.holdout,
                         help="fraction of each task's demonstrations held out to check its "
                         "trained model (%(default)s; 0: train on all, check nothing)")
+    parser.add_argument("--use-failed-checkpoints", action="store_true",
+                        help="run the trials of a checkpoint that failed its held-out check at "
+                        "every start anyway, with a warning (for studies); default: its cells "
+                        "are recorded failed with the check's reason and exit status 1")
     parser.add_argument("--variants", type=variant_names, default=defaults.variants,
                         help="comma-separated variants every model is also tried under, each "
                         f"paired with its clean trials: {', '.join(builtin_variants())}, or "
@@ -105,7 +109,8 @@ def run(args: argparse.Namespace) -> int:
                                      loop=loop_settings(args), robot=args.robot,
                                      executor=executor(args), train_threads=args.train_threads,
                                      model_configs=model_config_files(args),
-                                     world=args.world)
+                                     world=args.world,
+                                     use_failed_checkpoints=args.use_failed_checkpoints)
     report = run_reproduce_real(settings, args.out, progress=not args.no_progress)
     for line in report.summary_lines("job(s) run", lambda record: record["job"]):
         print(line)

@@ -9,6 +9,7 @@ its options and the run folder's layout: ``docs/reproducing.md``.
 - :mod:`.settings`: what a run does, and where its files go;
 - :mod:`.jobs`: the jobs (collect, train, trials, GIF); :mod:`.job_graph`: the graph that runs them;
 - :mod:`.plugins`: plug-ins without weights, tried untrained beside the trained models;
+- :mod:`.check_gate`: a checkpoint that failed its held-out check, not tried by default;
 - :mod:`.gifs`: a model's first trials recorded again;
 - :mod:`.run`: a run, start to end; :mod:`.folder` and :mod:`.report`: its tables.
 """

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from experiments.table3.check_gate import admit, check_job
 from experiments.table3.jobs import (
     GIF_S_PER_PICK,
     TRIAL_S_PER_PICK,
@@ -35,6 +36,7 @@ from experiments.table3.settings import (
     TrialSet,
     Unit,
     dataset_file,
+    error_file,
     gif_file,
     seed_folder,
     task_file,
@@ -84,6 +86,8 @@ def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
         j.settings.demos, j.settings.seed, SeedStream.TRAIN, j.settings.approach_hz,
         robot=j.settings.description())]
     trains_todo = [j for j in trains if not trained_file(j.out, j.unit).exists()]
+    for job in trains_todo:  # a check recorded of a checkpoint trained again is decided anew
+        error_file(job.out, check_job(job.unit, job.settings.seed)).unlink(missing_ok=True)
     skipped = [j.name for j in collects if j not in collects_todo]
     skipped += [j.name for j in trains if j not in trains_todo]
     waiting = {j.name for j in collects_todo}
@@ -159,15 +163,23 @@ def _trial_jobs(settings: ReproduceRealSettings, out: Path, unit: Unit | None = 
                 ) -> tuple[list[Job], list[str]]:
     """(trial and GIF jobs to run, names of those finished) of units with a checkpoint.
 
-    ``unit``: only that unit's (its training just finished); None: every unit's.
+    ``unit``: only that unit's (its training just finished); None: every unit's. A checkpoint
+    that failed its held-out check gets none unless the run uses such checkpoints
+    (:func:`.check_gate.admit` records it as a failed cell).
     """
     todo: list[Job] = []
     skipped: list[str] = []
     plugins = settings.plugins()
+    admitted: dict[Unit, bool] = {}
     for trial_set in settings.trial_sets():
         if unit not in (None, trial_set.unit) or not (
                 trial_set.unit.model in plugins or trained_file(out, trial_set.unit).exists()):
             continue  # its training failed (its error file names it); a plug-in needs none
+        if trial_set.unit not in admitted:
+            admitted[trial_set.unit] = (trial_set.unit.model in plugins
+                                        or admit(settings, out, trial_set.unit))
+        if not admitted[trial_set.unit]:
+            continue  # its checkpoint failed its held-out check: the cell is recorded failed
         trials = settings.trial_settings(out, trial_set)
         job = TrialsJob(f"trials-{trial_set.name}-s{settings.seed}", trial_set, trials, out)
         candidates: list[tuple[Job, bool]] = [(job, trials_done(job))]

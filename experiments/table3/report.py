@@ -12,9 +12,20 @@ from __future__ import annotations
 
 import statistics
 from collections.abc import Mapping, Sequence
+from collections.abc import Set as AbstractSet
 from pathlib import Path
 from typing import Any, NamedTuple
 
+from experiments.table3.check_gate import (
+    CHECK_FAILED,
+    USED_MARK,
+    CheckUse,
+    FailedChecks,
+    check_use,
+    checks_markdown,
+    failed_checks,
+    marks_note,
+)
 from experiments.table3.folder import history_wall_time_s, read_checks, read_failed, read_gifs
 from experiments.table3.pairing import PairedSets, baseline_comparisons, variant_comparisons
 from experiments.table3.settings import (
@@ -22,11 +33,14 @@ from experiments.table3.settings import (
     PLAIN,
     REFERENCE_MODEL,
     ReproduceRealSettings,
+    Unit,
+    seed_folder,
 )
 from experiments.table3.trial_sets import (
     TrialSetResult,
     first_pick_errors_cm,
     read_trial_sets,
+    split_task,
     variant_order,
 )
 from experiments.tables import ALL_TASKS, TASK_TITLES, TASKS, model_order, model_title
@@ -107,30 +121,37 @@ def table3_json(sets: Sequence[TrialSetResult]) -> dict[str, Any]:
             "paper": {t: {"successes": k, "n": PAPER_TRIALS} for t, k in PAPER_TABLE3.items()}}
 
 
-def _cell(result: TrialSetResult | None) -> str:
-    """``29/30`` for one seed; ``28.6 ± 1.1 (29, 30, 27, 28, 29)`` for several."""
+def _cell(result: TrialSetResult | None, failed: AbstractSet[int] = frozenset()) -> str:
+    """``29/30`` for one seed; ``28.6 ± 1.1 (29, 30, 27, 28, 29)`` for several.
+
+    ``failed``: the seeds whose checkpoint failed its check; a seed without trials reads
+    ``check failed``, one with trials is marked ``†``.
+    """
     if result is None:
-        return "—"
-    mark = "*" if result.unfinished else ""
+        return CHECK_FAILED if failed else "—"
+    seeds = {seed for seed, _ in result.per_seed}
+    mark = ("*" if result.unfinished else "") + (USED_MARK if seeds & failed else "")
+    missing = "".join(f"; seed {seed}: {CHECK_FAILED}" for seed in sorted(failed - seeds))
     if len(result.per_seed) == 1:
         summary = result.summary
-        return f"{summary.successes}/{summary.n}{mark}"
+        return f"{summary.successes}/{summary.n}{mark}{missing}"
     return (f"{result.mean:.1f} ± {result.std:.1f}{mark} "
-            f"({', '.join(str(count) for count in result.counts)})")
+            f"({', '.join(str(count) for count in result.counts)}){missing}")
 
 
-def _interval(result: TrialSetResult | None) -> str:
+def _interval(result: TrialSetResult | None, failed: AbstractSet[int] = frozenset()) -> str:
     if result is None:
-        return "—"
+        return CHECK_FAILED if failed else "—"
     low, high = result.summary.wilson95
     errors = first_pick_errors_cm(result.records)
     error = f"; {statistics.median(errors):.1f} cm" if errors else ""
     return f"{100 * low:.0f}-{100 * high:.0f} %{error}"
 
 
-def _columns(sets: Sequence[TrialSetResult]) -> tuple[str, ...]:
+def _columns(sets: Sequence[TrialSetResult], failed: FailedChecks | None = None
+             ) -> tuple[str, ...]:
     """The tables' columns: the paper's tasks, then any task beyond it that was run."""
-    run = {s.task for s in sets}
+    run = {s.task for s in sets} | {task for _, task in failed or {}}
     return TASKS + tuple(t for t in ALL_TASKS if t not in TASKS and t in run)
 
 
@@ -144,20 +165,32 @@ def _paper(task: str) -> str:
     return f"{PAPER_TABLE3[task]}/{PAPER_TRIALS}" if task in PAPER_TABLE3 else "—"
 
 
-def _rows(sets: Sequence[TrialSetResult]) -> list[tuple[str, str]]:
-    """(model, variant) of each row: plain rows first, models in the paper's order."""
-    return sorted({(s.model, s.variant) for s in sets},
-                  key=lambda r: (variant_order(r[1]), model_order(r[0])))
+def _rows(sets: Sequence[TrialSetResult], failed: FailedChecks | None = None,
+          variants: Sequence[str] = (PLAIN,)) -> list[tuple[str, str]]:
+    """(model, variant) of each row: plain rows first, models in the paper's order.
+
+    A model whose checkpoint failed its check has a row per variant, trials or not.
+    """
+    rows = {(s.model, s.variant) for s in sets} | {(m, v) for m, _ in failed or {}
+                                                   for v in variants}
+    return sorted(rows, key=lambda r: (variant_order(r[1]), model_order(r[0])))
 
 
-def successes_table(sets: Sequence[TrialSetResult]) -> str:
-    """The Table III layout: the paper's row, then a row per model and variant, ``k/30``."""
+def successes_table(sets: Sequence[TrialSetResult], checks: Sequence[Mapping[str, Any]] = (),
+                    variants: Sequence[str] = (PLAIN,)) -> str:
+    """The Table III layout: the paper's row, then a row per model and variant, ``k/30``.
+
+    ``checks``: the held-out checks (:func:`failed_checks` marks their cells); ``variants``:
+    the run's, for the rows of a model whose only checkpoints failed.
+    """
     by_key = {(s.model, s.variant, s.task): s for s in sets}
-    tasks = _columns(sets)
+    failed = failed_checks(checks)
+    tasks = _columns(sets, failed)
     lines = [*_header(tasks), "| Paper (real YuMi, 20 demonstrations) | "
              + " | ".join(_paper(t) for t in tasks) + " |"]
-    lines += [f"| {row_title(m, v)} | " + " | ".join(_cell(by_key.get((m, v, t))) for t in tasks)
-              + " |" for m, v in _rows(sets)]
+    lines += [f"| {row_title(m, v)} | " + " | ".join(
+        _cell(by_key.get((m, v, t)), failed.get((m, t), set())) for t in tasks)
+        + " |" for m, v in _rows(sets, failed, variants)]
     return "\n".join(lines)
 
 
@@ -168,9 +201,12 @@ ROBOT_TITLES = {"yumi": "a simulated ABB YuMi", "panda": "a simulated Franka Pan
 def table3_markdown(sets: Sequence[TrialSetResult], made_by: str,
                     gifs: Mapping[str, Mapping[str, Any]] | None = None,
                     failed: Sequence[Mapping[str, Any]] = (),
-                    checks: Sequence[Mapping[str, Any]] = (), *, robot: str) -> str:
+                    checks: Sequence[Mapping[str, Any]] = (), *, robot: str,
+                    variants: Sequence[str] = (PLAIN,)) -> str:
     """``table3.md``: the paper's row, ours, the variants' rows, then why trials failed."""
     by_key = {(s.model, s.variant, s.task): s for s in sets}
+    unchecked = failed_checks(checks)
+    columns = _columns(sets, unchecked)
     lines = [
         "# Table III in simulation: successful picks out of 30", "",
         f"Scene `yumi` ({ROBOT_TITLES.get(robot, robot)} in PyBullet): each model trained on "
@@ -183,12 +219,12 @@ def table3_markdown(sets: Sequence[TrialSetResult], made_by: str,
         "deviation of the seeds' successes, each seed's count in brackets. `*`: some trials "
         "are still missing (the run was interrupted; run it again); the counts are of those "
         "present.", "",
-        successes_table(sets), "",
+        successes_table(sets, checks, variants), "", *marks_note(unchecked),
         "95 % Wilson interval of the success rate (every seed's trials pooled); median grasp "
-        "position error of the first pick [cm]:", "", *_header(_columns(sets))]
-    lines += [f"| {row_title(m, v)} | " + " | ".join(_interval(by_key.get((m, v, t)))
-                                                    for t in _columns(sets)) + " |"
-              for m, v in _rows(sets)]
+        "position error of the first pick [cm]:", "", *_header(columns)]
+    lines += [f"| {row_title(m, v)} | " + " | ".join(
+        _interval(by_key.get((m, v, t)), unchecked.get((m, t), set())) for t in columns) + " |"
+        for m, v in _rows(sets, unchecked, variants)]
     lines += ["", *comparisons_markdown(baseline_comparisons(sets)),
               *variants_markdown(variant_comparisons(sets)), *checks_markdown(checks),
               "## Failure reasons", ""]
@@ -210,7 +246,8 @@ def table3_markdown(sets: Sequence[TrialSetResult], made_by: str,
         lines.append("")
     lines += ["## How it was made", "", made_by]
     if failed:
-        lines += ["", "Failed jobs (see `s<seed>/errors/<job>.json`):"]
+        lines += ["", "Failed jobs, and checkpoints not tried for their held-out check "
+                  "(see `s<seed>/errors/<job>.json`):"]
         lines += [f"- {r['job']}: {r['error']}" for r in failed]
     return "\n".join(lines) + "\n"
 
@@ -291,27 +328,11 @@ def variants_markdown(comparisons: Sequence[PairedSets]) -> list[str]:
     return [*lines, ""]
 
 
-def checks_markdown(checks: Sequence[Mapping[str, Any]]) -> list[str]:
-    """The held-out checks section: how many passed, and every failed one by name."""
-    if not checks:
-        return []
-    failed = [c for c in checks if not c["passed"]]
-    retried = sum(c["attempts"] > 1 for c in checks if c["passed"])
-    lines = ["## Held-out checks", "",
-             f"Each training held out part of its own demonstrations and scored the trained "
-             f"model on them (`perception.learning.validation`): {len(checks) - len(failed)} of "
-             f"{len(checks)} passed" + (f", {retried} of them at a later start" if retried
-                                        else "") + "."]
-    lines += [f"- **FAILED**: {c['model']} {c['task']} seed {c['seed']} after {c['attempts']} "
-              f"attempt(s): {c['reason']}" for c in failed]
-    return [*lines, ""]
-
-
 class Reports(NamedTuple):
     """What :func:`write_reports` wrote and found."""
 
     paths: list[Path]  # table3.json, table3.md and the GIFs
-    failed: list[dict[str, Any]]  # jobs that raised: job, error
+    failed: list[dict[str, Any]]  # jobs that raised, checkpoints not tried: job, error
     notes: list[str]
     table: str  # the successes table, as in table3.md
 
@@ -325,7 +346,10 @@ def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float
     seeds = list(settings.training_seeds)
     sets = read_trial_sets(out, seeds, settings.n)
     gifs, failed = read_gifs(out, seeds), read_failed(out, seeds)
-    checks = read_checks(out, seeds)
+    checks = [check | {"cells": check_use(settings, seed_folder(out, check["seed"]),
+                                          Unit(check["model"], check["task"])).value}
+              for check in read_checks(out, seeds)]
+    variants = tuple(dict.fromkeys(split_task(s.task_name)[1] for s in settings.trial_sets()))
     all_runs_s = history_wall_time_s(out)
     named = (f"seed {seeds[0]}" if len(seeds) == 1 else
              f"seeds {seeds[0]}-{seeds[-1]}, each its own")
@@ -347,6 +371,7 @@ def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float
             "command": settings.command(out), "models": list(settings.models),
             "tasks": list(settings.tasks), "variants": list(settings.variants),
             "balance_types": settings.balance_types,
+            "use_failed_checkpoints": settings.use_failed_checkpoints,
             "sensor": SensorConfig(settings.sensor).to_json(), "workers": settings.worker_count(),
             "model_configs": {f.model: f.to_json() for f in settings.model_configs}} | (
                 {"plugins": list(plugins)} if plugins else {}),
@@ -354,9 +379,11 @@ def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float
         "checks": checks, "provenance": session}
     paths = [out / "table3.json", out / "table3.md"]
     write_json(paths[0], table)
-    text = table3_markdown(sets, made_by, gifs, failed, checks, robot=settings.robot)
+    text = table3_markdown(sets, made_by, gifs, failed, checks, robot=settings.robot,
+                           variants=variants)
     write_text(paths[1], text)
     notes = [] if sets else ["no trials in this folder yet: the tables are empty"]
     notes += [f"WARNING: {c['model']} {c['task']} seed {c['seed']} failed its held-out check: "
-              f"{c['reason']}" for c in checks if not c["passed"]]
-    return Reports(paths + [out / name for name in gifs], failed, notes, successes_table(sets))
+              f"{c['reason']}" for c in checks if c["cells"] == CheckUse.USED.value]
+    return Reports(paths + [out / name for name in gifs], failed, notes,
+                   successes_table(sets, checks, variants))

@@ -138,6 +138,10 @@ class ReproduceRealSettings:
         check: How each training checks itself on demonstrations it holds out
             (:class:`~perception.learning.validation.CheckConfig`); a model that fails is
             marked in its checkpoint and in the tables.
+        use_failed_checkpoints: Run the trials of a checkpoint that failed its held-out check
+            at every start anyway, with a warning (for studies; what runs did before issue
+            66). False: they are not run, and the cells are recorded failed with the check's
+            reason (:mod:`.check_gate`). Part of no identity: a folder resumes either way.
         train_threads: Torch threads of each training job. 1 lets units train side by side, one
             per core; a run with a single unit (``make demo``) trains alone, and two threads on
             two cores halve its training time. Results depend on it (float sums in another
@@ -173,6 +177,7 @@ class ReproduceRealSettings:
     train_threads: int = 1
     executor: Executor = LOCAL
     check: CheckConfig = field(default_factory=CheckConfig)
+    use_failed_checkpoints: bool = False
     model_configs: tuple[ModelConfigFile, ...] = ()
     loop: LoopSettings = field(default_factory=LoopSettings)
     robot: str = DEFAULT_ROBOT
@@ -188,6 +193,9 @@ class ReproduceRealSettings:
             read_variant(variant)
         if self.robot not in ROBOT_NAMES:
             raise InvalidInputError("robot", self.robot, f"one of {', '.join(ROBOT_NAMES)}")
+        if not isinstance(self.use_failed_checkpoints, bool):
+            raise InvalidInputError("use_failed_checkpoints", self.use_failed_checkpoints,
+                                    "True or False")
         if not isinstance(self.sensor, SensorKind):
             raise InvalidInputError("sensor", self.sensor,
                                     f"one of {', '.join(k.value for k in SensorKind)}")
@@ -338,6 +346,8 @@ class ReproduceRealSettings:
             parts.append(f"--train-threads {self.train_threads}")
         if self.check.holdout != CheckConfig.holdout:
             parts.append(f"--holdout {self.check.holdout:g}")
+        if self.use_failed_checkpoints:
+            parts.append("--use-failed-checkpoints")
         return " ".join(parts + model_config_options(self.model_configs))
 
 
