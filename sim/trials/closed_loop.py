@@ -283,7 +283,8 @@ class ApproachLoop:
                               sighting.truth)
         followed = self.followed.predicted
         assert followed is not None  # a followed plan was planned from a grasp
-        if not isinstance(runner.model, OraclePerception):  # the truth needs no view
+        if not (isinstance(runner.model, OraclePerception)  # the truth needs no view
+                and runner.model.sees_through_the_arm):
             verdict = unheeded_reason(
                 sighting.frame, followed.position, read.predicted.position,
                 self.settings.footprint_radius_m, once, self.settings.move_threshold_m)

@@ -44,6 +44,9 @@ class OraclePerception(PerceptionModel):
 
     name = "oracle"
     label_kind = LabelKind.GRASP_POSE
+    sees_through_the_arm = True
+    """A closed loop takes its re-predictions whatever the head camera shows (the truth needs no
+    view): its bar measures the controller's ceiling. :class:`ViewLimitedOracle` is held."""
 
     def __init__(self, world: World, camera: HeadCamera) -> None:
         self.world = world
@@ -92,3 +95,16 @@ class OraclePerception(PerceptionModel):
             raise TargetNotFoundError(f"condition side = {condition.value!r}: the table is empty")
         by_y = sorted(objects, key=lambda b: float(self.world.object_pose(b).position[1]))
         return [by_y[-1] if condition.value == "left" else by_y[0]]
+
+
+class ViewLimitedOracle(OraclePerception):
+    """The oracle held to the closed loop's view rule, as a learned model is (issue 66).
+
+    Each re-prediction is the truth, but the loop heeds it only where the head camera could show
+    it (the followed grasp's footprint unhidden, or the new grasp in plain view at two looks in a
+    row: :func:`sim.trials.view.unheeded_reason`): what a perfect perceiver behind the same camera
+    can pick, the reference for a learned model's closed-loop counts.
+    """
+
+    name = "oracle-view"
+    sees_through_the_arm = False

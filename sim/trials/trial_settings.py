@@ -36,14 +36,15 @@ from sim.tasks.variants import load_task_variant, variant_file
 from sim.trials.execution import ExecutionSettings
 from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.model_fit import check_model_fits_task, recorded_sensor
-from sim.trials.oracle import OraclePerception
+from sim.trials.oracle import OraclePerception, ViewLimitedOracle
 from sim.trials.planner_setup import ObstacleSource, depth_config
 from sim.trials.runner_hooks import TRIAL_INPUTS, ModelFactory
 from sim.world.head_camera import CameraConfig, camera_config
 from sim.world.sensor import SensorConfig, SensorKind
 from sim.world.world_config import check_wait_s
 
-TRIAL_MODELS: dict[str, ModelFactory] = {"oracle": OraclePerception}
+TRIAL_MODELS: dict[str, ModelFactory] = {"oracle": OraclePerception,
+                                         "oracle-view": ViewLimitedOracle}
 """Perception models the trial runner builds by name; a checkpoint folder or
 ``"package.module:Class"`` names any other (see :func:`load_trial_model`)."""
 
@@ -105,8 +106,9 @@ class TrialSettings:
     """What a run of trials does; the fields of ``run.json``.
 
     Args:
-        model: ``"oracle"`` (see :data:`TRIAL_MODELS`), a checkpoint folder, or a model that builds
-            with no arguments: ``"package.module:Class"`` or an installed plug-in's name.
+        model: ``"oracle"`` or ``"oracle-view"`` (:data:`TRIAL_MODELS`), a checkpoint folder,
+            or a model that builds with no arguments: ``"package.module:Class"`` or an
+            installed plug-in's name.
         task: A built-in task name, or the path of a task TOML file.
         n: Number of trials.
         seed: Seed of the test scenes.

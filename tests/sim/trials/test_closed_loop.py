@@ -21,10 +21,11 @@ from sim.tasks.disturbance import Disturbance
 from sim.tasks.task_toml import load_task
 from sim.trials import closed_loop, trial_runner
 from sim.trials.loop_settings import Loop, LoopSettings, Reaction, reactions
-from sim.trials.oracle import OraclePerception
+from sim.trials.oracle import OraclePerception, ViewLimitedOracle
 from sim.trials.records import TrialOutcome
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_scenes import trial_scene
+from sim.trials.trial_settings import TRIAL_MODELS
 from sim.trials.view import ViewVerdict, hidden_share, in_plain_view, unheeded_reason
 from sim.world.head_camera import HeadCamera, camera_config
 from sim.world.yumi_world import World
@@ -38,9 +39,9 @@ def single_moved():
     return dataclasses.replace(load_task("single"), name="single-moved", disturbance=MOVED)
 
 
-def run(task, loop: Loop, index: int):
-    with TrialRunner(task, loop=LoopSettings(loop), robot=YUMI) as runner:
-        return runner.run(trial_scene(task, 0, index), index, 0, "oracle")
+def run(task, loop: Loop, index: int, model=OraclePerception):
+    with TrialRunner(task, model, loop=LoopSettings(loop), robot=YUMI) as runner:
+        return runner.run(trial_scene(task, 0, index), index, 0, model.name)
 
 
 @pytest.mark.parametrize("index", [0, 3])
@@ -67,6 +68,24 @@ def test_the_oracle_misses_a_moved_target_open_loop_and_picks_it_closed_loop(sin
                if r["time_s"] < moved_at)
     assert pick["executed"]["position_error_m"] < 0.005  # the oracle re-read the moved target
     assert pick["judge"]["predicted_success"] is True
+
+
+def test_the_view_limited_oracle_is_held_to_the_view_rule_and_the_oracle_is_not(
+        single_moved, monkeypatch):
+    """Issue 66's reference: the truth, heeded only where the head camera could show it."""
+    asked = []
+
+    def counted(*args, **kwargs):
+        asked.append(args)
+        return unheeded_reason(*args, **kwargs)
+
+    monkeypatch.setattr(closed_loop, "unheeded_reason", counted)
+    run(single_moved, Loop.CLOSED, 0)
+    assert asked == []  # the oracle reads the truth, seen or not
+    looked = run(single_moved, Loop.CLOSED, 0, ViewLimitedOracle)
+    [pick] = looked.picks
+    assert len(asked) == len(pick["repredictions"]) > 0  # every look asks the camera
+    assert looked.model == "oracle-view" and TRIAL_MODELS["oracle-view"] is ViewLimitedOracle
 
 
 def test_closed_loop_on_an_unmoved_target_only_holds(single_moved):
