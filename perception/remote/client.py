@@ -59,7 +59,8 @@ def _open(url: str, timeout_s: float) -> tuple[ClientConnection, dict[str, Any]]
     headers = {"Authorization": f"Api-Key {key}"} if key else None
     try:
         connection = connect(url, compression=None, max_size=MAX_MESSAGE_BYTES,
-                             additional_headers=headers, open_timeout=timeout_s)
+                             additional_headers=headers, open_timeout=timeout_s,
+                             legacy=True)  # held across predictions, not a with-block
     except InvalidStatus as error:
         raise RemoteModelError(f"server {url} refused the connection: HTTP "
                                f"{error.response.status_code}") from error

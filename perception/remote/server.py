@@ -43,19 +43,26 @@ REFUSED_MODELS = frozenset({"oracle"})  # reads the simulator's truth: no model 
 
 @dataclass(frozen=True)
 class ServeSettings:
-    """What ``gva serve`` serves, where, and to whom (``api_key`` None: anyone who connects)."""
+    """What ``gva serve`` serves, where, and to whom (``api_key`` None: anyone who connects).
+
+    ``max_message_bytes``: a longer request closes its connection unread (1009).
+    """
 
     model: str
     port: int
     host: str = DEFAULT_HOST
     api_key: str | None = None
     model_class: str | None = None
+    max_message_bytes: int = MAX_MESSAGE_BYTES
 
     def __post_init__(self) -> None:
         if not 0 <= self.port <= 65535:
             raise InvalidInputError("port", self.port, "an integer in 0-65535 (0: any free port)")
         if self.api_key is not None and not self.api_key.strip():
             raise InvalidInputError("api_key", "an empty key", "a non-empty key, or none")
+        if self.max_message_bytes < 1024:
+            raise InvalidInputError("max_message_bytes", self.max_message_bytes,
+                                    "an integer >= 1024")
 
 
 def load_served_model(model: str, model_class: str | None = None) -> PerceptionModel:
@@ -121,13 +128,10 @@ class ModelServer:
         self._metadata = pack(self.announced)
         self._lock = threading.Lock()
         self._server: Server = serve(self._handle, settings.host, settings.port,
-                                     compression=None, max_size=MAX_MESSAGE_BYTES,
+                                     compression=None, max_size=settings.max_message_bytes,
                                      process_request=self._check_request)
-
-    @property
-    def port(self) -> int:
+        self.port: int = int(self._server.socket.getsockname()[1])
         """The port it listens on (the one the OS chose, for port 0)."""
-        return int(self._server.socket.getsockname()[1])
 
     def serve_forever(self) -> None:
         """Serves until :meth:`shutdown`."""
@@ -163,7 +167,8 @@ class ModelServer:
         except ConnectionClosed as closed:
             codes = {frame.code for frame in (closed.rcvd, closed.sent) if frame is not None}
             if 1009 in codes:  # MESSAGE_TOO_BIG
-                LOG.warning("refused %s: a message over %d bytes", peer, MAX_MESSAGE_BYTES)
+                LOG.warning("refused %s: a message over %d bytes", peer,
+                            self.settings.max_message_bytes)
         LOG.info("connection from %s closed", peer)
 
     def _reply(self, data: str | bytes, peer: Any) -> str | bytes:
