@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import functools
 import os
+import weakref
 from collections.abc import Mapping
 from typing import Any
 
@@ -137,6 +138,7 @@ class RemoteModel(PerceptionModel):
                                        f"({announced.get('name')!r}, {announced}) than the run "
                                        f"started with: refused")
             self._connection = connection
+            weakref.finalize(self, connection.close)  # a clean close, also at exit
         return self._connection
 
     def predict_frame(self, frame: RgbdFrame, condition: Condition = NO_CONDITION
