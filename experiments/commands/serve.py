@@ -44,6 +44,10 @@ def run(args: argparse.Namespace) -> int:
                              args.api_key or os.environ.get(API_KEY_VARIABLE) or None,
                              args.model_class)
     server = start_server(settings)
+    if "torch" in sys.modules:  # one thread, as gva trials predicts in-process: the same sums
+        import torch
+
+        torch.set_num_threads(1)
     print(f"serving {server.model.name} on ws://{settings.host}:{server.port}", flush=True)
     print(json.dumps(server.announced, sort_keys=True), flush=True)
     try:
