@@ -6,6 +6,8 @@
     gva evaluate --model runs/kqv-multiple --data runs/yumi-multiple-test.gva
     gva trials --model oracle --task single --n 30 --seed 0 --out runs/oracle-single
     gva trials --model runs/kqv-multiple --task multiple --n 30 --out runs/kqv-multiple-trials
+    gva serve runs/kqv-multiple --port 8000
+    gva trials --model ws://127.0.0.1:8000 --task multiple --n 30 --out runs/kqv-served
     gva compare runs/oracle-single runs/kqv-single-trials --out runs/kqv-vs-oracle.json
     gva judge runs/table3 --json runs/table3-judged.json
     gva export --format lerobot runs/yumi-multiple-20.gva runs/yumi-multiple-20-lerobot
@@ -81,6 +83,12 @@ def _trials(parser: argparse.ArgumentParser) -> None:
     add_options(parser)
 
 
+def _serve(parser: argparse.ArgumentParser) -> None:
+    from experiments.commands.serve import add_options  # websockets: only here
+
+    add_options(parser)
+
+
 def _compare(parser: argparse.ArgumentParser) -> None:
     from experiments.commands.compare import add_options  # scipy.stats: only here
 
@@ -146,6 +154,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="pick trials at untrained positions",
         description="Runs pick trials: reset a scene from the seed, predict, plan, execute, "
         "judge by physics. Appends each trial to OUT/trials.jsonl; re-running resumes.",
+    )
+    commands.add_parser(
+        "serve", options=_serve,
+        help="serve a model over a websocket (openpi-client's protocol) for --model ws://",
+        description="Serves a checkpoint or a plug-in model over a websocket in openpi-client "
+        "0.1.2's WebsocketClientPolicy protocol: metadata on connect, a msgpack request per "
+        "frame, the prediction back, an error as a text frame. gva trials --model "
+        "ws://HOST:PORT picks with it. Serves until Ctrl-C.",
     )
     commands.add_parser(
         "compare", options=_compare,

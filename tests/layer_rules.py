@@ -234,6 +234,7 @@ ROOMS: Mapping[str, tuple[tuple[str, ...], ...]] = {
         ("perception.learning",),  # datasets, training, torch pieces, evaluation, checkpoints
         ("perception.models",),  # KQV and the baselines
         ("perception.registry", "perception.model_config_file"),  # models by name
+        ("perception.remote",),  # models served over a websocket, and their clients
     ),
     "harness": (
         # a run's files: its folder, provenance, records' summary, trial log, job files

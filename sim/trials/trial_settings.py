@@ -23,6 +23,7 @@ from perception.interface import PerceptionModel
 from perception.learning.learnable import LearnableModel
 from perception.learning.validation import HeldOutCheck, read_check
 from perception.plugins import build_plugin, installed_models, is_class_path, plugin_class
+from perception.remote.client import RemoteModel, announced_metadata, is_remote
 from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot
 from robots.description import RobotDescription
 from robots.yumi import YUMI
@@ -49,8 +50,8 @@ TRIAL_MODELS: dict[str, ModelFactory] = {"oracle": OraclePerception,
 ``"package.module:Class"`` names any other (see :func:`load_trial_model`)."""
 
 _ALLOWED_MODELS = (f"one of {', '.join(TRIAL_MODELS)}, a checkpoint folder (gva train writes one), "
-                   "'package.module:Class' or the name an installed package registers in "
-                   "'gva.models'")
+                   "'package.module:Class', the name an installed package registers in "
+                   "'gva.models', or ws://HOST:PORT of a gva serve server")
 
 
 class ModelSource(enum.Enum):
@@ -60,6 +61,7 @@ class ModelSource(enum.Enum):
     CHECKPOINT = "checkpoint"  # a checkpoint folder of a learnable model
     CLASS = "class"  # "package.module:Class" or an installed plug-in's name: built with no
     # arguments
+    REMOTE = "remote"  # ws://HOST:PORT: a model served elsewhere (gva serve)
 
 
 def model_source(model: str) -> ModelSource:
@@ -68,6 +70,8 @@ def model_source(model: str) -> ModelSource:
         raise InvalidInputError("model", model, _ALLOWED_MODELS)
     if model in TRIAL_MODELS:
         return ModelSource.BUILT_IN
+    if is_remote(model):
+        return ModelSource.REMOTE
     if Path(model).is_dir():
         return ModelSource.CHECKPOINT
     if is_class_path(model) or model in installed_models():
@@ -230,9 +234,14 @@ class TrialSettings:
         """A checkpoint by its SHA-256s, not its path: other weights or values, another run.
 
         A run folder moved or copied with its checkpoint (or run from another directory)
-        resumes; the same folder holding other weights does not.
+        resumes; the same folder holding other weights does not. A served model by what its
+        server announces (name, class, weights or source hash): another model behind the same
+        address is another run.
         """
-        if model_source(self.model) is not ModelSource.CHECKPOINT:
+        source = model_source(self.model)
+        if source is ModelSource.REMOTE:
+            return {"announced": dict(announced_metadata(self.model))}
+        if source is not ModelSource.CHECKPOINT:
             return {}
         from perception.learning.checkpoint import read_config
 
@@ -273,7 +282,10 @@ def load_trial_model(settings: TrialSettings) -> TrialModel:
     if source is ModelSource.BUILT_IN:
         return TrialModel(TRIAL_MODELS[settings.model], settings.model, one_torch_thread=False)
     model: PerceptionModel
-    if source is ModelSource.CHECKPOINT:
+    if source is ModelSource.REMOTE:
+        model = RemoteModel(settings.model)
+        label = f"{model.announced.get('name')} @ {settings.model}"
+    elif source is ModelSource.CHECKPOINT:
         from perception.registry import load_model  # imports torch: not for the oracle
 
         model = load_model(settings.model, settings.model_class)

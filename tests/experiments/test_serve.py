@@ -1,0 +1,74 @@
+"""``gva serve`` and ``gva trials --model ws://HOST:PORT``: the command lines, end to end."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+from gva_cli import gva
+
+from perception.plugins import build_plugin
+from perception.remote.server import ModelServer, ServeSettings, metadata
+
+ROOT = Path(__file__).resolve().parents[2]
+PLUGINS = ROOT / "examples" / "plugins"
+DETECTOR = "colour_detector:ColourDetector"
+
+
+@pytest.fixture(scope="module")
+def served():
+    with pytest.MonkeyPatch.context() as patch:
+        patch.syspath_prepend(str(PLUGINS))
+        model = build_plugin(DETECTOR)
+    server = ModelServer(model, metadata(model, DETECTOR), ServeSettings(DETECTOR, 0))
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    yield server
+    server.shutdown()
+
+
+def test_trials_pick_with_a_served_model_and_record_what_it_announced(served, tmp_path):
+    url = f"ws://127.0.0.1:{served.port}"
+    status, out, err = gva("trials", "--model", url, "--task", "single", "--n", 2,
+                           "--out", tmp_path / "run", "--no-progress")
+    assert status == 0, err
+    assert "2/2 successes" in out
+    records = [json.loads(line) for line in (tmp_path / "run" / "trials.jsonl").read_text()
+               .splitlines()]
+    assert [r["model"] for r in records] == [url, url]
+    settings = json.loads((tmp_path / "run" / "summary.json").read_text())["settings"]
+    assert settings["model"] == url
+    assert settings["announced"]["name"] == "colour-detector"
+    assert len(settings["announced"]["source_sha256"]) == 64
+
+
+def test_a_server_that_is_not_there_stops_trials_before_any_in_one_line(tmp_path):
+    status, _, err = gva("trials", "--model", "ws://127.0.0.1:9", "--task", "single", "--n", 1,
+                         "--out", tmp_path / "run", "--no-progress")
+    assert status == 2 and "unreachable" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "run").exists()
+
+
+def test_serve_refuses_the_oracle(tmp_path):
+    status, _, err = gva("serve", "oracle", "--port", 0)
+    assert status == 2 and "oracle" in err and len(err.strip().splitlines()) == 1
+
+
+def test_gva_serve_announces_its_address_and_serves_until_stopped():
+    env = os.environ | {"PYTHONPATH": os.pathsep.join([str(ROOT), str(PLUGINS)])}
+    process = subprocess.Popen([sys.executable, "-m", "experiments.cli", "serve", DETECTOR,
+                                "--port", "0", "--api-key", "k"], cwd=ROOT, env=env,
+                               stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        assert process.stdout is not None
+        line = process.stdout.readline()
+        assert line.startswith("serving colour-detector on ws://127.0.0.1:"), line
+        announced = json.loads(process.stdout.readline())
+        assert announced["name"] == "colour-detector" and announced["protocol"] == "gva-pick/1"
+    finally:
+        process.terminate()
+        process.wait(timeout=20)

@@ -1,0 +1,286 @@
+"""A model served over a websocket: openpi-client's bytes, round trips, refusals, failures.
+
+The server serves examples/plugins' colour detector (no weights: starts in milliseconds) on a
+free port in a thread. ``openpi_*`` below is openpi-client 0.1.2's ``msgpack_numpy`` and
+``WebsocketClientPolicy`` as written there (not installed: it pins numpy < 2), so the protocol is
+checked against the field's client, not against gva's own reading of it.
+"""
+
+from __future__ import annotations
+
+import functools
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import msgpack
+import numpy as np
+import pytest
+from websockets.exceptions import ConnectionClosed, InvalidStatus
+from websockets.sync.client import connect
+from websockets.sync.server import serve
+
+from perception.errors import InvalidInputError
+from perception.interface import (
+    NO_CONDITION,
+    Condition,
+    ConditionKind,
+    PerceptionModel,
+    Prediction,
+)
+from perception.plugins import build_plugin
+from perception.remote import codec
+from perception.remote.client import RemoteModel, RemoteModelError
+from perception.remote.messages import PROTOCOL, read_request, request_message
+from perception.remote.server import ModelServer, ServeSettings, metadata, start_server
+from robots.yumi import YUMI
+from sim.tasks.scene_sampling import SeedStream, sample_scene
+from sim.tasks.scene_specs import YUMI_SCENE
+from sim.tasks.task_toml import load_task
+from sim.trials.records import TrialOutcome
+from sim.trials.trial_runner import TrialRunner
+
+PLUGINS = Path(__file__).resolve().parents[2] / "examples" / "plugins"
+DETECTOR = "colour_detector:ColourDetector"
+KEY = "s3cret"
+# openpi's client connects as websockets before 17 did (no with-block): websockets 17 warns
+pytestmark = pytest.mark.filterwarnings("ignore:connect\\(\\) must be used:DeprecationWarning")
+
+
+# --- openpi-client 0.1.2, openpi_client/msgpack_numpy.py, verbatim ---
+
+def openpi_pack_array(obj):
+    if (isinstance(obj, (np.ndarray, np.generic))) and obj.dtype.kind in ("V", "O", "c"):
+        raise ValueError(f"Unsupported dtype: {obj.dtype}")
+    if isinstance(obj, np.ndarray):
+        return {b"__ndarray__": True, b"data": obj.tobytes(), b"dtype": obj.dtype.str,
+                b"shape": obj.shape}
+    if isinstance(obj, np.generic):
+        return {b"__npgeneric__": True, b"data": obj.item(), b"dtype": obj.dtype.str}
+    return obj
+
+
+def openpi_unpack_array(obj):
+    if b"__ndarray__" in obj:
+        return np.ndarray(buffer=obj[b"data"], dtype=np.dtype(obj[b"dtype"]), shape=obj[b"shape"])
+    if b"__npgeneric__" in obj:
+        return np.dtype(obj[b"dtype"]).type(obj[b"data"])
+    return obj
+
+
+openpi_packb = functools.partial(msgpack.packb, default=openpi_pack_array)
+openpi_unpackb = functools.partial(msgpack.unpackb, object_hook=openpi_unpack_array)
+
+
+class OpenpiClient:
+    """``WebsocketClientPolicy`` of openpi-client 0.1.2: connect, metadata, ``infer``."""
+
+    def __init__(self, uri: str, api_key: str | None = None) -> None:
+        headers = {"Authorization": f"Api-Key {api_key}"} if api_key else None
+        self.ws = connect(uri, compression=None, max_size=None, additional_headers=headers)
+        self.metadata = openpi_unpackb(self.ws.recv())
+
+    def infer(self, obs: dict) -> dict:
+        self.ws.send(msgpack.Packer(default=openpi_pack_array).pack(obs))
+        response = self.ws.recv()
+        if isinstance(response, str):
+            raise RuntimeError(f"Error in inference server:\n{response}")
+        return openpi_unpackb(response)
+
+
+# --- fixtures ---
+
+@pytest.fixture(scope="module")
+def detector() -> Iterator[PerceptionModel]:
+    with pytest.MonkeyPatch.context() as patch:
+        patch.syspath_prepend(str(PLUGINS))
+        yield build_plugin(DETECTOR)
+
+
+def running(model: PerceptionModel, **settings) -> ModelServer:
+    """``model`` served on a free port in a daemon thread."""
+    server = ModelServer(model, metadata(model, DETECTOR), ServeSettings(DETECTOR, 0, **settings))
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    return server
+
+
+@pytest.fixture(scope="module")
+def server(detector) -> Iterator[ModelServer]:
+    served = running(detector, api_key=KEY, max_message_bytes=2**20)
+    yield served
+    served.shutdown()
+
+
+@pytest.fixture(scope="module")
+def frames(detector):
+    """Three head-camera frames of single and selected-type scenes, with their conditions."""
+    with TrialRunner(load_task("single"), lambda world, camera: detector, robot=YUMI) as runner:
+        seen = []
+        for task_name, index in (("single", 0), ("single", 1), ("selected-type", 0)):
+            scene = sample_scene(load_task(task_name), YUMI_SCENE, 0, SeedStream.TEST, index)
+            runner.setup(scene)
+            seen.append((runner.sense(), scene.condition))
+        yield seen
+
+
+def url(server: ModelServer) -> str:
+    return f"ws://127.0.0.1:{server.port}"
+
+
+# --- the bytes ---
+
+def test_the_codec_writes_openpis_bytes_and_reads_them_back():
+    message = {"rgb": np.arange(12, dtype=np.uint8).reshape(2, 2, 3), "x": np.float32(1.5),
+               "nested": {"depth": np.ones((2, 2), np.float32), "s": "text", "n": None}}
+    assert codec.pack(message) == openpi_packb(message)
+    back = codec.unpack(openpi_packb(message))
+    assert back["rgb"].tolist() == message["rgb"].tolist() and back["x"] == np.float32(1.5)
+    assert back["nested"]["depth"].dtype == np.float32 and back["nested"]["s"] == "text"
+
+
+@pytest.mark.parametrize("hostile", [
+    {b"__ndarray__": True, b"data": b"\0" * 8, b"dtype": "|O", b"shape": [1]},  # pickle's door
+    {b"__ndarray__": True, b"data": b"\0" * 3, b"dtype": "<f4", b"shape": [1]},  # short data
+    {b"__ndarray__": True, b"data": b"\0" * 4, b"dtype": "<f4", b"shape": [-4]},
+])
+def test_the_codec_refuses_objects_and_arrays_their_bytes_do_not_fill(hostile):
+    with pytest.raises(InvalidInputError):
+        codec.unpack(msgpack.packb({"a": hostile}))
+    with pytest.raises(InvalidInputError, match="message"):
+        codec.unpack(b"\xc1 not msgpack")
+
+
+def test_a_request_carries_the_frame_and_condition_field_by_field(frames):
+    frame, condition = frames[2]
+    read = read_request(codec.unpack(codec.pack(request_message(frame, condition))))
+    assert np.array_equal(read.frame.rgb, frame.rgb)
+    assert np.array_equal(read.frame.depth_m, frame.depth_m, equal_nan=True)
+    assert read.frame.camera == frame.camera and read.condition == condition
+
+
+# --- the server, through openpi's client ---
+
+def test_openpis_client_gets_the_metadata_and_a_grasp(server, frames):
+    client = OpenpiClient(url(server), api_key=KEY)
+    assert client.metadata["protocol"] == PROTOCOL and client.metadata["name"] == "colour-detector"
+    assert client.metadata["label_kind"] == "grasp_pose"
+    assert len(client.metadata["source_sha256"]) == 64
+    reply = client.infer(request_message(*frames[0]))
+    assert reply["targets"][0]["position_m"].shape == (3,)
+    assert reply["targets"][0]["rotation"].shape == (3, 3)
+
+
+def test_remote_predictions_are_the_in_process_ones(server, detector, frames, monkeypatch):
+    monkeypatch.setenv("GVA_API_KEY", KEY)
+    remote = RemoteModel(url(server))
+    for frame, condition in frames:
+        here = detector.predict_frame(frame, condition)
+        there = remote.predict_frame(frame, condition)
+        assert len(here.targets) == len(there.targets)
+        for a, b in zip(here.targets, there.targets, strict=True):
+            assert np.array_equal(a.position_m, b.position_m)
+            assert np.array_equal(a.rotation, b.rotation) and a.object_type == b.object_type
+        assert np.array_equal(here.attention_px, there.attention_px)
+    remote.close()
+
+
+def test_a_bad_key_a_malformed_and_an_oversized_message_are_refused_and_serving_goes_on(
+        server, frames, caplog):
+    for key in (None, "wrong"):
+        with pytest.raises(InvalidStatus, match="401"):
+            OpenpiClient(url(server), api_key=key)
+    client = OpenpiClient(url(server), api_key=KEY)
+    with pytest.raises(RuntimeError, match="malformed request: protocol"):
+        client.infer({"rgb": np.zeros((2, 2, 3), np.uint8)})
+    client.ws.send(b"\xc1\xc1")
+    assert "malformed request" in client.ws.recv()
+    with pytest.raises(ConnectionClosed):
+        client.infer({"big": np.zeros(2**21, np.uint8)})  # over the server's 1 MiB
+    assert "refused" in caplog.text
+    assert OpenpiClient(url(server), api_key=KEY).infer(request_message(*frames[0]))["targets"]
+
+
+def test_the_models_own_failure_is_a_text_frame_and_a_perception_failure(server, frames,
+                                                                            monkeypatch):
+    monkeypatch.setenv("GVA_API_KEY", KEY)
+    frame, _ = frames[0]
+    absent = Condition(ConditionKind.OBJECT_TYPE, "mug", ("sponge", "spray_bottle", "mug"))
+    remote = RemoteModel(url(server))
+    try:
+        remote.predict_frame(frame, absent)
+    except RemoteModelError as error:  # the scene may hold no mug: then the detector says so
+        assert "predict raised" in str(error)
+    assert remote.predict_frame(*frames[0]).targets  # the same connection serves on
+
+
+# --- failures are outcomes ---
+
+class Slow(PerceptionModel):
+    """The detector, asleep for its first answer."""
+
+    name = "slow"
+
+    def __init__(self, inner: PerceptionModel, sleep_s: float) -> None:
+        self.inner, self.sleep_s, self.label_kind, self.inputs = (
+            inner, sleep_s, inner.label_kind, inner.inputs)
+
+    def predict_frame(self, frame, condition=NO_CONDITION) -> Prediction:
+        time.sleep(self.sleep_s)
+        self.sleep_s = 0.0
+        return self.inner.predict_frame(frame, condition)
+
+
+def test_a_slow_server_costs_one_prediction_and_the_next_reconnects(detector, frames):
+    served = running(Slow(detector, 1.0))
+    try:
+        remote = RemoteModel(url(served), timeout_s=0.3)
+        with pytest.raises(RemoteModelError, match=r"no answer within 0\.3 s"):
+            remote.predict_frame(*frames[0])
+        time.sleep(0.8)
+        assert remote.predict_frame(*frames[0]).targets
+    finally:
+        served.shutdown()
+
+
+def test_a_server_answering_garbage_is_a_perception_failure(frames):
+    def handler(connection):
+        connection.send(codec.pack({"protocol": PROTOCOL, "name": "liar",
+                                    "label_kind": "grasp_pose", "inputs": ["rgb"]}))
+        for _ in connection:
+            connection.send(codec.pack({"targets": [{"position_m": "here"}]}))
+
+    with serve(handler, "127.0.0.1", 0) as liar:
+        threading.Thread(target=liar.serve_forever, daemon=True).start()
+        remote = RemoteModel(f"ws://127.0.0.1:{liar.socket.getsockname()[1]}")
+        with pytest.raises(RemoteModelError, match=r"answered no prediction.*position_m"):
+            remote.predict_frame(*frames[0])
+        liar.shutdown()
+
+
+def test_a_dead_server_fails_the_trial_with_why_and_the_run_goes_on(detector, monkeypatch):
+    served = running(detector)
+    remote = RemoteModel(url(served))
+    served.shutdown()
+    task = load_task("single")
+    with TrialRunner(task, lambda world, camera: remote, robot=YUMI) as runner:
+        records = [runner.run(sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, i), i, 0,
+                              url(served)) for i in range(2)]
+    assert [r.outcome for r in records] == [TrialOutcome.PERCEPTION_FAILED] * 2
+    assert "unreachable" in records[0].reason
+
+
+def test_another_model_behind_the_address_is_refused(detector, frames):
+    served = running(detector)
+    remote = RemoteModel(url(served))
+    remote.announced = remote.announced | {"source_sha256": "another"}  # restarted, other code
+    with pytest.raises(RemoteModelError, match="another model"):
+        remote.predict_frame(*frames[0])
+    served.shutdown()
+
+
+def test_serving_refuses_the_oracle_and_a_bad_port():
+    with pytest.raises(InvalidInputError, match="oracle"):
+        start_server(ServeSettings("oracle", 0))
+    with pytest.raises(InvalidInputError, match="port"):
+        ServeSettings(DETECTOR, 70000)
