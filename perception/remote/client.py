@@ -31,6 +31,7 @@ from perception.interface import (
     Prediction,
     RgbdFrame,
 )
+from perception.learning.learnable import ModelSpec
 from perception.remote.codec import pack, unpack
 from perception.remote.messages import PROTOCOL, read_prediction, request_message
 from perception.remote.server import MAX_MESSAGE_BYTES
@@ -110,6 +111,24 @@ def announced_metadata(url: str, timeout_s: float = TIMEOUT_S) -> Mapping[str, A
     return announced
 
 
+def announced_spec(announced: Mapping[str, Any], url: str) -> ModelSpec | None:
+    """The :class:`ModelSpec` a server announced (``spec``); None where it announced none.
+
+    Raises:
+        InvalidInputError: A ``spec`` that is not :meth:`ModelSpec.to_json`'s; one line.
+
+    """
+    data = announced.get("spec")
+    if data is None:
+        return None
+    try:
+        return ModelSpec.from_json(dict(data))
+    except (KeyError, TypeError, ValueError) as error:
+        raise InvalidInputError("model", url, "a server announcing a spec as a checkpoint's "
+                                f"config.json holds it ({type(error).__name__}: {error})") \
+            from error
+
+
 class RemoteModel(PerceptionModel):
     """The model a server announces, predicting over its websocket (see the module docstring)."""
 
@@ -124,6 +143,9 @@ class RemoteModel(PerceptionModel):
         except (ValueError, TypeError) as error:
             raise InvalidInputError("model", url, "a server announcing label_kind and inputs "
                                     f"gva knows ({error})") from error
+        self.spec: ModelSpec | None = announced_spec(self.announced, url)
+        """What the served model was trained for (a checkpoint's spec), None where not announced;
+        ``gva trials`` checks it against the task as it checks a checkpoint in-process."""
         self._connection: ClientConnection | None = None
 
     def __repr__(self) -> str:

@@ -30,6 +30,7 @@ from websockets.sync.server import Server, ServerConnection, serve
 
 from perception.errors import InvalidInputError
 from perception.interface import PerceptionModel
+from perception.learning.learnable import ModelSpec
 from perception.plugins import build_plugin, installed_models, is_class_path
 from perception.remote.codec import pack, unpack
 from perception.remote.messages import PROTOCOL, prediction_message, read_request
@@ -97,7 +98,10 @@ def metadata(model: PerceptionModel, source: str) -> dict[str, Any]:
 
     ``weights_sha256``/``config_sha256`` for a checkpoint (as its ``config.json`` holds them),
     ``source_sha256`` of the class's file for a model without weights: two servers of the same
-    model announce the same identity, whatever their address.
+    model announce the same identity, whatever their address. A learnable model also announces
+    its ``spec`` (:meth:`~perception.learning.learnable.ModelSpec.to_json`: scene, task,
+    condition, targets, image size, camera, sensor), which a client checks against its task as
+    it checks a checkpoint in-process.
     """
     cls = type(model)
     data: dict[str, Any] = {
@@ -110,6 +114,9 @@ def metadata(model: PerceptionModel, source: str) -> dict[str, Any]:
         config = read_config(source)
         data |= {"checkpoint": Path(source).resolve().name} | {
             key: config[key] for key in ("weights_sha256", "config_sha256") if key in config}
+        spec = getattr(model, "spec", None)
+        if isinstance(spec, ModelSpec):  # a learnable model's: what it was trained for
+            data["spec"] = spec.to_json()
     else:
         try:
             data["source_sha256"] = hashlib.sha256(

@@ -2,8 +2,9 @@
 
 :func:`check_model_fits_task` refuses, in one line that says why, a model that does not predict
 grasp poses, or a checkpoint trained for another scene, condition, target count or image size,
-under another sensor (unless allowed) or through another robot's camera; the trials'
-settings (:mod:`sim.trials.trial_settings`) call it before the first trial.
+under another sensor (unless allowed) or through another robot's camera, in-process or served
+(by the spec ``gva serve`` announces); the trials' settings (:mod:`sim.trials.trial_settings`)
+call it before the first trial.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import numpy as np
 
 from perception.interface import LabelKind, PerceptionModel
 from perception.learning.learnable import LearnableModel, ModelSpec
+from perception.remote.client import RemoteModel
 from robots import ROBOT_NAMES, get_robot
 from robots.description import RobotDescription
 from sim.errors import InvalidInputError
@@ -43,9 +45,9 @@ def check_model_fits_task(model: PerceptionModel, task: TaskSpec, where: str,
         raise InvalidInputError(f"model {where}: label_kind", shown, "'grasp_pose': pick trials "
                                 "need a grasp pose (TCP position and rotation) per target; a "
                                 "position model (e.g. one trained on paper-sim) cannot pick")
-    if not isinstance(model, LearnableModel) or not isinstance(model.spec, ModelSpec):
+    spec = model_spec(model)
+    if spec is None:
         return
-    spec = model.spec
     camera = camera_config(robot)
     check_camera(spec, robot, where)
     needed = (YUMI_SCENE.name, task.model_condition.value, condition_choices(task, YUMI_SCENE),
@@ -65,6 +67,17 @@ def check_model_fits_task(model: PerceptionModel, task: TaskSpec, where: str,
                                 f"trial task {task.name} is seen through "
                                 f"{task.sensor.describe()}), or --allow-sensor-change to try it "
                                 f"under {task.sensor.describe()}")
+
+
+def model_spec(model: PerceptionModel) -> ModelSpec | None:
+    """What ``model`` was trained for: a learnable model's spec, or the one its server announced.
+
+    A served checkpoint (``gva serve``) announces its spec, so it is checked as in-process; a
+    model without one (a plug-in without weights, a server announcing none) is not checked.
+    """
+    if isinstance(model, LearnableModel | RemoteModel) and isinstance(model.spec, ModelSpec):
+        return model.spec
+    return None
 
 
 def check_camera(spec: ModelSpec, robot: RobotDescription, where: str) -> None:

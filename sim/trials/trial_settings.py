@@ -304,13 +304,22 @@ def load_trial_model(settings: TrialSettings) -> TrialModel:
 
 
 def checkpoint_sensor(model: str) -> SensorConfig | None:
-    """The sensor checkpoint folder ``model`` was trained under; None for any other model.
+    """The sensor checkpoint ``model`` was trained under, in a folder or served; else None.
 
     Read from its ``config.json`` (its spec's record, as :func:`trained_sensor` reads it), the
-    weights unread; None too where the config keeps no spec (a model of its own making,
-    unchecked) or cannot be read (loading the checkpoint then says why).
+    weights unread, or from the spec its server announced (``ws://``: a served checkpoint is
+    tried under its own sensor as in-process); None too where no spec is kept or announced (a
+    model of its own making, unchecked) or a config cannot be read (loading it then says why).
+
+    Raises:
+        perception.errors.InvalidInputError: ``ws://`` names no reachable server; one line.
+
     """
-    if model_source(model) is not ModelSource.CHECKPOINT:
+    source = model_source(model)
+    if source is ModelSource.REMOTE:
+        spec = announced_metadata(model).get("spec")
+        return recorded_sensor(spec.get("sensor"), model) if isinstance(spec, dict) else None
+    if source is not ModelSource.CHECKPOINT:
         return None
     from perception.learning.checkpoint import CheckpointError, read_config
 
