@@ -39,7 +39,7 @@ LOG = logging.getLogger("gva.serve")
 MAX_MESSAGE_BYTES = 64 * 2**20
 """The largest request read: a 4K RGB-D frame is ~60 MB; anything larger is refused unread."""
 DEFAULT_HOST = "127.0.0.1"  # loopback unless told otherwise: a model is no public service
-REFUSED_MODELS = frozenset({"oracle"})  # reads the simulator's truth: no model to serve
+REFUSED_MODELS = frozenset({"oracle", "oracle-view"})  # read the truth: no model to serve
 
 
 @dataclass(frozen=True)

@@ -53,9 +53,10 @@ def test_a_server_that_is_not_there_stops_trials_before_any_in_one_line(tmp_path
     assert not (tmp_path / "run").exists()
 
 
-def test_serve_refuses_the_oracle(tmp_path):
-    status, _, err = gva("serve", "oracle", "--port", 0)
-    assert status == 2 and "oracle" in err and len(err.strip().splitlines()) == 1
+@pytest.mark.parametrize("oracle", ["oracle", "oracle-view"])
+def test_serve_refuses_the_oracle(tmp_path, oracle):
+    status, _, err = gva("serve", oracle, "--port", 0)
+    assert status == 2 and oracle in err and len(err.strip().splitlines()) == 1
 
 
 def test_gva_serve_announces_its_address_and_serves_until_stopped():
