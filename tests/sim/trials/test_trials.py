@@ -93,8 +93,9 @@ def test_scenes_are_seeded_and_test_scenes_differ_from_training(tmp_path):
 
 def test_unknown_model_and_task_are_refused_with_the_allowed_names():
     with pytest.raises(InvalidInputError, match="model = 'kqv9' is not allowed: one of oracle, "
-                       r"a checkpoint folder \(gva train writes one\), 'package.module:Class' "
-                       r"or the name an installed package registers in 'gva.models'"):
+                       r"oracle-view, a checkpoint folder \(gva train writes one\), "
+                       r"'package.module:Class', the name an installed package registers in "
+                       r"'gva.models', or ws://HOST:PORT of a gva serve server"):
         TrialSettings(model="kqv9", task="single")
     with pytest.raises(InvalidInputError, match=r"task = 'juggle' is not allowed: one of multiple, "
                        r"selected-position, selected-position-text, selected-type, "
