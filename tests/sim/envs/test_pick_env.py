@@ -67,7 +67,7 @@ def test_gymnasiums_env_checker_passes(task: str) -> None:
 @pytest.mark.slow
 def test_the_oracles_grasps_in_the_env_get_the_trials_outcomes(single_trials) -> None:
     assert env_outcomes("single", SCENES) == single_trials
-    for task, n in (("selected-type", 4), ("multiple", 1)):  # one-hot; three picks a trial
+    for task, n in (("selected-type", 2), ("multiple", 1)):  # one-hot; three picks a trial
         assert env_outcomes(task, n) == trial_outcomes(task, n), task
 
 
