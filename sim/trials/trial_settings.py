@@ -111,8 +111,8 @@ class TrialSettings:
 
     Args:
         model: ``"oracle"`` or ``"oracle-view"`` (:data:`TRIAL_MODELS`), a checkpoint folder,
-            or a model that builds with no arguments: ``"package.module:Class"`` or an
-            installed plug-in's name.
+            a model that builds with no arguments (``"package.module:Class"`` or an installed
+            plug-in's name), or ``"ws://HOST:PORT"``: a model ``gva serve`` serves elsewhere.
         task: A built-in task name, or the path of a task TOML file.
         n: Number of trials.
         seed: Seed of the test scenes.
