@@ -58,6 +58,9 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--holdout", type=float, default=CheckConfig.holdout,
                         help="fraction of each task's demonstrations held out to check its "
                         "trained model (%(default)s; 0: train on all, check nothing)")
+    parser.add_argument("--gif-trials", type=integer(0), default=defaults.gif_trials,
+                        help="first trials of each model and task recorded again as a GIF "
+                        "(%(default)s; 0: none, each is a pick run twice)")
     parser.add_argument("--use-failed-checkpoints", action="store_true",
                         help="run the trials of a checkpoint that failed its held-out check at "
                         "every start anyway, with a warning (for studies); default: its cells "
@@ -110,6 +113,7 @@ def run(args: argparse.Namespace) -> int:
                                      executor=executor(args), train_threads=args.train_threads,
                                      model_configs=model_config_files(args),
                                      world=args.world,
+                                     gif_trials=args.gif_trials,
                                      use_failed_checkpoints=args.use_failed_checkpoints)
     report = run_reproduce_real(settings, args.out, progress=not args.no_progress)
     for line in report.summary_lines("job(s) run", lambda record: record["job"]):

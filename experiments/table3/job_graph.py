@@ -29,7 +29,6 @@ from experiments.table3.jobs import (
     trials_done,
 )
 from experiments.table3.settings import (
-    GIF_TRIALS,
     PLAIN,
     SCENE,
     ReproduceRealSettings,
@@ -154,8 +153,9 @@ def _trials_estimate(settings: ReproduceRealSettings, out: Path, trial_set: Tria
     targets = task_targets(trial_set.unit.task)
     summary = trials_folder(out, trial_set) / "summary.json"
     estimate = 0.0 if summary.exists() else TRIAL_S_PER_PICK * settings.n * targets
-    if trial_set.variant == PLAIN and not gif_file(out, trial_set.unit).exists():
-        estimate += GIF_S_PER_PICK * min(GIF_TRIALS, settings.n) * targets
+    if trial_set.variant == PLAIN and settings.gif_trials and not gif_file(
+            out, trial_set.unit).exists():
+        estimate += GIF_S_PER_PICK * min(settings.gif_trials, settings.n) * targets
     return estimate
 
 
@@ -183,9 +183,9 @@ def _trial_jobs(settings: ReproduceRealSettings, out: Path, unit: Unit | None = 
         trials = settings.trial_settings(out, trial_set)
         job = TrialsJob(f"trials-{trial_set.name}-s{settings.seed}", trial_set, trials, out)
         candidates: list[tuple[Job, bool]] = [(job, trials_done(job))]
-        if trial_set.variant == PLAIN:
+        if trial_set.variant == PLAIN and settings.gif_trials:
             gif = GifJob(f"gif-{trial_set.unit.name}-s{settings.seed}", trial_set.unit, trials,
-                         min(GIF_TRIALS, settings.n), out)
+                         min(settings.gif_trials, settings.n), out)
             candidates.append((gif, gif_done(gif)))
         for candidate, finished in candidates:
             if finished:

@@ -138,6 +138,8 @@ class ReproduceRealSettings:
         check: How each training checks itself on demonstrations it holds out
             (:class:`~perception.learning.validation.CheckConfig`); a model that fails is
             marked in its checkpoint and in the tables.
+        gif_trials: The first trials of each unit's plain set recorded again as a GIF; 0: none
+            (a sweep of many seeds may want none: each is a pick run twice).
         use_failed_checkpoints: Run the trials of a checkpoint that failed its held-out check
             at every start anyway, with a warning (for studies; what runs did before issue
             66). False: they are not run, and the cells are recorded failed with the check's
@@ -177,6 +179,7 @@ class ReproduceRealSettings:
     train_threads: int = 1
     executor: Executor = LOCAL
     check: CheckConfig = field(default_factory=CheckConfig)
+    gif_trials: int = GIF_TRIALS
     use_failed_checkpoints: bool = False
     model_configs: tuple[ModelConfigFile, ...] = ()
     loop: LoopSettings = field(default_factory=LoopSettings)
@@ -204,7 +207,7 @@ class ReproduceRealSettings:
         check_choices("tasks", self.tasks, ALL_TASKS)
         check_model_configs([(f.model, f.path) for f in self.model_configs], self.models)
         check_counts(self, {"n": 1, "demos": 1, "steps": 1, "seed": 0, "seeds": 1,
-                            "train_threads": 1}, self.workers)
+                            "train_threads": 1, "gif_trials": 0}, self.workers)
 
     @property
     def training_seeds(self) -> range:
@@ -279,8 +282,8 @@ class ReproduceRealSettings:
                 "format_version": FORMAT_VERSION, "experiment": "reproduce-real",
                 "scene": SCENE, "demos": self.demos, "n": self.n,
                 "train": train, "settle_s": TrialSettings.settle_s,
-                "execution": asdict(ExecutionSettings()),
-                "obstacles": obstacle_identity(TrialSettings.obstacles), "gif_trials": GIF_TRIALS,
+                "execution": asdict(ExecutionSettings()), "gif_trials": self.gif_trials,
+                "obstacles": obstacle_identity(TrialSettings.obstacles),
                 "variants": {Path(v).stem: read_variant(v)[1] for v in self.variants}}
 
     def train_identity(self, unit: Unit) -> dict[str, Any]:
@@ -346,6 +349,8 @@ class ReproduceRealSettings:
             parts.append(f"--train-threads {self.train_threads}")
         if self.check.holdout != CheckConfig.holdout:
             parts.append(f"--holdout {self.check.holdout:g}")
+        if self.gif_trials != GIF_TRIALS:
+            parts.append(f"--gif-trials {self.gif_trials}")
         if self.use_failed_checkpoints:
             parts.append("--use-failed-checkpoints")
         return " ".join(parts + model_config_options(self.model_configs))

@@ -231,6 +231,15 @@ def test_training_threads_are_part_of_the_run_and_of_its_command(tiny_run):
     assert status == 2 and "--train-threads" in stderr
 
 
+def test_gif_trials_are_counted_in_the_identity_and_the_command_and_never_negative():
+    none = replace(TINY_SETTINGS, gif_trials=0)
+    assert none.shared_identity()["gif_trials"] == 0  # a folder of GIFs resumes only with them
+    assert TINY_SETTINGS.shared_identity()["gif_trials"] == 3
+    assert none.command(Path("out")).endswith("--gif-trials 0")
+    with pytest.raises(InvalidInputError, match="gif_trials = -1 is not allowed"):
+        replace(TINY_SETTINGS, gif_trials=-1)
+
+
 def test_a_failing_training_is_recorded_and_the_run_goes_on(tiny_run, tmp_path, monkeypatch):
     import experiments.table3.jobs
 
