@@ -134,9 +134,16 @@ class RemoteModel(PerceptionModel):
 
     name = "remote"
 
-    def __init__(self, url: str, timeout_s: float = TIMEOUT_S) -> None:
+    def __init__(self, url: str, timeout_s: float = TIMEOUT_S,
+                 announced: Mapping[str, Any] | None = None) -> None:
+        """The model at ``url``; ``announced``: what it announced when the run began, if known.
+
+        Given, nothing is asked until the first prediction, which refuses a server that now
+        announces otherwise.
+        """
         self.url, self.timeout_s = url, timeout_s
-        self.announced = dict(announced_metadata(url, timeout_s))
+        self.announced = dict(announced_metadata(url, timeout_s) if announced is None
+                              else announced)
         try:
             self.label_kind = LabelKind(self.announced.get("label_kind"))
             self.inputs = frozenset(ModelInput(i) for i in self.announced.get("inputs", ()))
