@@ -295,26 +295,46 @@ def load_trial_model(settings: TrialSettings) -> TrialModel:
     source = model_source(settings.model)
     if source is ModelSource.BUILT_IN:
         return TrialModel(TRIAL_MODELS[settings.model], settings.model, one_torch_thread=False)
-    model: PerceptionModel
-    if source is ModelSource.REMOTE:
-        model = RemoteModel(settings.model, announced=settings.announced)
+    model = built_model(settings.model, settings.model_class, settings.announced)
+    if isinstance(model, RemoteModel):
         label = f"{model.announced.get('name')} @ {settings.model}"
     elif source is ModelSource.CHECKPOINT:
-        from perception.registry import load_model  # imports torch: not for the oracle
-
-        model = load_model(settings.model, settings.model_class)
         label = f"{model.name} {Path(settings.model).resolve().name}"
     else:
-        if issubclass(plugin_class(settings.model), LearnableModel):
-            raise InvalidInputError("model", settings.model, "a model without weights; a "
-                                    "learnable one loads from its checkpoint folder: --model "
-                                    f"FOLDER --model-class {settings.model}")
-        model = build_plugin(settings.model)
         label = model.name
     check_inputs(model, TRIAL_INPUTS, settings.model)
     check_model_fits_task(model, settings.task_spec, settings.model,
                           settings.allow_sensor_change, robot=settings.description())
     return TrialModel(lambda world, camera: model, label, one_torch_thread="torch" in sys.modules)
+
+
+def built_model(model: str, model_class: str | None = None,
+                announced: Mapping[str, Any] | None = None) -> PerceptionModel:
+    """The model ``model`` names (not a built-in one: those read the world), unchecked.
+
+    A served model (``announced``: what it announced, if known), a checkpoint (loaded by
+    ``model_class``, if given) or a plug-in without weights.
+
+    Raises:
+        InvalidInputError: It cannot be found or built, or is a learnable class (its
+            checkpoint folder is what loads); one line.
+
+    """
+    source = model_source(model)
+    if source is ModelSource.BUILT_IN:
+        raise InvalidInputError("model", model, "a model that reads no simulator (built-in "
+                                f"ones: {', '.join(TRIAL_MODELS)}, read the world)")
+    if source is ModelSource.REMOTE:
+        return RemoteModel(model, announced=announced)
+    if source is ModelSource.CHECKPOINT:
+        from perception.registry import load_model  # imports torch: not for the oracle
+
+        return load_model(model, model_class)
+    if issubclass(plugin_class(model), LearnableModel):
+        raise InvalidInputError("model", model, "a model without weights; a learnable one "
+                                f"loads from its checkpoint folder: --model FOLDER --model-class "
+                                f"{model}")
+    return build_plugin(model)
 
 
 def checkpoint_sensor(model: str, announced: Mapping[str, Any] | None = None
