@@ -150,6 +150,8 @@ class RemoteModel(PerceptionModel):
         except (ValueError, TypeError) as error:
             raise InvalidInputError("model", url, "a server announcing label_kind and inputs "
                                     f"gva knows ({error})") from error
+        self.attention_per_target = bool(  # type: ignore[misc]  # the served class's, not ours
+            self.announced.get("attention_per_target", True))
         self.spec: ModelSpec | None = announced_spec(self.announced, url)
         """What the served model was trained for (a checkpoint's spec), None where not announced;
         ``gva trials`` checks it against the task as it checks a checkpoint in-process."""
