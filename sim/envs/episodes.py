@@ -86,8 +86,7 @@ def model_policy(env: gymnasium.Env[Any, Any], model: str, model_class: str | No
     """
     if model == "oracle":
         return oracle_policy(env)
-    pick_env = env.unwrapped
-    assert isinstance(pick_env, PickEnv), "model_policy drives gva/Pick-v0"
+    pick_env = _pick_env(env)
     built = built_model(model, model_class)
     check_inputs(built, TRIAL_INPUTS, model)
     check_model_fits_task(built, pick_env.task, model, allow_sensor_change,
@@ -101,18 +100,19 @@ def model_policy(env: gymnasium.Env[Any, Any], model: str, model_class: str | No
                     observation[key]).tolist(), "the env's current camera's (an observation "
                     "of this env, unchanged)")
         frame = RgbdFrame(observation["rgb"], observation["depth_m"], camera)
-        prediction = built.predict_frame(frame, observed_condition(pick_env, observation))
+        prediction = built.predict_frame(frame, observed_condition(env, observation))
         return pick_env.action_of(prediction, built.name)
 
     return policy
 
 
-def observed_condition(env: PickEnv, observation: dict[str, Any]) -> Condition:
-    """The condition an observation's ``condition`` holds, as a model is given it.
+def observed_condition(env: gymnasium.Env[Any, Any], observation: dict[str, Any]) -> Condition:
+    """The condition an observation of ``env`` holds, as a model is given it.
 
     A one-hot kind's value is its vector's hot choice among the task's; a sentence and a
     picture are the observation's own.
     """
+    pick_env = _pick_env(env)
     given = observation["condition"]
     kind = tuple(ConditionKind)[int(given["kind"])]
     if kind is ConditionKind.NONE:
@@ -121,5 +121,13 @@ def observed_condition(env: PickEnv, observation: dict[str, Any]) -> Condition:
         return Condition(kind, str(given["sentence"]))
     if kind is ConditionKind.IMAGE:
         return Condition(kind, picture=np.asarray(given["picture"], dtype=np.uint8))
-    choices = tuple(condition_choices(env.task, YUMI_SCENE))
+    choices = tuple(condition_choices(pick_env.task, YUMI_SCENE))
     return Condition(kind, choices[int(np.argmax(given["vector"]))], choices)
+
+
+def _pick_env(env: gymnasium.Env[Any, Any]) -> PickEnv:
+    """``env``'s :class:`PickEnv`, under any wrappers."""
+    if not isinstance(env.unwrapped, PickEnv):
+        raise InvalidInputError("env", type(env.unwrapped).__name__, "gva/Pick-v0 (a PickEnv, "
+                                "wrapped or not)")
+    return env.unwrapped

@@ -65,7 +65,7 @@ def test_the_observations_condition_is_the_scenes(task):
     env = gymnasium.make(ENV_ID, task=task)
     try:
         observation, _ = env.reset(seed=0, options={"index": 1})
-        assert observed_condition(env.unwrapped, observation) == env.unwrapped._scene.given
+        assert observed_condition(env, observation) == env.unwrapped._scene.given
     finally:
         env.close()
 
