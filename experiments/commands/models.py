@@ -13,6 +13,7 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -30,6 +31,7 @@ from perception.learning.validation import CHECK_FILE, CheckConfig, fit_checked,
 from perception.model_config_file import ModelConfigFile, settings_text
 from perception.models.kqv import KqvModel
 from perception.registry import load_model, new_model
+from perception.remote.client import RemoteModel, is_remote
 
 
 def add_options(parser: argparse.ArgumentParser, command: str) -> None:
@@ -38,14 +40,17 @@ def add_options(parser: argparse.ArgumentParser, command: str) -> None:
         _train_options(parser)
         parser.set_defaults(run=run_train)
         return
-    parser.add_argument("--model", type=Path, required=True, help="checkpoint folder")
     if command == "evaluate":
+        parser.add_argument("--model", required=True, help="checkpoint folder, or "
+                            "ws://HOST:PORT of a model gva serve serves")
         parser.add_argument("--data", type=Path, required=True,
                             help="dataset file (test scenes)")
         parser.add_argument("--out", type=Path,
-                            help="JSON file to write (MODEL/evaluation-<dataset name>.json)")
+                            help="JSON file to write (MODEL/evaluation-<dataset name>.json; "
+                            "needed for a served model)")
         parser.set_defaults(run=run_evaluate)
     else:
+        parser.add_argument("--model", type=Path, required=True, help="checkpoint folder")
         parser.add_argument("--data", type=Path, required=True, help="dataset file")
         parser.add_argument("--out", type=Path, required=True, help="folder for the PNGs")
         parser.add_argument("--count", type=integer(1), default=8,
@@ -144,9 +149,19 @@ def run_train(args: argparse.Namespace) -> int:
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
-    """``gva evaluate``: a checkpoint's errors on ``--data``, printed and written as JSON."""
-    model, dataset = _model_and_dataset(args)
-    result = evaluate(model, dataset)
+    """``gva evaluate``: a checkpoint's (or served model's) errors on ``--data``, as JSON too.
+
+    A served model (``ws://HOST:PORT``) is sent each sample as a trial's frame; its JSON
+    records the address and what the server announced where a checkpoint's records its path
+    and weights' SHA-256.
+    """
+    served = is_remote(args.model)
+    if served and args.out is None:
+        raise InvalidInputError("--out", None, "a JSON file to write: a served model has no "
+                                "checkpoint folder to write beside")
+    model: LearnableModel | RemoteModel
+    model, dataset = _served_and_dataset(args) if served else _model_and_dataset(args)
+    result = evaluate(model, dataset, frames=served)
     print(result.headline())
     names = target_names(dataset)
     print("per target, mean position error: " + ", ".join(
@@ -182,10 +197,14 @@ def run_evaluate(args: argparse.Namespace) -> int:
     if result.attention_switch_fraction is not None:
         print(f"attention moves to the named object under every condition: "
               f"{100 * result.attention_switch_fraction:.1f} % of scenes")
-    out: Path = args.out or args.model / f"evaluation-{args.data.stem}.json"
-    data = {"checkpoint": str(args.model.resolve()),
-            "weights_sha256": read_config(args.model)["weights_sha256"],
-            "dataset": str(args.data.resolve())} | result.to_json()
+    out: Path = args.out or Path(args.model) / f"evaluation-{args.data.stem}.json"
+    source: dict[str, Any] = (
+        {"served": args.model, "announced": model.announced} | {
+            key: model.announced[key] for key in ("weights_sha256",)
+            if key in model.announced} if isinstance(model, RemoteModel) else
+        {"checkpoint": str(Path(args.model).resolve()),
+         "weights_sha256": read_config(args.model)["weights_sha256"]})
+    data = source | {"dataset": str(args.data.resolve())} | result.to_json()
     text = json.dumps(data, indent=2, allow_nan=False) + "\n"
     out.parent.mkdir(parents=True, exist_ok=True)
     atomic_write(out, lambda temporary: temporary.write_text(text, encoding="utf-8"))
@@ -250,9 +269,24 @@ def _asked(dataset: Dataset, names: Sequence[str | None], index: int) -> str:
         else str(names[index])
 
 
+def _served_and_dataset(args: argparse.Namespace) -> tuple[RemoteModel, Dataset]:
+    """The served model ``--model`` and the dataset ``--data``, checked as a checkpoint's."""
+    model, dataset = RemoteModel(args.model), load_dataset(args.data)
+    if model.spec is not None:  # a served checkpoint announces what it was trained for
+        try:
+            model.spec.check_dataset(dataset)
+        except InvalidInputError as error:
+            raise PerceptionError(f"dataset {args.data} does not fit the model served at "
+                                  f"{args.model} ({model.announced.get('name')}, trained on "
+                                  f"{model.spec.task}): {error.value}") from error
+    if len(dataset) == 0:
+        raise InvalidInputError("--data", str(args.data), "a dataset with samples; it has none")
+    return model, dataset
+
+
 def _model_and_dataset(args: argparse.Namespace) -> tuple[LearnableModel, Dataset]:
     """The checkpoint ``--model`` and the dataset ``--data``, checked to fit each other."""
-    model = load_model(args.model, args.model_class)
+    model = load_model(Path(args.model), args.model_class)
     dataset = load_dataset(args.data)
     try:
         model.spec.check_dataset(dataset)

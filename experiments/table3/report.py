@@ -28,6 +28,7 @@ from experiments.table3.check_gate import (
 )
 from experiments.table3.folder import history_wall_time_s, read_checks, read_failed, read_gifs
 from experiments.table3.pairing import PairedSets, baseline_comparisons, variant_comparisons
+from experiments.table3.plugins import served_models
 from experiments.table3.settings import (
     OPEN_LOOP,
     PLAIN,
@@ -47,6 +48,7 @@ from experiments.tables import ALL_TASKS, TASK_TITLES, TASKS, model_order, model
 from harness.paired_statistics import CONFIDENCE, SIGNIFICANCE
 from harness.run_files import write_json, write_text
 from harness.run_report import duration
+from perception.remote.client import announced_metadata
 from sim.tasks.task_spec import TargetSelection
 from sim.tasks.task_toml import load_task
 from sim.tasks.variants import variant_title
@@ -362,9 +364,11 @@ def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float
                "process(es). Last run: "
                f"{duration(wall_time_s)} wall time; every run into this folder together: "
                f"{duration(all_runs_s)}.")
+    served = served_models(settings.models)
     if plugins := settings.plugins():  # tried as they are: no demonstrations, no training
-        made_by += (" Plug-ins, untrained, on the same test scenes: "
-                    + ", ".join(f"`{plugin}`" for plugin in plugins) + ".")
+        made_by += (" Plug-ins, untrained, on the same test scenes: " + ", ".join(
+            f"`{plugin}`" + (f" (served at {served[plugin]})" if plugin in served else "")
+            for plugin in plugins) + ".")
     table = {"seeds": seeds} | table3_json(sets) | {
         "gifs": gifs,
         "settings": settings.shared_identity() | {
@@ -374,7 +378,9 @@ def write_reports(settings: ReproduceRealSettings, out: Path, wall_time_s: float
             "use_failed_checkpoints": settings.use_failed_checkpoints,
             "sensor": SensorConfig(settings.sensor).to_json(), "workers": settings.worker_count(),
             "model_configs": {f.model: f.to_json() for f in settings.model_configs}} | (
-                {"plugins": list(plugins)} if plugins else {}),
+                {"plugins": list(plugins)} if plugins else {}) | (
+                {"served": {row: {"url": url, "announced": dict(announced_metadata(url))}
+                            for row, url in served.items()}} if served else {}),
         "wall_time_s": wall_time_s, "wall_time_all_runs_s": all_runs_s, "failed": failed,
         "checks": checks, "provenance": session}
     paths = [out / "table3.json", out / "table3.md"]

@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from experiments.table3.plugins import check_plugins, is_plugin
+from experiments.table3.plugins import check_plugins, is_plugin, row, served_models
 from experiments.tables import (
     ALL_TASKS,
     TASKS,
@@ -29,6 +29,7 @@ from harness.run_folder import json_form
 from perception.learning.train import TrainConfig, available_threads
 from perception.learning.validation import CheckConfig
 from perception.model_config_file import ModelConfigFile
+from perception.remote.client import announced_metadata
 from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot
 from robots.description import RobotDescription
 from sim.errors import InvalidInputError
@@ -111,9 +112,9 @@ class ReproduceRealSettings:
     """What ``gva reproduce real`` runs; its fields' defaults are the command's.
 
     Args:
-        models: Models to train, names :func:`~perception.registry.new_model` takes, or
-            plug-ins without weights (``package.module:Class``), tried untrained on the same
-            scenes (:mod:`experiments.table3.plugins`).
+        models: Models to train, names :func:`~perception.registry.new_model` takes, or tried
+            untrained on the same scenes: plug-ins without weights (``package.module:Class``)
+            and served models (``ws://HOST:PORT``; :mod:`experiments.table3.plugins`).
         tasks: Tasks, from :data:`~experiments.tables.ALL_TASKS` (default: the paper's).
         n: Trials per model and task (the paper's 30).
         demos: Demonstrations per task (the paper's 20).
@@ -203,7 +204,8 @@ class ReproduceRealSettings:
             raise InvalidInputError("sensor", self.sensor,
                                     f"one of {', '.join(k.value for k in SensorKind)}")
         check_models(self.models)
-        check_plugins(self.plugins(), self.tasks, self.sensor, self.robot)
+        check_plugins([m for m in self.models if is_plugin(m)], self.tasks, self.sensor,
+                      self.robot)
         check_choices("tasks", self.tasks, ALL_TASKS)
         check_model_configs([(f.model, f.path) for f in self.model_configs], self.models)
         check_counts(self, {"n": 1, "demos": 1, "steps": 1, "seed": 0, "seeds": 1,
@@ -219,12 +221,12 @@ class ReproduceRealSettings:
         return replace(self, seed=seed, seeds=1)
 
     def plugins(self) -> tuple[str, ...]:
-        """The models tried untrained: plug-ins without weights (:func:`.plugins.is_plugin`)."""
-        return tuple(model for model in self.models if is_plugin(model))
+        """The rows of the models tried untrained (:func:`.plugins.is_plugin`, :func:`.row`)."""
+        return tuple(row(model) for model in self.models if is_plugin(model))
 
     def units(self) -> list[Unit]:
         """Every unit: models in the given order, tasks in the paper's, then those beyond it."""
-        return [Unit(m, t) for m in self.models for t in ALL_TASKS if t in self.tasks]
+        return [Unit(row(m), t) for m in self.models for t in ALL_TASKS if t in self.tasks]
 
     def trial_sets(self) -> list[TrialSet]:
         """Every set of trials: each unit's plain set, open-loop (closed runs), each variant."""
@@ -309,13 +311,14 @@ class ReproduceRealSettings:
         return {} if file is None else file.hyperparameters()
 
     def trial_settings(self, out: Path, trial_set: TrialSet) -> TrialSettings:
-        """A set's :class:`~sim.trials.trial_settings.TrialSettings`: checkpoint or plug-in."""
-        model = trial_set.unit.model
-        return TrialSettings(model=model if model in self.plugins() else
-                             str(checkpoint_folder(out, trial_set.unit)),
-                             task=str(task_file(out, trial_set.task_name)), n=self.n,
-                             seed=self.seed, loop=self.trial_loop(trial_set),
-                             robot=self.robot)
+        """A set's TrialSettings: checkpoint, plug-in, or served (with what it announced)."""
+        unit, url = trial_set.unit, served_models(self.models).get(trial_set.unit.model)
+        model = url or (unit.model if unit.model in self.plugins() else
+                        str(checkpoint_folder(out, unit)))
+        return TrialSettings(model=model, task=str(task_file(out, trial_set.task_name)),
+                             n=self.n, seed=self.seed, loop=self.trial_loop(trial_set),
+                             robot=self.robot,
+                             announced=None if url is None else dict(announced_metadata(url)))
 
     def trial_loop(self, trial_set: TrialSet) -> LoopSettings:
         """The loop a set's picks run: the run's, but open for its ``open-loop`` sets."""

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from perception.camera import PinholeCamera
+from perception.camera import PinholeCamera, RgbdFrame
 from perception.checks import check_inputs
 from perception.interface import (
     ConditionKind,
@@ -121,16 +121,19 @@ OFFLINE_INPUTS = frozenset({ModelInput.RGB})
 model, their depth where the dataset keeps it)."""
 
 
-def predict_dataset(model: PerceptionModel, dataset: Dataset, batch_size: int = 32
-                    ) -> list[Prediction]:
+def predict_dataset(model: PerceptionModel, dataset: Dataset, batch_size: int = 32,
+                    frames: bool = False) -> list[Prediction]:
     """Every sample's prediction, batched for a :class:`LearnableModel`, one by one otherwise.
 
     A dataset holds colour images, and depth images where its collector kept them: a model
     that reads what the dataset lacks (or the camera) is refused (one line, before any
-    prediction); it is measured in trials.
+    prediction); it is measured in trials. ``frames``: each sample is given as a trial's frame
+    instead (:func:`_predict_frames`: a served model, which only ``predict_frame`` reaches).
     """
     if not isinstance(batch_size, int) or batch_size < 1:
         raise InvalidInputError("batch_size", batch_size, "an integer >= 1")
+    if frames:
+        return _predict_frames(model, dataset)
     learnable = isinstance(model, LearnableModel)
     depths = dataset.depths_m if learnable and ModelInput.DEPTH in model.inputs else None
     check_inputs(model, OFFLINE_INPUTS | ({ModelInput.DEPTH} if dataset.depths_m is not None
@@ -148,8 +151,31 @@ def predict_dataset(model: PerceptionModel, dataset: Dataset, batch_size: int = 
             for index, image in enumerate(dataset.images)]
 
 
-def evaluate(model: PerceptionModel, dataset: Dataset, batch_size: int = 32) -> EvaluationResult:
+def _predict_frames(model: PerceptionModel, dataset: Dataset) -> list[Prediction]:
+    """``predict_frame`` of each sample, given as a trial's frame would be.
+
+    Its RGB, its depth where the dataset keeps it (else 0 everywhere: no measurement) and the
+    dataset's camera; a model that reads depth the dataset lacks is refused first.
+    """
+    camera = PinholeCamera.from_record(dataset.metadata.camera)
+    if camera is None:
+        raise InvalidInputError("dataset camera", "no geometry", "a dataset that records its "
+                                "camera (the model is given calibrated frames)")
+    depths = dataset.depths_m
+    given = {ModelInput.RGB, ModelInput.CAMERA} | (set() if depths is None else
+                                                   {ModelInput.DEPTH})
+    check_inputs(model, frozenset(given), getattr(model, "name", type(model).__name__))
+    blank = np.zeros(dataset.images.shape[1:3], np.float32)
+    return [model.predict_frame(RgbdFrame(image, blank if depths is None else depths[index],
+                                          camera), dataset.condition(index))
+            for index, image in enumerate(dataset.images)]
+
+
+def evaluate(model: PerceptionModel, dataset: Dataset, batch_size: int = 32,
+             frames: bool = False) -> EvaluationResult:
     """The errors of ``model``'s predictions against ``dataset``'s labels.
+
+    ``frames``: the model is given each sample as a trial's frame (:func:`predict_dataset`).
 
     Raises:
         InvalidInputError: The model predicts a different number of targets than the dataset
@@ -158,7 +184,7 @@ def evaluate(model: PerceptionModel, dataset: Dataset, batch_size: int = 32) -> 
     """
     if len(dataset) == 0:
         raise InvalidInputError("dataset", "0 samples", "at least one sample")
-    predictions = predict_dataset(model, dataset, batch_size)
+    predictions = predict_dataset(model, dataset, batch_size, frames)
     meta, truth = dataset.metadata, split_label(dataset.labels.astype(np.float64))
     counts = {len(p.targets) for p in predictions}
     if counts != {meta.targets}:

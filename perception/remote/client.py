@@ -134,15 +134,24 @@ class RemoteModel(PerceptionModel):
 
     name = "remote"
 
-    def __init__(self, url: str, timeout_s: float = TIMEOUT_S) -> None:
+    def __init__(self, url: str, timeout_s: float = TIMEOUT_S,
+                 announced: Mapping[str, Any] | None = None) -> None:
+        """The model at ``url``; ``announced``: what it announced when the run began, if known.
+
+        Given, nothing is asked until the first prediction, which refuses a server that now
+        announces otherwise.
+        """
         self.url, self.timeout_s = url, timeout_s
-        self.announced = dict(announced_metadata(url, timeout_s))
+        self.announced = dict(announced_metadata(url, timeout_s) if announced is None
+                              else announced)
         try:
             self.label_kind = LabelKind(self.announced.get("label_kind"))
             self.inputs = frozenset(ModelInput(i) for i in self.announced.get("inputs", ()))
         except (ValueError, TypeError) as error:
             raise InvalidInputError("model", url, "a server announcing label_kind and inputs "
                                     f"gva knows ({error})") from error
+        self.attention_per_target = bool(  # type: ignore[misc]  # the served class's, not ours
+            self.announced.get("attention_per_target", True))
         self.spec: ModelSpec | None = announced_spec(self.announced, url)
         """What the served model was trained for (a checkpoint's spec), None where not announced;
         ``gva trials`` checks it against the task as it checks a checkpoint in-process."""

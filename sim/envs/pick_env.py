@@ -25,10 +25,14 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
+from perception.camera import PinholeCamera
+from perception.checks import check_prediction
+from perception.errors import InvalidPredictionError
 from perception.interface import (
     MAX_SENTENCE_CHARS,
     PICTURE_PX,
     ConditionKind,
+    LabelKind,
     Prediction,
     Target,
     condition_size,
@@ -115,6 +119,7 @@ class PickEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
         self.first_index, self.index_step = first_index, index_step
         self._runner = TrialRunner(self.task, execution=execution,
                                    robot=description)  # its model: the oracle
+        self.description = description  # the robot that picks
         self.max_opening_m = description.max_opening_m
         self.object_types: tuple[str, ...] = YUMI_SCENE.object_types
         self.joint_names: tuple[str, ...] = tuple(self._runner.world.robot.joint_names)
@@ -219,16 +224,46 @@ class PickEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
         """
         if self._sighting is None:
             raise gymnasium.error.ResetNeeded("call reset() before oracle_action()")
-        predicted = self._runner.model.predict_frame(self._sighting.frame, self._scene.given)
+        return self.action_of(self._runner.model.predict_frame(self._sighting.frame,
+                                                               self._scene.given), "oracle")
+
+    def action_of(self, prediction: Prediction, name: str = "model") -> dict[str, Any]:
+        """A model's prediction as the current pick's action, read as a trial reads it.
+
+        Its target for this pick (a model may leave out the targets already picked: they are
+        matched from the end), its grasp pose, stated type and opening.
+
+        Raises:
+            perception.errors.InvalidPredictionError: One a pick cannot act on (too few
+                targets, no rotation); ``name`` is the model's, for the message.
+
+        """
+        if self._sighting is None:
+            raise gymnasium.error.ResetNeeded("call reset() before action_of()")
         total, number = len(self._targets), len(self._picks)
-        target = predicted.targets[number - (total - len(predicted.targets))]
-        assert target.rotation is not None  # the oracle gives grasp poses
+        targets = check_prediction(prediction, name, least=total - number, most=total,
+                                   label_kind=LabelKind.GRASP_POSE)
+        target = targets[number - (total - len(targets))]
+        assert target.rotation is not None  # check_prediction: a grasp pose has one
+        if target.object_type is not None and target.object_type not in self.object_types:
+            raise InvalidPredictionError(f"{name} stated object type {target.object_type!r}, "
+                                         f"not one of {', '.join(self.object_types)}")
         stated = 0 if target.object_type is None else self.object_types.index(
             target.object_type) + 1
         return {"position_m": np.asarray(target.position_m, dtype=np.float64),
                 "rotation_6d": np.concatenate([target.rotation[:, 0], target.rotation[:, 1]]),
                 "object_type": stated,
                 "opening_m": np.array([target.opening_m or 0.0])}
+
+    def camera(self) -> PinholeCamera:
+        """The calibrated camera the current observation was taken by.
+
+        Its ``K`` and ``T_world_camera`` are the observation's; a model's frame also needs what
+        they leave out (the image size, the lens's distortion).
+        """
+        if self._sighting is None:
+            raise gymnasium.error.ResetNeeded("call reset() before camera()")
+        return self._sighting.frame.camera
 
     def render(self) -> np.ndarray | None:
         """The head camera's image now, for ``render_mode="rgb_array"``."""

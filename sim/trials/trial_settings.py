@@ -13,7 +13,7 @@ from __future__ import annotations
 import contextlib
 import enum
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -138,6 +138,10 @@ class TrialSettings:
             through its workcell's camera; the YuMi by default.
         variant: The task under a variant of its appearance (``--variant``: a built-in name or
             a variant file, :mod:`sim.tasks.variants`); None: the task as its file says.
+        announced: For ``ws://`` only: what its server announced when the run began (``gva
+            reproduce real`` asks once, then hands it to its jobs), so a job neither asks again
+            nor fails when the server is down: its trials do, as ``perception_failed``. None:
+            asked of the server (:func:`~perception.remote.client.announced_metadata`).
 
     """
 
@@ -155,6 +159,7 @@ class TrialSettings:
     robot: str = DEFAULT_ROBOT
     variant: str | None = None
     sensor: SensorKind | None = None
+    announced: Mapping[str, Any] | None = field(default=None, hash=False)
 
     def __post_init__(self) -> None:
         if self.robot not in ROBOT_NAMES:
@@ -166,6 +171,9 @@ class TrialSettings:
         if self.model_class is not None and source is not ModelSource.CHECKPOINT:
             raise InvalidInputError("model_class", self.model_class, "None unless model is a "
                                     "checkpoint folder (it names the class that loads it)")
+        if self.announced is not None and source is not ModelSource.REMOTE:
+            raise InvalidInputError("announced", "a server's metadata", "None unless model is "
+                                    "ws://HOST:PORT (what its server announced)")
         if not (self.sensor is None or isinstance(self.sensor, SensorKind)):
             raise InvalidInputError("sensor", self.sensor, "None or one of " + ", ".join(
                 f"SensorKind.{k.name}" for k in SensorKind))
@@ -186,7 +194,7 @@ class TrialSettings:
         (:func:`~sim.tasks.task_spec.spaced_for`).
         """
         task = seen_through(load_task_variant(self.task, self.variant), self.sensor,
-                            checkpoint_sensor(self.model))
+                            checkpoint_sensor(self.model, self.announced))
         task = spaced_for(task, self.description().neighbour_spacing_m)
         if self.phrases is None:
             return task
@@ -230,6 +238,12 @@ class TrialSettings:
                       "checkpoint_config": Path(self.model) / CONFIG_FILE}
         return files
 
+    def served_metadata(self) -> Mapping[str, Any]:
+        """What a ``ws://`` model's server announced: ``announced``, else asked once."""
+        if self.announced is not None:
+            return self.announced
+        return announced_metadata(self.model)
+
     def _model_identity(self) -> dict[str, Any]:
         """A checkpoint by its SHA-256s, not its path: other weights or values, another run.
 
@@ -240,7 +254,7 @@ class TrialSettings:
         """
         source = model_source(self.model)
         if source is ModelSource.REMOTE:
-            return {"announced": dict(announced_metadata(self.model))}
+            return {"announced": dict(self.served_metadata())}
         if source is not ModelSource.CHECKPOINT:
             return {}
         from perception.learning.checkpoint import read_config
@@ -281,21 +295,12 @@ def load_trial_model(settings: TrialSettings) -> TrialModel:
     source = model_source(settings.model)
     if source is ModelSource.BUILT_IN:
         return TrialModel(TRIAL_MODELS[settings.model], settings.model, one_torch_thread=False)
-    model: PerceptionModel
-    if source is ModelSource.REMOTE:
-        model = RemoteModel(settings.model)
+    model = built_model(settings.model, settings.model_class, settings.announced)
+    if isinstance(model, RemoteModel):
         label = f"{model.announced.get('name')} @ {settings.model}"
     elif source is ModelSource.CHECKPOINT:
-        from perception.registry import load_model  # imports torch: not for the oracle
-
-        model = load_model(settings.model, settings.model_class)
         label = f"{model.name} {Path(settings.model).resolve().name}"
     else:
-        if issubclass(plugin_class(settings.model), LearnableModel):
-            raise InvalidInputError("model", settings.model, "a model without weights; a "
-                                    "learnable one loads from its checkpoint folder: --model "
-                                    f"FOLDER --model-class {settings.model}")
-        model = build_plugin(settings.model)
         label = model.name
     check_inputs(model, TRIAL_INPUTS, settings.model)
     check_model_fits_task(model, settings.task_spec, settings.model,
@@ -303,13 +308,44 @@ def load_trial_model(settings: TrialSettings) -> TrialModel:
     return TrialModel(lambda world, camera: model, label, one_torch_thread="torch" in sys.modules)
 
 
-def checkpoint_sensor(model: str) -> SensorConfig | None:
+def built_model(model: str, model_class: str | None = None,
+                announced: Mapping[str, Any] | None = None) -> PerceptionModel:
+    """The model ``model`` names (not a built-in one: those read the world), unchecked.
+
+    A served model (``announced``: what it announced, if known), a checkpoint (loaded by
+    ``model_class``, if given) or a plug-in without weights.
+
+    Raises:
+        InvalidInputError: It cannot be found or built, or is a learnable class (its
+            checkpoint folder is what loads); one line.
+
+    """
+    source = model_source(model)
+    if source is ModelSource.BUILT_IN:
+        raise InvalidInputError("model", model, "a model that reads no simulator (built-in "
+                                f"ones: {', '.join(TRIAL_MODELS)}, read the world)")
+    if source is ModelSource.REMOTE:
+        return RemoteModel(model, announced=announced)
+    if source is ModelSource.CHECKPOINT:
+        from perception.registry import load_model  # imports torch: not for the oracle
+
+        return load_model(model, model_class)
+    if issubclass(plugin_class(model), LearnableModel):
+        raise InvalidInputError("model", model, "a model without weights; a learnable one "
+                                f"loads from its checkpoint folder: --model FOLDER --model-class "
+                                f"{model}")
+    return build_plugin(model)
+
+
+def checkpoint_sensor(model: str, announced: Mapping[str, Any] | None = None
+                      ) -> SensorConfig | None:
     """The sensor checkpoint ``model`` was trained under, in a folder or served; else None.
 
     Read from its ``config.json`` (its spec's record, as :func:`trained_sensor` reads it), the
     weights unread, or from the spec its server announced (``ws://``: a served checkpoint is
-    tried under its own sensor as in-process); None too where no spec is kept or announced (a
-    model of its own making, unchecked) or a config cannot be read (loading it then says why).
+    tried under its own sensor as in-process; ``announced``: what it announced, if known); None
+    too where no spec is kept or announced (a model of its own making, unchecked) or a config
+    cannot be read (loading it then says why).
 
     Raises:
         perception.errors.InvalidInputError: ``ws://`` names no reachable server; one line.
@@ -317,7 +353,7 @@ def checkpoint_sensor(model: str) -> SensorConfig | None:
     """
     source = model_source(model)
     if source is ModelSource.REMOTE:
-        spec = announced_metadata(model).get("spec")
+        spec = (announced if announced is not None else announced_metadata(model)).get("spec")
         return recorded_sensor(spec.get("sensor"), model) if isinstance(spec, dict) else None
     if source is not ModelSource.CHECKPOINT:
         return None
