@@ -125,11 +125,10 @@ class ReproduceRealSettings:
         variants: The variants every unit is also tried under (``--variants``: built-in names of
             :mod:`sim.tasks.variants` or variant files), each paired with its plain trials;
             by default the paper's robustness rows, darker light and the wooden block.
-        balance_types: The demonstrations of a task whose scenes draw one object type take the
-            types in turn (``objects.balance_types``), as the person recording the paper's 20
-            demonstrations would place each object about as often; drawn at random, 20 of
-            ``single`` at seed 10 hold 2 sponges (docs/decisions/distractor.md). The trials'
-            scenes are the same either way. False: at random, as Table II's scenes.
+        balance_types: Demonstrations of a task whose scenes draw one object type take the
+            types in turn (``objects.balance_types``), as the person recording the paper's
+            demonstrations would; at random, 20 of ``single`` at seed 10 hold 2 sponges
+            (docs/decisions/distractor.md). Trials' scenes are the same either way.
         sensor: What the head camera renders through, for demonstrations and trials alike
             (:class:`~sim.world.sensor.SensorKind`): the D435-like sensor by default, as the
             paper's robot saw; the ideal pinhole is the world of earlier tables.
@@ -145,10 +144,9 @@ class ReproduceRealSettings:
             at every start anyway, with a warning (for studies; what runs did before issue
             66). False: they are not run, and the cells are recorded failed with the check's
             reason (:mod:`.check_gate`). Part of no identity: a folder resumes either way.
-        train_threads: Torch threads of each training job. 1 lets units train side by side, one
-            per core; a run with a single unit (``make demo``) trains alone, and two threads on
-            two cores halve its training time. Results depend on it (float sums in another
-            order), so it is part of a checkpoint's identity.
+        train_threads: Torch threads of each training job: 1 lets units train side by side; a
+            one-unit run (``make demo``) trains twice as fast on two. Results depend on it
+            (float sums in another order): part of a checkpoint's identity.
         model_configs: Settings of some of ``models`` read from files (``--model-config
             MODEL=FILE.toml``), at most one per model. They reach ``new_model`` and the
             model's hyper-parameters in each checkpoint's identity, so a folder trained with

@@ -224,20 +224,24 @@ class Slow(PerceptionModel):
     def __init__(self, inner: PerceptionModel, sleep_s: float) -> None:
         self.inner, self.sleep_s, self.label_kind, self.inputs = (
             inner, sleep_s, inner.label_kind, inner.inputs)
+        self.woke = threading.Event()  # set once the slow answer is made
 
     def predict_frame(self, frame, condition=NO_CONDITION) -> Prediction:
         time.sleep(self.sleep_s)
         self.sleep_s = 0.0
+        self.woke.set()
         return self.inner.predict_frame(frame, condition)
 
 
 def test_a_slow_server_costs_one_prediction_and_the_next_reconnects(detector, frames):
-    served = running(Slow(detector, 1.0))
+    slow = Slow(detector, 1.0)
+    served = running(slow)
     try:
         remote = RemoteModel(url(served), timeout_s=0.3)
         with pytest.raises(RemoteModelError, match=r"no answer within 0\.3 s"):
             remote.predict_frame(*frames[0])
-        time.sleep(0.8)
+        assert slow.woke.wait(30.0)
+        remote.timeout_s = 30.0  # the server's answers are quick again; a busy machine's are not
         assert remote.predict_frame(*frames[0]).targets
     finally:
         served.shutdown()
