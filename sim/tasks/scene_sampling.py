@@ -161,12 +161,18 @@ def sample_scene(
         types = [str(rng.choice(spec.object_types))] * task.count
     else:
         types = [str(t) for t in rng.choice(spec.object_types, size=task.count)]
-    if task.balance_types and stream is SeedStream.TRAIN:  # drawn above all the same, so the
-        types = [balanced_type(spec, seed, index)] * len(types)  # rest of the scene is as before
+    if task.balance_types and stream is SeedStream.TRAIN and task.draws_one_type:
+        types = [balanced_type(spec, seed, index)] * len(types)  # drawn above: the rest as before
     positions = _place(task, spec, len(types), rng)
     objects = tuple(PlacedObject(t, p, float(rng.uniform(*task.yaw_range_rad)))
                     for t, p in zip(types, positions, strict=True))
     condition, targets = _targets(task, spec, objects, rng)
+    if task.balance_types and stream is SeedStream.TRAIN and not task.draws_one_type:
+        condition = Condition(ConditionKind.OBJECT_TYPE, balanced_type(spec, seed, index),
+                              spec.object_types)  # the named type in turn; drawn above alike
+        named = _target_of(objects, condition)
+        assert named is not None  # one object of each type
+        targets = (named,)
     if task.distractors:
         distractor_rng = np.random.default_rng(np.random.SeedSequence(
             [seed, int(stream), index, DISTRACTOR_STREAM]))

@@ -133,7 +133,8 @@ class TaskSpec:
         balance_types: Training scenes take the types in turn, each block of as many scenes
             as there are types a seeded shuffle of them, so 20 demonstrations of three types
             hold 6 or 7 of each, as a person recording them would; test scenes stay random.
-            For a scene of one drawn type (``random`` with one object, or ``same_type``).
+            For a scene of one drawn type (``random`` with one object, or ``same_type``), and
+            for the type a condition names among one object of each (:attr:`types_take_turns`).
         targets: Which objects are targets.
         condition: What the top-down condition names.
         given_as: How the model is given it (``[condition] given_as``).
@@ -207,9 +208,10 @@ class TaskSpec:
             raise bad("distractors.types", list(self.distractors),
                       f"at most {MAX_OBJECTS - self.count} types (objects.count + distractors "
                       f"<= {MAX_OBJECTS})")
-        if self.balance_types and not self.draws_one_type:
+        if self.balance_types and not self.types_take_turns:
             raise bad("objects.balance_types", True, "false unless objects.choose = 'same_type', "
-                      "or 'random' with objects.count = 1 (one drawn type a scene)")
+                      "or 'random' with objects.count = 1 (one drawn type a scene), or "
+                      "'one_of_each' with a condition.kind = 'object_type' naming the target")
         if self.targets is TargetSelection.CONDITION and self.condition is ConditionKind.NONE:
             raise bad("condition.kind", "none", "object_type or side when targets.select = "
                       "'condition' (the condition must name the target)")
@@ -276,6 +278,17 @@ class TaskSpec:
         """Whether each scene draws one object type (``balance_types`` can take them in turn)."""
         return self.objects is ObjectChoice.SAME_TYPE or (
             self.objects is ObjectChoice.RANDOM and self.count == 1)
+
+    @property
+    def types_take_turns(self) -> bool:
+        """Whether ``balance_types`` can take the demonstrated types in turn.
+
+        The one type a scene draws, or the type a condition names among one object of each.
+        """
+        return self.draws_one_type or (
+            self.objects is ObjectChoice.ONE_OF_EACH
+            and self.condition is ConditionKind.OBJECT_TYPE
+            and self.targets is TargetSelection.CONDITION)
 
     @property
     def distractor_count_range(self) -> tuple[int, int]:

@@ -46,8 +46,9 @@ def env_outcomes(task: str, n: int) -> dict[int, tuple[str, str]]:
     return outcomes
 
 
-SCENES = 8
-"""Test scenes of ``single`` both ways; all 30 of two tasks: benchmarks/check_gym_env.py."""
+SCENES = 4
+"""Test scenes of ``single`` both ways (two an env in the vector env); all 30 of two tasks:
+benchmarks/check_gym_env.py."""
 
 
 @pytest.fixture(scope="module")
