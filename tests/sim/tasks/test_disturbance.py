@@ -108,12 +108,15 @@ def test_a_task_with_a_disturbance_written_as_toml_reads_back_the_same(name):
     assert "[disturbance]" not in task_to_toml(load_task(name))
 
 
-def test_the_moved_twins_differ_from_their_still_tasks_by_the_disturbance_alone():
+def test_the_moved_twins_differ_from_their_still_tasks_by_the_disturbance():
+    """And ``selected-type-moved``'s demonstrations name the types in turn (issue 66)."""
     for name in ("single", "selected-type"):
         still, moved = load_task(name), load_task(f"{name}-moved")
         assert moved.disturbance == Disturbance(move_m=(0.03, 0.08), turn_deg=(-45.0, 45.0))
+        assert moved.balance_types == (name == "selected-type") and not still.balance_types
         assert dataclasses.replace(moved, name=name, description=still.description,
-                                   disturbance=None, source=still.source) == still
+                                   disturbance=None, source=still.source,
+                                   balance_types=False) == still
         assert task_from_toml(task_to_toml(moved), moved.source) == moved
 
 
