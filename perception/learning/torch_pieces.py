@@ -137,7 +137,10 @@ class MLP(nn.Sequential):
 
 def images_to_tensor(images: np.ndarray, device: torch.device | str = "cpu") -> Tensor:
     """uint8 images (B, H, W, 3) RGB -> float32 (B, 3, H, W) in [0, 1]; models normalise further."""
-    tensor = torch.from_numpy(np.ascontiguousarray(images)).to(device)  # (B, H, W, 3) uint8
+    images = np.ascontiguousarray(images)
+    if not images.flags.writeable:  # a served frame's buffer: torch wants memory it may write
+        images = images.copy()
+    tensor = torch.from_numpy(images).to(device)  # (B, H, W, 3) uint8
     return tensor.permute(0, 3, 1, 2).float().div_(255.0)  # (B, 3, H, W)
 
 
