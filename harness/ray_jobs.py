@@ -126,8 +126,8 @@ class RayPool:
             # A bounded wait returns to Python each time, where a pending Ctrl-C is raised.
             finished, _ = ray.wait(list(self._pending), num_returns=1, timeout=WAIT_S)
             for ref in finished:
-                result = ray.get(ref)
-                self._pending.remove(ref)
+                self._pending.remove(ref)  # finished, whatever get says: never cancelled
+                result = ray.get(ref)  # a job's exception: raised, the rest cancelled on exit
                 ready.add(on_done(result))
 
 

@@ -77,9 +77,13 @@ def _fails(value: int) -> int:
     raise InvalidInputError("value", value, "something else")
 
 
-def test_a_jobs_exception_is_raised_here_with_its_own_type(local_ray, tmp_path):
+def test_a_jobs_exception_is_raised_here_with_its_own_type(local_ray, tmp_path, monkeypatch):
+    cancelled: list[object] = []
+    monkeypatch.setattr(ray, "cancel", lambda ref, **_: cancelled.append(ref))
     with pytest.raises(InvalidInputError, match="value = 3"), RayPool(2, None, tmp_path) as pool:
         pool.run(_fails, [3], print)
+    assert cancelled == []  # the failed task had finished: force-cancelling one aborted the
+    # driver once ("Tried to complete task that was not pending", Ray 2.60)
 
 
 def _cpus(_: int) -> float:
