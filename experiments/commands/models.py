@@ -25,7 +25,7 @@ from perception.learning.checkpoint import CONFIG_FILE, WEIGHTS_FILE, read_confi
 from perception.learning.data import Dataset
 from perception.learning.dataset_file import load_dataset
 from perception.learning.evaluate import evaluate
-from perception.learning.learnable import LearnableModel
+from perception.learning.learnable import LearnableModel, ModelSpec
 from perception.learning.train import TrainConfig
 from perception.learning.validation import CHECK_FILE, CheckConfig, fit_checked, write_check
 from perception.model_config_file import ModelConfigFile, settings_text
@@ -271,32 +271,30 @@ def _asked(dataset: Dataset, names: Sequence[str | None], index: int) -> str:
 
 def _served_and_dataset(args: argparse.Namespace) -> tuple[RemoteModel, Dataset]:
     """The served model ``--model`` and the dataset ``--data``, checked as a checkpoint's."""
-    model, dataset = RemoteModel(args.model), load_dataset(args.data)
-    if model.spec is not None:  # a served checkpoint announces what it was trained for
-        try:
-            model.spec.check_dataset(dataset)
-        except InvalidInputError as error:
-            raise PerceptionError(f"dataset {args.data} does not fit the model served at "
-                                  f"{args.model} ({model.announced.get('name')}, trained on "
-                                  f"{model.spec.task}): {error.value}") from error
-    if len(dataset) == 0:
-        raise InvalidInputError("--data", str(args.data), "a dataset with samples; it has none")
-    return model, dataset
+    model = RemoteModel(args.model)  # a served checkpoint announces what it was trained for
+    return model, _fitting_dataset(args.data, model.spec, f"the model served at {args.model} "
+                                   f"({model.announced.get('name')}")
 
 
 def _model_and_dataset(args: argparse.Namespace) -> tuple[LearnableModel, Dataset]:
     """The checkpoint ``--model`` and the dataset ``--data``, checked to fit each other."""
     model = load_model(Path(args.model), args.model_class)
-    dataset = load_dataset(args.data)
-    try:
-        model.spec.check_dataset(dataset)
-    except InvalidInputError as error:
-        raise PerceptionError(f"dataset {args.data} does not fit the checkpoint {args.model} "
-                              f"({model.name}, trained on {model.spec.task}): "
-                              f"{error.value}") from error
+    return model, _fitting_dataset(args.data, model.spec,
+                                   f"the checkpoint {args.model} ({model.name}")
+
+
+def _fitting_dataset(path: Path, spec: ModelSpec | None, model: str) -> Dataset:
+    """The dataset at ``path``, refused unless it has samples and fits ``spec`` (if any)."""
+    dataset = load_dataset(path)
+    if spec is not None:
+        try:
+            spec.check_dataset(dataset)
+        except InvalidInputError as error:
+            raise PerceptionError(f"dataset {path} does not fit {model}, trained on "
+                                  f"{spec.task}): {error.value}") from error
     if len(dataset) == 0:
-        raise InvalidInputError("--data", str(args.data), "a dataset with samples; it has none")
-    return model, dataset
+        raise InvalidInputError("--data", str(path), "a dataset with samples; it has none")
+    return dataset
 
 
 def target_names(dataset: Dataset) -> list[str | None]:

@@ -10,31 +10,26 @@ from __future__ import annotations
 
 import json
 import shutil
-import threading
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from gva_cli import gva
+from served_detector import DETECTOR, PLUGINS, serve
 
 from experiments.table3.jobs import TrialsJob, run_job
 from experiments.table3.run import write_run_tasks
 from experiments.table3.settings import ReproduceRealSettings, TrialSet, Unit, seed_folder
 from perception.plugins import build_plugin
 from perception.remote import client
-from perception.remote.server import ModelServer, ServeSettings, metadata
-
-PLUGINS = Path(__file__).resolve().parents[2] / "examples" / "plugins"
-DETECTOR = "colour_detector:ColourDetector"
+from perception.remote.server import ModelServer
 
 
 def _serve() -> ModelServer:
     with pytest.MonkeyPatch.context() as patch:
         patch.syspath_prepend(str(PLUGINS))
         model = build_plugin(DETECTOR)
-    server = ModelServer(model, metadata(model, DETECTOR), ServeSettings(DETECTOR, 0))
-    threading.Thread(target=server.serve_forever, daemon=True).start()
-    return server
+    return serve(model)
 
 
 @pytest.fixture(scope="module")

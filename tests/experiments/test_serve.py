@@ -6,18 +6,15 @@ import json
 import os
 import subprocess
 import sys
-import threading
 from pathlib import Path
 
 import pytest
 from gva_cli import gva
+from served_detector import DETECTOR, PLUGINS, serve
 
 from perception.plugins import build_plugin
-from perception.remote.server import ModelServer, ServeSettings, metadata
 
 ROOT = Path(__file__).resolve().parents[2]
-PLUGINS = ROOT / "examples" / "plugins"
-DETECTOR = "colour_detector:ColourDetector"
 
 
 @pytest.fixture(scope="module")
@@ -25,8 +22,7 @@ def served():
     with pytest.MonkeyPatch.context() as patch:
         patch.syspath_prepend(str(PLUGINS))
         model = build_plugin(DETECTOR)
-    server = ModelServer(model, metadata(model, DETECTOR), ServeSettings(DETECTOR, 0))
-    threading.Thread(target=server.serve_forever, daemon=True).start()
+    server = serve(model)
     yield server
     server.shutdown()
 

@@ -12,11 +12,12 @@ import functools
 import threading
 import time
 from collections.abc import Iterator
-from pathlib import Path
 
 import msgpack
 import numpy as np
 import pytest
+from served_detector import DETECTOR, PLUGINS
+from served_detector import serve as running
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 from websockets.sync.server import serve
@@ -33,7 +34,7 @@ from perception.plugins import build_plugin
 from perception.remote import codec
 from perception.remote.client import RemoteModel, RemoteModelError
 from perception.remote.messages import PROTOCOL, read_request, request_message
-from perception.remote.server import ModelServer, ServeSettings, metadata, start_server
+from perception.remote.server import ModelServer, ServeSettings, start_server
 from robots.yumi import YUMI
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
@@ -41,8 +42,6 @@ from sim.tasks.task_toml import load_task
 from sim.trials.records import TrialOutcome
 from sim.trials.trial_runner import TrialRunner
 
-PLUGINS = Path(__file__).resolve().parents[2] / "examples" / "plugins"
-DETECTOR = "colour_detector:ColourDetector"
 KEY = "s3cret"
 # openpi's client connects as websockets before 17 did (no with-block): websockets 17 warns
 pytestmark = pytest.mark.filterwarnings("ignore:connect\\(\\) must be used:DeprecationWarning")
@@ -96,13 +95,6 @@ def detector() -> Iterator[PerceptionModel]:
     with pytest.MonkeyPatch.context() as patch:
         patch.syspath_prepend(str(PLUGINS))
         yield build_plugin(DETECTOR)
-
-
-def running(model: PerceptionModel, **settings) -> ModelServer:
-    """``model`` served on a free port in a daemon thread."""
-    server = ModelServer(model, metadata(model, DETECTOR), ServeSettings(DETECTOR, 0, **settings))
-    threading.Thread(target=server.serve_forever, daemon=True).start()
-    return server
 
 
 @pytest.fixture(scope="module")

@@ -6,17 +6,15 @@ the websocket, get the outcomes its in-process trials get on the same scenes.
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Iterator
-from pathlib import Path
 
 import gymnasium
 import pytest
+from served_detector import DETECTOR, PLUGINS, serve
 
 from perception.interface import PerceptionModel
 from perception.plugins import build_plugin
 from perception.remote.client import RemoteModelError
-from perception.remote.server import ModelServer, ServeSettings, metadata
 from robots.yumi import YUMI
 from sim.envs.episodes import model_policy, observed_condition, run_episode
 from sim.errors import InvalidInputError
@@ -24,8 +22,6 @@ from sim.tasks.task_toml import load_task
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_scenes import trial_scene
 
-PLUGINS = Path(__file__).resolve().parents[3] / "examples" / "plugins"
-DETECTOR = "colour_detector:ColourDetector"
 ENV_ID = "sim.envs:gva/Pick-v0"
 SCENES = 2
 
@@ -37,17 +33,11 @@ def detector() -> Iterator[PerceptionModel]:
         yield build_plugin(DETECTOR)
 
 
-def _serve(model: PerceptionModel) -> ModelServer:
-    server = ModelServer(model, metadata(model, DETECTOR), ServeSettings(DETECTOR, 0))
-    threading.Thread(target=server.serve_forever, daemon=True).start()
-    return server
-
-
 def test_a_served_models_episodes_get_its_trials_outcomes(detector):
     task = load_task("single")
     with TrialRunner(task, lambda world, camera: detector, robot=YUMI) as runner:
         trials = [runner.run(trial_scene(task, 0, i), i, 0, DETECTOR) for i in range(SCENES)]
-    server = _serve(detector)
+    server = serve(detector)
     env = gymnasium.make(ENV_ID, task="single", sensor="ideal")  # the task's, as trials see
     try:
         policy = model_policy(env, f"ws://127.0.0.1:{server.port}")
@@ -71,7 +61,7 @@ def test_the_observations_condition_is_the_scenes(task):
 
 
 def test_a_server_gone_raises_why_and_a_bad_model_is_refused_by_name(detector):
-    server = _serve(detector)
+    server = serve(detector)
     env = gymnasium.make(ENV_ID, task="single")
     try:
         policy = model_policy(env, f"ws://127.0.0.1:{server.port}")
