@@ -272,25 +272,28 @@ def _asked(dataset: Dataset, names: Sequence[str | None], index: int) -> str:
 def _served_and_dataset(args: argparse.Namespace) -> tuple[RemoteModel, Dataset]:
     """The served model ``--model`` and the dataset ``--data``, checked as a checkpoint's."""
     model = RemoteModel(args.model)  # a served checkpoint announces what it was trained for
-    return model, _fitting_dataset(args.data, model.spec, f"the model served at {args.model} "
-                                   f"({model.announced.get('name')}")
+    return model, _fitting_dataset(args.data, model.spec, f"the model served at {args.model}",
+                                   str(model.announced.get("name")))
 
 
 def _model_and_dataset(args: argparse.Namespace) -> tuple[LearnableModel, Dataset]:
     """The checkpoint ``--model`` and the dataset ``--data``, checked to fit each other."""
     model = load_model(Path(args.model), args.model_class)
-    return model, _fitting_dataset(args.data, model.spec,
-                                   f"the checkpoint {args.model} ({model.name}")
+    return model, _fitting_dataset(args.data, model.spec, f"the checkpoint {args.model}",
+                                   model.name)
 
 
-def _fitting_dataset(path: Path, spec: ModelSpec | None, model: str) -> Dataset:
-    """The dataset at ``path``, refused unless it has samples and fits ``spec`` (if any)."""
+def _fitting_dataset(path: Path, spec: ModelSpec | None, model: str, name: str) -> Dataset:
+    """The dataset at ``path``, refused unless it has samples and fits ``spec`` (if any).
+
+    ``model``: the model as the message names it (``the checkpoint FOLDER``); ``name``: its name.
+    """
     dataset = load_dataset(path)
     if spec is not None:
         try:
             spec.check_dataset(dataset)
         except InvalidInputError as error:
-            raise PerceptionError(f"dataset {path} does not fit {model}, trained on "
+            raise PerceptionError(f"dataset {path} does not fit {model} ({name}, trained on "
                                   f"{spec.task}): {error.value}") from error
     if len(dataset) == 0:
         raise InvalidInputError("--data", str(path), "a dataset with samples; it has none")

@@ -15,15 +15,12 @@ import gymnasium
 import numpy as np
 
 from perception.camera import RgbdFrame
-from perception.checks import check_inputs
 from perception.interface import NO_CONDITION, Condition, ConditionKind
 from sim.envs.pick_env import PickEnv
 from sim.errors import InvalidInputError
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_in_scene import condition_choices
-from sim.trials.model_fit import check_model_fits_task
-from sim.trials.runner_hooks import TRIAL_INPUTS
-from sim.trials.trial_settings import built_model
+from sim.trials.trial_settings import checked_model
 
 Policy = Callable[[dict[str, Any]], dict[str, Any]]
 """Maps an observation to an action (a grasp) of ``gva/Pick-v0``."""
@@ -87,10 +84,8 @@ def model_policy(env: gymnasium.Env[Any, Any], model: str, model_class: str | No
     if model == "oracle":
         return oracle_policy(env)
     pick_env = _pick_env(env)
-    built = built_model(model, model_class)
-    check_inputs(built, TRIAL_INPUTS, model)
-    check_model_fits_task(built, pick_env.task, model, allow_sensor_change,
-                          robot=pick_env.description)
+    built = checked_model(model, pick_env.task, pick_env.description, model_class,
+                          allow_sensor_change)
 
     def policy(observation: dict[str, Any]) -> dict[str, Any]:
         camera = pick_env.camera()

@@ -295,17 +295,28 @@ def load_trial_model(settings: TrialSettings) -> TrialModel:
     source = model_source(settings.model)
     if source is ModelSource.BUILT_IN:
         return TrialModel(TRIAL_MODELS[settings.model], settings.model, one_torch_thread=False)
-    model = built_model(settings.model, settings.model_class, settings.announced)
+    model = checked_model(settings.model, settings.task_spec, settings.description(),
+                          settings.model_class, settings.allow_sensor_change, settings.announced)
     if isinstance(model, RemoteModel):
         label = f"{model.announced.get('name')} @ {settings.model}"
     elif source is ModelSource.CHECKPOINT:
         label = f"{model.name} {Path(settings.model).resolve().name}"
     else:
         label = model.name
-    check_inputs(model, TRIAL_INPUTS, settings.model)
-    check_model_fits_task(model, settings.task_spec, settings.model,
-                          settings.allow_sensor_change, robot=settings.description())
     return TrialModel(lambda world, camera: model, label, one_torch_thread="torch" in sys.modules)
+
+
+def checked_model(model: str, task: TaskSpec, robot: RobotDescription,
+                  model_class: str | None = None, allow_sensor_change: bool = False,
+                  announced: Mapping[str, Any] | None = None) -> PerceptionModel:
+    """:func:`built_model`, checked as ``gva trials`` and the env's model policy check it.
+
+    It may read only what a trial gives, and must fit ``task`` and ``robot``.
+    """
+    built = built_model(model, model_class, announced)
+    check_inputs(built, TRIAL_INPUTS, model)
+    check_model_fits_task(built, task, model, allow_sensor_change, robot=robot)
+    return built
 
 
 def built_model(model: str, model_class: str | None = None,
