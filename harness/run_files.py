@@ -24,7 +24,12 @@ from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import scene_camera
 from sim.tasks.task_sensor import seen_in_scene
 from sim.tasks.task_toml import load_task
-from sim.trials.collector import APPROACH_MASKED_KEY, CollectSettings
+from sim.trials.collector import (
+    APPROACH_HIDDEN_SHARE_MAX,
+    APPROACH_MASKED_KEY,
+    HIDDEN_SHARE_KEY,
+    CollectSettings,
+)
 from sim.trials.trial_settings import task_identity
 from sim.world.head_camera import CameraConfig
 from sim.world.sensor import SensorKind
@@ -117,9 +122,10 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
     stream), the task's definition (a task whose TOML changed since is another dataset), the
     scene's camera (other images; in the yumi scene, ``robot``'s: the robot that collects,
     resolved where the run starts), the robot where it is not the YuMi, and the approach
-    images' rate (``approach_hz``, if any) and whether the arm is masked out of them (datasets
-    from before the mask have it in view: another dataset). ``sensor``: the yumi scene's
-    ``--sensor`` (None: the task file's), part of the definition.
+    images' rate (``approach_hz``, if any), whether the arm is masked out of them (datasets
+    from before the mask have it in view: another dataset) and how much of a target it may hide
+    in one (``APPROACH_HIDDEN_SHARE_MAX``; a dataset that records none is issue 36's: 0).
+    ``sensor``: the yumi scene's ``--sensor`` (None: the task file's), part of the definition.
 
     Raises:
         RunFolderError: ``path`` holds another dataset; the message names what differs.
@@ -135,8 +141,9 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
                                                           stream).asks_every_condition,
                        "definition": task_identity(definition),
                        "camera": asdict(scene_camera(scene, robot))}
-                      | ({} if approach_hz is None else {"approach_hz": approach_hz,
-                                                         APPROACH_MASKED_KEY: True})
+                      | ({} if approach_hz is None else {
+                          "approach_hz": approach_hz, APPROACH_MASKED_KEY: True,
+                          HIDDEN_SHARE_KEY: APPROACH_HIDDEN_SHARE_MAX})
                       | ({} if robot.name == "yumi" else {"robot": robot.name}))
     scenes = meta.extra.get("scenes", meta.size)  # a scene may give several samples
     found = {"scene": meta.scene, "task": meta.task, "size": scenes, "seed": meta.seed,
@@ -146,7 +153,8 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
              "camera": json_form(asdict(CameraConfig.from_json(meta.camera)))} | (
                  {} if "approach_hz" not in meta.extra else
                  {"approach_hz": meta.extra["approach_hz"],
-                  APPROACH_MASKED_KEY: meta.extra.get(APPROACH_MASKED_KEY, False)}) | (
+                  APPROACH_MASKED_KEY: meta.extra.get(APPROACH_MASKED_KEY, False),
+                  HIDDEN_SHARE_KEY: meta.extra.get(HIDDEN_SHARE_KEY, 0.0)}) | (
                  {} if "robot" not in meta.extra else {"robot": meta.extra["robot"]})
     if found != asked:
         raise RunFolderError(f"{path} is not the dataset this run needs "

@@ -9,8 +9,8 @@ gives three samples, the second without the first target, the third with the las
 sample's record lists the targets already taken under ``"taken"`` (their labels say where they
 were; :meth:`perception.learning.data.Dataset.target_present` marks them absent). With
 ``approach_hz`` a demonstration also keeps images along each approach, the arm masked out of
-them as in a closed-loop trial's re-predictions (the self filter), those that show every target's
-footprint (the ones a closed loop heeds); a task
+them as in a closed-loop trial's re-predictions (the self filter), those in which the arm hides
+at most :data:`APPROACH_HIDDEN_SHARE_MAX` of each target's footprint; a task
 that moves its target during the pick is demonstrated by the oracle's closed loop, which follows
 it (:mod:`sim.trials.closed_loop`). Either way, scene
 ``i`` of a dataset comes from the training seed stream, never the test stream the trials use,
@@ -57,10 +57,21 @@ from sim.world.yumi_world import World
 MAX_REDRAW_FACTOR = 3
 """A yumi collection gives up after this many times ``size`` failed demonstrations."""
 
+APPROACH_HIDDEN_SHARE_MAX = 0.5
+"""The most of a target's footprint (:func:`~sim.trials.view.hidden_share`) the arm may hide in
+an approach image a demonstration keeps. A closed loop acts on the model's grasp where the arm
+hides part of the target (the plain-view clause of :func:`~sim.trials.view.unheeded_reason`),
+so the model learns there, labelled with the truth; where the arm hides more, the label is one
+the image cannot show, and it would learn to guess. 0 (issue 36's rule) taught no image of a
+spray bottle with the hand near it, and `kqv` named it 1-4 cm off there (issue 66,
+docs/decisions/closed-loop.md). Recorded in the dataset (``approach_hidden_share_max``)."""
+HIDDEN_SHARE_KEY = "approach_hidden_share_max"
+"""A dataset's note of the :data:`APPROACH_HIDDEN_SHARE_MAX` it was collected with; datasets from
+before it (issue 36's rule) lack it: 0."""
 APPROACH_MASKED_KEY = "approach_robot_masked"
 """A dataset's note that its approach images have the robot masked out (the self filter of
-:meth:`~sim.world.head_camera.HeadCamera.render_rgbd`) and show every target's footprint;
-datasets from before it lack it."""
+:meth:`~sim.world.head_camera.HeadCamera.render_rgbd`) and show at least half of every
+target's footprint; datasets from before it lack it."""
 
 
 @dataclass(frozen=True)
@@ -84,8 +95,8 @@ class CollectSettings:
             set keeps the one drawn value per scene.
         approach_hz: ``yumi`` only: a demonstration also keeps an image every ``1 /
             approach_hz`` s of each approach, the arm masked out, labelled as the pick's image
-            is, where it shows every target's footprint (the oracle's closed loop,
-            :mod:`sim.trials.closed_loop`; each such sample's record has ``"stage":
+            is, where the arm hides at most half of every target's footprint (the oracle's
+            closed loop, :mod:`sim.trials.closed_loop`; each such sample's record has ``"stage":
             "approach"``), so a model learns to predict while the arm moves. None (the
             default): the image before each pick only.
         robot: ``yumi`` scene only: the robot whose demonstrations these are, seen through its
@@ -277,8 +288,8 @@ class _PickImages:
     A :class:`~sim.trials.runner_hooks.TrialObserver`; ``saw`` comes after the image is taken
     and before the plan, so the world is as the image shows it. A target already set aside keeps
     the label it had when it was last on the table. An approach image in which the arm hides
-    any of a target's footprint is left out (counted): a closed loop does not heed such a
-    re-prediction (``LoopSettings.footprint_radius_m``), and a label the image cannot show
+    more than :data:`APPROACH_HIDDEN_SHARE_MAX` of a target's footprint
+    (``LoopSettings.footprint_radius_m``) is left out (counted): a label the image cannot show
     teaches the model to guess.
     """
 
@@ -309,6 +320,7 @@ class _PickImages:
         joints = self.runner.world.robot.joint_positions(self.joint_names)
         approach = bool(self.stages) and self.stages[-1].taken == taken  # the same pick's
         if approach and any(hidden_share(frame, on_table[body][:3], self.footprint_radius_m)
+                            > APPROACH_HIDDEN_SHARE_MAX
                             for body in self.targets if body in on_table):
             self.hidden += 1  # a target the arm hides: the loop would not heed it, nor learn it
             return
@@ -369,5 +381,6 @@ def _collect_yumi(
              MIRROR_FLAG: mirror_symmetric(task, spec, runner.mounted_camera.config)}
     if settings.approach_hz is not None:  # the arm masked out of them (self-filtered frames)
         extra |= {"approach_hz": settings.approach_hz, APPROACH_MASKED_KEY: True,
+                  HIDDEN_SHARE_KEY: APPROACH_HIDDEN_SHARE_MAX,
                   "approach_images_hidden": images.hidden}
     return samples, camera, extra
