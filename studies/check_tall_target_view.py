@@ -1,16 +1,19 @@
-"""Whether a model's grasp of a tall target drifts where the arm hides its body, not its footprint.
+"""How often a closed loop would re-target a moved-target pick onto a grasp that misses, offline.
 
-Issue 66: ``kqv`` lost moved spray bottles the view-limited oracle picks, and its trial records
-show the grasp drifting 1-3 cm as the hand nears a bottle whose 4.5 cm footprint (a level disk at
-the grasp's height) the camera still sees. A bottle stands 17 cm tall; the hand coming at its
-middle from the side can hide its upper body from the head camera while the footprint at 7 cm
-shows. This drives the oracle's closed loop over moved-target scenes (the collector's
-demonstrations, every approach image kept with its robot mask), predicts each image with each
-checkpoint, and tabulates the grasp error per target type by what the image shows: the footprint
-and the target's whole column (the same disk from the table to the object's top) both seen, the
-footprint seen but some of the column hidden, the footprint hidden.
+Issue 66: ``kqv`` lost moved spray bottles that the view-limited oracle picks; its trial records
+show the grasp drifting 1-3 cm as the hand nears a bottle. This drives the oracle's closed loop
+over a task's TEST scenes (the collector's demonstrations, every approach image kept with its
+robot mask), predicts each image with each checkpoint, and reports per target type:
 
-    python studies/check_tall_target_view.py --task single-moved --seed 0 --scenes 20 \
+- the grasp error by what the image shows: the 4.5 cm footprint and the target's whole column
+  (the same disk from the table to the object's top) both seen, the footprint seen but some of
+  the column hidden (a tall bottle behind the hand: the first guess, not borne out), the
+  footprint hidden;
+- the looks the loop would heed (the footprint seen, or the grasp named in plain view two looks
+  in a row, :func:`sim.trials.view.unheeded_reason`) whose grasp is off the truth by more than
+  the re-target thresholds and judged missed: a re-target onto a miss, and the scenes with one.
+
+    python studies/check_tall_target_view.py --task single-moved --seed 0 --scenes 60 \
         runs/cl66/s0/checkpoints/kqv/single-moved [CHECKPOINT ...]
 """
 
@@ -19,7 +22,7 @@ from __future__ import annotations
 import argparse
 import collections
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -35,7 +38,7 @@ from sim.trials.collector import CollectSettings
 from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.pick_results import grasp_angle_rad
 from sim.trials.trial_runner import TrialRunner
-from sim.trials.view import hidden_share, in_plain_view
+from sim.trials.view import hidden_share, unheeded_reason
 
 LEVELS = 5
 """Disks looked at from the table to the object's top (the column's share is their worst)."""
@@ -87,6 +90,59 @@ class _Watcher:
         """Nothing to watch between images."""
 
 
+def _pose(prediction: Prediction) -> Pose:
+    target = prediction.targets[0]
+    return Pose(np.asarray(target.position_m), np.asarray(target.rotation))
+
+
+@dataclass
+class Tally:
+    """What a checkpoint's grasps came to, per target type.
+
+    (error [cm], judged picked) by view class; the looks heeded; the re-targets onto a grasp
+    judged missed, and the scenes they fell in.
+    """
+
+    errors: dict[tuple[str, str], list[tuple[float, float]]] = field(
+        default_factory=lambda: collections.defaultdict(list))
+    heeded: collections.Counter[str] = field(default_factory=collections.Counter)
+    wrong: collections.Counter[str] = field(default_factory=collections.Counter)
+    wrong_scenes: dict[str, set[int]] = field(default_factory=lambda: collections.defaultdict(set))
+    scenes: dict[str, set[int]] = field(default_factory=lambda: collections.defaultdict(set))
+
+
+def tally_looks(looks: list[Look], predicted: list[Pose], loop: LoopSettings) -> Tally:
+    """What the loop would make of each look's predicted grasp, the truth followed.
+
+    The oracle drove, so the grasp followed is the truth; a look is heeded as the loop heeds it
+    (:func:`~sim.trials.view.unheeded_reason`, two looks in a row within a scene for the
+    plain-view clause), and it is a wrong re-target where its grasp is beyond the thresholds
+    from the truth and the grasp judge predicts it missed.
+    """
+    tally, once, scene = Tally(), None, None
+    for look, grasp in zip(looks, predicted, strict=True):
+        error_cm = 100 * float(np.linalg.norm(grasp.position - look.truth.position))
+        judged = judge_grasp(get_object_spec(look.object_type), look.truth, grasp,
+                             look.object_yaw_rad).predicted_success
+        view = ("footprint hidden" if look.footprint_hidden > 0 else
+                "column seen" if look.column_hidden == 0 else "column partly hidden")
+        tally.errors[(look.object_type, view)].append((error_cm, float(judged)))
+        tally.scenes[look.object_type].add(look.scene)
+        verdict = unheeded_reason(look.frame, look.truth.position, grasp.position,
+                                  loop.footprint_radius_m, once if scene == look.scene else None,
+                                  loop.move_threshold_m)
+        once, scene = verdict.unconfirmed_m, look.scene
+        if verdict.unheeded is not None:
+            continue
+        tally.heeded[look.object_type] += 1
+        off = error_cm > 100 * loop.move_threshold_m or math.degrees(grasp_angle_rad(
+            look.truth.rotation, grasp.rotation)) > loop.turn_threshold_deg
+        if off and not judged:
+            tally.wrong[look.object_type] += 1
+            tally.wrong_scenes[look.object_type].add(look.scene)
+    return tally
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", default="single-moved")
@@ -108,40 +164,12 @@ def main() -> None:
             watcher.scene = index
             runner.pick_targets(scene, bodies)
     print(f"{len(watcher.looks)} approach images of {args.scenes} scenes")
-    loop_radius_m, same_m = loop.footprint_radius_m, loop.move_threshold_m
     for checkpoint in args.checkpoints:
         model = load_model(checkpoint)
-        table: dict[tuple[str, str], list[tuple[float, float]]] = collections.defaultdict(list)
-        wrong: collections.Counter[str] = collections.Counter()
-        heeded_n: collections.Counter[str] = collections.Counter()
-        wrong_scenes: dict[str, set[int]] = collections.defaultdict(set)
-        scenes: dict[str, set[int]] = collections.defaultdict(set)
-        before: tuple[int, np.ndarray | None] = (-1, None)  # scene, a plain-view grasp once
-        for look in watcher.looks:
-            target = model.predict_frame(look.frame, look.given).targets[0]
-            predicted = Pose(np.asarray(target.position_m), np.asarray(target.rotation))
-            error_cm = 100 * float(np.linalg.norm(predicted.position - look.truth.position))
-            judged = judge_grasp(get_object_spec(look.object_type), look.truth, predicted,
-                                 look.object_yaw_rad).predicted_success
-            view = ("footprint hidden" if look.footprint_hidden > 0 else
-                    "column seen" if look.column_hidden == 0 else "column partly hidden")
-            table[(look.object_type, view)].append((error_cm, float(judged)))
-            # The loop follows the truth here (the oracle drove): heeded where the footprint
-            # shows, else where the grasp named stands in plain view two looks in a row.
-            once = before[1] if before[0] == look.scene else None
-            plain = look.footprint_hidden > 0 and in_plain_view(look.frame, predicted.position,
-                                                                loop_radius_m)
-            heeded = look.footprint_hidden == 0 or (plain and once is not None and float(
-                np.linalg.norm(predicted.position - once)) <= same_m)
-            before = (look.scene, predicted.position if plain else None)
-            off = error_cm > 100 * same_m or math.degrees(
-                grasp_angle_rad(look.truth.rotation, predicted.rotation)) > loop.turn_threshold_deg
-            if heeded:
-                heeded_n[look.object_type] += 1
-                wrong[look.object_type] += bool(off and not judged)
-                if off and not judged:
-                    wrong_scenes[look.object_type].add(look.scene)
-            scenes[look.object_type].add(look.scene)
+        tally = tally_looks(watcher.looks, [_pose(model.predict_frame(look.frame, look.given))
+                                            for look in watcher.looks], loop)
+        table, wrong, heeded_n = tally.errors, tally.wrong, tally.heeded
+        wrong_scenes, scenes = tally.wrong_scenes, tally.scenes
         print(checkpoint)
         for (kind, view), rows in sorted(table.items()):
             e, j = np.asarray(rows).T
