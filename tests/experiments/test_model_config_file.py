@@ -247,3 +247,14 @@ def test_hue_jitter_is_a_kqv_setting_left_out_of_identities_at_its_default():
     with pytest.raises(InvalidInputError, match=r"hue_jitter = 0\.6 is not allowed: a finite "
                        r"value >= 0 and <= 0\.5"):
         KqvConfig(hue_jitter=0.6)
+
+
+EXAMPLE_CONFIGS = Path(__file__).parents[2] / "examples" / "model-configs"
+
+
+@pytest.mark.parametrize("path", sorted(EXAMPLE_CONFIGS.glob("*.toml")), ids=lambda p: p.stem)
+def test_every_shipped_example_config_is_one_kqv_takes(path):
+    """The docs' example configs (kqv for a varied world, for closed-loop picks) read as kqv's
+    settings, each key a field it has."""
+    settings = read_model_config(path, "kqv")
+    assert settings and all(isinstance(key, str) for key in settings)
