@@ -6,6 +6,10 @@ and in turn on the same TEST scenes: per named type, the mean grasp position and
 the share the grasp judge predicts picked (docs/decisions/closed-loop.md, "The spray bottle").
 
     python studies/check_named_type_balance.py --data TEST.gva CHECKPOINT [CHECKPOINT ...]
+
+``--whole-heatmap`` reads each ``kqv`` checkpoint on its whole heatmap, as it was trained,
+instead of its inference-only focus (``KqvModel.read_with(focus_window_px=0)``): the spray
+bottle that checkpoints failed on sat where the focus moved the attention point (issue 66).
 """
 
 from __future__ import annotations
@@ -17,15 +21,20 @@ import numpy as np
 
 from perception.learning.dataset_file import load_dataset
 from perception.learning.evaluate import evaluate
+from perception.models.kqv import KqvModel
 from perception.registry import load_model
 
 STAGES = ("pick", "approach")
 """A demonstration's image before its pick, and those along its approach (``--approach-hz``)."""
 
 
-def score(checkpoint: Path, data_path: Path) -> list[str]:
+def score(checkpoint: Path, data_path: Path, whole_heatmap: bool = False) -> list[str]:
     """Lines: per stage and named type, ``mean cm / mean deg / judged %`` of ``checkpoint``."""
     data, model = load_dataset(data_path), load_model(checkpoint)
+    if whole_heatmap:
+        if not isinstance(model, KqvModel):
+            raise SystemExit(f"--whole-heatmap: {checkpoint} is not a kqv checkpoint")
+        model = model.read_with(focus_window_px=0)
     lines = []
     for stage in STAGES:
         for named in data.metadata.condition_choices:
@@ -48,9 +57,11 @@ def main() -> None:
     parser.add_argument("--data", type=Path, required=True, help="the dataset every "
                         "checkpoint is scored on (gva collect --stream test --approach-hz 10)")
     parser.add_argument("checkpoints", type=Path, nargs="+", help="checkpoint folders")
+    parser.add_argument("--whole-heatmap", action="store_true",
+                        help="read kqv checkpoints on the whole heatmap, without the focus")
     args = parser.parse_args()
     for checkpoint in args.checkpoints:
-        print("\n".join(score(checkpoint, args.data)))
+        print("\n".join(score(checkpoint, args.data, args.whole_heatmap)))
 
 
 if __name__ == "__main__":

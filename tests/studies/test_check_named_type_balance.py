@@ -30,3 +30,5 @@ def test_each_stage_and_named_type_gets_its_own_line(tmp_path):
         + [["approach", named]])
     assert re.fullmatch(rf".* approach {named} \({approach} images\): \d+\.\d\d cm, "
                         r"\d+\.\d deg, judged picked \d+ %", lines[-1])
+    whole = study.score(tmp_path / "kqv", data, whole_heatmap=True)  # the same lines, unfocused
+    assert [line.split()[1:3] for line in whole] == [line.split()[1:3] for line in lines]
