@@ -168,17 +168,17 @@ def main() -> None:
         model = load_model(checkpoint)
         tally = tally_looks(watcher.looks, [_pose(model.predict_frame(look.frame, look.given))
                                             for look in watcher.looks], loop)
-        table, wrong, heeded_n = tally.errors, tally.wrong, tally.heeded
-        wrong_scenes, scenes = tally.wrong_scenes, tally.scenes
         print(checkpoint)
-        for (kind, view), rows in sorted(table.items()):
+        for (kind, view), rows in sorted(tally.errors.items()):
             e, j = np.asarray(rows).T
             print(f"  {kind:<13} {view:<21} n {len(e):4d}  median {np.median(e):5.2f} cm  "
                   f"p90 {np.percentile(e, 90):5.2f}  > 1 cm {100 * (e > 1).mean():4.0f} %  "
                   f"judged picked {100 * j.mean():4.0f} %")
         print("  heeded looks that would re-target onto a grasp judged missed: " + ", ".join(
-            f"{kind} {wrong[kind]}/{heeded_n[kind]} (scenes {len(wrong_scenes[kind])}/"
-            f"{len(scenes[kind])})" for kind in sorted(heeded_n)))
+            f"{kind} {tally.wrong[kind]}/{tally.heeded[kind]} (scenes "
+            f"{len(tally.wrong_scenes[kind])}/{len(tally.scenes[kind])})"
+            for kind in sorted(tally.heeded)))
+
 
 if __name__ == "__main__":
     main()
