@@ -21,7 +21,7 @@ the field existed.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -358,3 +358,9 @@ class RgbdFrame:
         if not len(u_px):
             return np.zeros((0, 3))
         return self.camera.rays(np.stack([u_px, v_px], axis=1).astype(float))
+
+
+Calibrations = Sequence[PinholeCamera] | None
+"""Each image's calibration, in batch order (a trial frame's, a dataset sample's), for a model
+that reads positions through the camera (``ModelInput.CAMERA``); None: the camera it was trained
+with."""

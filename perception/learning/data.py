@@ -11,10 +11,11 @@ import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from numbers import Integral
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
+from perception.camera import PinholeCamera
 from perception.interface import (
     PICTURE_PX,
     Condition,
@@ -30,6 +31,10 @@ TENSORS = ("images", "conditions", "labels")  # a dataset's arrays, in its file'
 OPTIONAL_TENSORS = ("depths_m", "joint_positions")  # kept where the collector had them
 JOINT_NAMES_KEY = "joint_names"
 """``metadata.extra`` key: the robot's joints in ``joint_positions`` column order."""
+SAMPLE_CAMERA_KEY = "camera"
+"""A scene record's key for the calibration its image was taken with, where it is not the
+dataset's ``metadata.camera`` (a look moved the camera for that scene): what a model that reads
+positions through the camera reads that sample through, as a trial reads its frame's."""
 
 
 @dataclass(frozen=True)
@@ -159,6 +164,13 @@ class Dataset:
             raise InvalidInputError("scenes", f"{len(self.scenes)} records",
                                     f"one per sample ({self.metadata.size})")
         records = tuple(_json_form(f"scenes[{i}]", s) for i, s in enumerate(self.scenes))
+        for i, record in enumerate(records):
+            if SAMPLE_CAMERA_KEY in record:
+                try:
+                    PinholeCamera.from_json(record[SAMPLE_CAMERA_KEY])
+                except InvalidInputError as error:
+                    raise InvalidInputError(f"scenes[{i}].{SAMPLE_CAMERA_KEY}.{error.field}",
+                                            error.value, error.allowed) from None
         object.__setattr__(self, "scenes", records)
 
     def __len__(self) -> int:
@@ -246,6 +258,27 @@ class Dataset:
             return Condition(kind, picture=picture.reshape(PICTURE_PX, PICTURE_PX, 3))
         query = self.scenes[index].get("query", {})
         return Condition(kind, query.get("value"))
+
+    def camera(self, index: int) -> PinholeCamera | None:
+        """The calibration sample ``index`` was taken with (None: the dataset records none).
+
+        Its own where its record keeps one (:data:`SAMPLE_CAMERA_KEY`: a look moved the camera
+        for that scene), else the dataset's ``metadata.camera``.
+        """
+        own = self.scenes[index].get(SAMPLE_CAMERA_KEY)
+        if own is not None:
+            return PinholeCamera.from_json(own)
+        return PinholeCamera.from_record(self.metadata.camera)
+
+    def cameras(self, indices: Sequence[int] | slice = slice(None)
+                ) -> list[PinholeCamera] | None:
+        """:meth:`camera` of each sample at ``indices``, in order.
+
+        None where the dataset records no camera geometry (a synthetic dataset).
+        """
+        span = range(len(self))[indices] if isinstance(indices, slice) else indices
+        cameras = [self.camera(i) for i in span]
+        return None if any(c is None for c in cameras) else cast(list[PinholeCamera], cameras)
 
     def condition_prototypes(self) -> np.ndarray:
         """(k, C) float32: per ``condition_choices`` entry, the mean of its distinct conditions.

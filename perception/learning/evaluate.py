@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from perception.camera import PinholeCamera, RgbdFrame
+from perception.camera import RgbdFrame
 from perception.checks import check_inputs
 from perception.interface import (
     ConditionKind,
@@ -118,7 +118,8 @@ class EvaluationResult:
 
 OFFLINE_INPUTS = frozenset({ModelInput.RGB})
 """What offline evaluation gives every model: a dataset's colour images (and a learnable
-model, their depth where the dataset keeps it)."""
+model, their depth where the dataset keeps it and each sample's calibration where it records
+one)."""
 
 
 def predict_dataset(model: PerceptionModel, dataset: Dataset, batch_size: int = 32,
@@ -134,31 +135,37 @@ def predict_dataset(model: PerceptionModel, dataset: Dataset, batch_size: int = 
         raise InvalidInputError("batch_size", batch_size, "an integer >= 1")
     if frames:
         return _predict_frames(model, dataset)
-    learnable = isinstance(model, LearnableModel)
-    depths = dataset.depths_m if learnable and ModelInput.DEPTH in model.inputs else None
+    if not isinstance(model, LearnableModel):
+        check_inputs(model, OFFLINE_INPUTS, getattr(model, "name", type(model).__name__))
+        return [model.predict(image, dataset.condition(index))
+                for index, image in enumerate(dataset.images)]
+    cameras = dataset.cameras()  # each sample's calibration, as a trial gives its frame's
     check_inputs(model, OFFLINE_INPUTS | ({ModelInput.DEPTH} if dataset.depths_m is not None
-                                          and learnable else set()),
-                 getattr(model, "name", type(model).__name__))
-    if isinstance(model, LearnableModel):
-        return [prediction for start in range(0, len(dataset), batch_size)
-                for prediction in model.predict_batch(
-                    dataset.images[start:start + batch_size], model.condition_rows(
-                        [dataset.condition(i) for i in range(start, min(start + batch_size,
-                                                                         len(dataset)))],
-                        dataset.conditions[start:start + batch_size]),
-                    None if depths is None else depths[start:start + batch_size])]
-    return [model.predict(image, dataset.condition(index))
-            for index, image in enumerate(dataset.images)]
+                                          else set())
+                 | ({ModelInput.CAMERA} if cameras is not None else set()), model.name)
+    depths = dataset.depths_m if ModelInput.DEPTH in model.inputs else None
+    reads_camera = cameras is not None and ModelInput.CAMERA in model.inputs
+    predictions: list[Prediction] = []
+    for start in range(0, len(dataset), batch_size):
+        rows = range(start, min(start + batch_size, len(dataset)))
+        predictions += model.predict_images(
+            dataset.images[start:start + batch_size],
+            model.condition_rows([dataset.condition(i) for i in rows],
+                                 dataset.conditions[start:start + batch_size]),
+            None if depths is None else depths[start:start + batch_size],
+            [cameras[i] for i in rows] if reads_camera and cameras is not None else None)
+    return predictions
 
 
 def _predict_frames(model: PerceptionModel, dataset: Dataset) -> list[Prediction]:
     """``predict_frame`` of each sample, given as a trial's frame would be.
 
     Its RGB, its depth where the dataset keeps it (else 0 everywhere: no measurement) and the
-    dataset's camera; a model that reads depth the dataset lacks is refused first.
+    sample's calibration (:meth:`Dataset.camera`); a model that reads depth the dataset lacks is
+    refused first.
     """
-    camera = PinholeCamera.from_record(dataset.metadata.camera)
-    if camera is None:
+    cameras = dataset.cameras()
+    if cameras is None:
         raise InvalidInputError("dataset camera", "no geometry", "a dataset that records its "
                                 "camera (the model is given calibrated frames)")
     depths = dataset.depths_m
@@ -167,7 +174,7 @@ def _predict_frames(model: PerceptionModel, dataset: Dataset) -> list[Prediction
     check_inputs(model, frozenset(given), getattr(model, "name", type(model).__name__))
     blank = np.zeros(dataset.images.shape[1:3], np.float32)
     return [model.predict_frame(RgbdFrame(image, blank if depths is None else depths[index],
-                                          camera), dataset.condition(index))
+                                          cameras[index]), dataset.condition(index))
             for index, image in enumerate(dataset.images)]
 
 
@@ -247,13 +254,14 @@ def attention_on_named(predictions: list[Prediction], dataset: Dataset,
     none: dict[str, float | None] = {"attention_on_named_fraction": None,
                                      "attention_switch_fraction": None}
     meta = dataset.metadata
-    camera = PinholeCamera.from_record(meta.camera)
-    if meta.condition_kind is ConditionKind.NONE or meta.targets != 1 or camera is None or \
+    cameras = dataset.cameras()  # each sample's own: a look may have moved the camera
+    if meta.condition_kind is ConditionKind.NONE or meta.targets != 1 or cameras is None or \
             not per_target or any(p.attention_px.shape[0] != 1 for p in predictions):
         return none
     height_m = split_label(dataset.labels.astype(np.float64)).position_m[:, 0, 2]  # (N,)
     on_named = []
-    for prediction, record, z in zip(predictions, dataset.scenes, height_m, strict=True):
+    for prediction, record, z, camera in zip(predictions, dataset.scenes, height_m, cameras,
+                                             strict=True):
         centres = np.array([[*o["position_xy_m"], z] for o in record["objects"]])  # (k, 3)
         distance = np.linalg.norm(camera.project(centres) - prediction.attention_px[0], axis=1)
         on_named.append(int(np.argmin(distance)) == record["targets"][0])

@@ -19,11 +19,11 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Self
+from typing import TYPE_CHECKING, Any, Self, cast
 
 import numpy as np
 
-from perception.camera import PinholeCamera, RgbdFrame
+from perception.camera import Calibrations, PinholeCamera, RgbdFrame
 from perception.interface import (
     NO_CONDITION,
     Condition,
@@ -202,15 +202,23 @@ class LearnableModel(PerceptionModel):
         """Predictions for uint8 images (B, H, W, 3) and condition vectors (B, C), in order.
 
         ``depths_m`` (B, H, W) [m]: each image's depth, for a model whose ``inputs`` name
-        :attr:`ModelInput.DEPTH` (others ignore it).
+        :attr:`ModelInput.DEPTH` (others ignore it). A model whose ``inputs`` name
+        :attr:`ModelInput.CAMERA` also takes ``cameras`` (keyword): each image's calibration
+        (:data:`~perception.camera.Calibrations`); only such a model is given it.
         """
 
     def predict_frame(self, frame: RgbdFrame, condition: Condition = NO_CONDITION
                       ) -> Prediction:
-        """Predicts from a trial's frame: its colour image, and its depth where ``inputs`` say."""
-        if ModelInput.DEPTH not in self.inputs:
+        """Predicts from a trial's frame: its colour image, its depth and calibration if read.
+
+        Depth and calibration go to a model whose ``inputs`` name them: a camera moved and
+        re-calibrated is read through its new pose.
+        """
+        if not self.inputs & {ModelInput.DEPTH, ModelInput.CAMERA}:
             return self.predict(frame.rgb, condition)
-        return self._predict_one(frame.rgb, condition, frame.depth_m[None])
+        return self._predict_one(frame.rgb, condition,
+                                 frame.depth_m[None] if ModelInput.DEPTH in self.inputs else None,
+                                 (frame.camera,) if ModelInput.CAMERA in self.inputs else None)
 
     @abc.abstractmethod
     def fit(self, dataset: Dataset, config: TrainConfig, progress: bool = True) -> TrainReport:
@@ -230,8 +238,11 @@ class LearnableModel(PerceptionModel):
         return self._predict_one(image, condition, None)
 
     def _predict_one(self, image: np.ndarray, condition: Condition,
-                     depths_m: np.ndarray | None) -> Prediction:
-        """:meth:`predict`'s checks and batch of one, with the image's depth (1, H, W) or None."""
+                     depths_m: np.ndarray | None, cameras: Calibrations = None) -> Prediction:
+        """:meth:`predict`'s checks and batch of one.
+
+        With the image's depth (1, H, W) or None, and its calibration (one) or None.
+        """
         spec = self.spec
         check_image(image, (spec.image_height_px, spec.image_width_px, 3))
         wanted = spec.condition_choices if spec.condition_kind.one_hot else ()
@@ -240,7 +251,19 @@ class LearnableModel(PerceptionModel):
             raise InvalidInputError("condition", f"{condition.kind.value} {condition.choices}",
                                     f"a {spec.condition_kind.value} condition{over}")
         rows = self.condition_rows([condition], condition.vector()[None])
-        return self.predict_batch(image[None], rows, depths_m)[0]
+        return self.predict_images(image[None], rows, depths_m, cameras)[0]
+
+    def predict_images(self, images: np.ndarray, conditions: np.ndarray,
+                       depths_m: np.ndarray | None = None, cameras: Calibrations = None
+                       ) -> list[Prediction]:
+        """:meth:`predict_batch`, given ``cameras`` only where there are any.
+
+        A model that reads no calibration keeps its three-argument ``predict_batch``.
+        """
+        if cameras is None:
+            return self.predict_batch(images, conditions, depths_m)
+        predict = cast(Any, self.predict_batch)  # a CAMERA-reading model's takes ``cameras``
+        return cast(list[Prediction], predict(images, conditions, depths_m, cameras=cameras))
 
     def condition_rows(self, conditions: Sequence[Condition], rows: np.ndarray) -> np.ndarray:
         """The condition vectors (B, C) :meth:`predict_batch` is given for ``conditions``.

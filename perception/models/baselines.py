@@ -33,6 +33,7 @@ from typing import Any, ClassVar, NamedTuple
 import torch
 from torch import Tensor, nn
 
+from perception.camera import Calibrations
 from perception.interface import ConditionKind, InvalidInputError
 from perception.learning.data import Dataset
 from perception.learning.learnable import (
@@ -214,14 +215,20 @@ class BaselineNet(nn.Module):
         encoding: Encoding = self.encoder(normalise_images(images, self.per_image))
         return encoding
 
-    def targets(self, encoding: Encoding, conditions: Tensor) -> NetOutput:
-        """The head's targets for an encoding under one-hot conditions (B, C)."""
+    def targets(self, encoding: Encoding, conditions: Tensor, cameras: Calibrations = None
+                ) -> NetOutput:
+        """The head's targets for an encoding under one-hot conditions (B, C).
+
+        ``cameras``: each image's calibration, for a head that reads through the camera (the
+        ray readout's); this head maps features to positions and reads none.
+        """
         positions, rotations = self.head(encoding.features, conditions)  # (B, q, 3), ...
         return NetOutput(positions, rotations, encoding.points, encoding.heatmaps)
 
-    def forward(self, images: Tensor, conditions: Tensor) -> NetOutput:
-        """Targets for images (B, 3, H, W) in [0, 1] under conditions (B, C)."""
-        return self.targets(self.encode(images), conditions)
+    def forward(self, images: Tensor, conditions: Tensor, cameras: Calibrations = None
+                ) -> NetOutput:
+        """Targets for images (B, 3, H, W) in [0, 1] under conditions (B, C) (and calibrations)."""
+        return self.targets(self.encode(images), conditions, cameras)
 
     def reconstruction_loss(self, images: Tensor) -> Tensor:
         """Mean squared error of the decoder's reconstruction of images (B, 3, H, W)."""

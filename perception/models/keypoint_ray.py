@@ -18,6 +18,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor, nn
 
+from perception.camera import Calibrations
 from perception.interface import InvalidInputError, LabelKind
 from perception.learning.learnable import ModelSpec
 from perception.learning.rotations import decode_rotation, rotation_size
@@ -98,8 +99,12 @@ class KeypointRayNet(BaselineNet):
             return points, heatmaps
         return weights @ points, torch.einsum("bqk,bkhw->bqhw", weights, heatmaps)
 
-    def targets(self, encoding: Encoding, conditions: Tensor) -> NetOutput:
-        """The targets read through the camera's rays, with each target's point and heatmap."""
+    def targets(self, encoding: Encoding, conditions: Tensor, cameras: Calibrations = None
+                ) -> NetOutput:
+        """The targets read through the camera's rays, with each target's point and heatmap.
+
+        ``cameras``: each image's calibration (a trial frame's); None: the spec's camera.
+        """
         if self.scaler is None:
             raise InvalidInputError("scaler", None, "a LabelScaler before the ray readout runs "
                                     "(KeypointModel sets it on fit and load)")
@@ -111,7 +116,7 @@ class KeypointRayNet(BaselineNet):
             index = torch.eye(count, device=points.device).expand(batch, -1, -1)  # (B, q, q)
             inputs = torch.cat([inputs, index], dim=-1)  # (B, q, 2K + C + q)
         out = self.head(inputs)  # (B, q, 4 (+ 6 for a grasp's rotation))
-        positions, turn = self.rays.read(points, out[..., :PLACE_SIZE], self.scaler)
+        positions, turn = self.rays.read(points, out[..., :PLACE_SIZE], self.scaler, cameras)
         rotations = decode_rotation(out[..., PLACE_SIZE:], ROTATION_CODE, turn)[0] \
             if self.rotates else None  # (B, q, 3, 3) | None
         return NetOutput(positions, rotations, points, heatmaps)  # positions: (B, q, 3)

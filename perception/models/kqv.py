@@ -17,6 +17,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
+from perception.camera import Calibrations
 from perception.interface import Condition, InvalidInputError, ModelInput, Prediction
 from perception.learning.data import Dataset
 from perception.learning.evaluate import evaluate
@@ -57,7 +58,7 @@ class KqvModel(TorchModel):
                  scaler: LabelScaler | None = None) -> None:
         super().__init__(spec, config, scaler)
         if self.config.depth_input:  # a trial gives it the frame's depth too
-            self.inputs = frozenset({ModelInput.RGB, ModelInput.DEPTH})
+            self.inputs = self.inputs | {ModelInput.DEPTH}
 
     def build_network(self) -> KqvNet:
         """The Key, Value, Query and head networks for this spec."""
@@ -294,19 +295,20 @@ class KqvModel(TorchModel):
 
     @torch.no_grad()
     def predict_batch(self, images: np.ndarray, conditions: np.ndarray,
-                      depths_m: np.ndarray | None = None, queries: np.ndarray | None = None
-                      ) -> list[Prediction]:
+                      depths_m: np.ndarray | None = None, queries: np.ndarray | None = None,
+                      *, cameras: Calibrations = None) -> list[Prediction]:
         """Predictions for uint8 images (B, H, W, 3) and conditions (B, C).
 
         ``depths_m`` (B, H, W) [m]: the images' depth, which a model with
         :attr:`KqvConfig.depth_input` needs (others ignore it). ``queries`` (B, q, Ck + 2),
         when given, replaces the learned Queries (top-down control from outside; see
-        :meth:`queries` for the learned ones).
+        :meth:`queries` for the learned ones). ``cameras``: each image's calibration, which
+        the ray readout reads positions through (None: the camera of the training images).
         """
         self.check_batch(images, conditions)
         given = None if queries is None else self._check_queries(queries, len(images))
         out = self.network(images_to_tensor(images), torch.as_tensor(conditions).float(), given,
-                           self._depths(depths_m, len(images)))
+                           self._depths(depths_m, len(images)), cameras=cameras)
         return self.to_predictions(out, conditions)
 
     def _depths(self, depths_m: np.ndarray | None, batch: int) -> Tensor | None:

@@ -16,6 +16,7 @@ from typing import NamedTuple, cast
 import torch
 from torch import Tensor, nn
 
+from perception.camera import Calibrations
 from perception.interface import PICTURE_PX, ConditionKind, InvalidInputError, LabelKind
 from perception.learning.learnable import ModelSpec
 from perception.learning.rotations import decode_rotation, rotation_size
@@ -312,11 +313,12 @@ class KqvNet(nn.Module):
                          spatial_expectation(heatmaps, values))  # (B, q', Cv)
 
     def forward(self, images: Tensor, conditions: Tensor, queries: Tensor | None = None,
-                depths_m: Tensor | None = None, value_images: Tensor | None = None
-                ) -> NetOutput:
+                depths_m: Tensor | None = None, value_images: Tensor | None = None,
+                cameras: Calibrations = None) -> NetOutput:
         """Targets for images (B, 3, H, W) in [0, 1] under conditions (B, C) (or given Queries).
 
-        ``depths_m`` (B, H, W) and ``value_images``: as :meth:`attend` reads them.
+        ``depths_m`` (B, H, W) and ``value_images``: as :meth:`attend` reads them. ``cameras``:
+        each image's calibration, which the ray readout reads through (None: the spec's).
         """
         attention = self.attend(images, self.queries(conditions) if queries is None else queries,
                                 depths_m, value_images)
@@ -334,7 +336,7 @@ class KqvNet(nn.Module):
             if self.scaler is None:
                 raise InvalidInputError("scaler", None, "a LabelScaler before the ray readout "
                                         "runs (KqvModel sets it on fit and load)")
-            positions, turn = self.rays.read(attention.coords, place, self.scaler)
+            positions, turn = self.rays.read(attention.coords, place, self.scaler, cameras)
         rotations = lines = None
         if self.rotation is not None:  # (B, q, 3, 3), (B, q, 3, 4) | None
             rotations, lines = decode_rotation(out[..., self.place_size:], self.rotation, turn)

@@ -30,7 +30,15 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from perception.interface import ConditionKind, InvalidInputError, LabelKind, Prediction, Target
+from perception.camera import Calibrations
+from perception.interface import (
+    ConditionKind,
+    InvalidInputError,
+    LabelKind,
+    ModelInput,
+    Prediction,
+    Target,
+)
 from perception.learning.checkpoint import (
     CONFIG_FILE,
     CheckpointError,
@@ -56,6 +64,15 @@ class NetOutput(NamedTuple):
     # the rotations (see perception.learning.rotations)
     type_logits: Tensor | None = None  # (B, q, T) over the spec's object_types; None: the
     # network states no type
+
+
+def reads_calibration(network: nn.Module) -> bool:
+    """Whether ``network`` reads positions through the camera (a ray readout: ``rays``).
+
+    Such a model declares :attr:`ModelInput.CAMERA`: each frame's calibration is what it reads
+    through, so a camera moved and re-calibrated after training costs nothing.
+    """
+    return getattr(network, "rays", None) is not None
 
 
 def pose_size(label_kind: LabelKind) -> int:
@@ -114,6 +131,8 @@ class TorchModel(LearnableModel):
         # the checkpoint's training record beside the report, so a reader can trace them.
         self.provenance: dict[str, Any] = {}
         self.network = self.seeded_network(config.seed).eval()
+        if reads_calibration(self.network):  # a trial gives it the frame's calibration
+            self.inputs = self.inputs | {ModelInput.CAMERA}
 
     @abc.abstractmethod
     def build_network(self) -> nn.Module:
@@ -193,13 +212,17 @@ class TorchModel(LearnableModel):
 
     @torch.no_grad()
     def predict_batch(self, images: np.ndarray, conditions: np.ndarray,
-                      depths_m: np.ndarray | None = None) -> list[Prediction]:
+                      depths_m: np.ndarray | None = None, *, cameras: Calibrations = None
+                      ) -> list[Prediction]:
         """Predictions for uint8 images (B, H, W, 3) and condition vectors (B, C), in order.
 
         ``depths_m``: ignored; a network that reads depth (kqv's) is given it by its model.
+        ``cameras``: each image's calibration, for a network that reads positions through the
+        camera (:func:`reads_calibration`; it is given them as ``cameras=``); None: the spec's.
         """
         self.check_batch(images, conditions)
-        out = self.network(images_to_tensor(images), torch.as_tensor(conditions).float())
+        given = {} if cameras is None else {"cameras": cameras}
+        out = self.network(images_to_tensor(images), torch.as_tensor(conditions).float(), **given)
         return self.to_predictions(out, conditions)
 
     def to_predictions(self, out: NetOutput, conditions: np.ndarray) -> list[Prediction]:

@@ -33,7 +33,12 @@ from tqdm import tqdm
 from perception.camera import RgbdFrame
 from perception.interface import Prediction
 from perception.labels import label_vector
-from perception.learning.data import JOINT_NAMES_KEY, Dataset, DatasetMetadata
+from perception.learning.data import (
+    JOINT_NAMES_KEY,
+    SAMPLE_CAMERA_KEY,
+    Dataset,
+    DatasetMetadata,
+)
 from perception.learning.dataset_file import save_dataset
 from perception.learning.mirror import MIRROR_FLAG
 from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot
@@ -331,6 +336,17 @@ class _PickImages:
         """Nothing to watch between images."""
 
 
+def _calibration(frame: RgbdFrame, runner: TrialRunner) -> dict[str, Any]:
+    """A sample record's own calibration, where its frame's is not the dataset's camera.
+
+    A look that moves the camera for a scene: the sample is read through that calibration, as
+    a trial reads its frame's (:data:`~perception.learning.data.SAMPLE_CAMERA_KEY`).
+    """
+    if frame.camera == runner.mounted_camera.pinhole:
+        return {}
+    return {SAMPLE_CAMERA_KEY: frame.camera.to_json()}
+
+
 def _collect_yumi(
     task: TaskSpec, spec: SceneSpec, settings: CollectSettings, bar: tqdm
 ) -> tuple[list[Sample], dict[str, Any], dict[str, Any]]:
@@ -359,7 +375,7 @@ def _collect_yumi(
                 redrawn.append({"scene_index": scene.index, "reason": demonstration.reason})
                 bar.set_postfix_str(f"{len(redrawn)} redrawn")
                 continue
-            record = scene.to_record()
+            record = scene.to_record() | _calibration(images.stages[0].frame, runner)
             samples += [Sample(stage.frame.rgb, scene.given.vector(), stage.labels,
                                record | ({"taken": stage.taken} if stage.taken else {})
                                | ({"stage": "approach"} if stage.approach else {}),
@@ -369,7 +385,8 @@ def _collect_yumi(
             first = images.stages[0]
             samples += [Sample(first.frame.rgb, question.given.vector(),
                                np.stack([images.first[bodies[t]] for t in question.targets]),
-                               question.to_record(), first.frame.depth_m, first.joint_positions)
+                               question.to_record() | _calibration(first.frame, runner),
+                               first.frame.depth_m, first.joint_positions)
                         for question in asked(task, scene, settings.asks_every_condition)[1:]]
             kept += 1
             bar.update()

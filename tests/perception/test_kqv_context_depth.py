@@ -69,8 +69,9 @@ def test_depth_input_tells_apart_twins_the_colour_cannot():
 def test_a_depth_reading_kqv_says_so_and_refuses_what_has_no_depth():
     dataset = _raised_twins(4, seed=0)
     model = KqvModel.for_dataset(dataset, KqvConfig(depth_input=True))
-    assert model.inputs == frozenset({ModelInput.RGB, ModelInput.DEPTH})
-    assert KqvModel.for_dataset(dataset).inputs == frozenset({ModelInput.RGB})
+    assert model.network.rays is not None  # the ray readout also reads each frame's camera
+    assert model.inputs == frozenset({ModelInput.RGB, ModelInput.DEPTH, ModelInput.CAMERA})
+    assert KqvModel.for_dataset(dataset).inputs == frozenset({ModelInput.RGB, ModelInput.CAMERA})
     with pytest.raises(InvalidInputError, match=r"depths_m = None is not allowed: depth images "
                                                  r"of shape \(4, 64, 64\)"):
         model.predict_batch(dataset.images, dataset.conditions)
