@@ -57,8 +57,13 @@ class KqvModel(TorchModel):
     def __init__(self, spec: ModelSpec, config: KqvConfig | None = None,
                  scaler: LabelScaler | None = None) -> None:
         super().__init__(spec, config, scaler)
-        if self.config.depth_input:  # a trial gives it the frame's depth too
+        if self.reads_depth:  # a trial gives it the frame's depth too
             self.inputs = self.inputs | {ModelInput.DEPTH}
+
+    @property
+    def reads_depth(self) -> bool:
+        """Whether the network reads each image's depth: its input, or the range readout's."""
+        return self.config.depth_input or self.network.readout == "range"
 
     def build_network(self) -> KqvNet:
         """The Key, Value, Query and head networks for this spec."""
@@ -114,6 +119,9 @@ class KqvModel(TorchModel):
         if self.config.depth_input and dataset.depths_m is None:  # paper-sim's; older ones'
             raise InvalidInputError("depth_input", True, "false for a dataset without depth "
                                     "images")
+        if self.network.readout == "range" and dataset.depths_m is None:
+            raise InvalidInputError("readout", "range", "'ray', 'mlp' or 'auto' for a dataset "
+                                    "without depth images")
         if self.config.repaint and dataset.depths_m is None:  # objects are found by depth
             raise InvalidInputError("repaint", self.config.repaint, "0 for a dataset without "
                                     "depth images")
@@ -314,7 +322,7 @@ class KqvModel(TorchModel):
     def _depths(self, depths_m: np.ndarray | None, batch: int) -> Tensor | None:
         """The depth images a depth-reading network is given, checked; None for the others."""
         shape = (batch, self.spec.image_height_px, self.spec.image_width_px)
-        return checked_depths(depths_m, shape) if self.config.depth_input else None
+        return checked_depths(depths_m, shape) if self.reads_depth else None
 
     def read_with(self, **settings: Any) -> KqvModel:
         """The same trained weights read under other inference settings (:data:`INFERENCE_FIELDS`).

@@ -17,7 +17,7 @@ from perception.learning.learnable import check_choices, check_integer, check_nu
 from perception.learning.rotations import ROTATION_CODES
 
 QUERY_MODES = ("auto", "base", "conditioned", "conditioned+base", "paper")
-READOUTS = ("auto", "mlp", "ray")
+READOUTS = ("auto", "mlp", "ray", "range")
 INPUT_NORMS = ("auto", "fixed", "per-image")
 VALUE_INPUTS = ("image", "depth")
 SENTENCE_READINGS = ("auto", "tokens", "nearest", "prototypes", "embedding")
@@ -107,9 +107,13 @@ class KqvConfig:
             sponge seen end-on from one seen side-on (docs/decisions/grasp-judge.md). False:
             the attended feature alone.
         readout: ``"mlp"``: the paper's MLP maps ``a_coord`` (and ``a_feat``) to the target.
-            ``"ray"``: the target is read off the ray through ``a_coord`` of the dataset's
+            ``"ray"``: the target is read off the ray through ``a_coord`` of the frame's
             calibrated camera, at a height, offset and rotation the MLP gives from ``a_feat``.
-            ``"auto"``: ray for grasp-pose labels where the dataset records its camera.
+            ``"range"``: as ``"ray"``, but the point on the ray lies at the range the frame's
+            depth measures under the heatmap (the head's height only where it measured none),
+            so the head learns no range the camera measures; it reads depth (a dataset without
+            depth images is refused). ``"auto"``: ray for grasp-pose labels where the dataset
+            records its camera.
         point_loss_weight: Weight of a second loss, where the dataset records its camera: the
             squared distance (normalised image units) from each attention point to where the
             camera sees its target (the label projected). The Query still chooses the object;

@@ -32,7 +32,7 @@ from perception.learning.torch_pieces import (
     unit,
 )
 from perception.models.kqv_config import KqvConfig
-from perception.models.readout import CameraRays
+from perception.models.readout import CameraRays, attended_range
 from perception.models.rise import RISE_SCALE_M, rise_above_table
 from perception.models.torch_model import NetOutput
 from perception.sentence_reading import TokenReader
@@ -126,7 +126,7 @@ class KqvNet(nn.Module):
         if self.readout == "auto":
             self.readout = "ray" if spec.label_kind is LabelKind.GRASP_POSE and \
                 spec.camera is not None else "mlp"
-        self.stride = c.stride or (2 if self.readout == "ray" else 4)
+        self.stride = c.stride or (4 if self.readout == "mlp" else 2)
         first, second = {1: (1, 1), 2: (2, 1), 4: (2, 2)}[self.stride]
         norm = c.input_norm
         if norm == "auto":
@@ -192,7 +192,7 @@ class KqvNet(nn.Module):
             last = cast(nn.Linear, self.query_mlp[-1])
             nn.init.zeros_(last.weight)
             nn.init.zeros_(last.bias)
-        self.rays = CameraRays(spec) if self.readout == "ray" else None
+        self.rays = None if self.readout == "mlp" else CameraRays(spec)  # "ray" or "range"
         # Where the camera sees each target: the point loss's aim, on either readout.
         self.seen = self.rays
         if self.seen is None and spec.camera is not None and c.point_loss_weight > 0:
@@ -336,7 +336,14 @@ class KqvNet(nn.Module):
             if self.scaler is None:
                 raise InvalidInputError("scaler", None, "a LabelScaler before the ray readout "
                                         "runs (KqvModel sets it on fit and load)")
-            positions, turn = self.rays.read(attention.coords, place, self.scaler, cameras)
+            measured = None
+            if self.readout == "range":  # the frame's depth measures how far the point lies
+                if depths_m is None:
+                    raise InvalidInputError("depths_m", None, "each image's depth, for a kqv "
+                                            "model with readout = 'range'")
+                measured = attended_range(attention.heatmaps, depths_m.to(images))
+            positions, turn = self.rays.read(attention.coords, place, self.scaler, cameras,
+                                             measured)
         rotations = lines = None
         if self.rotation is not None:  # (B, q, 3, 3), (B, q, 3, 4) | None
             rotations, lines = decode_rotation(out[..., self.place_size:], self.rotation, turn)

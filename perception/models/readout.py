@@ -72,16 +72,20 @@ class CameraRays(nn.Module):
         self.register_buffer("origin", origin, persistent=False)
 
     def read(self, coords: Tensor, out: Tensor, scaler: LabelScaler,
-             cameras: Calibrations = None) -> tuple[Tensor, Tensor]:
+             cameras: Calibrations = None, range_m: Tensor | None = None
+             ) -> tuple[Tensor, Tensor]:
         """Targets from points (B, q, 2) in [-1, 1] and head outputs (B, q, 4): height, offset.
 
         ``cameras``: each sample's calibration (B of them), or None: the spec's for all.
-        Returns positions (B, q, 3) in the scaler's units and the turns (B, q, 3, 3) about z
-        toward each point's bearing, which take the head's rotations to the world frame.
+        ``range_m`` (B, q): where the frame's depth measures how far along the optical axis the
+        attended surface lies (:func:`attended_range`; NaN where it measured nothing), the
+        point is there on the ray instead of at the head's height. Returns positions (B, q, 3)
+        in the scaler's units and the turns (B, q, 3, 3) about z toward each point's bearing,
+        which take the head's rotations to the world frame.
         """
         def one(camera: PinholeCamera, rows: slice | Tensor) -> tuple[Tensor, Tensor]:
             return self._read(camera, self._tensors(camera, coords.device), coords[rows],
-                              out[rows], scaler)
+                              out[rows], scaler, None if range_m is None else range_m[rows])
 
         return _per_camera(one, self.camera, cameras, len(coords))
 
@@ -107,7 +111,7 @@ class CameraRays(nn.Module):
 
     @staticmethod
     def _read(camera: PinholeCamera, geometry: _Geometry, coords: Tensor, out: Tensor,
-              scaler: LabelScaler) -> tuple[Tensor, Tensor]:
+              scaler: LabelScaler, range_m: Tensor | None = None) -> tuple[Tensor, Tensor]:
         """:meth:`read` through one camera."""
         tangents, basis, origin = geometry
         pixels = normalised_to_pixels(coords, camera.height_px, camera.width_px)  # (B, q, 2)
@@ -122,6 +126,10 @@ class CameraRays(nn.Module):
         height_m = centre[2] + scaler.scale_m * out[..., 0]  # (B, q)
         down = direction[..., 2].clamp(max=-1e-3)  # (B, q); rays that miss the plane do not
         point = origin + direction * ((height_m - origin[2]) / down)[..., None]
+        if range_m is not None:  # a unit of ``direction`` is a metre along the optical axis
+            measured = torch.isfinite(range_m)[..., None]  # (B, q, 1)
+            point = torch.where(measured, origin + direction * range_m.nan_to_num()[..., None],
+                                point)
         bearing = torch.atan2(point[..., 1], point[..., 0])  # (B, q)
         cos, sin, zero, one = (bearing.cos(), bearing.sin(), torch.zeros_like(bearing),
                                torch.ones_like(bearing))
@@ -144,6 +152,32 @@ class CameraRays(nn.Module):
         u_px, v_px = camera.ndc_to_pixels(x / tangents[0], y / tangents[1])
         return pixels_to_normalised(torch.stack([u_px, v_px], dim=-1), camera.height_px,
                                     camera.width_px)  # (..., 2)
+
+
+def attended_range(heatmaps: Tensor, depths_m: Tensor) -> Tensor:
+    """How far along the optical axis each head's attended surface lies: (B, q) [m], NaN: unknown.
+
+    The heatmap-weighted mean of the frame's depth (B, H, W) over the pixels that measured one
+    (a D435 gives 0 in its holes and stereo shadows, an ideal camera inf where it sees nothing):
+    the range the camera measures at the attention, its noise averaged over the attended
+    pixels. A head whose heatmap (B, q, h, w) weighs less than :data:`RANGE_MIN_WEIGHT` on
+    measured pixels gets NaN, and is read at its head's height instead.
+    """
+    height, width = heatmaps.shape[-2:]
+    valid = (torch.isfinite(depths_m) & (depths_m > 0)).to(heatmaps.dtype)[:, None]  # (B,1,H,W)
+    depth = torch.where(valid > 0, depths_m[:, None].to(heatmaps.dtype), 0.0)  # (B, 1, H, W)
+    cell_valid = nn.functional.adaptive_avg_pool2d(valid, (height, width))  # (B, 1, h, w)
+    cell_sum = nn.functional.adaptive_avg_pool2d(depth, (height, width))  # (B, 1, h, w)
+    weight = (heatmaps * cell_valid).sum(dim=(-2, -1))  # (B, q)
+    total = (heatmaps * cell_sum).sum(dim=(-2, -1))  # (B, q): sum of M x mean depth x share
+    return torch.where(weight >= RANGE_MIN_WEIGHT, total / weight.clamp(min=RANGE_MIN_WEIGHT),
+                       torch.nan)
+
+
+RANGE_MIN_WEIGHT = 0.5
+"""The least share of a heatmap on pixels with depth for its range to be read off them: below
+it, the attention lies mostly on holes (a D435's shadow beside a tall object) and one stray
+pixel would decide the range."""
 
 
 class _Geometry(NamedTuple):

@@ -68,5 +68,6 @@ def checked_depths(depths_m: np.ndarray | None, shape: tuple[int, int, int]) -> 
     if depths_m is None or np.shape(depths_m) != shape:
         raise InvalidInputError("depths_m", None if depths_m is None else
                                 f"shape {np.shape(depths_m)}", f"depth images of shape "
-                                f"{shape} [m], for a kqv model with depth_input = true")
+                                f"{shape} [m], for a kqv model that reads depth (depth_input = "
+                                f"true or readout = 'range')")
     return torch.as_tensor(np.asarray(depths_m, dtype=np.float32))
