@@ -21,8 +21,8 @@ from typing import Any
 
 from perception.files import file_sha256
 
-ROOT = Path(__file__).resolve().parents[2]
-"""The project's folder (a git checkout when installed from one)."""
+ROOT = Path(__file__).resolve().parents[1]
+"""The project's folder, above ``harness/`` (a git checkout when installed from one)."""
 PACKAGES = ("gva", "torch", "pybullet", "pin", "ruckig", "numpy")
 """The distributions whose versions change what a run computes."""
 

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import json
+import subprocess
 from importlib import metadata
+from pathlib import Path
 
-from harness.provenance import git_revision, provenance
+from harness.provenance import ROOT, git_revision, provenance
 from harness.run_loop import run_trials
 from perception.files import file_sha256
 from sim.tasks.task_toml import TASK_FILES
@@ -25,6 +27,22 @@ def test_run_json_and_the_summary_say_what_made_the_trials(tmp_path):
     assert set(made["versions"]) == {"gva", "torch", "pybullet", "pin", "ruckig", "numpy"}
     assert made["sha256"]["task_file"] == file_sha256(TASK_FILES / "single.toml")
     assert made["git"] == git_revision() and made["command"]
+
+
+def test_a_run_names_the_commit_of_the_checkout_it_runs_from():
+    # harness/ moved one level up once and the lookup kept its old depth: every run then
+    # recorded "git": null. The checkout these tests run from is the project's (CI: a fresh
+    # clone), so its own HEAD is what a run must name.
+    checkout = Path(__file__).resolve().parents[2]
+    assert (checkout / "pyproject.toml").is_file() and ROOT == checkout
+    head = subprocess.run(["git", "-C", str(checkout), "rev-parse", "HEAD"], capture_output=True,
+                          text=True, check=False)
+    if head.returncode != 0:  # an exported tree (no .git): nothing to name, and None says so
+        assert git_revision() is None
+        return
+    revision = git_revision()
+    assert revision is not None and revision["commit"] == head.stdout.strip()
+    assert provenance()["git"] == revision
 
 
 def test_a_checkpoints_files_are_hashed(tmp_path):
