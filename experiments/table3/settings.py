@@ -188,11 +188,12 @@ class ReproduceRealSettings:
     def __post_init__(self) -> None:
         if self.world is not None:
             read_variant(self.world)  # an unknown or malformed variant is refused by name
-        for variant in self.variants:
-            if variant in (PLAIN, OPEN_LOOP) or self.variants.count(variant) > 1:
-                raise InvalidInputError("variants", list(self.variants), "distinct variants, "
-                                        f"none called {PLAIN} or {OPEN_LOOP}")
-            read_variant(variant)
+        names = [read_variant(variant)[0] for variant in self.variants]  # each refused by name
+        for name in names:  # a variant's folder and row are its name: two of one name merge
+            if name in (PLAIN, OPEN_LOOP) or names.count(name) > 1:
+                raise InvalidInputError("variants", list(self.variants), "variants of distinct "
+                                        f"names (a file's is its stem), none called {PLAIN} or "
+                                        f"{OPEN_LOOP}")
         if self.robot not in ROBOT_NAMES:
             raise InvalidInputError("robot", self.robot, f"one of {', '.join(ROBOT_NAMES)}")
         if not isinstance(self.use_failed_checkpoints, bool):

@@ -55,6 +55,11 @@ def read_variant(name_or_path: str | Path) -> tuple[str, dict[str, Any], Path]:
         if not (text.endswith(".toml") and path.is_file()):
             raise InvalidInputError("variant", text, f"one of {', '.join(builtin_variants())}, "
                                     "or the path of a variant .toml file")
+        if path.stem in builtin_variants() and path.resolve().parent != VARIANT_FILES:
+            # a variant is named by its file's stem in folders and reports: this one would be
+            # labelled as the built-in variant it is not
+            raise InvalidInputError("variant", text, "a variant file whose name is not a "
+                                    f"built-in variant's ({path.stem} is one): rename it")
     where = f"variant file {path.name}"
     tables = read_toml_file(path, where, MAX_VARIANT_FILE_BYTES, "a variant").tables
     for table, value in tables.items():
