@@ -30,8 +30,32 @@ def integer(minimum: int) -> Callable[[str], int]:
 
 
 def names(text: str) -> tuple[str, ...]:
-    """An argparse type: comma-separated names (checked against the allowed ones later)."""
-    return tuple(name.strip() for name in text.split(",") if name.strip())
+    """An argparse type: comma-separated names (checked against the allowed ones later).
+
+    An empty name (``a,,b``, a trailing comma, nothing at all) is refused: it is a typo, and
+    dropping it silently runs less than was asked.
+    """
+    parts = tuple(name.strip() for name in text.split(","))
+    if not all(parts):
+        raise argparse.ArgumentTypeError(f"{text!r} is not allowed: comma-separated names, "
+                                         "none empty")
+    return parts
+
+
+class Once(argparse.Action):
+    """An argparse action: the option may be given once; a second value is refused by name.
+
+    Argparse's own keeps the last of several (``--variant dark --variant block`` ran ``block``
+    alone, without a word).
+    """
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: object, option_string: str | None = None) -> None:
+        """Keeps the value; the option's second appearance stops the command (exit 2)."""
+        if getattr(namespace, self.dest, None) is not None:
+            parser.error(f"{option_string} is given twice ({getattr(namespace, self.dest)!r}, "
+                         f"{values!r}): give it once")
+        setattr(namespace, self.dest, values)
 
 
 def integers(text: str) -> tuple[int, ...]:

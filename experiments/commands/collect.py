@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from experiments.commands.arguments import add_sensor_option, integer, sensor_kind
+from experiments.commands.arguments import Once, add_sensor_option, integer, sensor_kind
 from perception.interface import ConditionKind, InvalidInputError
 from robots import ROBOT_NAMES
 from sim.tasks.scene_sampling import SeedStream
@@ -20,7 +20,7 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     """The options of ``gva collect``."""
     parser.add_argument("--scene", required=True, help="paper-sim or yumi")
     parser.add_argument("--task", required=True, help="built-in task name or task TOML path")
-    parser.add_argument("--variant", metavar="NAME|FILE",
+    parser.add_argument("--variant", metavar="NAME|FILE", action=Once,
                         help="the task under a variant of its looks: one of "
                         f"{', '.join(builtin_variants())}, or a variant .toml file")
     parser.add_argument("--size", type=integer(1), required=True, help="number of scenes")

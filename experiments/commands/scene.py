@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from experiments.commands.arguments import add_sensor_option, integer, sensor_kind
+from experiments.commands.arguments import Once, add_sensor_option, integer, sensor_kind
 from perception.interface import ConditionKind
 from sim.tasks.scene_picture import render_scene, write_scene_png
 from sim.tasks.scene_sampling import SeedStream, sample_scene
@@ -19,7 +19,7 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scene", required=True, help="paper-sim or yumi")
     parser.add_argument("--task", default="multiple",
                         help="task name or TOML path (%(default)s)")
-    parser.add_argument("--variant", metavar="NAME|FILE",
+    parser.add_argument("--variant", metavar="NAME|FILE", action=Once,
                         help="the task under a variant of its looks (docs/tasks.md)")
     parser.add_argument("--seed", type=integer(0), default=0, help="seed (%(default)s)")
     parser.add_argument("--index", type=integer(0), default=0, help="scene index (%(default)s)")

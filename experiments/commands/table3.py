@@ -97,8 +97,11 @@ def add_options(parser: argparse.ArgumentParser) -> None:
 
 
 def variant_names(text: str) -> tuple[str, ...]:
-    """``--variants``: comma-separated names or files; ``none`` (or nothing) for none."""
-    return () if text.strip() in ("", "none") else names(text)
+    """``--variants``: comma-separated names or files; ``none`` for none.
+
+    An empty name, or nothing at all, is refused as :func:`names` refuses it: say ``none``.
+    """
+    return () if text.strip() == "none" else names(text)
 
 
 def run(args: argparse.Namespace) -> int:

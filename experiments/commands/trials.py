@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from experiments.commands.arguments import (
+    Once,
     add_executor_options,
     add_sensor_option,
     executor,
@@ -49,7 +50,7 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         default=TrialSettings.obstacles.value,
                         help="what picks are planned around: the head camera's depth image "
                         "(default), or the simulator's true shapes, to debug the planner only")
-    parser.add_argument("--variant", metavar="NAME|FILE",
+    parser.add_argument("--variant", metavar="NAME|FILE", action=Once,
                         help="the task under a variant of its looks: one of "
                         f"{', '.join(builtin_variants())}, or a variant .toml file "
                         "(docs/tasks.md)")

@@ -168,3 +168,23 @@ def test_a_bad_phrase_file_is_refused_in_one_line_naming_its_line(tmp_path):
     assert status == 2 and not stdout, stderr
     assert stderr.count("\n") == 1 and "phrases mine.tsv line 2" in stderr, stderr
     assert "phrase<TAB>target" in stderr and not out.exists()
+
+
+@pytest.mark.parametrize("argv", [
+    ("reproduce", "real", "--out", "{out}", "--variants", ""),
+    ("reproduce", "real", "--out", "{out}", "--variants", ",,"),
+    ("reproduce", "real", "--out", "{out}", "--variants", "dark,,block"),
+    ("reproduce", "real", "--out", "{out}", "--tasks", "single,"),
+    ("reproduce", "sim", "--out", "{out}", "--models", ""),
+    ("trials", "--model", "oracle", "--task", "single", "--out", "{out}", "--variant", "dark",
+     "--variant", "block"),
+    ("collect", "--scene", "yumi", "--task", "single", "--size", "1", "--out", "{out}/d.gva",
+     "--variant", "dark", "--variant", "dark"),
+])
+def test_an_empty_name_or_an_option_given_twice_is_refused_not_dropped(tmp_path, argv):
+    # issue 77: `--variants ''` and `,,` ran no variants without a word, and `--variant dark
+    # --variant block` ran block alone
+    out = tmp_path / "run"
+    status, stdout, stderr = gva(*(a.format(out=out) for a in argv))
+    assert status == 2 and ("none empty" in stderr or "given twice" in stderr), stderr
+    assert not out.exists()  # refused before anything is written
