@@ -33,16 +33,22 @@ def append_history(out: Path, entry: dict[str, Any]) -> None:
         os.fsync(handle.fileno())
 
 
-def write_run_tasks(settings: ReproduceRealSettings, out: Path) -> None:
-    """Writes the task TOML of every set the run needs, plain or a variant (when it changed).
+def run_task_files(settings: ReproduceRealSettings) -> dict[str, str]:
+    """The task TOML of every set the run needs, plain or a variant, by task name.
 
-    Each is the task as run, under the run's sensor, so a reader sees what was run.
+    Each is the task as run, under the run's sensor, so a reader sees what was run. Built
+    before anything is written: a variant whose values a task refuses (a mount offset of 5 m)
+    stops the run before it claims a folder.
     """
-    for trial_set in settings.trial_sets():
-        path = task_file(out, trial_set.task_name)
-        text = (f"# the task {trial_set.unit.task} ({trial_set.variant}, sensor "
-                f"{settings.sensor.value}), written by gva reproduce real\n"
-                + task_to_toml(settings.run_task(trial_set)))
+    return {trial_set.task_name: f"# the task {trial_set.unit.task} ({trial_set.variant}, "
+            f"sensor {settings.sensor.value}), written by gva reproduce real\n"
+            + task_to_toml(settings.run_task(trial_set)) for trial_set in settings.trial_sets()}
+
+
+def write_run_tasks(files: dict[str, str], out: Path) -> None:
+    """Writes each task file of :func:`run_task_files` into ``out`` (where it changed)."""
+    for name, text in files.items():
+        path = task_file(out, name)
         if not path.exists() or path.read_text(encoding="utf-8") != text:
             write_text(path, text)
 
@@ -59,13 +65,14 @@ def run_reproduce_real(settings: ReproduceRealSettings, out: str | Path,
 
     """
     out = Path(out)
+    files = run_task_files(settings)  # every task checked before the folder is touched
     with run_folder_lock(out):  # one run per folder
         started = time.perf_counter()
         session = provenance()
         claim_run_folder(out, settings.shared_identity(), provenance=session)
         for seed in settings.training_seeds:
             claim_run_folder(seed_folder(out, seed), settings.for_seed(seed).run_identity())
-            write_run_tasks(settings, seed_folder(out, seed))
+            write_run_tasks(files, seed_folder(out, seed))
         try:
             computed, skipped = run_jobs(settings, out, progress)
         except KeyboardInterrupt:

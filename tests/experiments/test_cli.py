@@ -185,6 +185,6 @@ def test_an_empty_name_or_an_option_given_twice_is_refused_not_dropped(tmp_path,
     # issue 77: `--variants ''` and `,,` ran no variants without a word, and `--variant dark
     # --variant block` ran block alone
     out = tmp_path / "run"
-    status, stdout, stderr = gva(*(a.format(out=out) for a in argv))
+    status, _, stderr = gva(*(a.format(out=out) for a in argv))
     assert status == 2 and ("none empty" in stderr or "given twice" in stderr), stderr
     assert not out.exists()  # refused before anything is written

@@ -394,3 +394,14 @@ def test_a_variant_is_labelled_by_its_own_name_or_refused(tmp_path):
     mine = ReproduceRealSettings(variants=("dark", variant_file("c/dim.toml")))
     assert {s.variant for s in mine.trial_sets()} >= {"dark", variant_file("c/dim.toml")}
     assert set(mine.shared_identity()["variants"]) == {"dark", "dim"}
+
+
+def test_a_variant_the_task_refuses_stops_the_run_before_its_folder_is_written(tmp_path):
+    # issue 77: a refused run left run.json behind, and the corrected command into the same
+    # folder was then refused as "holds a different run", hiding the real error
+    wild = tmp_path / "wild.toml"
+    wild.write_text("[camera]\nmount_offset_mm = 5000.0\n")
+    out = tmp_path / "run"
+    status, _, stderr = gva("reproduce", "real", "--out", out, "--variants", wild, *TINY)
+    assert status == 2 and "mount_offset_mm" in stderr, stderr
+    assert not out.exists()

@@ -18,7 +18,7 @@ from gva_cli import gva
 from served_detector import DETECTOR, PLUGINS, serve
 
 from experiments.table3.jobs import TrialsJob, run_job
-from experiments.table3.run import write_run_tasks
+from experiments.table3.run import run_task_files, write_run_tasks
 from experiments.table3.settings import ReproduceRealSettings, TrialSet, Unit, seed_folder
 from perception.plugins import build_plugin
 from perception.remote import client
@@ -98,7 +98,7 @@ def test_a_server_gone_after_the_start_costs_trials_not_the_job(tmp_path):
     settings = ReproduceRealSettings(models=(url,), tasks=("single",), n=2, variants=(),
                                      workers=1)
     folder = seed_folder(tmp_path, 0)
-    write_run_tasks(settings, folder)
+    write_run_tasks(run_task_files(settings), folder)
     trial_set = TrialSet(Unit(settings.plugins()[0], "single"))
     job = TrialsJob("trials-served", trial_set, settings.trial_settings(folder, trial_set),
                     folder)
