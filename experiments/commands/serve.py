@@ -16,6 +16,7 @@ import os
 import sys
 
 from experiments.commands.arguments import integer
+from perception.errors import InvalidInputError
 from perception.remote.client import API_KEY_VARIABLE
 from perception.remote.server import DEFAULT_HOST, ServeSettings, start_server
 
@@ -40,9 +41,13 @@ def run(args: argparse.Namespace) -> int:
     """Loads the model, prints its address and metadata, and serves until Ctrl-C."""
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s",
                         stream=sys.stderr)
-    settings = ServeSettings(args.model, args.port, args.host,
-                             args.api_key or os.environ.get(API_KEY_VARIABLE) or None,
-                             args.model_class)
+    key = args.api_key  # '' is refused, not read as "no key": a key was meant
+    if key is None:
+        key = os.environ.get(API_KEY_VARIABLE)
+        if key is not None and not key.strip():
+            raise InvalidInputError(API_KEY_VARIABLE, key, "a non-empty key, or the variable "
+                                    "unset to serve anyone who connects")
+    settings = ServeSettings(args.model, args.port, args.host, key, args.model_class)
     server = start_server(settings)
     if "torch" in sys.modules:  # one thread, as gva trials predicts in-process: the same sums
         import torch

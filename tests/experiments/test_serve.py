@@ -69,3 +69,17 @@ def test_gva_serve_announces_its_address_and_serves_until_stopped():
     finally:
         process.terminate()
         process.wait(timeout=20)
+
+
+@pytest.mark.parametrize(("flags", "environment", "field"), [
+    (["--api-key", ""], {}, "api_key"),
+    (["--api-key", "  "], {}, "api_key"),
+    ([], {"GVA_API_KEY": ""}, "GVA_API_KEY"),
+])
+def test_an_empty_api_key_is_refused_not_read_as_none(monkeypatch, flags, environment, field):
+    # issue 77: `gva serve --api-key ''` served anyone who connected, and said nothing
+    for name, value in environment.items():
+        monkeypatch.setenv(name, value)
+    status, stdout, stderr = gva("serve", DETECTOR, "--port", "0", *flags)
+    assert status == 2 and f"{field} = " in stderr and "non-empty key" in stderr, stderr
+    assert "serving" not in stdout
