@@ -17,6 +17,14 @@ from perception.errors import InvalidInputError, InvalidPredictionError
 from perception.interface import LabelKind, ModelInput, PerceptionModel, Prediction, Target
 from perception.labels import nearest_rotation
 
+MAX_POSITION_M = 100.0
+"""The farthest a predicted target may lie from the world's origin (the robot base) [m]: a
+workcell spans a few metres, and a position like 1e300 m overflows every error computed from it
+(a record that reads Infinity, which strict JSON refuses)."""
+MAX_OBJECT_TYPE_CHARS = 100
+"""The longest ``object_type`` a prediction may state: type names are a word or two, and what a
+model says is written into every trial record."""
+
 
 def check_inputs(model: PerceptionModel, available: Set[ModelInput], where: str) -> None:
     """Raises unless ``model``'s declared inputs are all in ``available``, and it reads them.
@@ -86,6 +94,14 @@ def check_prediction(prediction: object, name: str, *, least: int, most: int,
         if position.shape != (3,) or not np.all(np.isfinite(position)):
             raise InvalidPredictionError(f"{where}: position_m = {position.tolist()} is not "
                                          "three finite numbers")
+        if float(np.abs(position).max()) > MAX_POSITION_M:  # no square of 1e300 taken
+            raise InvalidPredictionError(f"{where}: position_m = {position.tolist()} is more "
+                                         f"than {MAX_POSITION_M:g} m from the robot base")
+        kind = target.object_type
+        if kind is not None and (not isinstance(kind, str) or len(kind) > MAX_OBJECT_TYPE_CHARS):
+            shown = f"{len(kind)} characters" if isinstance(kind, str) else type(kind).__name__
+            raise InvalidPredictionError(f"{where}: object_type of {shown} is not a type name "
+                                         f"(a string of at most {MAX_OBJECT_TYPE_CHARS}) or None")
         if label_kind is LabelKind.GRASP_POSE:
             if target.rotation is None:
                 raise InvalidPredictionError(f"{where}: no rotation; a pick needs a grasp pose "

@@ -33,7 +33,12 @@ from perception.interface import (
 )
 from perception.learning.learnable import ModelSpec
 from perception.remote.codec import pack, unpack
-from perception.remote.messages import PROTOCOL, read_prediction, request_message
+from perception.remote.messages import (
+    PROTOCOL,
+    read_announced,
+    read_prediction,
+    request_message,
+)
 from perception.remote.server import MAX_MESSAGE_BYTES
 
 API_KEY_VARIABLE = "GVA_API_KEY"
@@ -78,6 +83,12 @@ def _open(url: str, timeout_s: float) -> tuple[ClientConnection, dict[str, Any]]
         connection.close()
         raise RemoteModelError(f"server {url} announced no {PROTOCOL} model: "
                                f"{str(announced)[:200]}")
+    try:
+        read_announced(announced)
+    except InvalidInputError as error:
+        connection.close()
+        raise RemoteModelError(f"server {url} announced metadata gva cannot record: "
+                               f"{error}") from None
     return connection, announced
 
 

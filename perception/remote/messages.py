@@ -9,6 +9,8 @@ message checks every field and names the first that is wrong, in one line.
 
 from __future__ import annotations
 
+import json
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -16,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from perception.camera import PinholeCamera, RgbdFrame
+from perception.checks import MAX_OBJECT_TYPE_CHARS
 from perception.errors import InvalidInputError
 from perception.interface import Condition, ConditionKind, Prediction, Target
 
@@ -116,6 +119,35 @@ def _number_array(value: Any, name: str) -> np.ndarray | None:
     return value.astype(np.float64)
 
 
+MAX_ANNOUNCED_BYTES = 64 * 1024
+"""The most a server's announced metadata may take as JSON: it is written into every run's
+``run.json`` and summary (a few hundred bytes from ``gva serve``)."""
+
+
+def read_announced(message: Any) -> dict[str, Any]:
+    """A server's announced metadata, if it is strict JSON of at most MAX_ANNOUNCED_BYTES.
+
+    Strict: no NaN or infinity (which never equals itself, so a reconnect could never find the
+    same model again, and strict JSON readers refuse the records), string keys, JSON types only.
+
+    Raises:
+        InvalidInputError: Names what is wrong, never echoing the (unbounded) value.
+
+    """
+    if not isinstance(message, dict):
+        raise InvalidInputError("announced", type(message).__name__, "a map")
+    try:
+        text = json.dumps(message, allow_nan=False, sort_keys=True)
+    except (TypeError, ValueError) as error:
+        raise InvalidInputError("announced", f"not strict JSON ({str(error)[:100]})",
+                                "a map of JSON values: finite numbers, strings, lists, maps") \
+            from None
+    if len(text.encode()) > MAX_ANNOUNCED_BYTES:
+        raise InvalidInputError("announced", f"{len(text.encode())} bytes as JSON",
+                                f"at most {MAX_ANNOUNCED_BYTES} bytes")
+    return message
+
+
 def read_prediction(message: Any) -> Prediction:
     """The prediction in a reply; one line naming the first wrong field."""
     targets = _field(message, "targets")
@@ -128,11 +160,16 @@ def read_prediction(message: Any) -> Prediction:
         if position is None:
             raise InvalidInputError(f"{where}.position_m", None, "a (3,) array")
         object_type = target.get("object_type")
-        if object_type is not None and not isinstance(object_type, str):
-            raise InvalidInputError(f"{where}.object_type", object_type, "a string or None")
+        if object_type is not None and (not isinstance(object_type, str)
+                                        or len(object_type) > MAX_OBJECT_TYPE_CHARS):
+            shown = f"{len(object_type)} characters" if isinstance(object_type, str) \
+                else type(object_type).__name__  # never the value: it goes into records
+            raise InvalidInputError(f"{where}.object_type", shown, "a string of at most "
+                                    f"{MAX_OBJECT_TYPE_CHARS} characters, or None")
         opening = target.get("opening_m")
-        if opening is not None and not isinstance(opening, int | float):
-            raise InvalidInputError(f"{where}.opening_m", opening, "a number or None")
+        if opening is not None and (not isinstance(opening, int | float)
+                                    or not math.isfinite(opening)):
+            raise InvalidInputError(f"{where}.opening_m", opening, "a finite number or None")
         read.append(Target(position, _number_array(target.get("rotation"), f"{where}.rotation"),
                            object_type, None if opening is None else float(opening)))
     attention = _number_array(message.get("attention_px"), "attention_px")

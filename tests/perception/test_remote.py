@@ -9,6 +9,7 @@ checked against the field's client, not against gva's own reading of it.
 from __future__ import annotations
 
 import functools
+import json
 import threading
 import time
 from collections.abc import Iterator
@@ -280,3 +281,58 @@ def test_serving_refuses_the_oracle_and_a_bad_port():
         start_server(ServeSettings("oracle", 0))
     with pytest.raises(InvalidInputError, match="port"):
         ServeSettings(DETECTOR, 70000)
+
+
+def _lying_server(announced: dict, reply: dict):
+    """A server that announces ``announced`` and answers every request with ``reply``."""
+    def handler(connection):
+        connection.send(codec.pack({"protocol": PROTOCOL, "name": "liar",
+                                    "label_kind": "grasp_pose", "inputs": ["rgb"]} | announced))
+        for _ in connection:
+            connection.send(codec.pack(reply))
+
+    liar = serve(handler, "127.0.0.1", 0)
+    threading.Thread(target=liar.serve_forever, daemon=True).start()
+    return liar, f"ws://127.0.0.1:{liar.socket.getsockname()[1]}"
+
+
+DOWN = np.diag([1.0, -1.0, -1.0])
+
+
+@pytest.mark.parametrize("announced", [{"version": float("nan")}, {"padding": "x" * 100_000},
+                                       {"weights": np.zeros(3)}])
+def test_metadata_gva_cannot_record_is_refused_before_any_trial(announced):
+    # issue 77: NaN in the metadata failed every pick ("now announces another model": NaN is
+    # not NaN) and wrote bare NaN into run.json; 2 MB of it went into every record
+    liar, address = _lying_server(announced, {})
+    with pytest.raises(InvalidInputError, match=r"announced metadata gva cannot record"):
+        RemoteModel(address)
+    liar.shutdown()
+
+
+@pytest.mark.parametrize(("target", "message"), [
+    ({"position_m": np.array([1e300, 0.0, 0.0]), "rotation": DOWN}, "more than 100 m"),
+    ({"position_m": np.array([0.4, 0.0, 0.1]), "rotation": DOWN,
+      "object_type": "x" * 20_000_000}, "20000000 characters"),
+    ({"position_m": np.array([0.4, 0.0, 0.1]), "rotation": DOWN, "opening_m": float("inf")},
+     "opening_m"),
+])
+def test_a_reply_too_far_too_long_or_not_finite_costs_its_pick_in_a_short_line(frames, target,
+                                                                              message):
+    # issue 77: 1e300 m recorded "position_error_m": Infinity, a 20 MB object_type made a 40 MB
+    # line of trials.jsonl
+    liar, address = _lying_server({}, {"targets": [target]})
+    remote = RemoteModel(address)
+    task = load_task("single")
+    with TrialRunner(task, lambda world, camera: remote, robot=YUMI) as runner:
+        record = runner.run(sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, 0), 0, 0,
+                            address)
+    liar.shutdown()
+    assert record.outcome is TrialOutcome.PERCEPTION_FAILED and message in record.reason
+    line = record.to_json()
+
+    def refuse(constant):
+        raise AssertionError(f"{constant} in a trial record")
+
+    json.loads(line, parse_constant=refuse)  # strict JSON: no NaN, no Infinity
+    assert len(line) < 20_000, len(line)
