@@ -43,6 +43,19 @@ _UNDISTORT_TOLERANCE = 1e-13
 _DISTORTION_CHECK_SPAN = 1.25
 
 
+def _floats(value: Any) -> tuple[float, ...]:
+    """``value``'s numbers as floats, or () unless it is a list or tuple of real numbers only.
+
+    A record from elsewhere (a served request) may hold strings or None where numbers belong:
+    those are refused by the caller's check, by name, not by ``float``'s own exception.
+    """
+    if not isinstance(value, list | tuple) or not all(
+            isinstance(v, int | float | np.floating | np.integer) and not isinstance(v, bool)
+            for v in value):
+        return ()
+    return tuple(float(v) for v in value)
+
+
 @dataclass(frozen=True)
 class PinholeCamera:
     """A camera's geometry (world frame, [m] and [deg]); see the module docstring.
@@ -73,7 +86,7 @@ class PinholeCamera:
     def __post_init__(self) -> None:
         for name in ("position_m", "target_m", "up"):
             value = getattr(self, name)
-            vector = tuple(float(v) for v in value) if isinstance(value, list | tuple) else ()
+            vector = _floats(value)
             if len(vector) != 3 or not all(math.isfinite(v) for v in vector):
                 raise InvalidInputError(name, value, "three finite numbers")
             object.__setattr__(self, name, vector)
@@ -97,7 +110,7 @@ class PinholeCamera:
     def _check_distortion(self) -> None:
         """Five finite coefficients whose distortion is one-to-one over the image (and beyond)."""
         value = self.distortion_k1_k2_p1_p2_k3
-        coefficients = tuple(float(v) for v in value) if isinstance(value, list | tuple) else ()
+        coefficients = _floats(value)
         if len(coefficients) != 5 or not all(math.isfinite(v) for v in coefficients):
             raise InvalidInputError(_DISTORTION, value, "five finite numbers (k1, k2, p1, p2, k3)")
         object.__setattr__(self, _DISTORTION, coefficients)

@@ -75,8 +75,11 @@ def read_request(message: Any) -> Request:
     camera_data = _field(message, "camera")
     if not isinstance(camera_data, Mapping):
         raise InvalidInputError("camera", type(camera_data).__name__, "a map")
-    camera = PinholeCamera.from_json({k: v for k, v in camera_data.items()
-                                      if k not in ("K", "T_world_camera")})
+    try:
+        camera = PinholeCamera.from_json({k: v for k, v in camera_data.items()
+                                          if k not in ("K", "T_world_camera")})
+    except InvalidInputError as error:  # named as the request's field
+        raise InvalidInputError(f"camera.{error.field}", error.value, error.allowed) from None
     rgb = _array(_field(message, "rgb"), "rgb", np.uint8, "(H, W, 3)")
     depth = _array(_field(message, "depth_m"), "depth_m", np.float32, "(H, W)")
     mask = message.get("robot_mask")

@@ -336,3 +336,18 @@ def test_a_reply_too_far_too_long_or_not_finite_costs_its_pick_in_a_short_line(f
 
     json.loads(line, parse_constant=refuse)  # strict JSON: no NaN, no Infinity
     assert len(line) < 20_000, len(line)
+
+
+@pytest.mark.parametrize(("field", "value"), [("distortion_k1_k2_p1_p2_k3", ["x"]),
+                                              ("distortion_k1_k2_p1_p2_k3", [None] * 5),
+                                              ("up", ["a", "b", "c"])])
+def test_a_request_with_a_camera_of_strings_gets_a_text_frame_not_a_dropped_line(
+        server, frames, field, value, caplog):
+    # issue 77: such a request closed the connection (1011) with a traceback in the log
+    client = OpenpiClient(url(server), api_key=KEY)
+    message = request_message(*frames[0])
+    message["camera"] = message["camera"] | {field: value}
+    with pytest.raises(RuntimeError, match=rf"malformed request: camera\.{field} = "):
+        client.infer(message)
+    assert "Traceback" not in caplog.text
+    assert client.infer(request_message(*frames[0]))["targets"]  # the same connection goes on
