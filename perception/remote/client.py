@@ -21,7 +21,7 @@ from typing import Any
 from websockets.exceptions import InvalidStatus, WebSocketException
 from websockets.sync.client import ClientConnection, connect
 
-from perception.errors import InvalidInputError, PerceptionError
+from perception.errors import InvalidInputError, NoAnswerError, PerceptionError
 from perception.interface import (
     NO_CONDITION,
     Condition,
@@ -51,6 +51,10 @@ class RemoteModelError(PerceptionError):
     """The server did not give a prediction: down, slow, refused, or an answer not one."""
 
 
+class ServerSilentError(RemoteModelError, NoAnswerError):
+    """The server gave no answer: unreachable, silent past the limit, or its connection closed."""
+
+
 class ServerSaidError(RemoteModelError):
     """The server answered with a text frame (its error); the connection stays usable."""
 
@@ -72,7 +76,7 @@ def _open(url: str, timeout_s: float) -> tuple[ClientConnection, dict[str, Any]]
         raise RemoteModelError(f"server {url} refused the connection: HTTP "
                                f"{error.response.status_code}") from error
     except (OSError, TimeoutError, WebSocketException) as error:
-        raise RemoteModelError(f"server {url} unreachable: {type(error).__name__}: "
+        raise ServerSilentError(f"server {url} unreachable: {type(error).__name__}: "
                                f"{error}") from error
     try:
         announced = unpack(_receive(connection, url, timeout_s))
@@ -96,9 +100,10 @@ def _receive(connection: ClientConnection, url: str, timeout_s: float) -> bytes:
     try:
         data = connection.recv(timeout=timeout_s)
     except TimeoutError as error:
-        raise RemoteModelError(f"server {url} gave no answer within {timeout_s:g} s") from error
+        raise ServerSilentError(f"server {url} gave no answer within {timeout_s:g} s") \
+            from error
     except WebSocketException as error:
-        raise RemoteModelError(f"server {url} closed the connection: {error}") from error
+        raise ServerSilentError(f"server {url} closed the connection: {error}") from error
     if isinstance(data, str):  # openpi's protocol: a text frame is the server's error
         raise ServerSaidError(f"server {url}: {data.strip()[:500]}")
     return data
@@ -198,7 +203,7 @@ class RemoteModel(PerceptionModel):
             raise
         except WebSocketException as error:
             self.close()
-            raise RemoteModelError(f"server {self.url} closed the connection: {error}") \
+            raise ServerSilentError(f"server {self.url} closed the connection: {error}") \
                 from error
         try:
             return read_prediction(unpack(reply))

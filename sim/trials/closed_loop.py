@@ -34,6 +34,7 @@ from control.retarget import JointState, stop, trajectory_state
 from control.trajectory import JointTrajectory
 from perception.camera import RgbdFrame
 from perception.catalog import ObjectSpec
+from perception.errors import NoAnswerError
 from perception.grasp_judge import GraspVerdict, judge_grasp, yaw_of
 from perception.interface import PerceptionModel, Prediction
 from perception.poses import Pose
@@ -126,6 +127,7 @@ class ApproachLoop:
         self.end: tuple[Pose, float] | None = None  # the target's grasp and yaw at the end
         self.plain_view: np.ndarray | None = None  # a grasp seen in plain view once, unconfirmed
         self.unmet: PlannedPick | None = None  # the failed re-plan of a grasp moved since
+        self.silent: str | None = None  # why a re-prediction got no answer: the pick ends
 
     def __call__(self, plan: PickPlan, watch: StepWatch) -> FollowedApproach:
         """Runs the approach of ``plan``; how it ended, with the plan followed then."""
@@ -170,6 +172,8 @@ class ApproachLoop:
                 if tick and looked != step and last_looks < MAX_LAST_LOOKS:
                     looked, last_looks = step, last_looks + 1
                     replanned = self._repredict(step * dt_s, plan, k)
+                if self.silent is not None:
+                    return self._unanswered(plan)
                 if replanned is None:
                     return self._ended(plan)
                 plan, approach, k = replanned, replanned.segments[0].trajectory, 0
@@ -194,6 +198,8 @@ class ApproachLoop:
             if tick and step % tick == 0 and k < len(approach.times_s) - 1:
                 looked = step
                 replanned = self._repredict(step * dt_s, plan, k)
+                if self.silent is not None:
+                    return self._unanswered(plan)
                 if replanned is not None:
                     plan, approach, k = replanned, replanned.segments[0].trajectory, 0
 
@@ -247,6 +253,13 @@ class ApproachLoop:
         q_now = planner.robot.q_from_dict(world.robot.joint_positions())
         return not planner.check_ahead(plan.arm, q_now, _samples(approach, k, until)).in_collision
 
+    def _unanswered(self, plan: PickPlan) -> FollowedApproach:
+        """The approach halted where a re-prediction got no answer: the pick is the model's loss.
+
+        Else a server silent past its limit is waited on at every look (30 s each).
+        """
+        return FollowedApproach(plan, halted=(TrialOutcome.PERCEPTION_FAILED, self.silent or ""))
+
     def _ended(self, plan: PickPlan) -> FollowedApproach:
         """The approach's end: at the pre-grasp, or halted where the grasp moved unreached.
 
@@ -271,6 +284,9 @@ class ApproachLoop:
         sighting = runner.sight(self.body, self_filter=True)
         try:
             prediction = runner.model.predict_frame(sighting.frame, self.scene.given)
+        except NoAnswerError as error:  # no answer to wait on: the pick ends (_follow halts)
+            self.silent = f"{runner.model.name}'s re-prediction got no answer: {error}"
+            return self._note(time_s, Reaction.UNSEEN, self.silent, None, sighting.truth)
         except Exception as error:  # the model's failure: recorded, the arm keeps its plan
             last = traceback.extract_tb(error.__traceback__)[-1]
             return self._note(time_s, Reaction.UNSEEN, f"predict raised {type(error).__name__}: "
