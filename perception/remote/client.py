@@ -17,6 +17,7 @@ import os
 import weakref
 from collections.abc import Mapping
 from typing import Any
+from urllib.parse import urlsplit
 
 from websockets.exceptions import InvalidStatus, WebSocketException
 from websockets.sync.client import ClientConnection, connect
@@ -64,6 +65,24 @@ def is_remote(model: str) -> bool:
     return isinstance(model, str) and model.startswith(("ws://", "wss://"))
 
 
+def check_url(url: str) -> str:
+    """``url`` if it is a websocket address with a host and a port in 1-65535, else one line.
+
+    Raises:
+        InvalidInputError: Names the model field, the address and what an address is.
+
+    """
+    allowed = "ws://HOST:PORT or wss://HOST:PORT, the port in 1-65535"
+    try:
+        parts = urlsplit(url)
+        port = parts.port
+    except ValueError:
+        raise InvalidInputError("model", url, allowed) from None
+    if parts.scheme not in ("ws", "wss") or not parts.hostname or port is None or port < 1:
+        raise InvalidInputError("model", url, allowed)
+    return url
+
+
 def _open(url: str, timeout_s: float) -> tuple[ClientConnection, dict[str, Any]]:
     """A connection to ``url`` and the metadata it announced on connect."""
     key = os.environ.get(API_KEY_VARIABLE)
@@ -73,8 +92,12 @@ def _open(url: str, timeout_s: float) -> tuple[ClientConnection, dict[str, Any]]
                              additional_headers=headers, open_timeout=timeout_s,
                              legacy=True)  # held across predictions, not a with-block
     except InvalidStatus as error:
-        raise RemoteModelError(f"server {url} refused the connection: HTTP "
-                               f"{error.response.status_code}") from error
+        status = error.response.status_code
+        hint = (f" (its API key: set {API_KEY_VARIABLE} to it" + (", now set but not it)"
+                                                                  if key else ")")
+                if status == 401 else "")
+        raise RemoteModelError(f"server {url} refused the connection: HTTP {status}{hint}") \
+            from error
     except (OSError, TimeoutError, WebSocketException) as error:
         raise ServerSilentError(f"server {url} unreachable: {type(error).__name__}: "
                                f"{error}") from error
@@ -118,6 +141,7 @@ def announced_metadata(url: str, timeout_s: float = TIMEOUT_S) -> Mapping[str, A
             any trial (``gva trials`` exits 2).
 
     """
+    check_url(url)
     try:
         connection, announced = _open(url, timeout_s)
     except PerceptionError as error:

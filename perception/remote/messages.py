@@ -122,6 +122,8 @@ def _number_array(value: Any, name: str) -> np.ndarray | None:
     return value.astype(np.float64)
 
 
+MAX_NAME_CHARS = 100
+"""The longest model name a server may announce: a run's folders and table rows carry it."""
 MAX_ANNOUNCED_BYTES = 64 * 1024
 """The most a server's announced metadata may take as JSON: it is written into every run's
 ``run.json`` and summary (a few hundred bytes from ``gva serve``)."""
@@ -148,6 +150,13 @@ def read_announced(message: Any) -> dict[str, Any]:
     if len(text.encode()) > MAX_ANNOUNCED_BYTES:
         raise InvalidInputError("announced", f"{len(text.encode())} bytes as JSON",
                                 f"at most {MAX_ANNOUNCED_BYTES} bytes")
+    name = message.get("name")  # a run's folders and rows are named by it
+    if not isinstance(name, str) or not 0 < len(name) <= MAX_NAME_CHARS or \
+            name in (".", "..") or any(c in name for c in "/\\\0"):
+        shown = f"{len(name)} characters" if isinstance(name, str) and \
+            len(name) > MAX_NAME_CHARS else repr(name)
+        raise InvalidInputError("announced.name", shown, f"1-{MAX_NAME_CHARS} characters, no "
+                                "slash (a run's folders are named by it)")
     return message
 
 

@@ -33,7 +33,7 @@ from perception.interface import (
 )
 from perception.plugins import build_plugin
 from perception.remote import codec
-from perception.remote.client import RemoteModel, RemoteModelError
+from perception.remote.client import RemoteModel, RemoteModelError, announced_metadata
 from perception.remote.messages import PROTOCOL, read_request, request_message
 from perception.remote.server import ModelServer, ServeSettings, start_server
 from robots.yumi import YUMI
@@ -300,7 +300,8 @@ DOWN = np.diag([1.0, -1.0, -1.0])
 
 
 @pytest.mark.parametrize("announced", [{"version": float("nan")}, {"padding": "x" * 100_000},
-                                       {"weights": np.zeros(3)}])
+                                       {"weights": np.zeros(3)}, {"name": "m" * 300},
+                                       {"name": "../up"}])
 def test_metadata_gva_cannot_record_is_refused_before_any_trial(announced):
     # issue 77: NaN in the metadata failed every pick ("now announces another model": NaN is
     # not NaN) and wrote bare NaN into run.json; 2 MB of it went into every record
@@ -351,3 +352,18 @@ def test_a_request_with_a_camera_of_strings_gets_a_text_frame_not_a_dropped_line
         client.infer(message)
     assert "Traceback" not in caplog.text
     assert client.infer(request_message(*frames[0]))["targets"]  # the same connection goes on
+
+
+def test_an_address_that_is_no_address_and_a_key_refused_say_what_to_fix(server, monkeypatch):
+    # issue 77: "Port out of range" named nothing; a 401 did not mention GVA_API_KEY
+    for address in ("ws://127.0.0.1:99999", "ws://:80", "http://127.0.0.1:80"):
+        with pytest.raises(InvalidInputError, match=r"model = .* ws://HOST:PORT"):
+            RemoteModel(address)
+    monkeypatch.delenv("GVA_API_KEY", raising=False)
+    announced_metadata.cache_clear()  # asked once per process: ask again without the key
+    with pytest.raises(InvalidInputError, match=r"HTTP 401 \(its API key: set GVA_API_KEY"):
+        RemoteModel(url(server))
+    monkeypatch.setenv("GVA_API_KEY", "wrong")
+    announced_metadata.cache_clear()
+    with pytest.raises(InvalidInputError, match=r"GVA_API_KEY to it, now set but not it"):
+        RemoteModel(url(server))
