@@ -88,6 +88,9 @@ def with_variant(task: TaskSpec, variant: str | Path) -> TaskSpec:
         merged = data.setdefault(table, {})
         for key, value in keys.items():
             if table == "distractors" and key == "types":
+                if not isinstance(value, list) or not all(isinstance(t, str) for t in value):
+                    raise InvalidInputError(f"variant file {name}: distractors.types", value,
+                                            "a list of object type names, e.g. [\"block\"]")
                 merged[key] = [*merged.get(key, []), *(t for t in value
                                                        if t not in merged.get(key, []))]
             else:

@@ -56,6 +56,8 @@ def test_a_variants_distractors_join_the_tasks_own(tmp_path):
     ('[table]\nlooks = ["marble"]', r"task 'single\+v' \(single\.toml \+ variant v\): "
      r"table\.looks = \['marble'\] is not allowed"),
     ("[lighting\n", r"variant file v\.toml = 'not a TOML text in UTF-8'"),
+    ('[distractors]\ntypes = "block"', r"variant file v: distractors\.types = 'block' is not "
+     r"allowed: a list of object type names"),  # issue 77: read as five letters
 ])
 def test_a_bad_variant_names_its_file_and_field(tmp_path, text, message):
     (tmp_path / "v.toml").write_text(text)
