@@ -88,6 +88,7 @@ def unpack(data: bytes) -> Any:
     except InvalidInputError:
         raise
     except Exception as error:  # msgpack's own errors: ExtraData, FormatError, ValueError, ...
+        why = str(error).strip() or "not a msgpack value (msgpack said no more)"
         raise InvalidInputError("message", f"{len(data)} bytes", "msgpack (openpi-client's "
                                 f"encoding); reading it raised {type(error).__name__}: "
-                                f"{error}") from error
+                                f"{why}") from error
