@@ -259,6 +259,7 @@ class KqvModel(TorchModel):
         done = min(1.0, (self._steps_taken + 1) / c.warmup_steps) if c.warmup_steps else 1.0
         self.network.temperature = c.warmup_temperature + done * (c.temperature -
                                                                   c.warmup_temperature)
+        self.network.focus_now = c.focus_training and done >= 1.0  # as inference reads
         self._steps_taken += 1
         if self._mirror is not None:
             batch = self._mirror(batch)

@@ -83,6 +83,11 @@ class KqvConfig:
         focus_box_px: Side of the square [image px] whose attention mass finds that part:
             about one object's size in the image. None: the camera record's (18 px where it
             states none).
+        focus_training: Whether training reads each heatmap through the same focus, once the
+            temperature's warm-up is over, so the heads learn from the point inference reads
+            (a spray bottle's heatmap spreads along its body; focused, it reads the shoulder,
+            which a head trained on the whole map places 1-4 cm off). False (default): training
+            reads the whole heatmap, as before.
         warmup_temperature: The temperature at the first training step; it falls linearly to
             ``temperature`` over ``warmup_steps`` steps, so every Query finds its objects before
             its heatmap can saturate.
@@ -182,6 +187,7 @@ class KqvConfig:
     temperature: float = 0.1
     focus_window_px: int | None = None
     focus_box_px: int | None = None
+    focus_training: bool = False
     warmup_temperature: float = 0.3
     warmup_steps: int = 300
     starts: int = 3
@@ -208,7 +214,8 @@ class KqvConfig:
     repaint: float = 0.0
     seed: int = 0
 
-    SINCE: ClassVar[Mapping[str, Any]] = MappingProxyType({"hue_jitter": 0.0, "context_layers": 0,
+    SINCE: ClassVar[Mapping[str, Any]] = MappingProxyType({"focus_training": False,
+                                                       "hue_jitter": 0.0, "context_layers": 0,
                                                        "depth_input": False,
                                                        "value_input": "image",
                                                        "repaint": 0.0})
@@ -249,6 +256,8 @@ class KqvConfig:
         for name in ("head_features", "type_head"):
             if getattr(self, name) not in (None, True, False):
                 raise InvalidInputError(name, getattr(self, name), "None, True or False")
+        if not isinstance(self.focus_training, bool):
+            raise InvalidInputError("focus_training", self.focus_training, "True or False")
         if not isinstance(self.depth_input, bool):
             raise InvalidInputError("depth_input", self.depth_input, "True or False")
         check_number("repaint", self.repaint, 0.0, 1.0)

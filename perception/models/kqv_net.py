@@ -135,6 +135,7 @@ class KqvNet(nn.Module):
         self.temperature = c.temperature
         window_px, box_px = focus_px(spec, c)
         self.focus_cells = (round(window_px / self.stride), round(box_px / self.stride))
+        self.focus_now = False  # training reads through the focus (KqvModel sets it per step)
         self.similarity = c.similarity
         # KqvConfig.context_layers: dilated 3 x 3 layers before each FCN's last, so a Key sees
         # an object's outline and not only its colour.
@@ -306,7 +307,7 @@ class KqvNet(nn.Module):
         else:
             logits = torch.einsum("bchw,bqc->bqhw", keys, queries) / math.sqrt(height * width)
         heatmaps = softmax2d(logits, self.temperature)  # (B, q', h, w)
-        if self.focus_cells[0] > 0 and not self.training:  # KqvConfig.focus_window_px
+        if self.focus_cells[0] > 0 and (not self.training or self.focus_now):
             heatmaps = focus(heatmaps, self.focus_cells[1], self.focus_cells[0])
         grid = coordinate_grid(height, width, images.device)  # (2, h, w)
         return Attention(heatmaps, spatial_expectation(heatmaps, grid),  # (B, q', 2)

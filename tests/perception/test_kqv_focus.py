@@ -100,3 +100,26 @@ def test_each_camera_states_its_own_focus_and_the_config_overrides_it():
         == (12, 9)
     position = replace(spec(), focus_window_px=24, focus_box_px=18)
     assert KqvModel(position).network.focus_cells[0] == 0  # positions read whole, as before
+
+
+def test_focus_training_reads_as_inference_does_once_the_warm_up_is_over():
+    from user_models import synthetic_dataset
+
+    from perception.learning.torch_pieces import LabelScaler, images_to_tensor
+    from perception.learning.train import Batch
+
+    data = synthetic_dataset(4, kind=LabelKind.GRASP_POSE, seed=1, camera=CAMERA)
+    batch = Batch(images_to_tensor(data.images), torch.as_tensor(data.conditions),
+                  torch.as_tensor(data.labels))
+    for trained_so in (False, True):
+        model = KqvModel.for_dataset(data, KqvConfig(focus_training=trained_so, warmup_steps=2))
+        model.scaler = model.network.scaler = LabelScaler.fit(data.labels[..., :3])
+        model.network.train()
+        seen = []
+        for _ in range(3):  # step 1 warms up; step 2 reaches the temperature, and the focus
+            model.batch_loss(batch)
+            out = model.network.attend(batch.images, model.network.queries(batch.conditions))
+            seen.append(bool((out.heatmaps == 0).any()))
+        assert seen == [False, trained_so, trained_so]
+    with pytest.raises(InvalidInputError, match="focus_training = 1 is not allowed"):
+        KqvConfig(focus_training=1)
