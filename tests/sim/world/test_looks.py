@@ -56,11 +56,16 @@ def test_the_catalog_look_is_todays_picture(today):
 
 
 def test_a_colourway_paints_each_part(today):
+    # Each part its own colour: the sponge's yellow body red, its green scourer blue. Parts
+    # swapped, or one colour for both, fails (issue 79: both parts had taken the same pink).
     mask = sponge_pixels(today, today)
-    pink = picture(ObjectLook(("#ff69b4", "#ff69b4")))
-    mean = pink[mask].mean(axis=0)
-    assert mean[0] > mean[1] + 40 and mean[2] > mean[1]  # pink: red and blue over green
-    assert np.array_equal(pink[~mask], today[~mask])  # only the sponge changed
+    body = mask & (today[..., 0].astype(int) > today[..., 2].astype(int) + 60)  # yellow today
+    pad = mask & (today[..., 1].astype(int) > today[..., 0].astype(int) + 20)  # green today
+    assert body.sum() > 20 and pad.sum() > 20
+    painted = picture(ObjectLook(("#e01010", "#1010e0"))).astype(int)
+    assert (painted[body][:, 0] > painted[body][:, 2] + 40).mean() > 0.9  # the body red
+    assert (painted[pad][:, 2] > painted[pad][:, 0] + 40).mean() > 0.9  # the pad blue
+    assert np.array_equal(painted[~mask], today[~mask])  # only the sponge changed
 
 
 def test_a_texture_patterns_the_colour(today):
