@@ -3,14 +3,15 @@
 from __future__ import annotations
 
 import dataclasses
+import tomllib
 
 import pytest
 
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
-from sim.tasks.task_toml import load_task
-from sim.tasks.variants import builtin_variants, with_variant
+from sim.tasks.task_toml import load_task, task_to_toml
+from sim.tasks.variants import builtin_variants, read_variant, with_variant
 from sim.trials.trial_settings import TrialSettings
 
 TASKS = ("single", "multiple", "selected-type", "selected-position", "selected-type-text",
@@ -27,6 +28,16 @@ def test_every_variant_lays_over_every_task_and_keeps_its_scenes(variant):
                                    brightness=task.brightness, distractors=task.distractors,
                                    distractors_per_scene=task.distractors_per_scene,
                                    source=task.source) == task
+        # and what the variant sets is what the varied task holds (issue 79: a with_variant
+        # that changed nothing passed the line above)
+        written = tomllib.loads(task_to_toml(varied))
+        for table, keys in read_variant(variant)[1].items():
+            for key, value in keys.items():
+                held = written[table][key]
+                if (table, key) == ("distractors", "types"):  # joined to the task's own
+                    assert set(value) <= set(held)
+                else:
+                    assert held == value, (table, key)
         for index in range(3):
             plain = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, index)
             scene = sample_scene(varied, YUMI_SCENE, 0, SeedStream.TEST, index)
