@@ -12,6 +12,8 @@ from gva_cli import gva
 from harness.judging import judge_run
 from harness.trial_summary import PickCounts, TrialSummary
 from perception.catalog import SPONGE, SPRAY_BOTTLE
+from perception.grasp_judge import judge_grasp
+from perception.grasp_tolerance import default_tolerance_map
 from perception.grasps import grasp_pose
 from perception.interface import NO_CONDITION, Prediction, Target
 from perception.poses import Pose, rot_z
@@ -126,7 +128,23 @@ def test_gva_judge_prints_the_counts_and_writes_them(old_run, tmp_path):
     picks = data["probabilities"]
     assert [(p["trial"], p["held"]) for p in picks] == [(0, True), (1, False), (2, True),
                                                          (3, False)]
-    assert all(0.0 <= p["probability"] <= 1.0 for p in picks)
+    # each p is the map's chance read through its calibration, not the raw chance (issue 79:
+    # only 0 <= p <= 1 was checked); the judge's rate recomputed here from the record's grasp
+    tolerance = default_tolerance_map()
+    assert tolerance.calibration is not None
+    written = {p["trial"]: p["probability"] for p in picks}
+    records = [TrialRecord.from_json(line) for line in
+               (old_run / "s3" / "trials" / "kqv" / "single" / "trials.jsonl").read_text()
+               .splitlines()]
+    raw = {}
+    for record in records:
+        pick = record.picks[0]
+        truth, predicted = (Pose(np.array(pick[k]["position_m"]),
+                                 np.array(pick[k]["rotation"])) for k in ("truth", "predicted"))
+        spec = {"sponge": SPONGE, "spray_bottle": SPRAY_BOTTLE}[pick["target"]]
+        raw[record.index] = judge_grasp(spec, truth, predicted, 0.0).success_rate
+        assert written[record.index] == pytest.approx(tolerance.probability(raw[record.index]))
+    assert all(abs(written[k] - raw[k]) > 5e-4 for k in raw)  # the raw rate would not pass
     calibration = data["calibration"]
     assert calibration["picks"] == 4 and calibration["misses"] == 2
     assert calibration["expected_misses"] == pytest.approx(
