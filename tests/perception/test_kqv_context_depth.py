@@ -10,7 +10,8 @@ from user_models import BACKGROUND, CAMERA, COLOURS, spec, synthetic_dataset
 from perception.interface import InvalidInputError, LabelKind, ModelInput
 from perception.learning.train import TrainConfig
 from perception.models.kqv import KqvConfig, KqvModel
-from perception.models.repaint import Repaint
+from perception.models.repaint import OBJECT_RISE_M, Repaint
+from perception.models.rise import rise_above_table
 
 
 @pytest.mark.parametrize(("layers", "reach_px"), [(0, 6), (2, 18)])
@@ -137,6 +138,30 @@ def test_a_repainting_kqv_paints_only_what_its_values_see_and_needs_depth():
     key_input, value_input = seen[0], seen[1]
     assert torch.equal(key_input[:, 3], value_input[:, 3])  # the same rise
     assert not torch.equal(key_input[:, :3], value_input[:, :3])  # other colours
+    # What is repainted, and when (issue 79: only "the colours differ" was checked, so
+    # repainting the Key, the table, or at inference passed): the images attend() is given
+    attended: list[tuple[torch.Tensor, torch.Tensor | None, bool]] = []
+    attend = model.network.attend
+
+    def spy(images, queries, depths_m=None, value_images=None):
+        attended.append((images, value_images, model.network.training))
+        return attend(images, queries, depths_m, value_images)
+
+    model.network.attend = spy  # type: ignore[method-assign]
+    model.fit(dataset, TrainConfig(steps=1, batch_size=8, threads=1, augment=False),
+              progress=False)
+    images, repainted, training = attended[0]
+    assert training and repainted is not None
+    objects = (rise_above_table(torch.from_numpy(dataset.depths_m)) > OBJECT_RISE_M)[:, None]
+    objects = objects.expand_as(images)  # the batch is the whole dataset, in some order
+    order = [int(np.argmin([(images[b] - torch.from_numpy(d).permute(2, 0, 1) / 255).abs().sum()
+                            for d in dataset.images])) for b in range(len(images))]
+    objects = objects[order]
+    assert torch.equal(repainted[~objects], images[~objects])  # the table untouched
+    assert (repainted[objects] != images[objects]).float().mean() > 0.9  # the objects painted
+    attended.clear()
+    model.predict_batch(dataset.images, dataset.conditions, dataset.depths_m)
+    assert attended and all(v is None and not t for _, v, t in attended)  # never at inference
     with pytest.raises(InvalidInputError, match=r"repaint = 0.5 is not allowed: 0 for a "
                                                  r"dataset without depth images"):
         KqvModel.for_dataset(dataset, KqvConfig(repaint=0.5)).fit(
