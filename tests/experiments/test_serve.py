@@ -13,6 +13,7 @@ from gva_cli import gva
 from served_detector import DETECTOR, PLUGINS, serve
 
 from perception.plugins import build_plugin
+from perception.remote.client import RemoteModelError, _open
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -55,10 +56,17 @@ def test_serve_refuses_the_oracle(tmp_path, oracle):
     assert status == 2 and oracle in err and len(err.strip().splitlines()) == 1
 
 
-def test_gva_serve_announces_its_address_and_serves_until_stopped():
-    env = os.environ | {"PYTHONPATH": os.pathsep.join([str(ROOT), str(PLUGINS)])}
+@pytest.mark.parametrize(("flags", "server_env"), [(["--api-key", "k"], {}),
+                                                   ([], {"GVA_API_KEY": "k"})],
+                         ids=["--api-key", "GVA_API_KEY"])
+def test_gva_serve_announces_its_address_and_serves_only_its_key(monkeypatch, flags,
+                                                                 server_env):
+    # the key reaches the server whichever way it is given (issue 79: the start-up lines
+    # were read and nothing ever connected, so a key that never arrived passed)
+    env = {k: v for k, v in os.environ.items() if k != "GVA_API_KEY"} | server_env | {
+        "PYTHONPATH": os.pathsep.join([str(ROOT), str(PLUGINS)])}
     process = subprocess.Popen([sys.executable, "-m", "experiments.cli", "serve", DETECTOR,
-                                "--port", "0", "--api-key", "k"], cwd=ROOT, env=env,
+                                "--port", "0", *flags], cwd=ROOT, env=env,
                                stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     try:
         assert process.stdout is not None
@@ -66,6 +74,19 @@ def test_gva_serve_announces_its_address_and_serves_until_stopped():
         assert line.startswith("serving colour-detector on ws://127.0.0.1:"), line
         announced = json.loads(process.stdout.readline())
         assert announced["name"] == "colour-detector" and announced["protocol"] == "gva-pick/1"
+        address = line.split()[-1]
+        for key, admitted in ((None, False), ("wrong", False), ("k", True)):
+            if key is None:
+                monkeypatch.delenv("GVA_API_KEY", raising=False)
+            else:
+                monkeypatch.setenv("GVA_API_KEY", key)
+            if admitted:
+                connection, said = _open(address, 10.0)
+                connection.close()
+                assert said == announced
+            else:
+                with pytest.raises(RemoteModelError, match="HTTP 401"):
+                    _open(address, 10.0)
     finally:
         process.terminate()
         process.wait(timeout=20)
