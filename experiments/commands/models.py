@@ -87,10 +87,11 @@ def _train_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--check-limit-cm", type=float, default=CheckConfig.limit_cm,
                         help="largest held-out mean error, of the whole, each condition and "
                         "each head [cm] (%(default)s)")
-    parser.add_argument("--check-min-judged", type=float, default=CheckConfig.min_judged_success,
-                        help="least share of held-out targets the grasp judge must predict "
-                        "picked, of the whole, each condition and each head (grasp labels; "
-                        "%(default)s)")
+    parser.add_argument("--check-min-expected", type=float,
+                        default=CheckConfig.min_expected_success,
+                        help="least share of held-out targets expected picked (the mean of the "
+                        "grasp judge's calibrated probabilities), of the whole, each condition "
+                        "and each head (grasp labels; %(default)s)")
     parser.add_argument("--attempts", type=integer(1), default=CheckConfig.attempts,
                         help="trainings tried from other starts before the checkpoint is "
                         "marked failed (%(default)s)")
@@ -121,7 +122,7 @@ def run_train(args: argparse.Namespace) -> int:
     config = TrainConfig(steps=args.steps, batch_size=args.batch_size, seed=args.seed,
                          threads=args.threads)
     check = CheckConfig(holdout=args.holdout, limit_cm=args.check_limit_cm,
-                        min_judged_success=args.check_min_judged, attempts=args.attempts)
+                        min_expected_success=args.check_min_expected, attempts=args.attempts)
     fit = fit_checked(lambda seed: new_model(args.model, dataset, seed=seed, **hyperparameters),
                       dataset, config, check, progress=not args.no_progress, log=print)
     model, report = fit.model, fit.report

@@ -52,6 +52,9 @@ class JudgedGroup:
         predicted_success_rate: The share the judge predicts would be picked.
         expected_success_rate: The mean of the map's chances: smoother than the share, it
             ranks models that the share ties (a few held-out scenes).
+        mean_probability: The mean of the calibrated probabilities (the chance a real run's
+            pick holds, :attr:`GraspVerdict.probability`): the picks the group's targets are
+            expected to give, per target, near misses counted as the partial picks they are.
         errors: Each of :data:`ERRORS` over the group.
 
     """
@@ -60,6 +63,7 @@ class JudgedGroup:
     predicted_success_rate: float
     expected_success_rate: float
     errors: dict[str, Spread]
+    mean_probability: float
 
     @classmethod
     def of(cls, verdicts: list[GraspVerdict]) -> JudgedGroup:
@@ -76,7 +80,8 @@ class JudgedGroup:
                 table[name].append(value)
         return cls(len(verdicts), float(np.mean([v.predicted_success for v in verdicts])),
                    float(np.mean([v.success_rate for v in verdicts])),
-                   {name: Spread.of(np.asarray(values)) for name, values in table.items()})
+                   {name: Spread.of(np.asarray(values)) for name, values in table.items()},
+                   float(np.mean([v.probability for v in verdicts])))
 
     def line(self) -> str:
         """One line: the predicted success, and each error's mean / p95 / worst."""

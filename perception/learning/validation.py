@@ -46,18 +46,24 @@ class CheckConfig:
         limit_cm: The largest mean held-out position error allowed, of the whole, of each
             condition value and of each head [cm]. 2 cm: a grasp further off misses the
             spray bottle and the mug (``docs/decisions/every-condition.md``).
-        min_judged_success: For grasp-pose labels, the least share of the held-out targets
-            the grasp judge must predict picked, of the whole, of each condition value and of
-            each head (:mod:`perception.learning.judged_errors`): a position check passes a
-            sponge turned 40 degrees, which the trial misses. 0.75: with the four scenes a
-            20-demonstration check holds out, one predicted miss in four passes, two fail.
+        min_expected_success: For grasp-pose labels, the least share of the held-out targets
+            expected picked, of the whole, of each condition value and of each head: the mean
+            of the grasp judge's calibrated probabilities
+            (:attr:`~perception.learning.judged_errors.JudgedGroup.mean_probability`). A
+            position check passes a sponge turned 40 degrees, which the trial misses; and the
+            share the judge predicts picked cannot tell, from the 4-8 targets a head has in the
+            four scenes a 20-demonstration check holds out, a head that misses one pick in
+            three from a sound one (issue 75: a bottle head judged 55 % on test scenes passed
+            at 3 of 4), where near misses lower the mean of the probabilities. 0.8: a head
+            missing one pick in three (0.67) fails, a sound one (0.93 and above on test
+            scenes) passes; set before any run measured with it (docs/decisions/kqv.md).
         attempts: Trainings tried, each from another start, before the model is marked failed.
 
     """
 
     holdout: float = 0.2
     limit_cm: float = 2.0
-    min_judged_success: float = 0.75
+    min_expected_success: float = 0.8
     attempts: int = 2
 
     def __post_init__(self) -> None:
@@ -65,8 +71,9 @@ class CheckConfig:
             raise InvalidInputError("holdout", self.holdout, "a fraction in [0, 1)")
         if not (math.isfinite(self.limit_cm) and self.limit_cm > 0):
             raise InvalidInputError("limit_cm", self.limit_cm, "a finite length > 0 [cm]")
-        if not (math.isfinite(self.min_judged_success) and 0 <= self.min_judged_success <= 1):
-            raise InvalidInputError("min_judged_success", self.min_judged_success,
+        if not (math.isfinite(self.min_expected_success) and
+                0 <= self.min_expected_success <= 1):
+            raise InvalidInputError("min_expected_success", self.min_expected_success,
                                     "a fraction in [0, 1]")
         if not isinstance(self.attempts, int) or isinstance(self.attempts, bool) or \
                 self.attempts < 1:
@@ -92,7 +99,13 @@ class HeldOutCheck:
             None for position labels (and checks written before the judge).
         per_condition_judged_success_rate: The same per condition value; None: no condition.
         per_target_judged_success_rate: The same per head; None: one head.
-        min_judged_success: The least share checked against.
+        min_judged_success: The least share checked against, by checks written before the
+            expected share replaced it; None since.
+        expected_success: The mean of the judge's calibrated probabilities over the held-out
+            targets (the share expected picked); None for position labels and older checks.
+        per_condition_expected_success: The same per condition value; None: no condition.
+        per_target_expected_success: The same per head; None: one head.
+        min_expected_success: The least expected share checked against.
 
     """
 
@@ -110,6 +123,10 @@ class HeldOutCheck:
     per_condition_judged_success_rate: dict[str, float] | None = None
     per_target_judged_success_rate: dict[str, float] | None = None
     min_judged_success: float | None = None
+    expected_success: float | None = None
+    per_condition_expected_success: dict[str, float] | None = None
+    per_target_expected_success: dict[str, float] | None = None
+    min_expected_success: float | None = None
 
     def headline(self) -> str:
         """One line: passed or FAILED, and the held-out errors."""
@@ -123,6 +140,11 @@ class HeldOutCheck:
                 f"{e:.2f}" for e in self.per_target_mean_position_error_cm))
         if self.judged_success_rate is not None:
             parts.append(f"judged picked {100 * self.judged_success_rate:.0f} %")
+        if self.per_target_expected_success:
+            parts.append("expected per head " + ", ".join(
+                f"{100 * p:.0f} %" for p in self.per_target_expected_success.values()))
+        elif self.expected_success is not None:
+            parts.append(f"expected {100 * self.expected_success:.0f} %")
         where = (f"{len(self.held_out_scenes)} held-out scene(s), attempt {self.attempt}: "
                  + "; ".join(parts))
         if self.passed:
@@ -212,12 +234,13 @@ def split_scenes(dataset: Dataset, holdout: float, seed: int) -> tuple[Dataset, 
 
 
 def check_model(model: LearnableModel, held_out: Dataset, limit_cm: float, attempt: int,
-                model_seed: int, min_judged_success: float | None = None) -> HeldOutCheck:
+                model_seed: int, min_expected_success: float | None = None) -> HeldOutCheck:
     """Scores ``model`` on ``held_out``: whole, each condition, each head.
 
     Against ``limit_cm`` of mean position error, and for grasp-pose labels, where
-    ``min_judged_success`` is given, against that share of targets the grasp judge predicts
-    picked.
+    ``min_expected_success`` is given, against that expected share of targets picked (the
+    mean of the grasp judge's calibrated probabilities); the share it predicts picked is
+    recorded beside it.
     """
     from perception.learning.evaluate import evaluate  # torch, once a model is trained
 
@@ -232,19 +255,25 @@ def check_model(model: LearnableModel, held_out: Dataset, limit_cm: float, attem
             if not e <= limit_cm]
     judged = result.judged
     rates: dict[str, Any] = {}
-    if judged is not None and min_judged_success is not None:
-        per_condition = {name: g.predicted_success_rate
-                         for name, g in (judged.per_condition or {}).items()}
-        per_head = {name: g.predicted_success_rate for name, g in (judged.per_head or {}).items()}
-        shares = [("judged picked", judged.all.predicted_success_rate)]
-        shares += [(f"condition {name!r} judged picked", r) for name, r in per_condition.items()]
-        shares += [(f"{name} judged picked", r) for name, r in per_head.items()]
-        over += [f"{name}: {100 * r:.0f} % < {100 * min_judged_success:.0f} %"
-                 for name, r in shares if not r >= min_judged_success]
+    if judged is not None and min_expected_success is not None:
+        conditions, heads = judged.per_condition or {}, judged.per_head or {}
+        expected = [("expected picked", judged.all.mean_probability)]
+        expected += [(f"condition {name!r} expected picked", g.mean_probability)
+                     for name, g in conditions.items()]
+        expected += [(f"{name} expected picked", g.mean_probability) for name, g in heads.items()]
+        over += [f"{name}: {100 * p:.0f} % < {100 * min_expected_success:.0f} %"
+                 for name, p in expected if not p >= min_expected_success]
         rates = {"judged_success_rate": judged.all.predicted_success_rate,
-                 "per_condition_judged_success_rate": per_condition or None,
-                 "per_target_judged_success_rate": per_head or None,
-                 "min_judged_success": min_judged_success}
+                 "per_condition_judged_success_rate": {
+                     name: g.predicted_success_rate for name, g in conditions.items()} or None,
+                 "per_target_judged_success_rate": {
+                     name: g.predicted_success_rate for name, g in heads.items()} or None,
+                 "expected_success": judged.all.mean_probability,
+                 "per_condition_expected_success": {
+                     name: g.mean_probability for name, g in conditions.items()} or None,
+                 "per_target_expected_success": {
+                     name: g.mean_probability for name, g in heads.items()} or None,
+                 "min_expected_success": min_expected_success}
     return HeldOutCheck(
         passed=not over, reason="; ".join(over),
         held_out_scenes=tuple(sorted(set(held_out.scene_keys()))), samples=len(held_out),
@@ -285,7 +314,7 @@ def fit_checked(build: Callable[[int], LearnableModel], dataset: Dataset, config
         if held_out is None:
             return CheckedFit(model, report, (), (AttemptTime(trained - started, 0.0),))
         checks.append(check_model(model, held_out, check.limit_cm, attempt, seed,
-                                  check.min_judged_success))
+                                  check.min_expected_success))
         times.append(AttemptTime(trained - started, time.perf_counter() - trained))
         if log is not None:
             log(checks[-1].headline())

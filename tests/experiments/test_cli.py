@@ -88,7 +88,7 @@ def test_the_defaults_are_the_settings_dataclasses_defaults():
     assert TrainConfig(steps=train["steps"], batch_size=train["batch_size"],
                        seed=train["seed"], threads=train["threads"]) == TrainConfig()
     assert CheckConfig(holdout=train["holdout"], limit_cm=train["check_limit_cm"],
-                       min_judged_success=train["check_min_judged"],
+                       min_expected_success=train["check_min_expected"],
                        attempts=train["attempts"]) == CheckConfig()
 
 
