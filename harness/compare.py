@@ -24,7 +24,7 @@ from harness.paired_statistics import (
     PairedTest,
     Verdict,
 )
-from harness.run_folder import differences
+from harness.run_folder import differences, read_json_file
 from sim.errors import InvalidInputError, RunFolderError
 from sim.trials.records import TrialOutcome, TrialRecord, record_lines, record_of_line
 
@@ -265,13 +265,7 @@ def read_finished_run(folder: str | Path) -> FinishedRun:
 
 def _read_json(path: Path) -> dict[str, Any]:
     """The JSON object in ``path``; a damaged or non-object file raises RunFolderError."""
-    try:
-        data = json.loads(path.read_bytes().decode("utf-8"))
-    except UnicodeDecodeError as error:
-        raise RunFolderError(f"{path} is damaged (not UTF-8 text: byte {error.start} is "
-                             f"{error.object[error.start]:#04x})") from None
-    except json.JSONDecodeError as error:
-        raise RunFolderError(f"{path} is damaged ({error})") from None
+    data = read_json_file(path)
     if not isinstance(data, dict):
         raise RunFolderError(f"{path} holds {type(data).__name__}, not the object gva trials "
                              "writes")

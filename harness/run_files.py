@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
-from harness.run_folder import differences, json_form
+from harness.run_folder import differences, json_form, read_json_file
 from perception.files import atomic_write
 from perception.learning.dataset_file import read_metadata
 from robots.description import RobotDescription
@@ -48,11 +48,7 @@ def write_text(path: Path, text: str) -> None:
 
 def read_json(path: Path) -> Any:
     """The JSON in ``path``; a damaged file is a :class:`RunFolderError` naming it."""
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as error:
-        raise RunFolderError(f"{path} is damaged ({error}); remove it to compute it again"
-                             ) from None
+    return read_json_file(path, "remove it to compute it again")
 
 
 Result = TypeVar("Result")

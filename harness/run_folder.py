@@ -63,13 +63,7 @@ def claim_run_folder(folder: Path, settings: Mapping[str, Any], name: str = "run
     path = folder / name
     history: list[Any] = []
     if path.exists():
-        try:
-            stored = json.loads(path.read_bytes().decode("utf-8"))
-        except UnicodeDecodeError as error:
-            raise RunFolderError(f"{path} is damaged (not UTF-8 text: byte {error.start} is "
-                                 f"{error.object[error.start]:#04x}); use another --out") from None
-        except json.JSONDecodeError as error:
-            raise RunFolderError(f"{path} is damaged ({error}); use another --out") from None
+        stored = read_json_file(path, "use another --out")
         history = stored.pop(PROVENANCE_KEY, []) if isinstance(stored, dict) else []
         if stored != asked:
             raise RunFolderError(f"{folder} holds a different run ({differences(stored, asked)}"
@@ -80,6 +74,21 @@ def claim_run_folder(folder: Path, settings: Mapping[str, Any], name: str = "run
         text = json.dumps(record, indent=2, sort_keys=True) + "\n"
         atomic_write(path, lambda temporary: temporary.write_text(text))
     return asked
+
+
+def read_json_file(path: Path, remedy: str = "") -> Any:
+    """The JSON in ``path``; a damaged file (not UTF-8, not JSON) is a RunFolderError naming it.
+
+    ``remedy``: what the message tells the user to do about it (``"use another --out"``).
+    """
+    then = f"; {remedy}" if remedy else ""
+    try:
+        return json.loads(path.read_bytes().decode("utf-8"))
+    except UnicodeDecodeError as error:
+        raise RunFolderError(f"{path} is damaged (not UTF-8 text: byte {error.start} is "
+                             f"{error.object[error.start]:#04x}){then}") from None
+    except json.JSONDecodeError as error:
+        raise RunFolderError(f"{path} is damaged ({error}){then}") from None
 
 
 PROVENANCE_KEY = "provenance"

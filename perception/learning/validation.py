@@ -56,7 +56,7 @@ class CheckConfig:
             three from a sound one (issue 75: a bottle head judged 55 % on test scenes passed
             at 3 of 4), where near misses lower the mean of the probabilities. 0.8: a head
             missing one pick in three (0.67) fails, a sound one (0.93 and above on test
-            scenes) passes; set before any run measured with it (docs/decisions/kqv.md).
+            scenes) passes; set before any run measured with it (docs/decisions/any-seed.md).
         attempts: Trainings tried, each from another start, before the model is marked failed.
 
     """
