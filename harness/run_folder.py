@@ -15,7 +15,7 @@ import sys
 import time
 from collections.abc import Iterator, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import filelock
 
@@ -138,3 +138,26 @@ def run_folder_lock(folder: Path) -> Iterator[None]:
     finally:
         (folder / HOLDER_FILE).unlink(missing_ok=True)
         lock.release()
+
+
+class RunStart(NamedTuple):
+    """A run's start, as :func:`started_run` makes it: when, and its session's provenance."""
+
+    started_s: float  # time.perf_counter() at the start: the run's wall time counts from it
+    session: dict[str, Any]  # harness.provenance.provenance() of this session
+
+
+@contextlib.contextmanager
+def started_run(folder: Path, identity: Mapping[str, Any]) -> Iterator[RunStart]:
+    """A run's hold on ``folder`` for the block: its lock, its session, its identity claimed.
+
+    What every ``gva reproduce`` run does first: one run per folder (:func:`run_folder_lock`),
+    this session's provenance recorded in the folder's ``run.json`` (:func:`claim_run_folder`,
+    which refuses a folder holding another run).
+    """
+    from harness.provenance import provenance  # the same layer; kept out of import time
+
+    with run_folder_lock(folder):
+        start = RunStart(time.perf_counter(), provenance())
+        claim_run_folder(folder, identity, provenance=start.session)
+        yield start

@@ -25,8 +25,7 @@ from experiments.table2.report import write_reports
 from experiments.table2.settings import Cell, ReproduceSimSettings
 from harness.executors import open_pool
 from harness.jobs import Pool
-from harness.provenance import provenance
-from harness.run_folder import claim_run_folder, run_folder_lock
+from harness.run_folder import started_run
 from harness.run_report import RunReport, cost_bar
 
 ReproduceSimReport = RunReport[CellOutcome, Cell]
@@ -44,10 +43,7 @@ def run_reproduce_sim(settings: ReproduceSimSettings, out: str | Path,
 
     """
     out = Path(out)
-    with run_folder_lock(out):  # one run per folder
-        started = time.perf_counter()
-        session = provenance()
-        claim_run_folder(out, settings.run_identity(), provenance=session)
+    with started_run(out, settings.run_identity()) as (started, session):
         todo, done = sort_cells(settings, out)
         workers = settings.worker_count()
         collections = dataset_jobs(out, settings.scene, settings.tasks,

@@ -16,9 +16,8 @@ from experiments.table3.job_graph import run_jobs
 from experiments.table3.jobs import JobOutcome
 from experiments.table3.report import write_reports
 from experiments.table3.settings import ReproduceRealSettings, seed_folder, task_file
-from harness.provenance import provenance
 from harness.run_files import write_text
-from harness.run_folder import claim_run_folder, run_folder_lock
+from harness.run_folder import claim_run_folder, started_run
 from harness.run_report import RunReport
 from sim.tasks.task_toml import task_to_toml
 
@@ -66,10 +65,7 @@ def run_reproduce_real(settings: ReproduceRealSettings, out: str | Path,
     """
     out = Path(out)
     files = run_task_files(settings)  # every task checked before the folder is touched
-    with run_folder_lock(out):  # one run per folder
-        started = time.perf_counter()
-        session = provenance()
-        claim_run_folder(out, settings.shared_identity(), provenance=session)
+    with started_run(out, settings.shared_identity()) as (started, session):
         for seed in settings.training_seeds:
             claim_run_folder(seed_folder(out, seed), settings.for_seed(seed).run_identity())
             write_run_tasks(files, seed_folder(out, seed))
