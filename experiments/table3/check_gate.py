@@ -133,7 +133,28 @@ def checks_markdown(checks: Sequence[Mapping[str, Any]]) -> list[str]:
                                         else "") + "."]
     lines += [f"- **FAILED**: {c['model']} {c['task']} seed {c['seed']} after {c['attempts']} "
               f"attempt(s): {c['reason']}{_use(c.get('cells'))}" for c in failed]
+    shown = [c for c in checks if c.get("parts")]
+    if shown:  # what each check saw of each head or condition: a weak one before the trials
+        lines += ["", "What each check saw of each head or condition on its held-out scenes: "
+                  "mean error, share the grasp judge predicts picked, expected share picked "
+                  "(the mean of its calibrated probabilities, which the check reads).", "",
+                  "| model | task | seed | check | per head or condition |",
+                  "|---|---|---:|---|---|"]
+        lines += [f"| {c['model']} | {c['task']} | {c['seed']} | "
+                  f"{'passed' if c['passed'] else '**FAILED**'} | "
+                  + "; ".join(f"{name} {_part(values)}" for name, values in c["parts"].items())
+                  + " |" for c in shown]
     return [*lines, ""]
+
+
+def _part(values: Mapping[str, float]) -> str:
+    """One head's or condition's check: ``0.71 cm, 100 %, 0.98``."""
+    shown = [f"{values['error_cm']:.2f} cm"]
+    if "judged" in values:
+        shown.append(f"{100 * values['judged']:.0f} %")
+    if "expected" in values:
+        shown.append(f"{values['expected']:.2f}")
+    return ", ".join(shown)
 
 
 def _use(cells: str | None) -> str:

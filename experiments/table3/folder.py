@@ -7,7 +7,7 @@ folder (``history.jsonl``); the layout is :mod:`experiments.table3.settings`'s.
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -40,8 +40,35 @@ def read_checks(out: Path, seeds: Sequence[int]) -> list[dict[str, Any]]:
                               "task": trained.parent.name, "passed": check["passed"],
                               "reason": check["reason"],
                               "attempts": read_json(trained).get("attempts", 1),
-                              "mean_position_error_cm": check["mean_position_error_cm"]})
+                              "mean_position_error_cm": check["mean_position_error_cm"],
+                              "parts": check_parts(check)})
     return found
+
+
+def check_parts(check: Mapping[str, Any]) -> dict[str, dict[str, float]]:
+    """What a check saw of each head (or condition): error [cm], judged and expected shares.
+
+    Where the check recorded them (older checks: the error alone). A multi-head task's parts
+    are its heads; a conditioned task's, its condition values.
+    """
+    errors = check.get("per_target_mean_position_error_cm") or []
+    if len(errors) > 1:
+        names = [f"head {k}" for k in range(len(errors))]
+        found = {"error_cm": dict(zip(names, errors, strict=True)),
+                 "judged": check.get("per_target_judged_success_rate") or {},
+                 "expected": check.get("per_target_expected_success") or {}}
+    else:
+        found = {"error_cm": check.get("per_condition_mean_position_error_cm") or {},
+                 "judged": check.get("per_condition_judged_success_rate") or {},
+                 "expected": check.get("per_condition_expected_success") or {}}
+    parts = {name: {kind: float(values[name]) for kind, values in found.items()
+                    if name in values} for name in found["error_cm"]}
+    if parts:
+        return parts
+    whole = {"error_cm": check.get("mean_position_error_cm"),
+             "judged": check.get("judged_success_rate"),
+             "expected": check.get("expected_success")}  # one head, no condition: the whole
+    return {"all": {kind: float(value) for kind, value in whole.items() if value is not None}}
 
 
 def history_wall_time_s(out: Path) -> float:

@@ -71,5 +71,9 @@ def test_a_failed_held_out_check_is_named_in_the_table():
     assert lines[3] == ("- **FAILED**: kqv selected-type seed 1 after 2 attempt(s): condition "
                         "'mug': 3.10 cm > 2.00 cm")
     assert checks_markdown([]) == []
+    checks[1]["parts"] = {"sponge": {"error_cm": 0.4, "judged": 1.0, "expected": 0.97},
+                          "mug": {"error_cm": 3.1, "judged": 0.5, "expected": 0.55}}
+    assert ("| kqv | selected-type | 1 | **FAILED** | sponge 0.40 cm, 100 %, 0.97; mug 3.10 cm, "
+            "50 %, 0.55 |") in checks_markdown(checks)  # a weak head seen before the trials
     text = table3_markdown([], "Made by x.", checks=checks, robot="yumi")
     assert text.index("## Held-out checks") < text.index("## Failure reasons")
