@@ -131,10 +131,29 @@ class Chain:
             assert len(records) == 1
             outcome = TrialOutcome(json.loads(records[0])["outcome"])
             assert outcome is not TrialOutcome.ERROR, records[0]
+            assert_strict_json(trials)
         else:  # a position model cannot pick: refused before any trial
             assert status == 2
             assert "label_kind = 'position' is not allowed" in one_line(err)
             assert not (trials / "trials.jsonl").exists()
+
+
+def assert_strict_json(folder: Path) -> None:
+    """Every JSON file and JSON-lines record under ``folder`` parses strictly: no NaN, no
+    Infinity, which strict readers refuse (issue 77: a server's NaN reached run.json)."""
+    def refuse(constant: str) -> None:
+        raise AssertionError(f"{constant} in a JSON file")
+
+    files = [*folder.rglob("*.json"), *folder.rglob("*.jsonl")]
+    assert files
+    for path in files:
+        text = path.read_text(encoding="utf-8")
+        for line in (text.splitlines() if path.suffix == ".jsonl" else [text]):
+            if line.strip():
+                try:
+                    json.loads(line, parse_constant=refuse)
+                except AssertionError as error:
+                    raise AssertionError(f"{path}: {error}") from None
 
 
 # One test class per built-in task (TestSingle, TestSelectedTypeText, ...): a shipped task joins.
@@ -195,6 +214,7 @@ class ReproduceReal:
         assert not (out / "s0" / "gifs").exists()  # --gif-trials 0: none made
         markdown = (out / "table3.md").read_text()
         assert "--no-robustness --gif-trials 0" in markdown  # the command, to run it again
+        assert_strict_json(out)
         for model in self.models:
             assert f"| {tables.model_title(model)} |" in markdown
 
