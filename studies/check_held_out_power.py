@@ -28,13 +28,13 @@ from perception.registry import load_model
 
 
 def per_head(model: object, data: object) -> dict[str, tuple[float, float, int]]:
-    """Per head: (share judged picked, mean calibrated probability, targets)."""
+    """Per head, else per condition value: (share judged picked, mean probability, targets)."""
     judged = judge_predictions(predict_dataset(model, data), data)  # type: ignore[arg-type]
     if judged is None:
         raise SystemExit("no grasp-pose labels to judge")
-    heads = judged.per_head or {"head 0": judged.all}
-    return {head: (g.predicted_success_rate, g.mean_probability, g.targets)
-            for head, g in heads.items()}
+    parts = judged.per_head or judged.per_condition or {"all": judged.all}  # as the check
+    return {name: (g.predicted_success_rate, g.mean_probability, g.targets)
+            for name, g in parts.items()}
 
 
 def seeds_of(text: str) -> list[int]:

@@ -40,5 +40,5 @@ def test_each_head_gets_a_line_per_reading_and_the_check_its_held_out_scenes(tmp
     assert held is not None and sorted(set(held.scene_keys())) == recorded
     power = load_study("check_held_out_power")
     seen = power.per_head(fit.model, held)
-    assert set(seen) == {"head 0", "head 1", "head 2"}
+    assert set(seen) == {"head 0", "head 1", "head 2"}  # a multi-head task: by head
     assert all(0.0 <= share <= 1.0 and 0.0 <= p <= 1.0 and n > 0 for share, p, n in seen.values())
