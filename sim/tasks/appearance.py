@@ -143,8 +143,8 @@ def _read_palette(path: Path) -> Palette:
     entries = []
     for object_type, rows in table.items():
         if object_type not in OBJECT_TYPES:
-            raise InvalidInputError(f"{where}: {object_type}", "a type",
-                                    f"a target type: {', '.join(OBJECT_TYPES)}")
+            raise InvalidInputError(f"{where}: table", object_type,
+                                    f"a target type's [[table]]: {', '.join(OBJECT_TYPES)}")
         if not (isinstance(rows, list) and 0 < len(rows) <= MAX_PALETTE_ENTRIES
                 and all(isinstance(r, dict) for r in rows)):
             raise InvalidInputError(f"{where}: {object_type}", type(rows).__name__,

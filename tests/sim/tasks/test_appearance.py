@@ -147,8 +147,8 @@ def test_a_palette_file_is_read_relative_to_the_task_file(tmp_path):
 
 
 @pytest.mark.parametrize(("palette", "message"), [
-    ('[[cup]]\nname = "a"\ncolours = ["#000000"]', r"cup = 'a type' is not allowed: "
-     r"a target type: sponge, spray_bottle, mug"),
+    ('[[cup]]\nname = "a"\ncolours = ["#000000"]', r"table = 'cup' is not allowed: "
+     r"a target type's \[\[table\]\]: sponge, spray_bottle, mug"),  # issue 77: the value named
     ('[[sponge]]\nname = "a"\ncolours = ["#000000"]', r"sponge\[0\]\.colours = \['#000000'\] is "
      r"not allowed: 2 colours '#rrggbb', one per part"),
     ('[[mug]]\nname = "a"\ncolours = ["red"]', r"mug\[0\]\.colours = 'red' is not allowed: a "
