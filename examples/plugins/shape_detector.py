@@ -34,16 +34,23 @@ Where shape alone cannot tell types apart (what this plug-in is the reference fo
   the marker, both 15 mm high, by their widths), so the round-or-square outline decides how a
   pose is measured, never the name.
 
-It imports nothing but ``perception``, numpy and the standard library.
+It imports nothing but ``perception``, numpy, the standard library and ``table_objects`` (the
+table, the fits and the task's choice, shared with ``colour_detector.py``).
 """
 
 from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
 
 import numpy as np
+from table_objects import (
+    Detection,
+    TableDetector,
+    circle_centre,
+    handle_yaw_rad,
+    heights_above_table,
+)
 
 from perception.camera import RgbdFrame
 from perception.catalog import (
@@ -55,26 +62,9 @@ from perception.catalog import (
     catalog_names,
     get_object_spec,
 )
-from perception.grasps import grasp_pose
-from perception.interface import (
-    NO_CONDITION,
-    Condition,
-    ConditionKind,
-    InvalidPredictionError,
-    LabelKind,
-    ModelInput,
-    PerceptionModel,
-    Prediction,
-    Target,
-)
-from perception.poses import Pose
 
 ABOVE_TABLE_M = 0.004
 """Points lower than this above the table's plane are the table; every object rises higher [m]."""
-TABLE_BAND_M = 0.01
-"""Points within this of z = 0 are the table's candidates when its plane is fitted [m]."""
-TABLE_INLIER_M = 0.003
-"""The plane is refitted on the points within this of the first fit (depth noise ~1.5 mm) [m]."""
 LINK_M = 0.015
 """Neighbouring pixels whose points lie closer than this are one object: a pixel is ~5 mm on the
 table, and the steep side of a bottle seen at a slant spreads neighbours to ~1 cm [m]."""
@@ -99,48 +89,22 @@ MIN_FACE_PX = 5
 """A face (the sponge's top, the mug's rim, the bottle's body) needs this many to be measured."""
 PROBE_M = 0.01
 """How far past a face's end to look for what hides it, and how much nearer hides it [m]."""
-CIRCLE_FIT_STEPS = 10
-"""Gauss-Newton steps of the known-radius circle fit (it converges in three or four)."""
 MUG_RIM_RADIUS_M = float(np.hypot(*MUG.primitives[0].position_m[:2]))
 """The middle of the mug's wall (its first primitives are the ring's segments) [m]."""
-MUG_HANDLE_FROM_M = 0.047
-"""Mug points farther than this from its axis are the handle (the wall reaches 41.4 mm) [m]."""
 BOTTLE_RADIUS_M = 0.5 * SPRAY_BOTTLE.primitives[0].size_m[0]
 """The radius of the spray bottle's body, the cylinder the gripper closes on [m]."""
 BOTTLE_BODY_TOP_M = SPRAY_BOTTLE.primitives[0].size_m[2]
 """The top of the bottle's body; above it, the shoulder and head are narrower or off-axis [m]."""
 
 
-@dataclass(frozen=True)
-class Detection:
-    """One object found on the table: its type and its pose there (object frame, z = 0)."""
-
-    object_type: str
-    x_m: float
-    y_m: float
-    yaw_rad: float
-
-    def target(self) -> Target:
-        """The catalog's grasp of this object, as a trial's target."""
-        pose = Pose.from_xy_yaw(self.x_m, self.y_m, self.yaw_rad)
-        grasp = grasp_pose(get_object_spec(self.object_type), pose)
-        return Target(grasp.position, grasp.rotation, self.object_type)
-
-
-class ShapeDetector(PerceptionModel):
+class ShapeDetector(TableDetector):
     """Finds sponges, spray bottles and mugs by their shapes in the depth image; no colour."""
 
     name = "shape-detector"
-    label_kind = LabelKind.GRASP_POSE
-    inputs = frozenset({ModelInput.RGB, ModelInput.DEPTH, ModelInput.CAMERA})
 
-    def predict_frame(self, frame: RgbdFrame, condition: Condition = NO_CONDITION
-                      ) -> Prediction:
-        """The grasps of the objects ``condition`` asks for; raises if it asks for none seen."""
-        chosen = choose(detect(frame), condition)
-        centres_m = [(d.x_m, d.y_m, 0.5 * get_object_spec(d.object_type).height_m) for d in chosen]
-        return Prediction(targets=tuple(d.target() for d in chosen),
-                          attention_px=frame.camera.project(np.array(centres_m)))
+    def detect(self, frame: RgbdFrame) -> list[Detection]:
+        """See :func:`detect`."""
+        return detect(frame)
 
 
 def detect(frame: RgbdFrame) -> list[Detection]:
@@ -157,26 +121,6 @@ def detect(frame: RgbdFrame) -> list[Detection]:
         if object_type in OBJECT_TYPES:
             found.append(measure(object_type, seen, frame))
     return [d for d in found if d is not None]
-
-
-def heights_above_table(points: np.ndarray) -> np.ndarray:
-    """Each point's (N, 3) height above the table's plane, fitted to this frame's points.
-
-    A hand-eye error of a fraction of a degree tilts the table by 2-4 mm across the image,
-    which measured from z = 0 would lift patches of table into objects. Least squares on the
-    points near z = 0, then again on those near the first fit (the objects' points drop out).
-    """
-    xy1 = np.column_stack([points[:, :2], np.ones(len(points))])
-    heights = points[:, 2]
-    with np.errstate(invalid="ignore"):  # NaN where the depth image has no return
-        near = np.abs(heights) < TABLE_BAND_M
-        for _ in range(2):
-            if np.count_nonzero(near) < 3:  # no table in view: z = 0 is all there is
-                return heights
-            plane = np.linalg.lstsq(xy1[near], points[near, 2], rcond=None)[0]
-            heights = points[:, 2] - xy1 @ plane
-            near = np.abs(heights) < TABLE_INLIER_M
-    return heights
 
 
 def objects(points: np.ndarray) -> list[np.ndarray]:
@@ -340,30 +284,6 @@ def measure(object_type: str, points: np.ndarray, frame: RgbdFrame) -> Detection
     return Detection(object_type, *box_pose(top, spec, frame))
 
 
-def circle_centre(xy: np.ndarray, radius_m: float, start_xy: np.ndarray) -> np.ndarray:
-    """The centre of the circle of ``radius_m`` nearest the points (N, 2), by Gauss-Newton.
-
-    A bottle's body is seen on its near half only: the centroid of a half circle seen side-on
-    lies pi/4 of the radius toward the camera, which is where the caller starts it.
-    """
-    centre = np.array(start_xy, dtype=float)
-    for _ in range(CIRCLE_FIT_STEPS):
-        offsets = xy - centre
-        distances = np.maximum(np.linalg.norm(offsets, axis=1), 1e-9)
-        jacobian = -offsets / distances[:, None]  # of each point's distance, by the centre
-        step, *_ = np.linalg.lstsq(jacobian, radius_m - distances, rcond=None)
-        centre += step
-    return centre
-
-
-def handle_yaw_rad(points: np.ndarray, centre: np.ndarray, away: np.ndarray) -> float:
-    """Which way the mug's handle (its +x) points; away from the camera if none is seen."""
-    offsets = points[:, :2] - centre
-    handle = offsets[np.linalg.norm(offsets, axis=1) > MUG_HANDLE_FROM_M]
-    direction = handle.mean(axis=0) if len(handle) else away
-    return math.atan2(direction[1], direction[0])
-
-
 def box_pose(top_xy: np.ndarray, spec: ObjectSpec, frame: RgbdFrame
              ) -> tuple[float, float, float]:
     """(x, y, yaw) of a box-shaped object from the points (N, 2) of its top face.
@@ -401,26 +321,3 @@ def hidden(frame: RgbdFrame, point_m: tuple[float, float, float]) -> bool:
     return bool(0.0 < frame.depth_m[int(v_px), int(u_px)] < depth_m - PROBE_M)
 
 
-def choose(detections: list[Detection], condition: Condition) -> list[Detection]:
-    """The detections ``condition`` names, in the task's target order.
-
-    None: every object of a target type, by catalog type order, then from the robot's right
-    (-y) to its left. An object type: that type's object (the nearest the robot if several).
-    A side: the leftmost (+y, ``"left"``) or the rightmost object of a target type. A sentence
-    or a picture is refused: reading them is what a learned Query is for.
-    """
-    if condition.kind in (ConditionKind.TEXT, ConditionKind.IMAGE):
-        raise InvalidPredictionError(f"shape-detector reads one-hot conditions (an object type, "
-                                     f"a side), not a {condition.kind.value} condition")
-    found = sorted((d for d in detections if d.object_type in OBJECT_TYPES),
-                   key=lambda d: (OBJECT_TYPES.index(d.object_type), d.y_m))
-    if condition.kind is ConditionKind.OBJECT_TYPE:
-        found = sorted((d for d in found if d.object_type == condition.value),
-                       key=lambda d: math.hypot(d.x_m, d.y_m))[:1]
-    elif condition.kind is ConditionKind.SIDE:
-        found = sorted(found, key=lambda d: d.y_m)
-        found = found[-1:] if condition.value == "left" else found[:1]
-    if not found:
-        wanted = condition.value if condition.kind is ConditionKind.OBJECT_TYPE else "object"
-        raise InvalidPredictionError(f"shape-detector found no {wanted} on the table")
-    return found

@@ -1,14 +1,13 @@
 """The shape detector of examples/plugins: it grasps every task's targets from depth alone, and a
 shape twin fools it, as its docstring says."""
 
-import ast
 import dataclasses
 import math
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
+from plugin_detectors import PLUGINS, imports_beyond_the_rule
 
 from perception.catalog import OBJECT_TYPES
 from perception.errors import InvalidPredictionError
@@ -21,8 +20,6 @@ from sim.tasks.task_toml import load_task
 from sim.trials.pick_results import grasp_angle_rad
 from sim.trials.trial_runner import TrialRunner
 
-PLUGINS = Path(__file__).resolve().parents[2] / "examples" / "plugins"
-ALLOWED_IMPORTS = frozenset({"perception", "numpy"}) | sys.stdlib_module_names
 TASKS = ("single", "multiple", "selected-type", "selected-position")
 POSITION_TOLERANCE_M = 0.015  # it reaches 2.2 mm on the first 25 test scenes of each task
 ANGLE_TOLERANCE_RAD = math.radians(15.0)  # it reaches 2 deg (grasp) and 3 deg (a mug's handle)
@@ -42,15 +39,7 @@ def runner(detector):
 
 
 def test_the_detector_imports_only_perception_numpy_and_the_standard_library():
-    imported = set()
-    for node in ast.walk(ast.parse((PLUGINS / "shape_detector.py").read_text())):
-        if isinstance(node, ast.Import):
-            imported |= {alias.name for alias in node.names}
-        elif isinstance(node, ast.ImportFrom):
-            assert node.level == 0, f"a relative import on line {node.lineno}"
-            imported.add(node.module)
-    assert "perception.interface" in imported
-    assert {name for name in imported if name.partition(".")[0] not in ALLOWED_IMPORTS} == set()
+    assert imports_beyond_the_rule("shape_detector.py") == set()
 
 
 @pytest.mark.parametrize("task_name", TASKS)
