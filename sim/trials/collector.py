@@ -30,12 +30,9 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from perception.camera import RgbdFrame
-from perception.interface import Prediction
 from perception.labels import label_vector
 from perception.learning.data import (
     JOINT_NAMES_KEY,
-    SAMPLE_CAMERA_KEY,
     Dataset,
     DatasetMetadata,
 )
@@ -52,12 +49,11 @@ from sim.tasks.task_sensor import seen_in_scene
 from sim.tasks.task_spec import TaskSpec, spaced_for
 from sim.tasks.variants import load_task_variant
 from sim.trials.loop_settings import Loop, LoopSettings
+from sim.trials.pick_images import PickImages, calibration_record
 from sim.trials.records import TrialOutcome
 from sim.trials.trial_runner import TrialRunner
-from sim.trials.view import hidden_share
 from sim.world.head_camera import HeadCamera
 from sim.world.sensor import SensorKind
-from sim.world.yumi_world import World
 
 MAX_REDRAW_FACTOR = 3
 """A yumi collection gives up after this many times ``size`` failed demonstrations."""
@@ -238,17 +234,6 @@ class Sample:
     joint_positions: np.ndarray | None = None  # (J,)
 
 
-@dataclass(frozen=True)
-class Stage:
-    """A demonstration's image before one pick: the frame, the joints, every target's label."""
-
-    frame: RgbdFrame
-    joint_positions: np.ndarray  # (J,) in the robot's joint order
-    labels: np.ndarray  # (q, 12)
-    taken: list[int]  # the targets already picked
-    approach: bool = False  # taken during the pick's approach (the arm in view)
-
-
 def _task_json(task: TaskSpec) -> dict[str, Any]:
     """The task as a dataset's ``extra["task"]`` keeps it (the ideal sensor by omission).
 
@@ -287,66 +272,6 @@ def _collect_paper(
                              "every_condition": settings.asks_every_condition}
 
 
-class _PickImages:
-    """Watches a demonstration: the image before each pick, every target's label just then.
-
-    A :class:`~sim.trials.runner_hooks.TrialObserver`; ``saw`` comes after the image is taken
-    and before the plan, so the world is as the image shows it. A target already set aside keeps
-    the label it had when it was last on the table. An approach image in which the arm hides
-    more than :data:`APPROACH_HIDDEN_SHARE_MAX` of a target's footprint
-    (``LoopSettings.footprint_radius_m``) is left out (counted): a label the image cannot show
-    teaches the model to guess.
-    """
-
-    def __init__(self, runner: TrialRunner) -> None:
-        self.runner = runner
-        self.joint_names = tuple(runner.world.robot.joint_names)
-        self.footprint_radius_m = runner.loop.footprint_radius_m
-        self.hidden = 0  # approach images left out: the arm hid a target's footprint
-        self.start([])
-
-    def start(self, targets: list[int]) -> None:
-        """Watches a new demonstration whose targets are these bodies, in target order."""
-        self.targets = targets
-        self.labels: dict[int, np.ndarray] = {}
-        self.stages: list[Stage] = []
-        self.first: dict[int, np.ndarray] = {}  # every object's label in the first image
-
-    def saw(self, frame: RgbdFrame, prediction: Prediction | None) -> None:
-        """Keeps the frame and the joints with every target's label and the targets taken."""
-        on_table = {body: label_vector(*self.runner.truth(body))
-                    for body in self.runner.world.objects}
-        if not self.stages:
-            self.first = on_table
-        self.labels |= {k: on_table[body] for k, body in enumerate(self.targets)
-                        if body in on_table}
-        taken = [k for k, body in enumerate(self.targets) if body not in on_table]
-        labels = np.stack([self.labels[k] for k in range(len(self.targets))])  # (q, 12)
-        joints = self.runner.world.robot.joint_positions(self.joint_names)
-        approach = bool(self.stages) and self.stages[-1].taken == taken  # the same pick's
-        if approach and any(hidden_share(frame, on_table[body][:3], self.footprint_radius_m)
-                            > APPROACH_HIDDEN_SHARE_MAX
-                            for body in self.targets if body in on_table):
-            self.hidden += 1  # a target the arm hides: the loop would not heed it, nor learn it
-            return
-        self.stages.append(Stage(frame, np.array([joints[n] for n in self.joint_names]), labels,
-                                 taken, approach))
-
-    def stepped(self, world: World) -> None:
-        """Nothing to watch between images."""
-
-
-def _calibration(frame: RgbdFrame, runner: TrialRunner) -> dict[str, Any]:
-    """A sample record's own calibration, where its frame's is not the dataset's camera.
-
-    A look that moves the camera for a scene: the sample is read through that calibration, as
-    a trial reads its frame's (:data:`~perception.learning.data.SAMPLE_CAMERA_KEY`).
-    """
-    if frame.camera == runner.mounted_camera.pinhole:
-        return {}
-    return {SAMPLE_CAMERA_KEY: frame.camera.to_json()}
-
-
 def _collect_yumi(
     task: TaskSpec, spec: SceneSpec, settings: CollectSettings, bar: tqdm
 ) -> tuple[list[Sample], dict[str, Any], dict[str, Any]]:
@@ -358,7 +283,7 @@ def _collect_yumi(
     loop = None if settings.approach_hz is None and task.disturbance is None else LoopSettings(
         Loop.CLOSED, settings.approach_hz or LoopSettings.replan_hz)
     with TrialRunner(task, loop=loop, robot=settings.description()) as runner:
-        images = _PickImages(runner)
+        images = PickImages(runner, APPROACH_HIDDEN_SHARE_MAX)
         runner.observer = images
         while kept < settings.size:
             if len(redrawn) > MAX_REDRAW_FACTOR * settings.size:
@@ -375,7 +300,7 @@ def _collect_yumi(
                 redrawn.append({"scene_index": scene.index, "reason": demonstration.reason})
                 bar.set_postfix_str(f"{len(redrawn)} redrawn")
                 continue
-            record = scene.to_record() | _calibration(images.stages[0].frame, runner)
+            record = scene.to_record() | calibration_record(images.stages[0].frame, runner)
             samples += [Sample(stage.frame.rgb, scene.given.vector(), stage.labels,
                                record | ({"taken": stage.taken} if stage.taken else {})
                                | ({"stage": "approach"} if stage.approach else {}),
@@ -385,7 +310,7 @@ def _collect_yumi(
             first = images.stages[0]
             samples += [Sample(first.frame.rgb, question.given.vector(),
                                np.stack([images.first[bodies[t]] for t in question.targets]),
-                               question.to_record() | _calibration(first.frame, runner),
+                               question.to_record() | calibration_record(first.frame, runner),
                                first.frame.depth_m, first.joint_positions)
                         for question in asked(task, scene, settings.asks_every_condition)[1:]]
             kept += 1
