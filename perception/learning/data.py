@@ -7,7 +7,6 @@ against its :class:`DatasetMetadata` when built. Its file, written and read stri
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from numbers import Integral
@@ -25,6 +24,7 @@ from perception.interface import (
     condition_size,
 )
 from perception.labels import LABEL_DIMS, check_rotations, split_label
+from perception.learning.json_form import json_form
 
 FORMAT_VERSION = 1
 TENSORS = ("images", "conditions", "labels")  # a dataset's arrays, in its file's order
@@ -104,8 +104,8 @@ class DatasetMetadata:
             raise InvalidInputError("condition_choices", choices, "() exactly when condition_kind"
                                     f" is none (condition_kind is {self.condition_kind.value})")
         object.__setattr__(self, "condition_choices", tuple(choices))
-        object.__setattr__(self, "camera", _json_form("camera", self.camera))
-        object.__setattr__(self, "extra", _json_form("extra", self.extra))
+        object.__setattr__(self, "camera", json_form("camera", self.camera))
+        object.__setattr__(self, "extra", json_form("extra", self.extra))
 
     @property
     def label_dim(self) -> int:
@@ -163,7 +163,7 @@ class Dataset:
         if len(self.scenes) != self.metadata.size:
             raise InvalidInputError("scenes", f"{len(self.scenes)} records",
                                     f"one per sample ({self.metadata.size})")
-        records = tuple(_json_form(f"scenes[{i}]", s) for i, s in enumerate(self.scenes))
+        records = tuple(json_form(f"scenes[{i}]", s) for i, s in enumerate(self.scenes))
         for i, record in enumerate(records):
             if SAMPLE_CAMERA_KEY in record:
                 try:
@@ -266,19 +266,18 @@ class Dataset:
         for that scene), else the dataset's ``metadata.camera``.
         """
         own = self.scenes[index].get(SAMPLE_CAMERA_KEY)
-        if own is not None:
-            return PinholeCamera.from_json(own)
-        return PinholeCamera.from_record(self.metadata.camera)
+        return PinholeCamera.from_record(self.metadata.camera) if own is None \
+            else PinholeCamera.from_json(own)
 
-    def cameras(self, indices: Sequence[int] | slice = slice(None)
-                ) -> list[PinholeCamera] | None:
-        """:meth:`camera` of each sample at ``indices``, in order.
+    def cameras(self) -> list[PinholeCamera] | None:
+        """:meth:`camera` of every sample, in order, the dataset's camera read once.
 
         None where the dataset records no camera geometry (a synthetic dataset).
         """
-        span = range(len(self))[indices] if isinstance(indices, slice) else indices
-        cameras = [self.camera(i) for i in span]
-        return None if any(c is None for c in cameras) else cast(list[PinholeCamera], cameras)
+        recorded = PinholeCamera.from_record(self.metadata.camera)
+        cameras = [recorded if (own := r.get(SAMPLE_CAMERA_KEY)) is None
+                   else PinholeCamera.from_json(own) for r in self.scenes]
+        return None if None in cameras else cast(list[PinholeCamera], cameras)
 
     def condition_prototypes(self) -> np.ndarray:
         """(k, C) float32: per ``condition_choices`` entry, the mean of its distinct conditions.
@@ -385,18 +384,3 @@ def expected_arrays(metadata: DatasetMetadata, optional: Sequence[str] = ()
                                      f"(N, J) with J = len(extra[{JOINT_NAMES_KEY!r}])")
     return arrays
 
-
-def _json_form(name: str, value: Any) -> dict[str, Any]:
-    """A copy of the dict ``value`` as it reads back from JSON; an error unless JSON-able."""
-    if not isinstance(value, Mapping):
-        raise InvalidInputError(name, type(value).__name__, "a JSON-able dict")
-    try:
-        return dict(json.loads(canonical_json(value)))
-    except (TypeError, ValueError) as error:
-        raise InvalidInputError(name, str(error), "JSON-able values: dicts with str keys, lists, "
-                                "str, int, finite float, bool, None") from error
-
-
-def canonical_json(value: Any) -> str:
-    """The one JSON text of ``value``: sorted keys, no spaces, no NaN."""
-    return json.dumps(value, sort_keys=True, separators=(",", ":"), allow_nan=False)

@@ -39,9 +39,9 @@ from perception.learning.data import (
     TENSORS,
     Dataset,
     DatasetMetadata,
-    canonical_json,
     expected_arrays,
 )
+from perception.learning.json_form import canonical_json
 
 HEADER_KEY = "gva.dataset"  # the one safetensors metadata entry this module reads and writes
 _NAMES = ", ".join(TENSORS)
