@@ -19,13 +19,8 @@ from enum import Enum
 from pathlib import Path
 from typing import Any
 
-from experiments.table3.settings import (
-    ReproduceRealSettings,
-    Unit,
-    error_file,
-    trained_file,
-    trials_folder,
-)
+from experiments.table3.layout import error_file, trained_file, trials_folder
+from experiments.table3.settings import ReproduceRealSettings, Unit
 from harness.run_files import read_json, write_json
 
 

@@ -11,7 +11,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from experiments.table3.settings import seed_folder
+from experiments.table3.layout import seed_folder
 from harness.run_files import read_json
 
 

@@ -28,12 +28,7 @@ from experiments.table3.jobs import (
     task_targets,
     trials_done,
 )
-from experiments.table3.settings import (
-    PLAIN,
-    SCENE,
-    ReproduceRealSettings,
-    TrialSet,
-    Unit,
+from experiments.table3.layout import (
     dataset_file,
     error_file,
     gif_file,
@@ -42,6 +37,7 @@ from experiments.table3.settings import (
     trained_file,
     trials_folder,
 )
+from experiments.table3.settings import PLAIN, SCENE, ReproduceRealSettings, TrialSet, Unit
 from harness.executors import open_pool
 from harness.run_files import dataset_present, read_json, refuse_other_settings
 from harness.run_report import cost_bar

@@ -16,11 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from experiments.table3.gifs import record_gif
-from experiments.table3.settings import (
-    SCENE,
-    ReproduceRealSettings,
-    TrialSet,
-    Unit,
+from experiments.table3.layout import (
     checkpoint_folder,
     dataset_file,
     error_file,
@@ -29,6 +25,7 @@ from experiments.table3.settings import (
     trained_file,
     trials_folder,
 )
+from experiments.table3.settings import SCENE, ReproduceRealSettings, TrialSet, Unit
 from experiments.tables import TWO_PHASE_MODELS, model_config_file
 from harness.jobs import ONE_CPU, JobResources
 from harness.run_files import (

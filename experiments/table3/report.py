@@ -27,6 +27,7 @@ from experiments.table3.check_gate import (
     marks_note,
 )
 from experiments.table3.folder import history_wall_time_s, read_checks, read_failed, read_gifs
+from experiments.table3.layout import seed_folder
 from experiments.table3.pairing import PairedSets, baseline_comparisons, variant_comparisons
 from experiments.table3.plugins import served_models
 from experiments.table3.settings import (
@@ -35,7 +36,6 @@ from experiments.table3.settings import (
     REFERENCE_MODEL,
     ReproduceRealSettings,
     Unit,
-    seed_folder,
 )
 from experiments.table3.trial_sets import (
     TrialSetResult,

@@ -14,8 +14,9 @@ from typing import Any
 
 from experiments.table3.job_graph import run_jobs
 from experiments.table3.jobs import JobOutcome
+from experiments.table3.layout import seed_folder, task_file
 from experiments.table3.report import write_reports
-from experiments.table3.settings import ReproduceRealSettings, seed_folder, task_file
+from experiments.table3.settings import ReproduceRealSettings
 from harness.run_files import write_text
 from harness.run_folder import claim_run_folder, started_run
 from harness.run_report import RunReport

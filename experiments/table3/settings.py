@@ -11,6 +11,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from experiments.table3.layout import checkpoint_folder, task_file
 from experiments.table3.plugins import check_plugins, is_plugin, row, served_models
 from experiments.tables import (
     ALL_TASKS,
@@ -24,7 +25,6 @@ from experiments.tables import (
     model_config_options,
 )
 from harness.jobs import LOCAL, Executor
-from harness.run_files import dataset_path
 from harness.run_folder import json_form
 from perception.learning.train import TrainConfig, available_threads
 from perception.learning.validation import CheckConfig
@@ -33,7 +33,6 @@ from perception.remote.client import announced_metadata
 from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot
 from robots.description import RobotDescription
 from sim.errors import InvalidInputError
-from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.task_spec import TaskSpec, spaced_for
 from sim.tasks.task_toml import load_task
 from sim.tasks.variants import read_variant, with_variant
@@ -356,46 +355,3 @@ class ReproduceRealSettings:
         if self.use_failed_checkpoints:
             parts.append("--use-failed-checkpoints")
         return " ".join(parts + model_config_options(self.model_configs))
-
-
-# files of a run folder
-
-
-def seed_folder(out: Path, seed: int) -> Path:
-    """The folder of one seed's run: datasets, checkpoints, trials, GIFs, errors."""
-    return out / f"s{seed}"
-
-
-def dataset_file(out: Path, task: str, settings: ReproduceRealSettings) -> Path:
-    """The demonstrations of a task."""
-    return dataset_path(out, task, SeedStream.TRAIN, settings.demos, settings.seed)
-
-
-def checkpoint_folder(out: Path, unit: Unit) -> Path:
-    """The checkpoint of a unit (``trained.json`` beside its weights once complete)."""
-    return out / "checkpoints" / unit.model / unit.task
-
-
-def trained_file(out: Path, unit: Unit) -> Path:
-    """What a finished checkpoint was trained with; written after the checkpoint."""
-    return checkpoint_folder(out, unit) / "trained.json"
-
-
-def task_file(out: Path, task_name: str) -> Path:
-    """The task TOML a set runs, by :attr:`TrialSet.task_name` (a plain one's: its demos' too)."""
-    return out / "tasks" / f"{task_name}.toml"
-
-
-def trials_folder(out: Path, trial_set: TrialSet) -> Path:
-    """The trial folder of a set (``run.json``, ``trials.jsonl``, ``summary.json``)."""
-    return out / "trials" / trial_set.unit.model / trial_set.task_name
-
-
-def gif_file(out: Path, unit: Unit) -> Path:
-    """The GIF of a unit's first trials; a ``.json`` beside it says what it shows."""
-    return out / "gifs" / f"{unit.name}.gif"
-
-
-def error_file(out: Path, job: str) -> Path:
-    """The record of a job that raised."""
-    return out / "errors" / f"{job}.json"

@@ -12,7 +12,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from experiments.table3.settings import OPEN_LOOP, PLAIN, seed_folder
+from experiments.table3.layout import seed_folder
+from experiments.table3.settings import OPEN_LOOP, PLAIN
 from experiments.tables import ALL_TASKS, model_order
 from harness.trial_summary import TrialSummary
 from sim.trials.records import TrialRecord

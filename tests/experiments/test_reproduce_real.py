@@ -10,14 +10,9 @@ from pathlib import Path
 import pytest
 from gva_cli import gva
 
+from experiments.table3.layout import task_file, trained_file
 from experiments.table3.run import run_reproduce_real
-from experiments.table3.settings import (
-    ReproduceRealSettings,
-    TrialSet,
-    Unit,
-    task_file,
-    trained_file,
-)
+from experiments.table3.settings import ReproduceRealSettings, TrialSet, Unit
 from perception.learning.dataset_file import read_metadata
 from perception.registry import load_model
 from robots.yumi import YUMI

@@ -14,13 +14,9 @@ import pytest
 from gva_cli import gva
 
 from experiments.table3.check_gate import CheckUse, admit, check_job, check_use
+from experiments.table3.layout import error_file, trained_file
 from experiments.table3.report import successes_table
-from experiments.table3.settings import (
-    ReproduceRealSettings,
-    Unit,
-    error_file,
-    trained_file,
-)
+from experiments.table3.settings import ReproduceRealSettings, Unit
 from experiments.table3.trial_sets import TrialSetResult
 from harness.run_files import write_json
 from perception.learning.validation import HeldOutCheck, fit_checked

@@ -14,7 +14,8 @@ from pathlib import Path
 import pytest
 from gva_cli import gva
 
-from experiments.table3.settings import ReproduceRealSettings, TrialSet, Unit, task_file
+from experiments.table3.layout import task_file
+from experiments.table3.settings import ReproduceRealSettings, TrialSet, Unit
 from sim.trials.trial_settings import TrialSettings
 
 PLUGINS = Path(__file__).resolve().parents[2] / "examples" / "plugins"

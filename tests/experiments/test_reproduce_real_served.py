@@ -18,8 +18,9 @@ from gva_cli import gva
 from served_detector import DETECTOR, PLUGINS, serve
 
 from experiments.table3.jobs import TrialsJob, run_job
+from experiments.table3.layout import seed_folder
 from experiments.table3.run import run_task_files, write_run_tasks
-from experiments.table3.settings import ReproduceRealSettings, TrialSet, Unit, seed_folder
+from experiments.table3.settings import ReproduceRealSettings, TrialSet, Unit
 from perception.plugins import build_plugin
 from perception.remote import client
 from perception.remote.server import ModelServer
