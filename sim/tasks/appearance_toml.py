@@ -72,6 +72,15 @@ def appearance_from_toml(reader: TaskReader, folder: Path | None) -> Appearance:
         held_out=reader.get("appearance", "held_out", bool, False, "true or false"))
 
 
+def appearance_keys(look: Appearance) -> dict[str, Any]:
+    """The task file's appearance keys that differ from today's world: ``{"objects.textures":
+    ["print"]}``, as a refusal names them."""
+    tables: dict[str, dict[str, Any]] = {"objects": {}, "lighting": {}}
+    appearance_to_toml(look, tables)
+    return {f"{section}.{key}": value for section, keys in tables.items()
+            for key, value in keys.items()}
+
+
 def appearance_to_toml(look: Appearance, tables: dict[str, dict[str, Any]]) -> None:
     """Adds the task's appearance keys to ``tables``, those that differ from today's world."""
     if look.palette is not None:

@@ -13,6 +13,7 @@ import math
 
 from perception.interface import ConditionKind
 from sim.errors import InvalidInputError
+from sim.tasks.appearance_toml import appearance_keys
 from sim.tasks.scene_specs import SceneSpec
 from sim.tasks.task_spec import MAX_OBJECTS, SIDES, ObjectChoice, TargetSelection, TaskSpec
 
@@ -44,7 +45,10 @@ def check_task_fits(task: TaskSpec, spec: SceneSpec) -> None:
                                 f"{len(spec.object_types)} (one of each of "
                                 f"{', '.join(spec.object_types)})")
     if spec.name != "yumi" and task.appearance.draws_anything(task.distractors):
-        raise InvalidInputError(f"{where}: appearance", task.appearance.to_json(),
+        keys = appearance_keys(task.appearance) or {
+            "distractors.types": [t for t in task.distractors if t == "colour_twin"]}
+        field, value = next(iter(keys.items()))
+        raise InvalidInputError(f"{where}: {field}", value,
                                 "today's looks: the paper-sim scene keeps its URDF objects' "
                                 "colours, table and light (appearance varies in the yumi scene)")
     presentable = spec.object_types + spec.distractor_types

@@ -196,11 +196,19 @@ def test_a_bad_appearance_key_names_the_field_the_value_and_what_is_allowed(keys
         task_from_toml('name = "t"\n' + keys, "t.toml")
 
 
-def test_the_paper_scene_refuses_a_varied_look():
-    with pytest.raises(InvalidInputError, match=r"in scene 'paper-sim': appearance = .* is not "
-                       r"allowed: today's looks"):
-        sample_scene(task_from_toml('name = "t"\n[objects]\ntextures = ["print"]', "t.toml"),
+@pytest.mark.parametrize(("keys", "named"), [
+    ('[objects]\ntextures = ["print"]', r"objects\.textures = \['print'\]"),
+    ("[lighting]\nambient = 0.5", r"lighting\.ambient = \[0\.5, 0\.5\]"),
+    ("[camera]\nmount_offset_mm = 15", r"camera\.mount_offset_mm = 15\.0"),
+    ('[distractors]\ntypes = ["colour_twin"]', r"distractors\.types = \['colour_twin'\]"),
+])
+def test_the_paper_scene_refuses_a_varied_look_naming_the_task_files_key(keys, named):
+    """The refusal names the key a user wrote, not the record's internal form (issue 77)."""
+    with pytest.raises(InvalidInputError, match=r"in scene 'paper-sim': " + named +
+                       r" is not allowed: today's looks") as error:
+        sample_scene(task_from_toml('name = "t"\n' + keys, "t.toml"),
                      get_scene_spec("paper-sim"), 0, SeedStream.TEST, 0)
+    assert "{" not in str(error.value)
 
 
 def test_every_texture_belongs_to_a_half():
