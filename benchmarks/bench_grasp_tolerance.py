@@ -1,7 +1,8 @@
 """How far off may a grasp be and still hold? The tolerance map the grasp judge reads.
 
     python benchmarks/bench_grasp_tolerance.py [--n 5] [--workers 2]
-        [--out perception/grasp_tolerance.json] [--extend perception/grasp_tolerance.json]
+        [--out perception/judge/grasp_tolerance.json]
+        [--extend perception/judge/grasp_tolerance.json]
 
 Oracle pick trials of the ``single`` task (yumi scene, test scenes of seed :data:`MAP_SEED`,
 which no training or Table III run draws), each with the true grasp moved along one axis of
@@ -10,7 +11,7 @@ approach axis, on a grid per object type: offsets along each axis crossed with t
 degrees, ``--n`` picks per cell, each on its own scene, a random sign for the offset (but along
 the approach, where too deep and too shallow differ) and for the turn. The physics judges,
 exactly as in ``gva trials`` (the same runner, planner and depth obstacles). The record is what
-:mod:`perception.grasp_tolerance` reads; it keeps how it was made under ``how``.
+:mod:`perception.judge.grasp_tolerance` reads; it keeps how it was made under ``how``.
 
 The grid was measured in passes (:data:`PASSES`: each adds rows and columns where the one before
 went from every pick held to none within one step, or stopped while all held); each cell's
@@ -43,8 +44,8 @@ from tqdm import tqdm
 
 from harness.jobs import JobPool
 from perception.catalog import OBJECT_TYPES
-from perception.grasp_tolerance import AXES, READINGS, SIGNED_AXES, TOLERANCE_FORMAT
 from perception.interface import NO_CONDITION, Condition, Prediction, Target
+from perception.judge.grasp_tolerance import AXES, READINGS, SIGNED_AXES, TOLERANCE_FORMAT
 from perception.poses import rot_z
 from robots.yumi import YUMI
 from sim.tasks.scene_sampling import Scene, SeedStream, sample_scene
@@ -282,7 +283,7 @@ def kept_results(path: Path, n: int) -> dict[tuple[str, str, float, float], Cell
 
 def tolerance_record(results: list[CellResult], n: int, command: str, wall_time_s: float
                      ) -> dict[str, Any]:
-    """The map as :mod:`perception.grasp_tolerance` reads it, with how it was made."""
+    """The map as :mod:`perception.judge.grasp_tolerance` reads it, with how it was made."""
     found = {(r.cell.object_type, r.cell.axis, r.cell.offset_mm, r.cell.yaw_deg): r
              for r in results}
     types: dict[str, Any] = {}
@@ -322,7 +323,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=5, help="picks per cell (5)")
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--out", type=Path, default=Path("perception/grasp_tolerance.json"))
+    parser.add_argument("--out", type=Path, default=Path("perception/judge/grasp_tolerance.json"))
     parser.add_argument("--extend", type=Path, metavar="FILE",
                         help="keep the cells FILE holds (same --n) and measure the rest")
     parser.add_argument("--joint", type=int, default=0, metavar="N",

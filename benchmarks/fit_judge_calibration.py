@@ -1,13 +1,13 @@
 """Fits the grasp judge's probability calibration on real runs and writes it into its map.
 
-    python benchmarks/fit_judge_calibration.py RUN [RUN ...] [--map perception/grasp_tolerance.json]
-        [--dry-run]
+    python benchmarks/fit_judge_calibration.py RUN [RUN ...]
+        [--map perception/judge/grasp_tolerance.json] [--dry-run]
 
 The tolerance map (``bench_grasp_tolerance.py``) is measured on oracle picks moved one error at
 a time and some at once; read as a probability on a trained model's picks, it expected 43
 misses where 30 happened (issue 63). This script judges every pick of the given run folders
 with the map's own chance (any calibration it carries set aside), fits a Platt scaling of that
-chance to what the physics did (:class:`perception.grasp_tolerance.PlattScaling`: the chance's
+chance to what the physics did (:class:`perception.judge.grasp_tolerance.PlattScaling`: the chance's
 order kept, so no verdict changes), prints the fit set's scores before and after, and writes
 the scaling into the map's ``calibration`` with the runs it was fitted on. Judge it on runs it
 was not fitted on (``gva judge``). Picks with no grasp keep probability 0 and are not fitted.
@@ -26,9 +26,9 @@ import numpy as np
 from harness.calibration import Calibration
 from harness.judging import judge_run
 from perception.files import atomic_write
-from perception.grasp_tolerance import PlattScaling, ToleranceMap
+from perception.judge.grasp_tolerance import PlattScaling, ToleranceMap
 
-DEFAULT_MAP = Path(__file__).resolve().parents[1] / "perception" / "grasp_tolerance.json"
+DEFAULT_MAP = Path(__file__).resolve().parents[1] / "perception" / "judge" / "grasp_tolerance.json"
 
 
 def main() -> None:

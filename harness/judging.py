@@ -19,8 +19,8 @@ import numpy as np
 from harness.calibration import Calibration
 from harness.trial_summary import PickCounts
 from perception.catalog import get_object_spec
-from perception.grasp_judge import GraspVerdict, judge_grasp
-from perception.grasp_tolerance import ToleranceMap, default_tolerance_map
+from perception.judge.grasp_judge import GraspVerdict, judge_grasp
+from perception.judge.grasp_tolerance import ToleranceMap, default_tolerance_map
 from perception.poses import Pose
 from sim.errors import InvalidInputError
 from sim.trials.records import TrialOutcome, TrialRecord, read_trial_records

@@ -1,6 +1,6 @@
 """Which reading of the tolerance map predicts picks it has not seen? Cross-validated on physics.
 
-    python studies/check_tolerance_reading.py [--map perception/grasp_tolerance.json]
+    python studies/check_tolerance_reading.py [--map perception/judge/grasp_tolerance.json]
         [--folds 5] [--out benchmarks/results/tolerance_reading.json]
 
 The joint picks of a map (every error at once, ``bench_grasp_tolerance.py --joint``) are split
@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from perception.grasp_tolerance import LogisticTolerance, ToleranceMap, type_picks
+from perception.judge.grasp_tolerance import LogisticTolerance, ToleranceMap, type_picks
 
 
 def scores(rate: np.ndarray, held: np.ndarray, threshold: float) -> dict[str, Any]:
@@ -73,7 +73,7 @@ def cross_validate(data: dict[str, Any], folds: int, seed: int = 0) -> dict[str,
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--map", type=Path, default=Path("perception/grasp_tolerance.json"))
+    parser.add_argument("--map", type=Path, default=Path("perception/judge/grasp_tolerance.json"))
     parser.add_argument("--folds", type=int, default=5)
     parser.add_argument("--out", type=Path,
                         default=Path("benchmarks/results/tolerance_reading.json"))

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from harness.judging import RunJudgement, describe_error, judge_run
 from perception.files import atomic_write
-from perception.grasp_tolerance import ToleranceMap, default_tolerance_map
+from perception.judge.grasp_tolerance import ToleranceMap, default_tolerance_map
 from sim.errors import InvalidInputError
 
 

@@ -2,7 +2,7 @@
 
 A mean position error pools a mug 2 mm off with a sponge turned 40 degrees; the trial misses
 the second. Here every target of a grasp-pose dataset goes through the grasp judge
-(:mod:`perception.grasp_judge`), and the errors are reported per object type, per condition
+(:mod:`perception.judge.grasp_judge`), and the errors are reported per object type, per condition
 value and per head: mean, 90th and 95th percentile and worst of each error, and the share of
 targets the judge predicts would be picked. The tail is where picks are lost.
 """
@@ -16,9 +16,9 @@ from typing import Any
 import numpy as np
 
 from perception.catalog import get_object_spec
-from perception.grasp_judge import GraspVerdict, judge_grasp
-from perception.grasp_tolerance import ToleranceMap, default_tolerance_map
 from perception.interface import Prediction
+from perception.judge.grasp_judge import GraspVerdict, judge_grasp
+from perception.judge.grasp_tolerance import ToleranceMap, default_tolerance_map
 from perception.labels import split_label
 from perception.learning.data import Dataset
 from perception.poses import Pose

@@ -16,7 +16,7 @@ import pinocchio as pin
 from control.collision import AnyObstacle
 from control.pick import PickPlan, PlanStatus
 from perception.camera import RgbdFrame
-from perception.grasp_judge import GraspVerdict
+from perception.judge.grasp_judge import GraspVerdict
 from perception.poses import Pose
 from sim.trials.records import TrialOutcome
 from sim.world.grip import Grip
@@ -92,7 +92,7 @@ class PickAttempt:
         reason: Why, in words.
         lift_m: How far the target rose [m]; None if no plan ran.
         verdict: The grasp judge's prediction of the pick from its error alone
-            (:mod:`perception.grasp_judge`); None where the model gave no grasp.
+            (:mod:`perception.judge.grasp_judge`); None where the model gave no grasp.
         loop: The approach's re-predictions and the target's disturbance, as the record
             keeps them (:meth:`sim.trials.closed_loop.ApproachLoop.to_record`); None for a
             plain open-loop pick.

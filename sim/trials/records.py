@@ -50,7 +50,7 @@ class TrialRecord:
     given: the grip the model's prediction asked for (:meth:`sim.world.grip.Grip.to_record`) and
     the obstacles' source with their size (points, occupied cells). The top-level pick fields
     describe the last pick tried; ``picks`` lists every pick of a multi-target trial.
-    ``judge`` is the grasp judge's verdict on the pick (:mod:`perception.grasp_judge`), absent
+    ``judge`` is the grasp judge's verdict on the pick (:mod:`perception.judge.grasp_judge`), absent
     in records made before it. ``asked`` is what the model was given for a condition, where
     it is no one-hot name (the scene record's ``query``): ``{"kind": "text", "value": <the
     sentence>}``, or ``{"kind": "image", "value": "picture <sha256[:12]>"}``. ``look`` is what

@@ -14,7 +14,7 @@ model stated (:mod:`sim.world.grip`), the obstacles from the depth image
 (:mod:`control.depth_obstacles`). The simulator's truth judges: the referee notes the target's
 true grasp when the image is taken, as a dataset labels its images, and the physics decides
 the outcome; neither is handed to the plan phase. Beside the physics, the grasp judge
-(:mod:`perception.grasp_judge`) predicts each pick from its error alone, and the record keeps
+(:mod:`perception.judge.grasp_judge`) predicts each pick from its error alone, and the record keeps
 its verdict, so a run tells the misses its perception explains from the rest.
 """
 
@@ -36,7 +36,6 @@ from perception.camera import RgbdFrame
 from perception.catalog import clear_of_table, get_object_spec
 from perception.checks import check_inputs, check_prediction
 from perception.errors import InvalidPredictionError
-from perception.grasp_judge import judge_grasp, yaw_of
 from perception.grasps import grasp_pose
 from perception.interface import (
     LabelKind,
@@ -45,6 +44,7 @@ from perception.interface import (
     Prediction,
     Target,
 )
+from perception.judge.grasp_judge import judge_grasp, yaw_of
 from perception.labels import nearest_rotation
 from perception.poses import Pose
 from robots.description import RobotDescription

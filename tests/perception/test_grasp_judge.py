@@ -10,14 +10,14 @@ import pytest
 
 from perception.catalog import MUG, OBJECT_TYPES, SPONGE, SPRAY_BOTTLE
 from perception.errors import InvalidInputError
-from perception.grasp_judge import grasp_error, judge_grasp
-from perception.grasp_tolerance import (
+from perception.grasps import grasp_pose
+from perception.judge.grasp_judge import grasp_error, judge_grasp
+from perception.judge.grasp_tolerance import (
     AXES,
     ToleranceFileError,
     ToleranceMap,
     default_tolerance_map,
 )
-from perception.grasps import grasp_pose
 from perception.poses import Pose, rot_z
 
 YAWS_DEG = [0.0, 30.0, 90.0]

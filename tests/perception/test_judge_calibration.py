@@ -8,9 +8,9 @@ from test_grasp_judge import _map_data, _moved
 
 from perception.catalog import SPONGE
 from perception.errors import InvalidInputError
-from perception.grasp_judge import judge_grasp
-from perception.grasp_tolerance import PlattScaling, ToleranceMap, logit, sigmoid
 from perception.grasps import grasp_pose
+from perception.judge.grasp_judge import judge_grasp
+from perception.judge.grasp_tolerance import PlattScaling, ToleranceMap, logit, sigmoid
 from perception.poses import Pose
 
 

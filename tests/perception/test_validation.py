@@ -12,9 +12,9 @@ from gva_cli import gva
 from user_models import TYPES, synthetic_dataset
 
 from perception.catalog import get_object_spec
-from perception.grasp_judge import yaw_of
 from perception.grasps import grasp_pose
 from perception.interface import ConditionKind, InvalidInputError, LabelKind, Prediction, Target
+from perception.judge.grasp_judge import yaw_of
 from perception.labels import label_vector, split_label
 from perception.learning.data import Dataset, DatasetMetadata
 from perception.learning.dataset_file import save_dataset

@@ -6,7 +6,7 @@ error in the grasp's own frame (along the closing axis the fingers have a few mi
 spare, across it centimetres) and the turn about the approach axis, against each object's
 tolerance. :func:`grasp_error` measures the former, taken modulo the object's symmetry (any
 equivalent grasp the simulator would accept counts as the truth); :func:`judge_grasp` reads the
-latter from a :class:`~perception.grasp_tolerance.ToleranceMap` measured by physics
+latter from a :class:`~perception.judge.grasp_tolerance.ToleranceMap` measured by physics
 (``benchmarks/bench_grasp_tolerance.py``) and predicts the pick. Numpy and the catalog only, so
 an offline evaluation, a training's held-out check and a trial record all judge alike.
 """
@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from perception.catalog import ObjectSpec, Symmetry
-from perception.grasp_tolerance import ToleranceMap, default_tolerance_map
+from perception.judge.grasp_tolerance import ToleranceMap, default_tolerance_map
 from perception.poses import Pose, rot_z
 
 
@@ -69,7 +69,7 @@ class GraspVerdict:
         predicted_success: Whether the judge predicts a success (``success_rate`` >= the
             map's threshold).
         probability: The chance a real run's pick holds: ``success_rate`` read through the
-            map's calibration (:class:`~perception.grasp_tolerance.PlattScaling`), the rate
+            map's calibration (:class:`~perception.judge.grasp_tolerance.PlattScaling`), the rate
             itself where it has none. Not kept in trial records; the judge reads it again.
 
     """

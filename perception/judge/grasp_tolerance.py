@@ -369,5 +369,5 @@ DEFAULT_MAP_NAME = "grasp_tolerance.json"
 @functools.cache
 def default_tolerance_map() -> ToleranceMap:
     """The map shipped with gva, measured on the yumi scene (read once per process)."""
-    with resources.as_file(resources.files("perception") / DEFAULT_MAP_NAME) as path:
+    with resources.as_file(resources.files("perception.judge") / DEFAULT_MAP_NAME) as path:
         return ToleranceMap.load(path)
