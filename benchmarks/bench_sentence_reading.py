@@ -17,7 +17,7 @@ Candidates:
 - ``prototype``: kqv's reading today: the nearest mean embedding of each target's training
   phrasings (cosine; no training, no seed).
 - ``probe``: logistic regression on the pooled embedding (scikit-learn, ``C`` = 100).
-- ``tokens``: :class:`perception.sentence_reading.TokenReader`, attention pooling over the
+- ``tokens``: :class:`perception.language.sentence_reading.TokenReader`, attention pooling over the
   frozen encoder's token embeddings and a linear head, trained per seed (0..N-1); each seed's
   count, their sum, and the worst seed.
 - ``tokens+probe``: the sum of the two readers' probabilities (added after the first three
@@ -44,8 +44,8 @@ import torch
 from sklearn.linear_model import LogisticRegression
 
 from perception.interface import Condition, ConditionKind
-from perception.sentence_reading import fit_token_reader, read_target
-from perception.sentences import embed, token_embeddings
+from perception.language.sentence_reading import fit_token_reader, read_target
+from perception.language.sentences import embed, token_embeddings
 from sim.tasks.queries import query_for
 from sim.tasks.scene_specs import get_scene_spec
 from sim.tasks.task_in_scene import condition_choices

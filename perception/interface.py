@@ -35,7 +35,7 @@ import numpy as np
 
 from perception.camera import PinholeCamera, RgbdFrame
 from perception.errors import InvalidInputError, InvalidPredictionError, PerceptionError
-from perception.sentences import EMBEDDING_SIZE, embed
+from perception.language.sentences import EMBEDDING_SIZE, embed
 
 __all__ = ["NO_CONDITION", "PICTURE_PX", "Condition", "ConditionKind", "InvalidInputError",
            "InvalidPredictionError", "LabelKind", "ModelInput", "PerceptionError",
@@ -145,7 +145,7 @@ class Condition:
         """The float32 vector a learned Query reads (:func:`condition_size` long).
 
         One-hot kinds: a one-hot vector in ``choices`` order; text: the sentence's embedding
-        (:mod:`perception.sentences`, loaded at the first sentence); image: the picture's
+        (:mod:`perception.language.sentences`, loaded at the first sentence); image: the picture's
         pixels in [0, 1], row by row; none: an empty vector.
         """
         if self.kind is ConditionKind.TEXT:

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 from sklearn.linear_model import LogisticRegression
 
-from perception.sentences import embed
+from perception.language.sentences import embed
 from sim.tasks.scene_specs import get_scene_spec
 from sim.tasks.task_in_scene import condition_choices
 from sim.tasks.task_spec import SIDES

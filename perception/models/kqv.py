@@ -19,6 +19,8 @@ from torch import Tensor, nn
 
 from perception.camera import Calibrations
 from perception.interface import Condition, InvalidInputError, ModelInput, Prediction
+from perception.language.sentence_reading import TokenReader, fit_token_reader, read_target
+from perception.language.sentences import token_embeddings
 from perception.learning.data import Dataset
 from perception.learning.evaluate import evaluate
 from perception.learning.learnable import ModelSpec
@@ -37,8 +39,6 @@ from perception.models.kqv_samples import mirror_for, named_dataset
 from perception.models.repaint import Repaint
 from perception.models.rise import checked_depths
 from perception.models.torch_model import Phase, TorchModel, present_mean
-from perception.sentence_reading import TokenReader, fit_token_reader, read_target
-from perception.sentences import token_embeddings
 
 
 class KqvModel(TorchModel):

@@ -18,6 +18,7 @@ from torch import Tensor, nn
 
 from perception.camera import Calibrations
 from perception.interface import PICTURE_PX, ConditionKind, InvalidInputError, LabelKind
+from perception.language.sentence_reading import TokenReader
 from perception.learning.learnable import ModelSpec
 from perception.learning.rotations import decode_rotation, rotation_size
 from perception.learning.torch_pieces import (
@@ -35,7 +36,6 @@ from perception.models.kqv_config import KqvConfig
 from perception.models.readout import CameraRays, attended_range
 from perception.models.rise import RISE_SCALE_M, rise_above_table
 from perception.models.torch_model import NetOutput
-from perception.sentence_reading import TokenReader
 from robots.yumi import HEAD_CAMERA
 
 

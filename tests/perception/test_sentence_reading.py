@@ -12,6 +12,13 @@ from user_models import CAMERA, TYPES, given_as, synthetic_dataset
 
 from perception.errors import InvalidInputError
 from perception.interface import Condition, ConditionKind
+from perception.language.sentence_reading import (
+    TokenReader,
+    TokenReaderConfig,
+    fit_token_reader,
+    read_target,
+)
+from perception.language.sentences import EMBEDDING_SIZE
 from perception.learning.checkpoint import save_checkpoint
 from perception.learning.data import Dataset
 from perception.learning.learnable import ModelSpec
@@ -19,13 +26,6 @@ from perception.learning.mirror import MIRROR_FLAG
 from perception.learning.train import TrainConfig
 from perception.models.kqv import KqvConfig, KqvModel
 from perception.models.kqv_net import KqvNet, sentence_reading
-from perception.sentence_reading import (
-    TokenReader,
-    TokenReaderConfig,
-    fit_token_reader,
-    read_target,
-)
-from perception.sentences import EMBEDDING_SIZE
 
 WIDTH = 32
 _RNG = np.random.default_rng(37)

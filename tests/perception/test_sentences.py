@@ -7,11 +7,11 @@ import socket
 import numpy as np
 import pytest
 
-import perception.sentences as sentences
+import perception.language.sentences as sentences
 from perception.errors import InvalidInputError
 from perception.files import file_sha256
 from perception.interface import Condition, ConditionKind
-from perception.sentences import (
+from perception.language.sentences import (
     EMBEDDING_SIZE,
     WEIGHTS_SHA256,
     SentenceEncoder,

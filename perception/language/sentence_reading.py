@@ -21,7 +21,7 @@ import numpy as np
 import torch
 
 from perception.errors import InvalidInputError
-from perception.sentences import EMBEDDING_SIZE
+from perception.language.sentences import EMBEDDING_SIZE
 
 
 @dataclass(frozen=True)

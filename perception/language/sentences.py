@@ -124,8 +124,8 @@ class SentenceEncoder:
     def _tokens(self, sentence: str) -> np.ndarray:
         """The encoder's output per token (n, :data:`EMBEDDING_SIZE`), before pooling; cached.
 
-        What :mod:`perception.sentence_reading` reads: the words one by one, [CLS] and [SEP]
-        included, not averaged into one vector.
+        What :mod:`perception.language.sentence_reading` reads: the words one by one, [CLS] and
+        [SEP] included, not averaged into one vector.
         """
         if not isinstance(sentence, str) or not sentence.strip():
             raise InvalidInputError("sentence", sentence, "a non-empty string")
