@@ -144,8 +144,8 @@ class KqvConfig:
             ``sentence_temperature``. ``"nearest"``: the Query of the target it reads most
             likely (a sentence names one target, and a Query between two attends to neither);
             ``"tokens"``: the Query of the target a
-            :class:`~perception.sentence_reading.TokenReader`, trained at the first fit on the
-            training sentences, reads from the encoder's token embeddings (the pooled vector
+            :class:`~perception.language.sentence_reading.TokenReader`, trained at the first fit
+            on the training sentences, reads from the encoder's token embeddings (the pooled vector
             averages a side's one word away); ``"auto"``: ``"nearest"`` where every target is
             an object type (the noun carries the pooled vector), else ``"tokens"``
             (docs/decisions/open-conditions.md measures both per kind); ``"prototypes"``: the
