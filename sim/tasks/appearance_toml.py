@@ -73,8 +73,10 @@ def appearance_from_toml(reader: TaskReader, folder: Path | None) -> Appearance:
 
 
 def appearance_keys(look: Appearance) -> dict[str, Any]:
-    """The task file's appearance keys that differ from today's world: ``{"objects.textures":
-    ["print"]}``, as a refusal names them."""
+    """The task file's appearance keys that differ from today's world, as a refusal names them.
+
+    For example ``{"objects.textures": ["print"]}``.
+    """
     tables: dict[str, dict[str, Any]] = {"objects": {}, "lighting": {}}
     appearance_to_toml(look, tables)
     return {f"{section}.{key}": value for section, keys in tables.items()
