@@ -220,7 +220,8 @@ def run_show_attention(args: argparse.Namespace) -> int:
     images = dataset.images[:count]  # (n, H, W, 3)
     read_as = model.condition_rows([dataset.condition(i) for i in range(len(dataset))],
                                    dataset.conditions)  # what the model reads each condition as
-    own = model.predict_batch(images, read_as[:count])
+    shown = range(count)
+    own = model.predict_samples(dataset, shown, read_as[:count])
     if own[0].attention_px.shape[0] == 0:
         raise PerceptionError(f"model {model.name} ({args.model}) predicts no attention "
                               "points, so there is nothing to draw (conv-ae and fcn have none; "
@@ -229,7 +230,8 @@ def run_show_attention(args: argparse.Namespace) -> int:
     names = dataset.condition_names()
     # One row per value: its one-hot vector, or the first sentence (picture) that names it.
     asked = [names.index(value) for value in choices if value in names]
-    by_condition = [model.predict_batch(images, np.repeat(read_as[j:j + 1], count, axis=0))
+    by_condition = [model.predict_samples(dataset, shown, np.repeat(read_as[j:j + 1], count,
+                                                                    axis=0))
                     for j in asked]  # [C][n]
     if choices:
         print("rows: " + ", ".join(f"{c} = {_asked(dataset, names, j)}"

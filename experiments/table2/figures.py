@@ -128,8 +128,7 @@ def _draw_fig5_panels(axes: np.ndarray, test: Dataset, model_name: str,
                       cell: Mapping[str, Any], out: Path) -> None:
     """One model's attention points on the first test images of a task, one per axis."""
     count = min(len(axes), len(test))
-    predictions = load_model(out / cell["checkpoint"]).predict_batch(
-        test.images[:count], test.conditions[:count])
+    predictions = load_model(out / cell["checkpoint"]).predict_samples(test, range(count))
     choices, names = test.metadata.condition_choices, test.condition_names()
     for k, (axis, prediction) in enumerate(zip(axes, predictions, strict=False)):
         image = test.images[k]  # (H, W, 3)

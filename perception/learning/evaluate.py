@@ -139,21 +139,13 @@ def predict_dataset(model: PerceptionModel, dataset: Dataset, batch_size: int = 
         check_inputs(model, OFFLINE_INPUTS, getattr(model, "name", type(model).__name__))
         return [model.predict(image, dataset.condition(index))
                 for index, image in enumerate(dataset.images)]
-    cameras = dataset.cameras()  # each sample's calibration, as a trial gives its frame's
     check_inputs(model, OFFLINE_INPUTS | ({ModelInput.DEPTH} if dataset.depths_m is not None
                                           else set())
-                 | ({ModelInput.CAMERA} if cameras is not None else set()), model.name)
-    depths = dataset.depths_m if ModelInput.DEPTH in model.inputs else None
-    reads_camera = cameras is not None and ModelInput.CAMERA in model.inputs
+                 | ({ModelInput.CAMERA} if dataset.cameras() is not None else set()), model.name)
     predictions: list[Prediction] = []
     for start in range(0, len(dataset), batch_size):
-        rows = range(start, min(start + batch_size, len(dataset)))
-        predictions += model.predict_images(
-            dataset.images[start:start + batch_size],
-            model.condition_rows([dataset.condition(i) for i in rows],
-                                 dataset.conditions[start:start + batch_size]),
-            None if depths is None else depths[start:start + batch_size],
-            [cameras[i] for i in rows] if reads_camera and cameras is not None else None)
+        predictions += model.predict_samples(dataset,
+                                             range(start, min(start + batch_size, len(dataset))))
     return predictions
 
 

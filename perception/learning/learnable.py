@@ -265,6 +265,25 @@ class LearnableModel(PerceptionModel):
         predict = cast(Any, self.predict_batch)  # a CAMERA-reading model's takes ``cameras``
         return cast(list[Prediction], predict(images, conditions, depths_m, cameras=cameras))
 
+    def predict_samples(self, dataset: Dataset, rows: Sequence[int],
+                        conditions: np.ndarray | None = None) -> list[Prediction]:
+        """Predictions for ``dataset``'s samples ``rows``, each read as a trial reads its frame.
+
+        With its depth and its own calibration where this model reads them (the one reading of
+        a sample that ``gva evaluate``, ``gva show`` and the figures share). ``conditions`` (one
+        row per sample): what the model is given; None: each sample's own condition, as
+        :meth:`condition_rows` reads it.
+        """
+        index = list(rows)
+        if conditions is None:
+            conditions = self.condition_rows([dataset.condition(i) for i in index],
+                                             dataset.conditions[index])
+        depths = dataset.depths_m[index] if dataset.depths_m is not None and \
+            ModelInput.DEPTH in self.inputs else None
+        cameras = dataset.cameras() if ModelInput.CAMERA in self.inputs else None
+        return self.predict_images(dataset.images[index], conditions, depths,
+                                   None if cameras is None else [cameras[i] for i in index])
+
     def condition_rows(self, conditions: Sequence[Condition], rows: np.ndarray) -> np.ndarray:
         """The condition vectors (B, C) :meth:`predict_batch` is given for ``conditions``.
 

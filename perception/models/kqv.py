@@ -120,8 +120,14 @@ class KqvModel(TorchModel):
             raise InvalidInputError("depth_input", True, "false for a dataset without depth "
                                     "images")
         if self.network.readout == "range" and dataset.depths_m is None:
-            raise InvalidInputError("readout", "range", "'ray', 'mlp' or 'auto' for a dataset "
-                                    "without depth images")
+            if self.config.readout != "auto-range" or self.scaler is not None:
+                raise InvalidInputError("readout", self.config.readout, "'ray', 'mlp' or 'auto' "
+                                        "for a dataset without depth images")
+            # The default reads the range where the frame measures it: without depth images,
+            # the ray readout, recorded as such in the checkpoint.
+            self.config = replace(self.config, readout="ray")
+            self.network = self.build_network()
+            self.inputs = self.inputs - {ModelInput.DEPTH}  # depth_input is refused above
         if self.config.repaint and dataset.depths_m is None:  # objects are found by depth
             raise InvalidInputError("repaint", self.config.repaint, "0 for a dataset without "
                                     "depth images")
@@ -320,10 +326,16 @@ class KqvModel(TorchModel):
                            self._depths(depths_m, len(images)), cameras=cameras)
         return self.to_predictions(out, conditions)
 
-    def _depths(self, depths_m: np.ndarray | None, batch: int) -> Tensor | None:
-        """The depth images a depth-reading network is given, checked; None for the others."""
+    def _depths(self, depths_m: np.ndarray | None, batch: int, needed: bool | None = None
+                ) -> Tensor | None:
+        """The depth images a depth-reading network is given, checked; None for the others.
+
+        ``needed``: whether this call reads them (attention alone reads no range); None: as
+        :attr:`reads_depth` says.
+        """
         shape = (batch, self.spec.image_height_px, self.spec.image_width_px)
-        return checked_depths(depths_m, shape) if self.reads_depth else None
+        needed = self.reads_depth if needed is None else needed
+        return checked_depths(depths_m, shape) if needed else None
 
     def read_with(self, **settings: Any) -> KqvModel:
         """The same trained weights read under other inference settings (:data:`INFERENCE_FIELDS`).
@@ -377,7 +389,8 @@ class KqvModel(TorchModel):
         self.check_batch(images, np.zeros((len(images), self.spec.condition_size)))
         attention = self.network.attend(images_to_tensor(images),
                                         self._check_queries(queries, len(images), any_q=True),
-                                        self._depths(depths_m, len(images)))
+                                        self._depths(depths_m, len(images),
+                                                     self.config.depth_input))
         points = normalised_to_pixels(attention.coords, self.spec.image_height_px,
                                       self.spec.image_width_px)
         return {"points_px": points.double().numpy(), "heatmaps": attention.heatmaps.numpy(),

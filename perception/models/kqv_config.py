@@ -17,7 +17,7 @@ from perception.learning.learnable import check_choices, check_integer, check_nu
 from perception.learning.rotations import ROTATION_CODES
 
 QUERY_MODES = ("auto", "base", "conditioned", "conditioned+base", "paper")
-READOUTS = ("auto", "mlp", "ray", "range")
+READOUTS = ("auto-range", "auto", "mlp", "ray", "range")
 INPUT_NORMS = ("auto", "fixed", "per-image")
 VALUE_INPUTS = ("image", "depth")
 SENTENCE_READINGS = ("auto", "tokens", "nearest", "prototypes", "embedding")
@@ -117,8 +117,14 @@ class KqvConfig:
             ``"range"``: as ``"ray"``, but the point on the ray lies at the range the frame's
             depth measures under the heatmap (the head's height only where it measured none),
             so the head learns no range the camera measures; it reads depth (a dataset without
-            depth images is refused). ``"auto"``: ray for grasp-pose labels where the dataset
-            records its camera.
+            depth images is refused). ``"auto-range"``, the default: for grasp-pose labels where
+            the dataset records its camera, range where its images come through a depth sensor
+            (the D435; ray if it kept no depth images) and ray through the ideal camera, whose
+            runs read as they always did; the MLP otherwise (issue 75: under the D435 a ray
+            readout learned the bottle's range, and at one seed in eleven learned it wrong).
+            ``"auto"``: the default before it, ray for grasp-pose labels where the dataset
+            records its camera, the MLP otherwise; it keeps its meaning so checkpoints and
+            model files that name it read as they trained.
         point_loss_weight: Weight of a second loss, where the dataset records its camera: the
             squared distance (normalised image units) from each attention point to where the
             camera sees its target (the label projected). The Query still chooses the object;
@@ -197,7 +203,7 @@ class KqvConfig:
     query_mode: str = "auto"
     head_features: bool | None = None
     head_coords: bool = False
-    readout: str = "auto"
+    readout: str = "auto-range"
     point_loss_weight: float = 10.0
     rotation: str = "axis-line"
     mirror: bool | None = None

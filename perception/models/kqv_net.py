@@ -123,9 +123,10 @@ class KqvNet(nn.Module):
         c, key, value = config, config.key_dim, config.value_dim
         (wide1, wide2), hidden = config.channels, config.channels[1]
         self.readout = c.readout
-        if self.readout == "auto":
-            self.readout = "ray" if spec.label_kind is LabelKind.GRASP_POSE and \
-                spec.camera is not None else "mlp"
+        if self.readout in ("auto", "auto-range"):
+            through_camera = spec.label_kind is LabelKind.GRASP_POSE and spec.camera is not None
+            measured = self.readout == "auto-range" and spec.sensor is not None  # a depth sensor
+            self.readout = ("range" if measured else "ray") if through_camera else "mlp"
         self.stride = c.stride or (4 if self.readout == "mlp" else 2)
         first, second = {1: (1, 1), 2: (2, 1), 4: (2, 2)}[self.stride]
         norm = c.input_norm

@@ -97,7 +97,8 @@ class Chain:
         trained = load_model(checkpoint)
         assert (trained.spec.scene, trained.spec.task) == (scene, self.task)
         test_set = load_dataset(test)
-        seen = trained.predict_batch(test_set.images[:1], test_set.conditions[:1])[0]
+        depth = None if test_set.depths_m is None else test_set.depths_m[:1]  # kqv reads it
+        seen = trained.predict_batch(test_set.images[:1], test_set.conditions[:1], depth)[0]
 
         evaluation = tmp_path / "evaluation.json"
         status, out, err = gva("evaluate", "--model", checkpoint, "--data", test,

@@ -358,7 +358,8 @@ def test_the_readout_is_chosen_by_label_and_camera_and_refused_without_one():
     with pytest.raises(InvalidInputError, match=r"camera = '64 x 64 px' .* 32 x 32 px"):
         KqvModel(replace(grasp, camera=CAMERA, image_height_px=32, image_width_px=32),
                  KqvConfig(readout="ray"))
-    with pytest.raises(InvalidInputError, match=r"readout = 'rays' .* one of 'auto', 'mlp'"):
+    with pytest.raises(InvalidInputError,
+                       match=r"readout = 'rays' .* one of 'auto-range', 'auto', 'mlp'"):
         KqvConfig(readout="rays")
 
 

@@ -105,3 +105,34 @@ def test_the_range_readout_refuses_what_has_no_depth():
         model.predict_batch(data.images, data.conditions)
     with pytest.raises(InvalidInputError, match=r"readout = 'depth' is not allowed"):
         KqvConfig(readout="depth")
+
+
+D435 = {"sensor": "d435"}  # a dataset's record of a depth sensor's images (ModelSpec.sensor)
+
+
+def test_the_default_reads_the_range_through_a_depth_sensor_and_the_ray_through_the_ideal_camera(
+        tmp_path):
+    """``auto-range`` (issue 75): range for grasp poses seen through the D435, ray through the
+    ideal camera (its runs read as they always did), the MLP for positions; ``auto`` keeps the
+    choice it always made, so a checkpoint that saved it loads as it was trained."""
+    grasp = replace(spec(kind=LabelKind.GRASP_POSE), camera=CAMERA)
+    assert KqvConfig().readout == "auto-range"
+    assert KqvModel(replace(grasp, sensor=D435)).network.readout == "range"
+    assert ModelInput.DEPTH in KqvModel(replace(grasp, sensor=D435)).inputs
+    assert KqvModel(grasp).network.readout == "ray"
+    assert KqvModel(replace(spec(), camera=CAMERA, sensor=D435)).network.readout == "mlp"
+    assert KqvModel(replace(grasp, sensor=D435), KqvConfig(readout="auto")).network.readout \
+        == "ray"
+    saved = trained_scaler(KqvModel(replace(grasp, sensor=D435))).save(tmp_path / "range")
+    assert KqvModel.load(saved).network.readout == "range"
+
+
+def test_the_default_reads_the_ray_where_a_depth_sensors_dataset_kept_no_depth():
+    data = synthetic_dataset(4, kind=LabelKind.GRASP_POSE, seed=0, camera=CAMERA)
+    data = replace(data, metadata=replace(data.metadata, camera=data.metadata.camera | D435))
+    model = KqvModel.for_dataset(data, KqvConfig(starts=1, seed=1))
+    assert model.network.readout == "range"
+    model.fit(data, TrainConfig(steps=2, batch_size=4, threads=1), progress=False)
+    assert (model.network.readout, model.config.readout) == ("ray", "ray")
+    assert ModelInput.DEPTH not in model.inputs
+    assert len(model.predict_batch(data.images, data.conditions)) == 4
