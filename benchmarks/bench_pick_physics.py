@@ -1,0 +1,224 @@
+"""Benchmark: where a pick's physics time goes, against PyBullet's own floor (issue 76).
+
+A trial is mostly physics steps (a profile of ``gva trials --model oracle --task multiple``:
+about 70 % of its time in ``World.step``). This measures, on this machine:
+
+- **the picks**: ``--n`` oracle trials of ``--task`` at each of ``--seeds``, every PyBullet call
+  that a step makes timed where it happens (``stepSimulation``, the motor commands, the
+  sliding belt's velocity calls): steps per pick, physics steps per second of wall time, the
+  mean ``stepSimulation`` [ms], and the rest of ``World.step`` (its Python and motor calls);
+- **the floor**, each a median of ``--repeats`` runs of ``--steps`` steps: the robot alone
+  holding still (its motors set once, then through ``World.step`` with the per-step motor
+  commands), the table with three objects and the robot taken out (awake, then asleep), the
+  robot with the three objects resting (awake, asleep), and that last at half the solver
+  iterations (what the iterations cost; a change of physics, so not one to make lightly).
+
+Physics is not changed by any of this; the trials' outcomes are printed beside the timings, so
+a record shows the picks it timed. Run on a quiet machine for the issue's numbers.
+
+Usage:
+    python benchmarks/bench_pick_physics.py [--task multiple] [--seeds 0] [--n 4]
+        [--steps 480] [--repeats 3] [--out benchmarks/results/pick_physics.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import platform
+import statistics
+import tempfile
+import time
+from collections import Counter
+from collections.abc import Callable, Iterator
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import pybullet
+
+from harness.run_loop import run_trials
+from perception.catalog import get_object_spec
+from robots.yumi import YUMI
+from sim.trials.trial_settings import TrialSettings
+from sim.world.world_config import WorldConfig
+from sim.world.yumi_world import World
+
+TIMED_CALLS = ("stepSimulation", "setJointMotorControlArray", "setJointMotorControl2",
+               "getBaseVelocity", "resetBaseVelocity")
+"""The PyBullet calls a :meth:`World.step` makes, each timed where it is called."""
+RESTING = (("sponge", (0.35, 0.1)), ("spray_bottle", (0.4, -0.1)), ("mug", (0.3, 0.0)))
+"""Three objects resting on the table, as ``bench_trials.py`` places them."""
+
+
+@dataclass
+class CallTimes:
+    """Calls and seconds per timed PyBullet function, while :func:`timed_calls` is on."""
+
+    calls: Counter[str]
+    seconds: Counter[str]
+
+
+@contextlib.contextmanager
+def timed_calls() -> Iterator[CallTimes]:
+    """Times :data:`TIMED_CALLS` wherever a client makes them (they go through ``pybullet``)."""
+    times = CallTimes(Counter(), Counter())
+    originals = {name: getattr(pybullet, name) for name in TIMED_CALLS}
+
+    def timed(name: str, call: Callable[..., Any]) -> Callable[..., Any]:
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            started = time.perf_counter()
+            try:
+                return call(*args, **kwargs)
+            finally:
+                times.seconds[name] += time.perf_counter() - started
+                times.calls[name] += 1
+        return wrapper
+
+    for name, call in originals.items():
+        setattr(pybullet, name, timed(name, call))
+    try:
+        yield times
+    finally:
+        for name, call in originals.items():
+            setattr(pybullet, name, call)
+
+
+@dataclass(frozen=True)
+class PickPhysics:
+    """The timed picks: counts, steps, and where a step's wall time went."""
+
+    task: str
+    seeds: tuple[int, ...]
+    trials: int
+    picks: int
+    outcomes: dict[str, int]
+    wall_s: float
+    steps: int
+    steps_per_pick: float
+    physics_steps_per_s: float  # steps over the trials' whole wall time
+    step_simulation_ms: float  # mean of one stepSimulation call
+    step_simulation_share: float  # of the trials' wall time
+    motor_and_belt_calls_ms_per_step: float  # the other timed calls, per step
+    calls: dict[str, int]
+
+
+def pick_physics(task: str, seeds: tuple[int, ...], n: int) -> PickPhysics:
+    """``n`` oracle trials of ``task`` per seed, their PyBullet calls timed."""
+    outcomes: Counter[str] = Counter()
+    picks = 0
+    with timed_calls() as times:
+        started = time.perf_counter()
+        for seed in seeds:
+            with tempfile.TemporaryDirectory() as folder:
+                run_trials(TrialSettings("oracle", task, n, seed), folder, progress=False)
+                for line in (Path(folder) / "trials.jsonl").open(encoding="utf-8"):
+                    record = json.loads(line)
+                    outcomes[record["outcome"]] += 1
+                    picks += max(len(record.get("picks") or ()), 1)
+        wall_s = time.perf_counter() - started
+    steps = times.calls["stepSimulation"]
+    other_s = sum(s for name, s in times.seconds.items() if name != "stepSimulation")
+    return PickPhysics(
+        task, seeds, n * len(seeds), picks, dict(outcomes), round(wall_s, 2), steps,
+        round(steps / picks, 1), round(steps / wall_s, 1),
+        round(times.seconds["stepSimulation"] / steps * 1e3, 4),
+        round(times.seconds["stepSimulation"] / wall_s, 3),
+        round(other_s / steps * 1e3, 4), dict(times.calls))
+
+
+def median_step_ms(step: Callable[[int], None], steps: int, repeats: int) -> float:
+    """Median over ``repeats`` of one step's wall time [ms], ``step(steps)`` timed whole."""
+    times = []
+    for _ in range(repeats):
+        started = time.perf_counter()
+        step(steps)
+        times.append((time.perf_counter() - started) / steps * 1e3)
+    return round(statistics.median(times), 4)
+
+
+def robot_alone_ms(steps: int, repeats: int) -> dict[str, float]:
+    """The robot holding still, no objects: raw steps, then :meth:`World.step` (motors each)."""
+    with World(robot=YUMI) as world:
+        world.step(60)
+
+        def raw(count: int) -> None:
+            for _ in range(count):
+                world.client.stepSimulation()
+        return {"step_simulation_ms": median_step_ms(raw, steps, repeats),
+                "world_step_ms": median_step_ms(world.step, steps, repeats)}
+
+
+def objects_alone_ms(steps: int, repeats: int, sleeping: bool) -> float:
+    """The table and the three objects resting with the robot taken out: raw steps."""
+    with World(WorldConfig(object_sleeping=sleeping), robot=YUMI) as world:
+        for name, xy in RESTING:
+            world.add_object(get_object_spec(name), xy, 0.3)
+        world.step(60)
+        world.sleep_resting_objects()
+        world.client.removeBody(world.robot.body_id)
+
+        def raw(count: int) -> None:
+            for _ in range(count):
+                world.client.stepSimulation()
+        return median_step_ms(raw, steps, repeats)
+
+
+def robot_and_objects_ms(steps: int, repeats: int, config: WorldConfig) -> float:
+    """The robot with the three objects resting (asleep where ``config`` lets them sleep)."""
+    with World(config, robot=YUMI) as world:
+        for name, xy in RESTING:
+            world.add_object(get_object_spec(name), xy, 0.3)
+        world.step(60)
+        world.sleep_resting_objects()
+        return median_step_ms(world.step, steps, repeats)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="multiple")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    parser.add_argument("--n", type=int, default=4)
+    parser.add_argument("--steps", type=int, default=480)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/pick_physics.json"))
+    args = parser.parse_args(argv)
+    load_before = os.getloadavg()
+    picks = pick_physics(args.task, tuple(args.seeds), args.n)
+    awake, asleep = WorldConfig(object_sleeping=False), WorldConfig()
+    floor = {
+        "robot_alone": robot_alone_ms(args.steps, args.repeats),
+        "objects_alone_awake_ms": objects_alone_ms(args.steps, args.repeats, False),
+        "objects_alone_asleep_ms": objects_alone_ms(args.steps, args.repeats, True),
+        "robot_and_objects_awake_ms": robot_and_objects_ms(args.steps, args.repeats, awake),
+        "robot_and_objects_asleep_ms": robot_and_objects_ms(args.steps, args.repeats, asleep),
+        "robot_and_objects_awake_half_solver_iterations_ms": robot_and_objects_ms(
+            args.steps, args.repeats,
+            replace(awake, solver_iterations=awake.solver_iterations // 2)),
+    }
+    record = {
+        "machine": {"cpu_count": os.cpu_count(), "python": platform.python_version(),
+                    "processor": platform.processor() or platform.machine(),
+                    "pybullet": pybullet.getAPIVersion()},
+        "load_average_1_5_15min_before": [round(v, 2) for v in load_before],
+        "load_average_1_5_15min_after": [round(v, 2) for v in os.getloadavg()],
+        "command": "python benchmarks/bench_pick_physics.py " + " ".join(
+            f"--{k} {' '.join(map(str, v)) if isinstance(v, list) else v}"
+            for k, v in vars(args).items() if k != "out"),
+        "picks": asdict(picks), "floor": floor,
+    }
+    print(f"{picks.task}: {picks.trials} trials, {picks.picks} picks ({picks.outcomes}), "
+          f"{picks.steps_per_pick:.0f} steps a pick; {picks.physics_steps_per_s:.0f} physics "
+          f"steps/s of wall time; stepSimulation {picks.step_simulation_ms:.3f} ms, "
+          f"{100 * picks.step_simulation_share:.0f} % of the wall time")
+    print("floor [ms a step]: " + json.dumps(floor))
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,25 @@
+"""benchmarks/bench_pick_physics.py times a pick's physics and PyBullet's floor beside it."""
+
+from __future__ import annotations
+
+import json
+
+import pybullet
+from benchmark_scripts import load_benchmark
+
+
+def test_the_picks_steps_are_counted_and_timed_and_the_floor_measured(tmp_path):
+    bench = load_benchmark("bench_pick_physics")
+    out = tmp_path / "pick_physics.json"
+    assert bench.main(["--task", "single", "--n", "1", "--steps", "5", "--repeats", "1",
+                       "--out", str(out)]) == 0
+    record = json.loads(out.read_text())
+    picks = record["picks"]
+    assert picks["trials"] == picks["picks"] == 1 and sum(picks["outcomes"].values()) == 1
+    assert picks["steps"] == picks["calls"]["stepSimulation"] > 500  # a pick is 4-6 s at 240 Hz
+    assert 0 < picks["step_simulation_share"] < 1 and picks["step_simulation_ms"] > 0
+    assert set(record["floor"]) == {
+        "robot_alone", "objects_alone_awake_ms", "objects_alone_asleep_ms",
+        "robot_and_objects_awake_ms", "robot_and_objects_asleep_ms",
+        "robot_and_objects_awake_half_solver_iterations_ms"}
+    assert pybullet.stepSimulation.__name__ == "stepSimulation"  # the timers are taken off
