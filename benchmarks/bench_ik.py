@@ -83,6 +83,10 @@ class BulletIk:
         }
         self.elapsed_s = 0.0
 
+    def close(self) -> None:
+        """Disconnects the client, so no later world in this process meets it."""
+        pybullet.disconnect(physicsClientId=self.client)
+
     def solver(self, arm: ArmDescription) -> Solver:
         """Return the IK of one arm's TCP; ``elapsed_s`` then holds each call's time in [s]."""
         link = self.link_of[arm.tcp_frame]
@@ -231,19 +235,22 @@ def main(argv: list[str] | None = None) -> int:
     robot = RobotModel.from_urdf(description.urdf_path, description.srdf_path)
     home = robot.q_from_dict(description.home)
     bullet = BulletIk(robot, description)
-    results: dict[str, dict[str, dict[str, float]]] = {}
-    for arm in description.arms:
-        targets = random_targets(robot, arm, home, args.n, args.seed)
-        ik = ArmIk(robot, arm.joints, arm.tcp_frame)
-        frame = arm.tcp_frame
-        results[arm.name] = {
-            "ours": measure(robot, frame, ours_solver(ik, home), targets),
-            "pybullet": measure(robot, frame, bullet.solver(arm), targets,
-                                clock=lambda: bullet.elapsed_s),
-        }
-        if args.pink:
-            results[arm.name]["pink"] = measure(robot, frame, pink_solver(robot, arm, home),
-                                                targets)
+    try:
+        results: dict[str, dict[str, dict[str, float]]] = {}
+        for arm in description.arms:
+            targets = random_targets(robot, arm, home, args.n, args.seed)
+            ik = ArmIk(robot, arm.joints, arm.tcp_frame)
+            frame = arm.tcp_frame
+            results[arm.name] = {
+                "ours": measure(robot, frame, ours_solver(ik, home), targets),
+                "pybullet": measure(robot, frame, bullet.solver(arm), targets,
+                                    clock=lambda: bullet.elapsed_s),
+            }
+            if args.pink:
+                results[arm.name]["pink"] = measure(robot, frame, pink_solver(robot, arm, home),
+                                                    targets)
+    finally:
+        bullet.close()
     print_table(results)
     report = {
         "benchmark": "ik",

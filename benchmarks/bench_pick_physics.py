@@ -31,13 +31,14 @@ import platform
 import statistics
 import tempfile
 import time
-from collections import Counter
+from collections import Counter, defaultdict
 from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import pybullet
+from pybullet_utils import bullet_client
 
 from harness.run_loop import run_trials
 from perception.catalog import get_object_spec
@@ -58,14 +59,20 @@ class CallTimes:
     """Calls and seconds per timed PyBullet function, while :func:`timed_calls` is on."""
 
     calls: Counter[str]
-    seconds: Counter[str]
+    seconds: defaultdict[str, float]
 
 
 @contextlib.contextmanager
 def timed_calls() -> Iterator[CallTimes]:
-    """Times :data:`TIMED_CALLS` wherever a client makes them (they go through ``pybullet``)."""
-    times = CallTimes(Counter(), Counter())
-    originals = {name: getattr(pybullet, name) for name in TIMED_CALLS}
+    """Times :data:`TIMED_CALLS` wherever a world's ``BulletClient`` makes them.
+
+    The timer wraps what ``BulletClient.__getattr__`` hands out (the call already bound to the
+    client's id), not the ``pybullet`` module: a client only binds its id to a builtin, so a
+    module-level wrapper would send every timed call to the process's first client, which is
+    another world's whenever one is still connected (a test run before this one).
+    """
+    times = CallTimes(Counter(), defaultdict(float))
+    resolve = bullet_client.BulletClient.__getattr__
 
     def timed(name: str, call: Callable[..., Any]) -> Callable[..., Any]:
         def wrapper(*args: Any, **kwargs: Any) -> Any:
@@ -77,13 +84,15 @@ def timed_calls() -> Iterator[CallTimes]:
                 times.calls[name] += 1
         return wrapper
 
-    for name, call in originals.items():
-        setattr(pybullet, name, timed(name, call))
+    def resolve_timed(client: bullet_client.BulletClient, name: str) -> Any:
+        attribute = resolve(client, name)
+        return timed(name, attribute) if name in TIMED_CALLS else attribute
+
+    bullet_client.BulletClient.__getattr__ = resolve_timed
     try:
         yield times
     finally:
-        for name, call in originals.items():
-            setattr(pybullet, name, call)
+        bullet_client.BulletClient.__getattr__ = resolve
 
 
 @dataclass(frozen=True)
