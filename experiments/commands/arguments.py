@@ -1,4 +1,9 @@
-"""Argparse types of the ``gva`` options: each rejects bad text with a message that says why."""
+"""Argparse types of the ``gva`` options, and the options several commands share.
+
+Each type rejects bad text with a message that says why. The options of a command that fills a
+settings dataclass are declared once, as :class:`~experiments.commands.options.Option` rows
+(:mod:`experiments.commands.options`); the shared ones are here.
+"""
 
 from __future__ import annotations
 
@@ -7,7 +12,11 @@ import shlex
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
+from experiments.commands.options import Option
 from harness.jobs import Executor, ExecutorKind
+from robots import ROBOT_NAMES
+from sim.errors import InvalidInputError
+from sim.trials.loop_settings import Loop, LoopSettings
 from sim.world.sensor import DEFAULT_SENSOR, SensorKind
 
 if TYPE_CHECKING:  # imported where used: a command's --help must not load torch
@@ -58,6 +67,14 @@ class Once(argparse.Action):
         setattr(namespace, self.dest, values)
 
 
+def variant_names(text: str) -> tuple[str, ...]:
+    """An argparse type, ``--variants``: comma-separated names or files; ``none`` for none.
+
+    An empty name, or nothing at all, is refused as :func:`names` refuses it: say ``none``.
+    """
+    return () if text.strip() == "none" else names(text)
+
+
 def integers(text: str) -> tuple[int, ...]:
     """An argparse type: comma-separated integers."""
     try:
@@ -92,18 +109,22 @@ def model_config_files(args: argparse.Namespace) -> tuple[ModelConfigFile, ...]:
     return tuple(ModelConfigFile.read(path, model) for model, path in args.model_config)
 
 
-def add_sensor_option(parser: argparse.ArgumentParser, otherwise: str = "") -> None:
+def sensor_option(otherwise: str = "") -> Option:
     """``--sensor``: what the yumi scene is rendered through, as ``gva reproduce real --sensor``.
 
     It replaces the task file's ``[camera] sensor``; without it, the file's, else ``otherwise``
     (e.g. a checkpoint's own sensor), else the D435 (:mod:`sim.tasks.task_sensor`).
     """
-    parser.add_argument("--sensor", choices=[k.value for k in SensorKind],
-                        help="yumi scene: what the head camera renders through, replacing the "
-                        "task file's [camera] sensor: d435 (lens distortion, depth noise and "
-                        "holes, hand-eye error; docs/decisions/d435-sensor.md) or ideal, an "
-                        "exact pinhole (default: the task file's, else "
-                        f"{otherwise}{DEFAULT_SENSOR.value})")
+    return Option("--sensor", choices=SensorKind,
+                  help="yumi scene: what the head camera renders through, replacing the task "
+                  "file's [camera] sensor: d435 (lens distortion, depth noise and holes, "
+                  "hand-eye error; docs/decisions/d435-sensor.md) or ideal, an exact pinhole "
+                  f"(default: the task file's, else {otherwise}{DEFAULT_SENSOR.value})")
+
+
+def add_sensor_option(parser: argparse.ArgumentParser, otherwise: str = "") -> None:
+    """:func:`sensor_option` for a command whose settings have no sensor field: none by default."""
+    sensor_option(otherwise).add_to(parser, None)
 
 
 def sensor_kind(args: argparse.Namespace) -> SensorKind | None:
@@ -131,3 +152,38 @@ def add_executor_options(parser: argparse.ArgumentParser) -> None:
 def executor(args: argparse.Namespace) -> Executor:
     """The :class:`~harness.jobs.Executor` the options ask for (refuses an address without Ray)."""
     return Executor(ExecutorKind(args.executor), args.ray_address)
+
+
+ROBOT = Option("--robot", choices=ROBOT_NAMES,
+               help="the robot that picks, seen through its workcell's camera (default "
+               "{default}; docs/decisions/robots.md)")
+"""``--robot``: which robot picks (its own camera, arm and hand); ``gva trials``' and
+``gva reproduce real``'s."""
+
+
+def add_loop_options(parser: argparse.ArgumentParser) -> None:
+    """``--loop`` and ``--replan-hz``: whether picks look again while the arm approaches.
+
+    Two options, one field (:class:`~sim.trials.loop_settings.LoopSettings`), checked together by
+    :func:`loop_settings`: not :class:`~experiments.commands.options.Option` rows.
+    """
+    parser.add_argument("--loop", choices=[loop.value for loop in Loop],
+                        default=LoopSettings.loop.value,
+                        help="open (default): one image, one plan; closed: re-predict during "
+                        "the approach and re-target the arm when the grasp moved")
+    parser.add_argument("--replan-hz", type=float, default=LoopSettings.replan_hz,
+                        help="re-predictions per second of a closed loop (%(default)s)")
+
+
+def loop_settings(args: argparse.Namespace) -> LoopSettings:
+    """The loop the options ask for; a rate given to an open loop is refused."""
+    if args.loop == Loop.OPEN.value and args.replan_hz != LoopSettings.replan_hz:
+        raise InvalidInputError("--replan-hz", args.replan_hz, "only with --loop closed")
+    return LoopSettings(Loop(args.loop), args.replan_hz)
+
+
+def loop_options(loop: LoopSettings) -> list[str]:
+    """The command line's words for ``loop``: a closed loop names its rate, even the default's."""
+    if loop.loop is not Loop.CLOSED:
+        return []
+    return [f"--loop closed --replan-hz {loop.replan_hz:g}"]

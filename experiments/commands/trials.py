@@ -11,20 +11,20 @@ import sys
 from pathlib import Path
 
 from experiments.commands.arguments import (
+    ROBOT,
     Once,
     add_executor_options,
+    add_loop_options,
     add_sensor_option,
     executor,
     integer,
+    loop_settings,
     resume_command,
     sensor_kind,
 )
 from harness.run_loop import TRIAL_WORKERS, RunStopped, run_trials
 from harness.trial_summary import TrialSummary
-from robots import ROBOT_NAMES
-from sim.errors import InvalidInputError
 from sim.tasks.variants import builtin_variants
-from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.planner_setup import ObstacleSource
 from sim.trials.trial_settings import TrialSettings, held_out_check
 
@@ -64,34 +64,10 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         "when its datasets were rendered by another (refused by default, "
                         "naming both)")
     add_loop_options(parser)
-    add_robot_option(parser)
+    ROBOT.add_to(parser, TrialSettings.robot)
     add_executor_options(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(run=run)
-
-
-def add_robot_option(parser: argparse.ArgumentParser) -> None:
-    """``--robot``: which robot picks (its own camera, arm and hand)."""
-    parser.add_argument("--robot", choices=ROBOT_NAMES, default=TrialSettings.robot,
-                        help="the robot that picks, seen through its workcell's camera "
-                        "(default %(default)s; docs/decisions/robots.md)")
-
-
-def add_loop_options(parser: argparse.ArgumentParser) -> None:
-    """``--loop`` and ``--replan-hz``: whether picks look again while the arm approaches."""
-    parser.add_argument("--loop", choices=[loop.value for loop in Loop],
-                        default=LoopSettings.loop.value,
-                        help="open (default): one image, one plan; closed: re-predict during "
-                        "the approach and re-target the arm when the grasp moved")
-    parser.add_argument("--replan-hz", type=float, default=LoopSettings.replan_hz,
-                        help="re-predictions per second of a closed loop (%(default)s)")
-
-
-def loop_settings(args: argparse.Namespace) -> LoopSettings:
-    """The loop the options ask for; a rate given to an open loop is refused."""
-    if args.loop == Loop.OPEN.value and args.replan_hz != LoopSettings.replan_hz:
-        raise InvalidInputError("--replan-hz", args.replan_hz, "only with --loop closed")
-    return LoopSettings(Loop(args.loop), args.replan_hz)
 
 
 def run(args: argparse.Namespace) -> int:

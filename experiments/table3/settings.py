@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from experiments.table3.layout import checkpoint_folder, task_file
+from experiments.table3.options import REAL
 from experiments.table3.plugins import check_plugins, is_plugin, row, served_models
 from experiments.tables import (
     ALL_TASKS,
@@ -22,7 +23,6 @@ from experiments.tables import (
     check_models,
     model_config,
     model_config_file,
-    model_config_options,
 )
 from harness.jobs import LOCAL, Executor
 from harness.run_folder import json_form
@@ -323,35 +323,8 @@ class ReproduceRealSettings:
         return LoopSettings() if trial_set.variant == OPEN_LOOP else self.loop
 
     def command(self, out: Path) -> str:
-        """The ``gva reproduce real`` command line of these settings (workers left out)."""
-        parts = ["gva reproduce real", f"--out {out}", f"--seed {self.seed}", f"--n {self.n}",
-                 f"--demos {self.demos}", f"--steps {self.steps}"]
-        if self.seeds != ReproduceRealSettings.seeds:
-            parts.append(f"--seeds {self.seeds}")
-        if set(self.tasks) != set(TASKS):
-            parts.append(f"--tasks {','.join(self.tasks)}")
-        if self.models != ReproduceRealSettings.models:
-            parts.append(f"--models {','.join(self.models)}")
-        if not self.variants:
-            parts.append("--no-robustness")
-        elif self.variants != DEFAULT_VARIANTS:
-            parts.append(f"--variants {','.join(self.variants)}")
-        if not self.balance_types:
-            parts.append("--no-balance-types")
-        if self.sensor is not ReproduceRealSettings.sensor:
-            parts.append(f"--sensor {self.sensor.value}")
-        if self.closed:
-            parts.append(f"--loop closed --replan-hz {self.loop.replan_hz:g}")
-        if self.robot != ReproduceRealSettings.robot:
-            parts.append(f"--robot {self.robot}")
-        if self.world is not None:
-            parts.append(f"--world {self.world}")
-        if self.train_threads != ReproduceRealSettings.train_threads:
-            parts.append(f"--train-threads {self.train_threads}")
-        if self.check.holdout != CheckConfig.holdout:
-            parts.append(f"--holdout {self.check.holdout:g}")
-        if self.gif_trials != GIF_TRIALS:
-            parts.append(f"--gif-trials {self.gif_trials}")
-        if self.use_failed_checkpoints:
-            parts.append("--use-failed-checkpoints")
-        return " ".join(parts + model_config_options(self.model_configs))
+        """The ``gva reproduce real`` command line of these settings (workers left out).
+
+        Derived from the options' one table, :data:`experiments.table3.options.REAL`.
+        """
+        return REAL.line(self, out)
