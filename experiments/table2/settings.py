@@ -11,6 +11,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from experiments.table2.options import SCENES, SIM
 from experiments.tables import (
     ALL_TASKS,
     PAPER_MODELS,
@@ -22,7 +23,6 @@ from experiments.tables import (
     check_models,
     model_config,
     model_config_file,
-    model_config_options,
     model_order,
 )
 from harness.jobs import LOCAL, Executor
@@ -39,8 +39,6 @@ SIZES = (4, 20, 100)
 """Training set sizes of Table II."""
 SCENE = "paper-sim"
 """The paper's simulator scene, Table II's."""
-SCENES = ("paper-sim", "yumi")
-"""The scenes a sweep can run on (yumi: demonstrations, offline)."""
 BOLD_BELOW_CM = 5.0
 """The paper bolds errors below 5 cm."""
 Key = tuple[str, str, int]  # (model, task, size)
@@ -178,21 +176,11 @@ class ReproduceSimSettings:
         return {} if file is None else file.hyperparameters()
 
     def command(self, out: Path) -> str:
-        """The ``gva reproduce sim`` command line of these settings (workers left out)."""
-        parts = ["gva reproduce sim", f"--out {out}", f"--seeds {self.seeds}",
-                 f"--seed {self.seed}", f"--steps {self.steps}"]
-        for name, given, everything in (("models", self.models, PAPER_MODELS),
-                                        ("tasks", self.tasks, TASKS),
-                                        ("sizes", self.sizes, SIZES)):
-            if set(given) != set(everything):
-                parts.append(f"--{name} {','.join(str(v) for v in given)}")
-        if self.test_scenes != ReproduceSimSettings.test_scenes:
-            parts.append(f"--test-scenes {self.test_scenes}")
-        if self.scene != SCENE:
-            parts.append(f"--scene {self.scene}")
-        if self.sensor is not None:
-            parts.append(f"--sensor {self.sensor.value}")
-        return " ".join(parts + model_config_options(self.model_configs))
+        """The ``gva reproduce sim`` command line of these settings (workers left out).
+
+        Derived from the options' one table, :data:`experiments.table2.options.SIM`.
+        """
+        return SIM.line(self, out)
 
 
 # files of a run folder
