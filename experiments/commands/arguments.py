@@ -2,7 +2,8 @@
 
 Each type rejects bad text with a message that says why. The options of a command that fills a
 settings dataclass are declared once, as :class:`~experiments.commands.options.Option` rows
-(:mod:`experiments.commands.options`); the shared ones are here.
+(:mod:`experiments.commands.options`); those several commands share are here and, for the
+commands that pick, in :mod:`experiments.commands.pick_options`.
 """
 
 from __future__ import annotations
@@ -14,9 +15,6 @@ from typing import TYPE_CHECKING
 
 from experiments.commands.options import Option
 from harness.jobs import Executor, ExecutorKind
-from robots import ROBOT_NAMES
-from sim.errors import InvalidInputError
-from sim.trials.loop_settings import Loop, LoopSettings
 from sim.world.sensor import DEFAULT_SENSOR, SensorKind
 
 if TYPE_CHECKING:  # imported where used: a command's --help must not load torch
@@ -153,37 +151,3 @@ def executor(args: argparse.Namespace) -> Executor:
     """The :class:`~harness.jobs.Executor` the options ask for (refuses an address without Ray)."""
     return Executor(ExecutorKind(args.executor), args.ray_address)
 
-
-ROBOT = Option("--robot", choices=ROBOT_NAMES,
-               help="the robot that picks, seen through its workcell's camera (default "
-               "{default}; docs/decisions/robots.md)")
-"""``--robot``: which robot picks (its own camera, arm and hand); ``gva trials``' and
-``gva reproduce real``'s."""
-
-
-def add_loop_options(parser: argparse.ArgumentParser) -> None:
-    """``--loop`` and ``--replan-hz``: whether picks look again while the arm approaches.
-
-    Two options, one field (:class:`~sim.trials.loop_settings.LoopSettings`), checked together by
-    :func:`loop_settings`: not :class:`~experiments.commands.options.Option` rows.
-    """
-    parser.add_argument("--loop", choices=[loop.value for loop in Loop],
-                        default=LoopSettings.loop.value,
-                        help="open (default): one image, one plan; closed: re-predict during "
-                        "the approach and re-target the arm when the grasp moved")
-    parser.add_argument("--replan-hz", type=float, default=LoopSettings.replan_hz,
-                        help="re-predictions per second of a closed loop (%(default)s)")
-
-
-def loop_settings(args: argparse.Namespace) -> LoopSettings:
-    """The loop the options ask for; a rate given to an open loop is refused."""
-    if args.loop == Loop.OPEN.value and args.replan_hz != LoopSettings.replan_hz:
-        raise InvalidInputError("--replan-hz", args.replan_hz, "only with --loop closed")
-    return LoopSettings(Loop(args.loop), args.replan_hz)
-
-
-def loop_options(loop: LoopSettings) -> list[str]:
-    """The command line's words for ``loop``: a closed loop names its rate, even the default's."""
-    if loop.loop is not Loop.CLOSED:
-        return []
-    return [f"--loop closed --replan-hz {loop.replan_hz:g}"]

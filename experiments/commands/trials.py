@@ -11,17 +11,15 @@ import sys
 from pathlib import Path
 
 from experiments.commands.arguments import (
-    ROBOT,
     Once,
     add_executor_options,
-    add_loop_options,
     add_sensor_option,
     executor,
     integer,
-    loop_settings,
     resume_command,
     sensor_kind,
 )
+from experiments.commands.pick_options import ROBOT, add_loop_options, loop_settings
 from harness.run_loop import TRIAL_WORKERS, RunStopped, run_trials
 from harness.trial_summary import TrialSummary
 from sim.tasks.variants import builtin_variants

@@ -1,8 +1,7 @@
-"""The options of ``gva reproduce sim``, declared once (:mod:`experiments.commands.options`).
+"""The options of ``gva reproduce sim``, declared once as :data:`SIM`.
 
-Its parser, the :class:`~experiments.table2.settings.ReproduceSimSettings` the parsed options
-give, and the command line those settings stand for (``settings.command(out)``) all come from
-:data:`SIM`; each default is the settings field's.
+As ``gva reproduce real``'s (:mod:`experiments.table3.options`): the parser, the settings and
+``settings.command(out)`` derive from it (:mod:`experiments.commands.options`).
 """
 
 from __future__ import annotations

@@ -8,19 +8,16 @@ give, and the command line those settings stand for (``settings.command(out)``) 
 from __future__ import annotations
 
 from experiments.commands.arguments import (
-    ROBOT,
     add_executor_options,
-    add_loop_options,
     add_model_config_option,
     executor,
     integer,
-    loop_options,
-    loop_settings,
     model_config_files,
     names,
     variant_names,
 )
 from experiments.commands.options import CommandLine, Option, Special, same_members
+from experiments.commands.pick_options import ROBOT, add_loop_options, loop_options, loop_settings
 from experiments.tables import BEYOND_TASKS, model_config_options
 from sim.tasks.variants import builtin_variants
 from sim.world.sensor import SensorKind
