@@ -43,7 +43,9 @@ from pybullet_utils import bullet_client
 from harness.run_loop import run_trials
 from perception.catalog import get_object_spec
 from robots.yumi import YUMI
+from sim.trials import execution
 from sim.trials.trial_settings import TrialSettings
+from sim.world.sim_robot import SimRobot
 from sim.world.world_config import WorldConfig
 from sim.world.yumi_world import World
 
@@ -60,6 +62,9 @@ class CallTimes:
 
     calls: Counter[str]
     seconds: defaultdict[str, float]
+    phase: list[str]  # the pick phase now running (one entry, set by :func:`labelled_phases`)
+    phase_steps: Counter[str]
+    phase_seconds: defaultdict[str, float]
 
 
 @contextlib.contextmanager
@@ -71,7 +76,7 @@ def timed_calls() -> Iterator[CallTimes]:
     module-level wrapper would send every timed call to the process's first client, which is
     another world's whenever one is still connected (a test run before this one).
     """
-    times = CallTimes(Counter(), defaultdict(float))
+    times = CallTimes(Counter(), defaultdict(float), ["other"], Counter(), defaultdict(float))
     resolve = bullet_client.BulletClient.__getattr__
 
     def timed(name: str, call: Callable[..., Any]) -> Callable[..., Any]:
@@ -80,8 +85,12 @@ def timed_calls() -> Iterator[CallTimes]:
             try:
                 return call(*args, **kwargs)
             finally:
-                times.seconds[name] += time.perf_counter() - started
+                seconds = time.perf_counter() - started
+                times.seconds[name] += seconds
                 times.calls[name] += 1
+                if name == "stepSimulation":
+                    times.phase_seconds[times.phase[0]] += seconds
+                    times.phase_steps[times.phase[0]] += 1
         return wrapper
 
     def resolve_timed(client: bullet_client.BulletClient, name: str) -> Any:
@@ -93,6 +102,52 @@ def timed_calls() -> Iterator[CallTimes]:
         yield times
     finally:
         bullet_client.BulletClient.__getattr__ = resolve
+
+
+PHASES = ("approach", "close", "lift", "hold", "other")
+"""A pick's phases as :func:`labelled_phases` names them: the arm's path to the grasp with the
+contact watch on (approach and descent), the fingers closing, the lift with the target held,
+the 1 s hold, and the rest (the settle of each scene, setting a picked object aside)."""
+
+
+ATTRIBUTES = {"track": "track", "close": "_close", "hold": "_hold"}
+"""Where each phase's call lives (``SimRobot.track``, ``execution._close``, ``._hold``)."""
+
+
+@contextlib.contextmanager
+def labelled_phases(times: CallTimes) -> Iterator[None]:
+    """Labels each step with its pick phase (:data:`PHASES`) while the trials run.
+
+    Wraps what a pick calls for each phase (``SimRobot.track`` with or without its contact
+    watch, and the execution's close and hold), each restored after; nothing else changes.
+    """
+    originals: dict[str, Callable[..., Any]] = {
+        "track": SimRobot.track, "close": execution._close, "hold": execution._hold}
+
+    def within(label: str | Callable[..., str], call: Callable[..., Any]) -> Callable[..., Any]:
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            outer = times.phase[0]
+            times.phase[0] = label if isinstance(label, str) else label(*args, **kwargs)
+            try:
+                return call(*args, **kwargs)
+            finally:
+                times.phase[0] = outer
+        return wrapper
+
+    def track_phase(*args: Any, **kwargs: Any) -> str:
+        watched = kwargs.get("on_step", args[4] if len(args) > 4 else None) is not None
+        return "approach" if watched else "lift"
+
+    owners = {"track": SimRobot, "close": execution, "hold": execution}
+    labels: dict[str, str | Callable[..., str]] = {"track": track_phase, "close": "close",
+                                                   "hold": "hold"}
+    for name, call in originals.items():
+        setattr(owners[name], ATTRIBUTES[name], within(labels[name], call))
+    try:
+        yield
+    finally:
+        for name, call in originals.items():
+            setattr(owners[name], ATTRIBUTES[name], call)
 
 
 @dataclass(frozen=True)
@@ -112,13 +167,14 @@ class PickPhysics:
     step_simulation_share: float  # of the trials' wall time
     motor_and_belt_calls_ms_per_step: float  # the other timed calls, per step
     calls: dict[str, int]
+    phases: dict[str, dict[str, float]]  # per phase: steps a pick, ms a step, share
 
 
 def pick_physics(task: str, seeds: tuple[int, ...], n: int) -> PickPhysics:
     """``n`` oracle trials of ``task`` per seed, their PyBullet calls timed."""
     outcomes: Counter[str] = Counter()
     picks = 0
-    with timed_calls() as times:
+    with timed_calls() as times, labelled_phases(times):
         started = time.perf_counter()
         for seed in seeds:
             with tempfile.TemporaryDirectory() as folder:
@@ -135,7 +191,12 @@ def pick_physics(task: str, seeds: tuple[int, ...], n: int) -> PickPhysics:
         round(steps / picks, 1), round(steps / wall_s, 1),
         round(times.seconds["stepSimulation"] / steps * 1e3, 4),
         round(times.seconds["stepSimulation"] / wall_s, 3),
-        round(other_s / steps * 1e3, 4), dict(times.calls))
+        round(other_s / steps * 1e3, 4), dict(times.calls),
+        {phase: {"steps_a_pick": round(times.phase_steps[phase] / picks, 1),
+                 "step_simulation_ms": round(times.phase_seconds[phase] /
+                                             max(times.phase_steps[phase], 1) * 1e3, 4),
+                 "share": round(times.phase_seconds[phase] / times.seconds["stepSimulation"], 3)}
+         for phase in PHASES})
 
 
 def median_step_ms(step: Callable[[int], None], steps: int, repeats: int) -> float:
@@ -222,6 +283,10 @@ def main(argv: list[str] | None = None) -> int:
           f"{picks.steps_per_pick:.0f} steps a pick; {picks.physics_steps_per_s:.0f} physics "
           f"steps/s of wall time; stepSimulation {picks.step_simulation_ms:.3f} ms, "
           f"{100 * picks.step_simulation_share:.0f} % of the wall time")
+    for phase, numbers in picks.phases.items():
+        print(f"  {phase:8s} {numbers['steps_a_pick']:7.1f} steps a pick, "
+              f"{numbers['step_simulation_ms']:.3f} ms a step, "
+              f"{100 * numbers['share']:4.1f} % of the steps' time")
     print("floor [ms a step]: " + json.dumps(floor))
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")

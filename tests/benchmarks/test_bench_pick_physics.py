@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import pybullet
+import pytest
 from benchmark_scripts import load_benchmark
 from pybullet_utils import bullet_client
 
@@ -24,6 +25,11 @@ def test_the_picks_steps_are_counted_and_timed_and_the_floor_measured(tmp_path):
     assert picks["trials"] == picks["picks"] == 1 and sum(picks["outcomes"].values()) == 1
     assert picks["steps"] == picks["calls"]["stepSimulation"] > 500  # a pick is 4-6 s at 240 Hz
     assert 0 < picks["step_simulation_share"] < 1 and picks["step_simulation_ms"] > 0
+    phases = picks["phases"]  # every step of a successful pick falls in one phase
+    assert sum(p["steps_a_pick"] for p in phases.values()) == picks["steps_per_pick"]
+    assert all(phases[name]["steps_a_pick"] > 0 for name in ("approach", "close", "lift", "hold"))
+    assert phases["hold"]["steps_a_pick"] == 240  # 1 s at 240 Hz
+    assert sum(p["share"] for p in phases.values()) == pytest.approx(1.0, abs=0.01)
     assert set(record["floor"]) == {
         "robot_alone", "objects_alone_awake_ms", "objects_alone_asleep_ms",
         "robot_and_objects_awake_ms", "robot_and_objects_asleep_ms",
