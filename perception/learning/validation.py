@@ -44,8 +44,13 @@ class CheckConfig:
         holdout: Fraction of the training scenes held out (rounded, at least one scene where
             two or more remain to train on); 0 trains on every scene and checks nothing.
         limit_cm: The largest mean held-out position error allowed, of the whole, of each
-            condition value and of each head [cm]. 2 cm: a grasp further off misses the
-            spray bottle and the mug (``docs/decisions/every-condition.md``).
+            condition value and of each head [cm], where the grasp judge does not judge every
+            held-out target (position labels, object types its map never measured). 2 cm: a
+            grasp further off misses the spray bottle and the mug
+            (``docs/decisions/every-condition.md``). Where the judge judges them all, it reads
+            each error along the axis the object tolerates it on, and the 2 cm sphere does
+            not (a bottle 2.1 cm off along its length, expected 0.95 picked, refused at seeds
+            21 and 26; ``docs/decisions/any-seed.md``): the means are recorded, not checked.
         min_expected_success: For grasp-pose labels, the least share of the held-out targets
             expected picked, of the whole, of each condition value and of each head: the mean
             of the grasp judge's calibrated probabilities
@@ -85,7 +90,8 @@ class HeldOutCheck:
     """How a trained model did on the scenes its training held out.
 
     Args:
-        passed: Whether every mean below is within ``limit_cm``.
+        passed: Whether every expected share is at its floor (grasp poses the judge judges
+            whole) or every mean is within ``limit_cm`` (the rest).
         reason: What failed, e.g. ``"condition 'mug': 7.31 cm > 2.00 cm"``; "" when passed.
         held_out_scenes: The scene indices held out (their records' ``"index"``).
         samples: Held-out samples scored (a scene may give several).
@@ -237,23 +243,26 @@ def check_model(model: LearnableModel, held_out: Dataset, limit_cm: float, attem
                 model_seed: int, min_expected_success: float | None = None) -> HeldOutCheck:
     """Scores ``model`` on ``held_out``: whole, each condition, each head.
 
-    Against ``limit_cm`` of mean position error, and for grasp-pose labels, where
-    ``min_expected_success`` is given, against that expected share of targets picked (the
-    mean of the grasp judge's calibrated probabilities); the share it predicts picked is
-    recorded beside it.
+    For grasp-pose labels, where ``min_expected_success`` is given, against that expected
+    share of targets picked (the mean of the grasp judge's calibrated probabilities; the share
+    it predicts picked is recorded beside it); against ``limit_cm`` of mean position error
+    where the judge does not judge every present target (position labels).
     """
     from perception.learning.evaluate import evaluate  # torch, once a model is trained
 
     result = evaluate(model, held_out)
+    judged = result.judged
     means = [("held-out mean", result.mean_position_error_cm)]
     means += [(f"condition {value!r}", e) for value, e in
               (result.per_condition_mean_position_error_cm or {}).items()]
     if held_out.metadata.targets > 1:
         means += [(f"head {k}", e) for k, e in
                   enumerate(result.per_target_mean_position_error_cm)]
-    over = [f"{name}: {e:.2f} cm > {limit_cm:.2f} cm" for name, e in means
-            if not e <= limit_cm]
-    judged = result.judged
+    over = []
+    if not (judged is not None and min_expected_success is not None and
+            judged.all.targets == int(held_out.target_present().sum())):
+        over = [f"{name}: {e:.2f} cm > {limit_cm:.2f} cm" for name, e in means
+                if not e <= limit_cm]
     rates: dict[str, Any] = {}
     if judged is not None and min_expected_success is not None:
         conditions, heads = judged.per_condition or {}, judged.per_head or {}
@@ -261,7 +270,8 @@ def check_model(model: LearnableModel, held_out: Dataset, limit_cm: float, attem
         expected += [(f"condition {name!r} expected picked", g.mean_probability)
                      for name, g in conditions.items()]
         expected += [(f"{name} expected picked", g.mean_probability) for name, g in heads.items()]
-        over += [f"{name}: {100 * p:.0f} % < {100 * min_expected_success:.0f} %"
+        over += [f"{name}: {percent(p, min_expected_success)} < "
+                 f"{100 * min_expected_success:.0f} %"
                  for name, p in expected if not p >= min_expected_success]
         rates = {"judged_success_rate": judged.all.predicted_success_rate,
                  "per_condition_judged_success_rate": {
@@ -281,6 +291,18 @@ def check_model(model: LearnableModel, held_out: Dataset, limit_cm: float, attem
         per_condition_mean_position_error_cm=result.per_condition_mean_position_error_cm,
         per_target_mean_position_error_cm=result.per_target_mean_position_error_cm,
         limit_cm=limit_cm, attempt=attempt, model_seed=model_seed, **rates)
+
+
+def percent(share: float, floor: float) -> str:
+    """``share`` in per cent, to as many decimals as it takes to read below ``floor``.
+
+    0.7956 against 0.8 reads "79.6 %", never "80 % < 80 %".
+    """
+    for decimals in range(4):
+        text = f"{100 * share:.{decimals}f}"
+        if float(text) < 100 * floor:
+            return f"{text} %"
+    return f"{100 * share:.4f} %"
 
 
 def attempt_seed(seed: int, attempt: int) -> int:
