@@ -32,7 +32,7 @@ import pinocchio as pin
 
 from control.depth_obstacles import GraspRegion
 from control.retarget import trajectory_state
-from perception.catalog import clear_of_table
+from perception.objects.catalog import clear_of_table
 from robots import yumi
 from sim.trials.closed_loop import remembered_points
 from sim.trials.loop_settings import LoopSettings

@@ -30,8 +30,8 @@ import numpy as np
 import pinocchio as pin  # coal's Python module is found through pinocchio's path
 
 from control.depth_obstacles import GraspRegion, OccludedSpace, depth_obstacles
-from perception.catalog import clear_of_table
 from perception.labels import nearest_rotation
+from perception.objects.catalog import clear_of_table
 from perception.poses import Pose
 from robots.yumi import YUMI
 from sim.tasks.scene_sampling import SeedStream, sample_scene

@@ -43,9 +43,9 @@ import numpy as np
 from tqdm import tqdm
 
 from harness.jobs import JobPool
-from perception.catalog import OBJECT_TYPES
 from perception.interface import NO_CONDITION, Condition, Prediction, Target
 from perception.judge.grasp_tolerance import AXES, READINGS, SIGNED_AXES, TOLERANCE_FORMAT
+from perception.objects.catalog import OBJECT_TYPES
 from perception.poses import rot_z
 from robots.yumi import YUMI
 from sim.tasks.scene_sampling import Scene, SeedStream, sample_scene

@@ -41,7 +41,7 @@ import pybullet
 from pybullet_utils import bullet_client
 
 from harness.run_loop import run_trials
-from perception.catalog import get_object_spec
+from perception.objects.catalog import get_object_spec
 from robots.yumi import YUMI
 from sim.trials import execution
 from sim.trials.trial_settings import TrialSettings

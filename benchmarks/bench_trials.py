@@ -23,7 +23,7 @@ from collections import Counter
 from pathlib import Path
 
 from harness.run_loop import run_trials
-from perception.catalog import get_object_spec
+from perception.objects.catalog import get_object_spec
 from robots.yumi import YUMI
 from sim.trials.trial_settings import TrialSettings
 from sim.world.world_config import WorldConfig

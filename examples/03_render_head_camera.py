@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from perception.catalog import get_object_spec
 from perception.drawing import write_png
-from perception.grasps import grasp_pose
+from perception.objects.catalog import get_object_spec
+from perception.objects.grasps import grasp_pose
 from robots.yumi import YUMI
 from sim.world.head_camera import HeadCamera, camera_config
 from sim.world.lighting import Lighting

@@ -18,8 +18,8 @@ import pinocchio as pin
 
 from control.depth_obstacles import GraspRegion, depth_obstacles
 from control.pick import PickRequest
-from perception.catalog import get_object_spec
-from perception.grasps import grasp_pose
+from perception.objects.catalog import get_object_spec
+from perception.objects.grasps import grasp_pose
 from robots import yumi
 from robots.yumi import YUMI
 from sim.trials.execution import ExecutionSettings, execute_pick

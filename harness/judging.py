@@ -18,9 +18,9 @@ import numpy as np
 
 from harness.calibration import Calibration
 from harness.trial_summary import PickCounts
-from perception.catalog import get_object_spec
 from perception.judge.grasp_judge import GraspVerdict, judge_grasp
 from perception.judge.grasp_tolerance import ToleranceMap, default_tolerance_map
+from perception.objects.catalog import get_object_spec
 from perception.poses import Pose
 from sim.errors import InvalidInputError
 from sim.trials.records import TrialOutcome, TrialRecord, read_trial_records

@@ -6,8 +6,8 @@ and its calibration: :class:`~perception.camera.PinholeCamera`, with ``K``, ``T_
 and rays through pixels) and a :class:`Condition` (what the top-down Query asks for), and gets
 back a :class:`Prediction`: one :class:`Target` per predicted object (a position, or a grasp
 pose for the gripper's tool centre point) plus the attention points the model looked at, in
-pixels. :mod:`perception.catalog` and :mod:`perception.grasps` say which grasp each object
-takes.
+pixels. :mod:`perception.objects.catalog` and :mod:`perception.objects.grasps` say which grasp
+each object takes.
 
 A model implements :meth:`PerceptionModel.predict` (colour image only) or
 :meth:`PerceptionModel.predict_frame` (the whole frame) and declares what it reads in

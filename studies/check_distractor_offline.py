@@ -42,10 +42,10 @@ from experiments.table3 import jobs
 from experiments.table3 import settings as table3
 from harness import run_files, run_report
 from harness.run_folder import differences, json_form
-from perception.catalog import CLUTTER_TYPES
 from perception.learning.learnable import LearnableModel
 from perception.learning.train import TrainConfig
 from perception.models.kqv import KqvModel
+from perception.objects.catalog import CLUTTER_TYPES
 from perception.registry import load_model
 from robots.yumi import YUMI
 from sim.errors import RunFolderError, SimError

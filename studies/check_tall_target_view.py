@@ -27,9 +27,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from perception.camera import RgbdFrame
-from perception.catalog import get_object_spec
 from perception.interface import Condition, Prediction
 from perception.judge.grasp_judge import judge_grasp, yaw_of
+from perception.objects.catalog import get_object_spec
 from perception.poses import Pose
 from perception.registry import load_model
 from sim.tasks.scene_sampling import SeedStream, sample_scene

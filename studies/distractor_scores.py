@@ -12,12 +12,12 @@ from pathlib import Path
 
 import numpy as np
 
-from perception.catalog import DISTRACTOR_TYPES
 from perception.interface import Prediction
 from perception.learning.data import Dataset
 from perception.learning.dataset_file import load_dataset
 from perception.learning.evaluate import evaluate, predict_dataset
 from perception.learning.learnable import LearnableModel
+from perception.objects.catalog import DISTRACTOR_TYPES
 from sim.errors import SimError
 
 SET_NAMES = ("block", "clean")

@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from perception.camera import PinholeCamera
-from perception.catalog import get_object_spec
-from perception.object_spec import ObjectSpec, Primitive
+from perception.objects.catalog import get_object_spec
+from perception.objects.object_spec import ObjectSpec, Primitive
 from perception.poses import rot_rpy
 from robots import ROBOT_NAMES, get_robot
 from sim.world.head_camera import camera_config

@@ -226,12 +226,12 @@ ROOMS: Mapping[str, tuple[tuple[str, ...], ...]] = {
     ),
     "perception": (
         # base: the interface, the data a model reads and returns, and checks of it
-        # (with two sub-packages: perception.language, sentence embeddings and which target a
-        # sentence names; perception.judge, the grasp judge and its tolerance map)
+        # (with three sub-packages: perception.language, sentence embeddings and which target a
+        # sentence names; perception.objects, the object types, what they are made of and their
+        # grasps; perception.judge, the grasp judge and its tolerance map)
         ("perception.errors", "perception.files", "perception.camera", "perception.poses",
-         "perception.language", "perception.object_spec", "perception.catalog",
-         "perception.judge", "perception.grasps", "perception.interface", "perception.labels",
-         "perception.checks", "perception.drawing", "perception.plugins"),
+         "perception.language", "perception.objects", "perception.judge", "perception.interface",
+         "perception.labels", "perception.checks", "perception.drawing", "perception.plugins"),
         ("perception.learning",),  # datasets, training, torch pieces, evaluation, checkpoints
         ("perception.models",),  # KQV and the baselines
         ("perception.registry", "perception.model_config_file"),  # models by name

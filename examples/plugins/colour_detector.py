@@ -14,7 +14,7 @@ Each frame goes through four steps:
 3. Group each type's points into objects on the table plane, and measure each object's pose
    there from its catalog shape: the sponge's top face (a rectangle), the mug's rim (a circle)
    and handle, the spray bottle's body (a circle of known radius, seen from one side only).
-4. Turn each pose into the catalog's grasp (:func:`perception.grasps.grasp_pose`) and return
+4. Turn each pose into the catalog's grasp (:func:`perception.objects.grasps.grasp_pose`) and return
    the targets the condition asks for, in the task's target order.
 
 It imports nothing but ``perception``, numpy, the standard library and ``table_objects`` (the
@@ -36,7 +36,7 @@ from table_objects import (
 )
 
 from perception.camera import RgbdFrame
-from perception.catalog import (
+from perception.objects.catalog import (
     DISTRACTOR_TYPES,
     MUG,
     OBJECT_TYPES,

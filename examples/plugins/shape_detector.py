@@ -18,7 +18,7 @@ reads only the depth image and the calibration. Each frame goes through four ste
    pose on the table from that type's shape: the sponge's top face (a rectangle), the mug's rim
    (a circle) and handle (taken to point away from the camera, behind the mug, where none of it
    is seen), the spray bottle's body (a circle of known radius, seen from one side).
-4. Turn each pose into the catalog's grasp (:func:`perception.grasps.grasp_pose`) and return
+4. Turn each pose into the catalog's grasp (:func:`perception.objects.grasps.grasp_pose`) and return
    the targets the condition asks for, in the task's target order.
 
 Where shape alone cannot tell types apart (what this plug-in is the reference for):
@@ -53,7 +53,7 @@ from table_objects import (
 )
 
 from perception.camera import RgbdFrame
-from perception.catalog import (
+from perception.objects.catalog import (
     MUG,
     OBJECT_TYPES,
     SPRAY_BOTTLE,

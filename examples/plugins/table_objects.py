@@ -16,8 +16,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from perception.camera import RgbdFrame
-from perception.catalog import OBJECT_TYPES, get_object_spec
-from perception.grasps import grasp_pose
 from perception.interface import (
     NO_CONDITION,
     Condition,
@@ -29,6 +27,8 @@ from perception.interface import (
     Prediction,
     Target,
 )
+from perception.objects.catalog import OBJECT_TYPES, get_object_spec
+from perception.objects.grasps import grasp_pose
 from perception.poses import Pose
 
 TABLE_BAND_M = 0.01

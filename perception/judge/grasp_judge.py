@@ -19,8 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from perception.catalog import ObjectSpec, Symmetry
 from perception.judge.grasp_tolerance import ToleranceMap, default_tolerance_map
+from perception.objects.catalog import ObjectSpec, Symmetry
 from perception.poses import Pose, rot_z
 
 

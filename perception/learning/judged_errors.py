@@ -15,12 +15,12 @@ from typing import Any
 
 import numpy as np
 
-from perception.catalog import get_object_spec
 from perception.interface import Prediction
 from perception.judge.grasp_judge import GraspVerdict, judge_grasp
 from perception.judge.grasp_tolerance import ToleranceMap, default_tolerance_map
 from perception.labels import split_label
 from perception.learning.data import Dataset
+from perception.objects.catalog import get_object_spec
 from perception.poses import Pose
 
 ERRORS = ("position_cm", "closing_mm", "across_mm", "approach_mm", "yaw_deg", "tilt_deg")

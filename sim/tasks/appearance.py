@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from perception.catalog import OBJECT_TYPES, get_object_spec
+from perception.objects.catalog import OBJECT_TYPES, get_object_spec
 from sim.errors import InvalidInputError
 from sim.tasks.toml_file import read_toml_file
 from sim.world.lighting import Lighting

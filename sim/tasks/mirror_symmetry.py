@@ -12,15 +12,15 @@ takes, so the collector records the answer in a dataset (``metadata.extra["mirro
   they are one of each type (ordered by type), else there is one target; a side condition
   swaps (the learner swaps it too).
 
-The grasp labels follow: the canonical grasp (:func:`perception.grasps.grasp_pose`) of a mirrored
-object is the mirror of the canonical grasp, up to the gripper's half turn.
+The grasp labels follow: the canonical grasp (:func:`perception.objects.grasps.grasp_pose`) of
+a mirrored object is the mirror of the canonical grasp, up to the gripper's half turn.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from perception.catalog import ObjectSpec, PrimitiveKind, get_object_spec
+from perception.objects.catalog import ObjectSpec, PrimitiveKind, get_object_spec
 from sim.tasks.scene_specs import SceneSpec
 from sim.tasks.task_in_scene import target_count
 from sim.tasks.task_spec import ObjectChoice, TaskSpec

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from perception.catalog import get_object_spec
 from perception.drawing import write_png
+from perception.objects.catalog import get_object_spec
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import Scene

@@ -15,8 +15,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from perception.catalog import CLUTTER_TYPES, DISTRACTOR_TYPES, LOOK_ALIKE_TYPES, OBJECT_TYPES
 from perception.interface import LabelKind
+from perception.objects.catalog import (
+    CLUTTER_TYPES,
+    DISTRACTOR_TYPES,
+    LOOK_ALIKE_TYPES,
+    OBJECT_TYPES,
+)
 from robots.description import RobotDescription
 from sim.errors import InvalidInputError
 from sim.world.head_camera import CameraConfig, camera_config

@@ -33,10 +33,10 @@ from control.planner import PickPlanner
 from control.retarget import JointState, stop, trajectory_state
 from control.trajectory import JointTrajectory
 from perception.camera import RgbdFrame
-from perception.catalog import ObjectSpec
 from perception.errors import NoAnswerError
 from perception.interface import PerceptionModel, Prediction
 from perception.judge.grasp_judge import GraspVerdict, judge_grasp, yaw_of
+from perception.objects.catalog import ObjectSpec
 from perception.poses import Pose
 from sim.tasks.disturbance import DisturbanceDraw
 from sim.tasks.scene_sampling import Scene

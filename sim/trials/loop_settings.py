@@ -46,7 +46,7 @@ class LoopSettings:
             model cannot see whether the target is still there, and the plan stands
             (``hidden``). 4.5 cm: below the reach of every task's target from its centre
             (the sponge's corners 4.8 cm, the spray bottle's 4.7, the mug's handle 6.7;
-            ``perception.catalog``), so the disk is where any target shows itself.
+            ``perception.objects.catalog``), so the disk is where any target shows itself.
 
     """
 

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from perception.catalog import OBJECT_TYPES
-from perception.grasps import grasp_pose
 from perception.interface import (
     NO_CONDITION,
     Condition,
@@ -23,6 +21,8 @@ from perception.interface import (
     Target,
     check_image,
 )
+from perception.objects.catalog import OBJECT_TYPES
+from perception.objects.grasps import grasp_pose
 from sim.errors import TargetNotFoundError
 from sim.world.head_camera import HeadCamera
 from sim.world.yumi_world import World

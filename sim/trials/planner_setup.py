@@ -24,7 +24,7 @@ from control.pick import PickPlannerConfig, build_arm_specs
 from control.planner import PickPlanner
 from control.robot_model import RobotModel
 from perception.camera import RgbdFrame
-from perception.catalog import PrimitiveKind, obstacle_shapes
+from perception.objects.catalog import PrimitiveKind, obstacle_shapes
 from robots.description import RobotDescription
 from sim.trials.pick_results import PickObstacles
 from sim.world.world_config import TABLE_HALF_SIZE_M, WorldConfig

@@ -46,10 +46,11 @@ class TrialRecord:
     Positions in [m], angles in [rad], times in [s]. ``predicted`` and ``truth`` hold the TCP
     grasp poses as ``{"position_m": [...], "rotation": [[...], ...]}``; ``raised_m`` is how
     far the predicted grasp was lifted to keep the fingertips off the table
-    (:func:`perception.catalog.clear_of_table`). ``grip`` and ``obstacles`` are what the planner was
-    given: the grip the model's prediction asked for (:meth:`sim.world.grip.Grip.to_record`) and
-    the obstacles' source with their size (points, occupied cells). The top-level pick fields
-    describe the last pick tried; ``picks`` lists every pick of a multi-target trial.
+    (:func:`perception.objects.catalog.clear_of_table`). ``grip`` and ``obstacles`` are what the
+    planner was given: the grip the model's prediction asked for
+    (:meth:`sim.world.grip.Grip.to_record`) and the obstacles' source with their size (points,
+    occupied cells). The top-level pick fields describe the last pick tried; ``picks`` lists
+    every pick of a multi-target trial.
     ``judge`` is the grasp judge's verdict on the pick (:mod:`perception.judge.grasp_judge`), absent
     in records made before it. ``asked`` is what the model was given for a condition, where
     it is no one-hot name (the scene record's ``query``): ``{"kind": "text", "value": <the

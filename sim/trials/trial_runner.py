@@ -33,10 +33,8 @@ from control.pick import PickPlan, PickRequest, PlanStatus
 from control.planner import PickPlanner
 from control.retarget import JointState
 from perception.camera import RgbdFrame
-from perception.catalog import clear_of_table, get_object_spec
 from perception.checks import check_inputs, check_prediction
 from perception.errors import InvalidPredictionError
-from perception.grasps import grasp_pose
 from perception.interface import (
     LabelKind,
     PerceptionError,
@@ -46,6 +44,8 @@ from perception.interface import (
 )
 from perception.judge.grasp_judge import judge_grasp, yaw_of
 from perception.labels import nearest_rotation
+from perception.objects.catalog import clear_of_table, get_object_spec
+from perception.objects.grasps import grasp_pose
 from perception.poses import Pose
 from robots.description import RobotDescription
 from sim.errors import InvalidInputError, SimError

@@ -22,9 +22,9 @@ import math
 from dataclasses import dataclass, replace
 from typing import Any
 
-from perception.catalog import MAX_OPENING_M, ObjectSpec, catalog_names, get_object_spec
-from perception.grasps import symmetric_alternatives
 from perception.interface import Target
+from perception.objects.catalog import MAX_OPENING_M, ObjectSpec, catalog_names, get_object_spec
+from perception.objects.grasps import symmetric_alternatives
 from perception.poses import Pose
 from sim.errors import InvalidInputError
 
@@ -76,7 +76,7 @@ def catalog_opening_m(catalog_m: float, max_opening_m: float) -> float:
     """A catalog opening on a hand opening ``max_opening_m`` at most [m] (the run's robot's).
 
     An opening at the catalog gripper's full stroke (the YuMi's, every catalog grasp's:
-    :data:`perception.object_spec.CATALOG_GRIPPER`) opens the hand fully; a narrower one
+    :data:`perception.objects.object_spec.CATALOG_GRIPPER`) opens the hand fully; a narrower one
     keeps its width.
     """
     return max_opening_m if catalog_m >= MAX_OPENING_M else catalog_m

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from perception.catalog import ObjectSpec
+from perception.objects.catalog import ObjectSpec
 from sim.errors import InvalidInputError
 from sim.world.head_camera import CameraConfig
 from sim.world.lighting import Lighting, TintedLighting

@@ -20,8 +20,8 @@ import zlib
 
 import numpy as np
 
-from perception.catalog import get_object_spec
 from perception.interface import PICTURE_PX
+from perception.objects.catalog import get_object_spec
 from robots.description import CameraMount
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError

@@ -12,7 +12,7 @@ import pybullet
 import pybullet_data
 from pybullet_utils import bullet_client
 
-from perception.catalog import ObjectSpec, PrimitiveKind
+from perception.objects.catalog import ObjectSpec, PrimitiveKind
 from perception.poses import Pose, rot_z
 from robots.description import RobotDescription
 from sim.errors import InvalidInputError, SimulationError

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from plugin_detectors import PLUGINS, imports_beyond_the_rule
 
-from perception.catalog import OBJECT_TYPES
 from perception.errors import InvalidPredictionError
 from perception.interface import Condition, ConditionKind
+from perception.objects.catalog import OBJECT_TYPES
 from perception.plugins import build_plugin
 from robots.yumi import YUMI
 from sim.tasks.scene_sampling import SeedStream, sample_scene

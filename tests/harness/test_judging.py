@@ -11,11 +11,11 @@ from gva_cli import gva
 
 from harness.judging import judge_run
 from harness.trial_summary import PickCounts, TrialSummary
-from perception.catalog import SPONGE, SPRAY_BOTTLE
-from perception.grasps import grasp_pose
 from perception.interface import NO_CONDITION, Prediction, Target
 from perception.judge.grasp_judge import judge_grasp
 from perception.judge.grasp_tolerance import default_tolerance_map
+from perception.objects.catalog import SPONGE, SPRAY_BOTTLE
+from perception.objects.grasps import grasp_pose
 from perception.poses import Pose, rot_z
 from robots.yumi import YUMI
 from sim.tasks.scene_sampling import SeedStream, sample_scene

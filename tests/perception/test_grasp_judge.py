@@ -8,9 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from perception.catalog import MUG, OBJECT_TYPES, SPONGE, SPRAY_BOTTLE
 from perception.errors import InvalidInputError
-from perception.grasps import grasp_pose
 from perception.judge.grasp_judge import grasp_error, judge_grasp
 from perception.judge.grasp_tolerance import (
     AXES,
@@ -18,6 +16,8 @@ from perception.judge.grasp_tolerance import (
     ToleranceMap,
     default_tolerance_map,
 )
+from perception.objects.catalog import MUG, OBJECT_TYPES, SPONGE, SPRAY_BOTTLE
+from perception.objects.grasps import grasp_pose
 from perception.poses import Pose, rot_z
 
 YAWS_DEG = [0.0, 30.0, 90.0]

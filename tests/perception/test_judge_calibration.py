@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from test_grasp_judge import _map_data, _moved
 
-from perception.catalog import SPONGE
 from perception.errors import InvalidInputError
-from perception.grasps import grasp_pose
 from perception.judge.grasp_judge import judge_grasp
 from perception.judge.grasp_tolerance import PlattScaling, ToleranceMap, logit, sigmoid
+from perception.objects.catalog import SPONGE
+from perception.objects.grasps import grasp_pose
 from perception.poses import Pose
 
 

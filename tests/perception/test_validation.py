@@ -11,8 +11,6 @@ import pytest
 from gva_cli import gva
 from user_models import TYPES, synthetic_dataset
 
-from perception.catalog import get_object_spec
-from perception.grasps import grasp_pose
 from perception.interface import ConditionKind, InvalidInputError, LabelKind, Prediction, Target
 from perception.judge.grasp_judge import yaw_of
 from perception.labels import label_vector, split_label
@@ -30,6 +28,8 @@ from perception.learning.validation import (
     split_scenes,
     write_check,
 )
+from perception.objects.catalog import get_object_spec
+from perception.objects.grasps import grasp_pose
 from perception.poses import Pose
 
 

@@ -15,7 +15,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from perception.catalog import (
+from perception.objects.catalog import (
     CLUTTER_TYPES,
     DISTRACTOR_TYPES,
     LOOK_ALIKE_TYPES,

@@ -6,9 +6,9 @@ import numpy as np
 from benchmark_scripts import load_study
 
 from perception.camera import PinholeCamera, RgbdFrame
-from perception.catalog import get_object_spec
-from perception.grasps import grasp_pose
 from perception.interface import NO_CONDITION
+from perception.objects.catalog import get_object_spec
+from perception.objects.grasps import grasp_pose
 from perception.poses import Pose
 from sim.trials.loop_settings import LoopSettings
 

@@ -6,7 +6,7 @@ import dataclasses
 
 import pytest
 
-from perception.catalog import OBJECT_TYPES
+from perception.objects.catalog import OBJECT_TYPES
 from sim.errors import InvalidInputError
 from sim.tasks.appearance import TEXTURE_SPLIT, load_palette
 from sim.tasks.scene_sampling import SeedStream, sample_scene
@@ -118,7 +118,7 @@ def test_the_household_palette_gives_each_part_a_colour_and_both_halves():
     palette = load_palette("household")
     assert palette is not None and {t for t, _ in palette.entries} == set(OBJECT_TYPES)
     for object_type, entries in palette.entries:
-        from perception.catalog import get_object_spec
+        from perception.objects.catalog import get_object_spec
 
         parts = len(part_colours(get_object_spec(object_type)))
         assert all(len(e.colours) == parts for e in entries)

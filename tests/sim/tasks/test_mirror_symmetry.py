@@ -5,14 +5,14 @@ import dataclasses
 import numpy as np
 import pytest
 
-from perception.catalog import (
+from perception.objects.catalog import (
     DISTRACTOR_TYPES,
     OBJECT_TYPES,
     SPRAY_BOTTLE,
     Primitive,
     get_object_spec,
 )
-from perception.grasps import grasp_pose
+from perception.objects.grasps import grasp_pose
 from perception.poses import Pose
 from robots.yumi import YUMI
 from sim.tasks.mirror_symmetry import MIRROR_Y, mirror_symmetric, object_is_mirror_symmetric

@@ -12,8 +12,8 @@ from user_models import DOWN, FixedGrasp
 from control.collision import CollisionReport
 from control.planner import PickPlanner
 from perception.camera import RgbdFrame
-from perception.catalog import get_object_spec
 from perception.interface import NO_CONDITION, Prediction, Target
+from perception.objects.catalog import get_object_spec
 from robots import yumi
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError

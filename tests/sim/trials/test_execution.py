@@ -9,8 +9,8 @@ import pytest
 
 from control.depth_obstacles import GraspRegion, depth_obstacles
 from control.pick import PickRequest, PlanStatus
-from perception.catalog import get_object_spec
-from perception.grasps import grasp_pose
+from perception.objects.catalog import get_object_spec
+from perception.objects.grasps import grasp_pose
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream, sample_scene

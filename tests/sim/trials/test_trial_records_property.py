@@ -17,8 +17,8 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from harness.judging import judge_run
-from perception.catalog import SPONGE
-from perception.grasps import grasp_pose
+from perception.objects.catalog import SPONGE
+from perception.objects.grasps import grasp_pose
 from perception.poses import Pose
 from sim.errors import InvalidInputError, RunFolderError
 from sim.trials.pick_results import pose_json

@@ -5,7 +5,6 @@ import pytest
 
 from experiments.cli import main
 from harness.run_loop import run_trials
-from perception.catalog import OBJECT_TYPES, get_object_spec
 from perception.interface import (
     NO_CONDITION,
     Condition,
@@ -13,6 +12,7 @@ from perception.interface import (
     Prediction,
     Target,
 )
+from perception.objects.catalog import OBJECT_TYPES, get_object_spec
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError, TargetNotFoundError
 from sim.tasks.scene_sampling import SeedStream, sample_scene

@@ -12,7 +12,8 @@ import pytest
 
 from control.ik import ArmIk
 from control.robot_model import RobotModel
-from perception.catalog import (
+from perception.interface import InvalidInputError
+from perception.objects.catalog import (
     DISTRACTOR_TYPES,
     FINGERTIP_BEYOND_TCP_M,
     MIN_FINGERTIP_HEIGHT_M,
@@ -26,8 +27,7 @@ from perception.catalog import (
     get_object_spec,
     obstacle_shapes,
 )
-from perception.grasps import grasp_pose
-from perception.interface import InvalidInputError
+from perception.objects.grasps import grasp_pose
 from perception.poses import Pose
 from robots import yumi
 from robots.panda import FINGERS as PANDA_FINGERS

@@ -5,10 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from perception.catalog import MAX_OPENING_M, catalog_names, get_object_spec
-from perception.grasps import grasp_pose
 from perception.interface import InvalidInputError as PerceptionInputError
 from perception.interface import Target
+from perception.objects.catalog import MAX_OPENING_M, catalog_names, get_object_spec
+from perception.objects.grasps import grasp_pose
 from perception.poses import Pose
 from robots import get_robot
 from robots.yumi import YUMI

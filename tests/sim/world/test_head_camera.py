@@ -11,8 +11,8 @@ import pybullet
 import pytest
 
 from perception.camera import PinholeCamera, RgbdFrame
-from perception.catalog import get_object_spec
 from perception.interface import InvalidInputError as PerceptionInputError
+from perception.objects.catalog import get_object_spec
 from robots import get_robot
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError

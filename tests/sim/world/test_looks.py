@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from perception.catalog import SPONGE, get_object_spec
+from perception.objects.catalog import SPONGE, get_object_spec
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.world.head_camera import CameraConfig, HeadCamera, camera_config

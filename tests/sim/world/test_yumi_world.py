@@ -12,8 +12,8 @@ import pytest
 
 from control.ik import ArmIk
 from control.robot_model import RobotModel
-from perception.catalog import get_object_spec
-from perception.grasps import grasp_pose
+from perception.objects.catalog import get_object_spec
+from perception.objects.grasps import grasp_pose
 from robots import yumi
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError, SimError

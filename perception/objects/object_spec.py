@@ -1,9 +1,9 @@
 """What an object type is: its primitives (boxes, cylinders), its physics and its grasp.
 
-The building blocks of :mod:`perception.catalog`, which holds the object types themselves, and
-the YuMi gripper's dimensions that a grasp is checked against (fingertips clear of the table, an
-opening within the stroke). Pure data and geometry (numpy only). Every object frame sits at the
-centre of the object's footprint on the table, z up.
+The building blocks of :mod:`perception.objects.catalog`, which holds the object types
+themselves, and the YuMi gripper's dimensions that a grasp is checked against (fingertips clear
+of the table, an opening within the stroke). Pure data and geometry (numpy only). Every object
+frame sits at the centre of the object's footprint on the table, z up.
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from perception.catalog import GraspSpec, ObjectSpec, Symmetry
+from perception.objects.catalog import GraspSpec, ObjectSpec, Symmetry
 from perception.poses import Pose, rot_z
 
 

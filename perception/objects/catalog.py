@@ -7,9 +7,9 @@ unlike it (:data:`CLUTTER_TYPES`: a drink can, a notebook, a marker, a glue stic
 Pure data and geometry (numpy only), so a perception model reads what it must output without
 the simulator: each type's shape, colours and grasp (the TCP pose in the object frame, the
 opening, the symmetry). What a type is made of (primitives, grasp, physics) is
-:mod:`perception.object_spec`, whose names this module re-exports; :mod:`perception.grasps`
-chooses among symmetric grasps; the simulator builds its bodies and judges its picks from these
-same specs.
+:mod:`perception.objects.object_spec`, whose names this module re-exports;
+:mod:`perception.objects.grasps` chooses among symmetric grasps; the simulator builds its bodies
+and judges its picks from these same specs.
 
 Every object frame sits at the centre of the object's footprint on the table, z up, so an object
 resting on the table at (x, y) with yaw ψ has ``T_world_object = (x, y, 0) · Rz(ψ)``. The object's
@@ -24,7 +24,7 @@ from types import MappingProxyType
 from typing import NamedTuple
 
 from perception.errors import InvalidInputError
-from perception.object_spec import (
+from perception.objects.object_spec import (
     FINGER_HALF_WIDTH_M,
     FINGER_LENGTH_M,
     FINGER_THICKNESS_M,
@@ -43,7 +43,7 @@ from perception.object_spec import (
 )
 from perception.poses import Pose
 
-__all__ = [  # the names of perception.object_spec that importers have always found here, too
+__all__ = [  # the names of perception.objects.object_spec that importers have always found here
     "BLOCK",
     "BOTTLE_TWIN",
     "CLUTTER_TYPES",
