@@ -2,7 +2,7 @@
 
 For each of ``--n`` test scenes of ``--task`` (seed ``--seed``), the pick is planned from the
 first image as a trial plans it, the arm is put at a drawn sample of its approach (moving), the
-target is moved 5 cm, and one cycle runs as :class:`sim.trials.closed_loop.ApproachLoop` runs
+target is moved 5 cm, and one cycle runs as :class:`sim.trials.closed_loop.loop.ApproachLoop` runs
 it, on one thread: the head camera's frame (rendered through the task's sensor, self-filtered:
 the arm masked out), the model's prediction, reading the grasp, the view check (the footprint
 of the grasp followed, and whether the grasp named is in plain view: both, the worst case), the
@@ -34,13 +34,13 @@ from control.depth_obstacles import GraspRegion
 from control.retarget import trajectory_state
 from perception.objects.catalog import clear_of_table
 from robots import yumi
-from sim.trials.closed_loop import remembered_points
-from sim.trials.loop_settings import LoopSettings
+from sim.trials.closed_loop.loop import remembered_points
+from sim.trials.closed_loop.loop_settings import LoopSettings
+from sim.trials.closed_loop.view import hidden_share, in_plain_view
 from sim.trials.planner_setup import pick_obstacles
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_scenes import trial_scene
 from sim.trials.trial_settings import TrialSettings, load_trial_model, torch_threads
-from sim.trials.view import hidden_share, in_plain_view
 
 T = TypeVar("T")
 PARTS = ("render", "predict", "read grasp", "view", "depth obstacles", "re-plan")

@@ -39,10 +39,10 @@ from perception.learning.dataset_file import load_dataset
 from perception.learning.evaluate import predict_dataset
 from perception.learning.learnable import ModelSpec
 from perception.registry import load_model
+from sim.trials.closed_loop.loop_settings import LoopSettings
+from sim.trials.closed_loop.view import hidden_share
 from sim.trials.collector import APPROACH_MASKED_KEY
-from sim.trials.loop_settings import LoopSettings
 from sim.trials.pick_results import grasp_angle_rad
-from sim.trials.view import hidden_share
 
 
 @dataclass(frozen=True)

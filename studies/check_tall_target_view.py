@@ -10,8 +10,9 @@ robot mask), predicts each image with each checkpoint, and reports per target ty
   the column hidden (a tall bottle behind the hand: the first guess, not borne out), the
   footprint hidden;
 - the looks the loop would heed (the footprint seen, or the grasp named in plain view two looks
-  in a row, :func:`sim.trials.view.unheeded_reason`) whose grasp is off the truth by more than
-  the re-target thresholds and judged missed: a re-target onto a miss, and the scenes with one.
+  in a row, :func:`sim.trials.closed_loop.view.unheeded_reason`) whose grasp is off the truth by
+  more than the re-target thresholds and judged missed: a re-target onto a miss, and the scenes
+  with one.
 
     python studies/check_tall_target_view.py --task single-moved --seed 0 --scenes 60 \
         runs/cl66/s0/checkpoints/kqv/single-moved [CHECKPOINT ...]
@@ -34,11 +35,11 @@ from perception.poses import Pose
 from perception.registry import load_model
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import get_scene_spec
+from sim.trials.closed_loop.loop_settings import Loop, LoopSettings
+from sim.trials.closed_loop.view import hidden_share, unheeded_reason
 from sim.trials.collector import CollectSettings
-from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.pick_results import grasp_angle_rad
 from sim.trials.trial_runner import TrialRunner
-from sim.trials.view import hidden_share, unheeded_reason
 
 LEVELS = 5
 """Disks looked at from the table to the object's top (the column's share is their worst)."""
@@ -115,7 +116,7 @@ def tally_looks(looks: list[Look], predicted: list[Pose], loop: LoopSettings) ->
     """What the loop would make of each look's predicted grasp, the truth followed.
 
     The oracle drove, so the grasp followed is the truth; a look is heeded as the loop heeds it
-    (:func:`~sim.trials.view.unheeded_reason`, two looks in a row within a scene for the
+    (:func:`~sim.trials.closed_loop.view.unheeded_reason`, two looks in a row within a scene for the
     plain-view clause), and it is a wrong re-target where its grasp is beyond the thresholds
     from the truth and the grasp judge predicts it missed.
     """

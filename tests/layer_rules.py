@@ -221,7 +221,10 @@ ROOMS: Mapping[str, tuple[tuple[str, ...], ...]] = {
         ("sim.errors",),
         ("sim.world",),  # the PyBullet world, robot, head camera, looks
         ("sim.tasks",),  # task files, variants, scene sampling, appearance
-        ("sim.trials",),  # one pick: runner, execution, records, collector, GIFs
+        # one pick: runner, execution, records, collector, GIFs; with one sub-package:
+        # sim.trials.closed_loop, the closed loop's picks, its settings and what a frame shows
+        # of a target while the arm is in view
+        ("sim.trials",),
         ("sim.envs",),  # the Gymnasium environment
     ),
     "perception": (

@@ -11,7 +11,7 @@ import argparse
 from experiments.commands.options import Option
 from robots import ROBOT_NAMES
 from sim.errors import InvalidInputError
-from sim.trials.loop_settings import Loop, LoopSettings
+from sim.trials.closed_loop.loop_settings import Loop, LoopSettings
 
 ROBOT = Option("--robot", choices=ROBOT_NAMES,
                help="the robot that picks, seen through its workcell's camera (default "
@@ -23,8 +23,9 @@ ROBOT = Option("--robot", choices=ROBOT_NAMES,
 def add_loop_options(parser: argparse.ArgumentParser) -> None:
     """``--loop`` and ``--replan-hz``: whether picks look again while the arm approaches.
 
-    Two options, one field (:class:`~sim.trials.loop_settings.LoopSettings`), checked together by
-    :func:`loop_settings`: not :class:`~experiments.commands.options.Option` rows.
+    Two options, one field (:class:`~sim.trials.closed_loop.loop_settings.LoopSettings`),
+    checked together by :func:`loop_settings`: not :class:`~experiments.commands.options.Option`
+    rows.
     """
     parser.add_argument("--loop", choices=[loop.value for loop in Loop],
                         default=LoopSettings.loop.value,

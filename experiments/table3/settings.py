@@ -36,8 +36,8 @@ from sim.errors import InvalidInputError
 from sim.tasks.task_spec import TaskSpec, spaced_for
 from sim.tasks.task_toml import load_task
 from sim.tasks.variants import read_variant, with_variant
+from sim.trials.closed_loop.loop_settings import Loop, LoopSettings
 from sim.trials.execution import ExecutionSettings
-from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.trial_settings import TrialSettings, obstacle_identity, task_identity
 from sim.world.head_camera import CameraConfig, camera_config
 from sim.world.sensor import SensorConfig, SensorKind
@@ -153,7 +153,7 @@ class ReproduceRealSettings:
         loop: Closed (``--loop closed``): the demonstrations keep images along each approach
             at ``replan_hz`` (the arm in view), every trial set runs closed-loop, and each
             unit's checkpoint is also tried open-loop on the same scenes (``open-loop``), so
-            the two compare pick by pick (:mod:`sim.trials.closed_loop`). Open: as before.
+            the two compare pick by pick (:mod:`sim.trials.closed_loop.loop`). Open: as before.
         robot: The robot that demonstrates and picks, through its workcell's camera (one of
             :data:`robots.ROBOT_NAMES`, ``--robot``); named in the identity only where it is
             not the YuMi, so earlier folders resume.

@@ -12,7 +12,7 @@ were; :meth:`perception.learning.data.Dataset.target_present` marks them absent)
 them as in a closed-loop trial's re-predictions (the self filter), those in which the arm hides
 at most :data:`APPROACH_HIDDEN_SHARE_MAX` of each target's footprint; a task
 that moves its target during the pick is demonstrated by the oracle's closed loop, which follows
-it (:mod:`sim.trials.closed_loop`). Either way, scene
+it (:mod:`sim.trials.closed_loop.loop`). Either way, scene
 ``i`` of a dataset comes from the training seed stream, never the test stream the trials use,
 unless the settings ask for the test stream: a ``paper-sim`` test set (Table II scores models
 on 100 test scenes) is collected like a training set, from ``SeedStream.TEST``. Scene ``i``
@@ -48,7 +48,7 @@ from sim.tasks.task_in_scene import check_task_fits, condition_choices
 from sim.tasks.task_sensor import seen_in_scene
 from sim.tasks.task_spec import TaskSpec, spaced_for
 from sim.tasks.variants import load_task_variant
-from sim.trials.loop_settings import Loop, LoopSettings
+from sim.trials.closed_loop.loop_settings import Loop, LoopSettings
 from sim.trials.pick_images import PickImages, calibration_record
 from sim.trials.records import TrialOutcome
 from sim.trials.trial_runner import TrialRunner
@@ -59,11 +59,12 @@ MAX_REDRAW_FACTOR = 3
 """A yumi collection gives up after this many times ``size`` failed demonstrations."""
 
 APPROACH_HIDDEN_SHARE_MAX = 0.5
-"""The most of a target's footprint (:func:`~sim.trials.view.hidden_share`) the arm may hide in
-an approach image a demonstration keeps. A closed loop acts on the model's grasp where the arm
-hides part of the target (the plain-view clause of :func:`~sim.trials.view.unheeded_reason`),
-so the model learns there, labelled with the truth; where the arm hides more, the label is one
-the image cannot show, and it would learn to guess. 0 (issue 36's rule) taught no image of a
+"""The most of a target's footprint (:func:`~sim.trials.closed_loop.view.hidden_share`) the arm
+may hide in an approach image a demonstration keeps. A closed loop acts on the model's grasp
+where the arm hides part of the target (the plain-view clause of
+:func:`~sim.trials.closed_loop.view.unheeded_reason`), so the model learns there, labelled with
+the truth; where the arm hides more, the label is one the image cannot show, and it would learn
+to guess. 0 (issue 36's rule) taught no image of a
 spray bottle with the hand near it, and `kqv` named it 1-4 cm off there (issue 66,
 docs/decisions/closed-loop.md). Recorded in the dataset (``approach_hidden_share_max``)."""
 HIDDEN_SHARE_KEY = "approach_hidden_share_max"
@@ -97,8 +98,8 @@ class CollectSettings:
         approach_hz: ``yumi`` only: a demonstration also keeps an image every ``1 /
             approach_hz`` s of each approach, the arm masked out, labelled as the pick's image
             is, where the arm hides at most half of every target's footprint (the oracle's
-            closed loop, :mod:`sim.trials.closed_loop`; each such sample's record has ``"stage":
-            "approach"``), so a model learns to predict while the arm moves. None (the
+            closed loop, :mod:`sim.trials.closed_loop.loop`; each such sample's record has
+            ``"stage": "approach"``), so a model learns to predict while the arm moves. None (the
             default): the image before each pick only.
         robot: ``yumi`` scene only: the robot whose demonstrations these are, seen through its
             workcell's camera (one of :data:`robots.ROBOT_NAMES`; the YuMi by default). The

@@ -45,7 +45,7 @@ class FollowedApproach:
 
 ApproachFollower = Callable[[PickPlan, StepWatch], FollowedApproach]
 """Tracks a plan's approach in its own way (re-targeting it, moving the target; see
-:mod:`sim.trials.closed_loop`): given the plan and the contact watch, says how it ended."""
+:mod:`sim.trials.closed_loop.loop`): given the plan and the contact watch, says how it ended."""
 
 
 @dataclass(frozen=True)

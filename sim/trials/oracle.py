@@ -102,8 +102,8 @@ class ViewLimitedOracle(OraclePerception):
 
     Each re-prediction is the truth, but the loop heeds it only where the head camera could show
     it (the followed grasp's footprint unhidden, or the new grasp in plain view at two looks in a
-    row: :func:`sim.trials.view.unheeded_reason`): what a perfect perceiver behind the same camera
-    can pick, the reference for a learned model's closed-loop counts.
+    row: :func:`sim.trials.closed_loop.view.unheeded_reason`): what a perfect perceiver behind
+    the same camera can pick, the reference for a learned model's closed-loop counts.
     """
 
     name = "oracle-view"

@@ -16,8 +16,8 @@ from perception.camera import RgbdFrame
 from perception.interface import Prediction
 from perception.labels import label_vector
 from perception.learning.data import SAMPLE_CAMERA_KEY
+from sim.trials.closed_loop.view import hidden_share
 from sim.trials.trial_runner import TrialRunner
-from sim.trials.view import hidden_share
 from sim.world.yumi_world import World
 
 

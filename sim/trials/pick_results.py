@@ -94,7 +94,7 @@ class PickAttempt:
         verdict: The grasp judge's prediction of the pick from its error alone
             (:mod:`perception.judge.grasp_judge`); None where the model gave no grasp.
         loop: The approach's re-predictions and the target's disturbance, as the record
-            keeps them (:meth:`sim.trials.closed_loop.ApproachLoop.to_record`); None for a
+            keeps them (:meth:`sim.trials.closed_loop.loop.ApproachLoop.to_record`); None for a
             plain open-loop pick.
 
     """

@@ -52,9 +52,9 @@ from sim.errors import InvalidInputError, SimError
 from sim.tasks.disturbance import scene_disturbance
 from sim.tasks.scene_sampling import Scene
 from sim.tasks.task_spec import TaskSpec
-from sim.trials.closed_loop import ApproachLoop
+from sim.trials.closed_loop.loop import ApproachLoop
+from sim.trials.closed_loop.loop_settings import Loop, LoopSettings
 from sim.trials.execution import ExecutionSettings, execute_pick
-from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.oracle import OraclePerception
 from sim.trials.pick_results import (
     PickAttempt,
@@ -280,8 +280,8 @@ class TrialRunner:
         What a trial does with its model's prediction, and what the Gymnasium environment
         (:mod:`sim.envs`) does with an agent's grasp: one code path, so both get the same
         outcome for the same grasp. With ``scene``, the first pick's approach is run by an
-        :class:`~sim.trials.closed_loop.ApproachLoop` where the loop is closed or the task
-        moves its target (:mod:`sim.trials.closed_loop`).
+        :class:`~sim.trials.closed_loop.loop.ApproachLoop` where the loop is closed or the task
+        moves its target (:mod:`sim.trials.closed_loop.loop`).
         """
         planned = self.plan_pick(sighting.frame, prediction, number, total)
         if self.observer is not None:  # the Prediction once checked, else None

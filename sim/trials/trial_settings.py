@@ -34,8 +34,8 @@ from sim.tasks.task_sensor import seen_through
 from sim.tasks.task_spec import SIDES, TaskSpec, spaced_for
 from sim.tasks.task_toml import TASK_FILES, with_test_phrases
 from sim.tasks.variants import load_task_variant, variant_file
+from sim.trials.closed_loop.loop_settings import Loop, LoopSettings
 from sim.trials.execution import ExecutionSettings
-from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.model_fit import check_model_fits_task, recorded_sensor
 from sim.trials.oracle import OraclePerception, ViewLimitedOracle
 from sim.trials.planner_setup import ObstacleSource, depth_config
@@ -133,7 +133,7 @@ class TrialSettings:
             :func:`~sim.trials.model_fit.trained_sensor`), else the D435
             (:mod:`sim.tasks.task_sensor`).
         loop: Whether picks re-predict while the arm approaches (``--loop closed``,
-            ``--replan-hz``; :mod:`sim.trials.closed_loop`); open by default.
+            ``--replan-hz``; :mod:`sim.trials.closed_loop.loop`); open by default.
         robot: The robot that picks, one of :data:`robots.ROBOT_NAMES` (``--robot``), seen
             through its workcell's camera; the YuMi by default.
         variant: The task under a variant of its appearance (``--variant``: a built-in name or

@@ -18,8 +18,8 @@ from experiments.table3.settings import ReproduceRealSettings
 from harness.jobs import Executor, ExecutorKind
 from perception.learning.train import TrainConfig
 from perception.learning.validation import CheckConfig
+from sim.trials.closed_loop.loop_settings import Loop, LoopSettings
 from sim.trials.collector import CollectSettings
-from sim.trials.loop_settings import Loop, LoopSettings
 from sim.trials.trial_settings import TrialSettings
 from sim.world.sensor import SensorKind
 

@@ -13,7 +13,7 @@ from experiments.table2.settings import ReproduceSimSettings
 from experiments.table3.options import REAL
 from experiments.table3.settings import ReproduceRealSettings
 from perception.learning.validation import CheckConfig
-from sim.trials.loop_settings import Loop, LoopSettings
+from sim.trials.closed_loop.loop_settings import Loop, LoopSettings
 from sim.world.sensor import SensorKind
 
 

@@ -323,7 +323,7 @@ def test_a_closed_loop_run_tries_each_checkpoint_open_loop_too(tmp_path):
     """``--loop closed``: approach images in the demonstrations, every set closed-loop, and an
     ``open-loop`` set per unit on the same checkpoint and scenes (issue 36)."""
     from experiments.table3.trial_sets import split_task
-    from sim.trials.loop_settings import Loop, LoopSettings
+    from sim.trials.closed_loop.loop_settings import Loop, LoopSettings
 
     closed = ReproduceRealSettings(tasks=("single-moved", "single"), variants=(),
                                    loop=LoopSettings(Loop.CLOSED, replan_hz=5.0))

@@ -10,7 +10,7 @@ from perception.interface import NO_CONDITION
 from perception.objects.catalog import get_object_spec
 from perception.objects.grasps import grasp_pose
 from perception.poses import Pose
-from sim.trials.loop_settings import LoopSettings
+from sim.trials.closed_loop.loop_settings import LoopSettings
 
 CAMERA = PinholeCamera((0.09, 0.0, 0.52), (0.49, 0.0, 0.0), (0.0, 0.0, 1.0), 37.0, None, 64, 48)
 """The head camera's pose, at a quarter of its pixels."""

@@ -19,14 +19,14 @@ from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.tasks.disturbance import Disturbance
 from sim.tasks.task_toml import load_task
-from sim.trials import closed_loop, trial_runner
-from sim.trials.loop_settings import Loop, LoopSettings, Reaction, reactions
+from sim.trials import trial_runner
+from sim.trials.closed_loop.loop_settings import Loop, LoopSettings, Reaction, reactions
+from sim.trials.closed_loop.view import ViewVerdict, hidden_share, in_plain_view, unheeded_reason
 from sim.trials.oracle import OraclePerception, ViewLimitedOracle
 from sim.trials.records import TrialOutcome
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_scenes import trial_scene
 from sim.trials.trial_settings import TRIAL_MODELS
-from sim.trials.view import ViewVerdict, hidden_share, in_plain_view, unheeded_reason
 from sim.world.head_camera import HeadCamera, camera_config
 from sim.world.yumi_world import World
 
@@ -79,7 +79,7 @@ def test_the_view_limited_oracle_is_held_to_the_view_rule_and_the_oracle_is_not(
         asked.append(args)
         return unheeded_reason(*args, **kwargs)
 
-    monkeypatch.setattr(closed_loop, "unheeded_reason", counted)
+    monkeypatch.setattr("sim.trials.closed_loop.loop.unheeded_reason", counted)
     run(single_moved, Loop.CLOSED, 0)
     assert asked == []  # the oracle reads the truth, seen or not
     looked = run(single_moved, Loop.CLOSED, 0, ViewLimitedOracle)
@@ -290,7 +290,7 @@ class _Wandering(OraclePerception):
 def test_an_approach_that_never_settles_stops_looking_and_the_trial_ends(monkeypatch):
     """A grasp that moves beyond the threshold at every look re-targets at every look; past
     MAX_APPROACH_S the loop stops looking, says so, and the pick runs its last plan."""
-    monkeypatch.setattr(closed_loop, "MAX_APPROACH_S", 1.0)
+    monkeypatch.setattr("sim.trials.closed_loop.loop.MAX_APPROACH_S", 1.0)
     task = load_task("single")
     with TrialRunner(task, _Wandering, loop=LoopSettings(Loop.CLOSED), robot=YUMI) as runner:
         record = runner.run(trial_scene(task, 0, 1), 1, 0, "wandering")

@@ -15,7 +15,7 @@ from user_models import FixedGrasp
 from perception.remote.client import RemoteModel
 from robots.yumi import YUMI
 from sim.tasks.task_toml import load_task
-from sim.trials.loop_settings import Loop, LoopSettings, Reaction
+from sim.trials.closed_loop.loop_settings import Loop, LoopSettings, Reaction
 from sim.trials.records import TrialOutcome
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_scenes import trial_scene

@@ -16,6 +16,7 @@ from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import get_scene_spec
 from sim.tasks.task_toml import load_task, task_to_toml
 from sim.trials import collector
+from sim.trials.closed_loop.view import hidden_share
 from sim.trials.collector import (
     APPROACH_HIDDEN_SHARE_MAX,
     APPROACH_MASKED_KEY,
@@ -23,7 +24,6 @@ from sim.trials.collector import (
     CollectSettings,
     collect,
 )
-from sim.trials.view import hidden_share
 from sim.world.head_camera import CameraConfig, camera_config
 from sim.world.sensor import SensorConfig, SensorKind
 

@@ -131,7 +131,7 @@ def test_trials_join_into_one_looping_gif(tmp_path):
 def test_a_closed_loop_gif_shows_the_grasp_follow_the_moved_target():
     """Each re-prediction replaces the panel: its white grasp dot lands on the moved target."""
     from sim.tasks.disturbance import Disturbance
-    from sim.trials.loop_settings import Loop, LoopSettings
+    from sim.trials.closed_loop.loop_settings import Loop, LoopSettings
 
     task = dataclasses.replace(load_task("single"), name="single-moved",
                                disturbance=Disturbance(move_m=(0.06, 0.06)))

@@ -2,7 +2,7 @@
 
 A self-filtered frame (:meth:`sim.world.head_camera.HeadCamera.render_rgbd`) carries the robot's
 own pixels as ``robot_mask``; a closed loop heeds a re-prediction only where the camera sees the
-target followed, or the grasp named stands in plain view (:mod:`sim.trials.closed_loop`), and a
+target followed, or the grasp named stands in plain view (:mod:`sim.trials.closed_loop.loop`), and a
 demonstration keeps only the approach images that show every target (:mod:`sim.trials.collector`).
 """
 

@@ -1,6 +1,6 @@
 """What a closed loop is set to do, and what its records keep (issue 36).
 
-The settings of :mod:`sim.trials.closed_loop`'s loop (a run's ``run.json`` keeps them), the
+The settings of :mod:`sim.trials.closed_loop.loop`'s loop (a run's ``run.json`` keeps them), the
 reaction to each re-prediction and the records of re-predictions and disturbances: data only,
 so that run settings and reports read them without the loop's machinery.
 """

@@ -3,10 +3,10 @@
 An open-loop pick plans once from the first image and runs blind. In closed loop the head
 camera renders every ``1 / replan_hz`` s of the approach, self-filtered (the arm is in view: its
 pixels get no depth and the table's colour), the model predicts again, and when the camera sees
-what it names (:func:`~sim.trials.view.unheeded_reason`: the footprint of the target followed,
-or the new grasp in plain view twice) and the grasp moved beyond the thresholds the pick is
-planned again for the moving arm and its approach re-targeted from the arm's state as it is
-(:meth:`control.planner.PickPlanner.replan`: ruckig from position, velocity and acceleration,
+what it names (:func:`~sim.trials.closed_loop.view.unheeded_reason`: the footprint of the target
+followed, or the new grasp in plain view twice) and the grasp moved beyond the thresholds the
+pick is planned again for the moving arm and its approach re-targeted from the arm's state as it
+is (:meth:`control.planner.PickPlanner.replan`: ruckig from position, velocity and acceleration,
 every sample collision-checked against the latest depth image's obstacles, and where the arm
 now hides what the first image showed, against what was seen there before). A re-plan that
 fails keeps the plan being followed, and the record says so. Once the arm rests at its
@@ -40,8 +40,9 @@ from perception.objects.catalog import ObjectSpec
 from perception.poses import Pose
 from sim.tasks.disturbance import DisturbanceDraw
 from sim.tasks.scene_sampling import Scene
+from sim.trials.closed_loop.loop_settings import Loop, LoopSettings, Moved, Reaction, Reprediction
+from sim.trials.closed_loop.view import unheeded_reason
 from sim.trials.execution import FollowedApproach, StepWatch
-from sim.trials.loop_settings import Loop, LoopSettings, Moved, Reaction, Reprediction
 from sim.trials.oracle import OraclePerception
 from sim.trials.pick_results import (
     PlannedPick,
@@ -52,7 +53,6 @@ from sim.trials.pick_results import (
 )
 from sim.trials.planner_setup import object_obstacles
 from sim.trials.records import TrialOutcome
-from sim.trials.view import unheeded_reason
 from sim.world.yumi_world import World
 
 MOVE_CLEARANCE_M = 0.10
