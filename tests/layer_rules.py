@@ -282,3 +282,25 @@ def roomless(modules: Iterable[str],
     """The modules of a package with rooms that are in none (the package's __init__ aside)."""
     return sorted(module for module in modules if module.split(".")[0] in rooms
                   and "." in module and room(module, rooms) is None)
+
+
+# The house rule of issue 78: a package folder holds at most this many flat modules (``.py``
+# files beside its __init__, the __init__ not counted); past it, a part of it gets a room of its
+# own, a sub-package.
+MAX_FLAT_MODULES = 15
+
+
+def crowded(root: Path, packages: Iterable[str], limit: int = MAX_FLAT_MODULES) -> list[str]:
+    """One message per package folder under ``root/<package>`` with more than ``limit`` flat
+    modules: every folder with an ``__init__.py`` (the package's own included)."""
+    messages = []
+    for package in packages:
+        for init in sorted((root / package).rglob("__init__.py")):
+            folder = init.parent.relative_to(root)
+            if any(part.startswith(".") for part in folder.parts):
+                continue
+            count = sum(1 for path in init.parent.glob("*.py") if path.name != "__init__.py")
+            if count > limit:
+                messages.append(f"{folder.as_posix()}/ holds {count} flat modules, "
+                                f"more than {limit}")
+    return messages

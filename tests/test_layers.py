@@ -14,8 +14,10 @@ from pathlib import Path
 import pytest
 from layer_rules import (
     ALLOWED,
+    MAX_FLAT_MODULES,
     ROOMS,
     Import,
+    crowded,
     cycles,
     discover,
     forbidden,
@@ -74,6 +76,13 @@ def test_rooms_import_only_the_rooms_before_them(project_imports):
     messages = upward(project_imports)
     assert not messages, "imports up a package's rooms (ROOMS, docs/design.md):\n" + \
         "\n".join(messages)
+
+
+def test_no_package_folder_holds_more_flat_modules_than_the_house_rule():
+    messages = crowded(ROOT, ALLOWED)
+    assert not messages, (f"package folders past the house rule of {MAX_FLAT_MODULES} flat "
+                          "modules (issue 78; give a part of each a sub-package):\n"
+                          + "\n".join(messages))
 
 
 # --- the checker itself, on a tiny package ---
@@ -207,3 +216,17 @@ def test_only_imports_up_the_rooms_are_reported(tmp_path):
     assert upward(imports(tmp_path, ["perception"])) == [
         "perception/learning/train.py:2: perception.learning.train imports "
         "perception.models.kqv, room 2 of perception from room 1"]
+
+
+def test_a_crowded_package_folder_is_found_with_its_count(tmp_path):
+    write(tmp_path, {
+        "sim/__init__.py": "",
+        **{f"sim/m{i}.py": "" for i in range(3)},
+        "sim/trials/__init__.py": "",
+        **{f"sim/trials/t{i}.py": "" for i in range(4)},
+        "sim/trials/closed_loop/__init__.py": "",
+        "sim/trials/closed_loop/loop.py": "",
+        **{f"sim/assets/a{i}.py": "" for i in range(5)},  # not a package: no __init__
+    })
+    assert crowded(tmp_path, ["sim"], limit=3) == ["sim/trials/ holds 4 flat modules, more than 3"]
+    assert crowded(tmp_path, ["sim"], limit=4) == []
