@@ -122,6 +122,8 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
     from before the mask have it in view: another dataset) and how much of a target it may hide
     in one (``APPROACH_HIDDEN_SHARE_MAX``; a dataset that records none is issue 36's: 0).
     ``sensor``: the yumi scene's ``--sensor`` (None: the task file's), part of the definition.
+    A run's datasets are demonstrations in the task's looks: a set labelled by the catalog or
+    in randomised looks (``extra["labels"]``, ``extra["looks"]``) is another dataset.
 
     Raises:
         RunFolderError: ``path`` holds another dataset; the message names what differs.
@@ -151,7 +153,8 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
                  {"approach_hz": meta.extra["approach_hz"],
                   APPROACH_MASKED_KEY: meta.extra.get(APPROACH_MASKED_KEY, False),
                   HIDDEN_SHARE_KEY: meta.extra.get(HIDDEN_SHARE_KEY, 0.0)}) | (
-                 {} if "robot" not in meta.extra else {"robot": meta.extra["robot"]})
+                 {} if "robot" not in meta.extra else {"robot": meta.extra["robot"]}) | {
+                 key: meta.extra[key] for key in ("labels", "looks") if key in meta.extra}
     if found != asked:
         raise RunFolderError(f"{path} is not the dataset this run needs "
                              f"({differences(found, asked)}, stored vs asked); remove it to "

@@ -13,7 +13,7 @@ from perception.interface import ConditionKind, InvalidInputError
 from robots import ROBOT_NAMES
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.variants import builtin_variants
-from sim.trials.collector import CollectSettings, collect
+from sim.trials.collector import CollectSettings, LabelSource, LookSource, collect
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:
@@ -40,6 +40,17 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                         help="yumi scene: the robot whose demonstrations these are, seen "
                         "through its workcell's camera (%(default)s)")
     add_sensor_option(parser)
+    parser.add_argument("--labels", choices=[source.value for source in LabelSource],
+                        default=CollectSettings.labels.value,
+                        help="yumi: picked (demonstrations, each scene kept only if the oracle "
+                        "picked every target in physics) or catalog (each scene settled and "
+                        "seen as a trial's, labelled with the oracle's grasps, never picked: "
+                        "hundreds a minute) (%(default)s)")
+    parser.add_argument("--looks", choices=[source.value for source in LookSource],
+                        default=CollectSettings.looks.value,
+                        help="yumi: task (as the task and --variant say) or randomised (any "
+                        "colour per part, the train half's prints, any table and lamp, "
+                        "look-alikes in some scenes; never a held-out look) (%(default)s)")
     parser.add_argument("--out", type=Path, required=True,
                         help="dataset file to write (.gva; must not exist yet)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -56,7 +67,8 @@ def run(args: argparse.Namespace) -> int:
                                stream=SeedStream[args.stream.upper()],
                                every_condition=args.every_condition,
                                approach_hz=args.approach_hz, robot=args.robot,
-                               variant=args.variant, sensor=sensor_kind(args))
+                               variant=args.variant, sensor=sensor_kind(args),
+                               labels=LabelSource(args.labels), looks=LookSource(args.looks))
     dataset = collect(settings, args.out, progress=not args.no_progress)
     meta = dataset.metadata
     redrawn = meta.extra.get("demonstrations_redrawn")
@@ -73,6 +85,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"{scenes} scenes{images} of {meta.scene} / {meta.task} (seed {meta.seed}, "
           f"{meta.extra.get('stream', args.stream)} stream, seen through the {sensor} sensor), "
           f"{meta.targets} target(s) each, {meta.label_kind.value} labels"
-          + (f"; {redrawn} failed demonstrations redrawn" if redrawn is not None else ""))
+          + (f"; {redrawn} failed demonstrations redrawn" if redrawn is not None else "")
+          + ("; labelled by the catalog, never picked"
+             if meta.extra.get("labels") == LabelSource.CATALOG.value else "")
+          + ("; randomised looks" if "looks" in meta.extra else ""))
     print(f"dataset: {args.out}")
     return 0

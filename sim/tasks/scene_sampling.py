@@ -8,7 +8,7 @@ as the task without them (same objects, poses, targets and condition), plus the 
 A task with ``distractors.per_scene`` draws which of its distractors a scene presents from that
 same stream, before placing them. A scene's look (:mod:`sim.tasks.appearance`) comes last, from
 ``SeedSequence([seed, stream, index, 3])``: a task that varies its looks presents the same
-scene as the task that does not.
+scene as the task that does not (a randomised look, which replaces it, from stream 4).
 
 Placement is rejection sampling, bounded: a task that cannot fit is refused before sampling by
 :func:`~sim.tasks.task_in_scene.check_task_fits` (an area bound, Groemer's packing inequality),
@@ -46,6 +46,9 @@ BALANCE_STREAM = 2
 """The seed stream of a balanced task's shuffled type blocks (``TaskSpec.balance_types``)."""
 APPEARANCE_STREAM = 3
 """The seed stream of a scene's look (colours, textures, table, light, camera mount)."""
+RANDOMISED_LOOK_STREAM = 4
+"""The seed stream of a randomised look (:mod:`sim.trials.scene_sets.randomised_looks`), which
+replaces the task's: its own, so the task's looks are never drawn again under another name."""
 
 
 class SeedStream(enum.IntEnum):

@@ -22,6 +22,7 @@ one of 20.
 
 from __future__ import annotations
 
+import enum
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,15 +43,18 @@ from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot
 from robots.description import RobotDescription
 from sim.errors import InvalidInputError, SimError
 from sim.tasks.mirror_symmetry import mirror_symmetric
-from sim.tasks.scene_sampling import Scene, SeedStream, sample_scene
+from sim.tasks.scene_sampling import RANDOMISED_LOOK_STREAM, Scene, SeedStream, sample_scene
 from sim.tasks.scene_specs import SCENE_NAMES, SceneSpec, get_scene_spec
 from sim.tasks.task_in_scene import check_task_fits, condition_choices
 from sim.tasks.task_sensor import seen_in_scene
 from sim.tasks.task_spec import TaskSpec, spaced_for
 from sim.tasks.variants import load_task_variant
 from sim.trials.closed_loop.loop_settings import Loop, LoopSettings
-from sim.trials.pick_images import PickImages, calibration_record
+from sim.trials.pick_images import PickImages
 from sim.trials.records import TrialOutcome
+from sim.trials.scene_sets.catalog_labels import collect_catalog_scenes
+from sim.trials.scene_sets.randomised_looks import RandomisedLooks, randomised
+from sim.trials.scene_sets.samples import Sample, asked, scene_samples
 from sim.trials.trial_runner import TrialRunner
 from sim.world.head_camera import HeadCamera
 from sim.world.sensor import SensorKind
@@ -74,6 +78,20 @@ APPROACH_MASKED_KEY = "approach_robot_masked"
 """A dataset's note that its approach images have the robot masked out (the self filter of
 :meth:`~sim.world.head_camera.HeadCamera.render_rgbd`) and show at least half of every
 target's footprint; datasets from before it lack it."""
+
+
+class LabelSource(enum.Enum):
+    """Where a ``yumi`` dataset's labels come from (``--labels``)."""
+
+    PICKED = "picked"  # the oracle's grasps, each scene kept only if every pick succeeded
+    CATALOG = "catalog"  # the catalog's grasp at each settled pose, never picked (scene_sets)
+
+
+class LookSource(enum.Enum):
+    """What a ``yumi`` dataset's scenes look like (``--looks``)."""
+
+    TASK = "task"  # as the task (and its variant) says
+    RANDOMISED = "randomised"  # wider than any variant, the held-out half never drawn
 
 
 @dataclass(frozen=True)
@@ -110,6 +128,16 @@ class CollectSettings:
             replacing the task file's ``[camera] sensor``; None: the file's, else the D435
             (:mod:`sim.tasks.task_sensor`). The metadata's camera record names it. The
             ``paper-sim`` scene renders through its own ideal camera and takes none.
+        labels: ``yumi`` scene only: ``PICKED`` (demonstrations, verified in physics) or
+            ``CATALOG`` (each scene placed, settled and seen as a trial's, labelled with the
+            oracle's grasps where its targets rest, never picked:
+            :mod:`sim.trials.scene_sets.catalog_labels`); recorded as ``extra["labels"]``
+            where it is not ``PICKED``.
+        looks: ``yumi`` scene only: ``TASK`` or ``RANDOMISED`` (:class:`RandomisedLooks`:
+            any colour per part, the train half's patterns, any table and lamp, look-alikes
+            in some scenes; the task named ``<task>+randomised``); recorded as
+            ``extra["looks"]`` where it is not ``TASK``. Not with a ``variant``: the
+            randomised looks replace the task's.
 
     """
 
@@ -123,6 +151,8 @@ class CollectSettings:
     robot: str = DEFAULT_ROBOT
     variant: str | None = None
     sensor: SensorKind | None = None
+    labels: LabelSource = LabelSource.PICKED
+    looks: LookSource = LookSource.TASK
 
     def __post_init__(self) -> None:
         if self.robot not in ROBOT_NAMES:
@@ -135,6 +165,21 @@ class CollectSettings:
         if not (self.sensor is None or isinstance(self.sensor, SensorKind)):
             raise InvalidInputError("sensor", self.sensor, "None or one of " + ", ".join(
                 f"SensorKind.{k.name}" for k in SensorKind))
+        for name, kind, default in (("labels", LabelSource, LabelSource.PICKED),
+                                    ("looks", LookSource, LookSource.TASK)):
+            value = getattr(self, name)
+            if not isinstance(value, kind):
+                allowed = ", ".join(f"{kind.__name__}.{k.name}" for k in kind)
+                raise InvalidInputError(name, value, f"one of {allowed}")
+            if value is not default and self.scene != "yumi":
+                raise InvalidInputError(name, value.value, f"{default.value!r} for the "
+                                        f"{self.scene} scene (its own labels and looks)")
+        if self.looks is LookSource.RANDOMISED and self.variant is not None:
+            raise InvalidInputError("looks", self.looks.value, "'task' with a variant (the "
+                                    f"randomised looks would replace {self.variant!r}'s)")
+        if self.labels is LabelSource.CATALOG and self.approach_hz is not None:
+            raise InvalidInputError("approach_hz", self.approach_hz, "None with catalog labels "
+                                    "(no pick: no approach to image)")
         check_task_fits(self.task_spec, get_scene_spec(self.scene))
         if self.size < 1:
             raise InvalidInputError("size", self.size, "an integer >= 1")
@@ -156,11 +201,26 @@ class CollectSettings:
     def task_spec(self) -> TaskSpec:
         """The task seen through the scene's sensor, its objects spaced for the robot's hand.
 
-        :func:`~sim.tasks.task_sensor.seen_in_scene`, then :func:`spaced_for`.
+        :func:`~sim.tasks.task_sensor.seen_in_scene`, then :func:`spaced_for`; with randomised
+        looks, :meth:`RandomisedLooks.with_look_alikes`.
         """
-        task = seen_in_scene(load_task_variant(self.task, self.variant), self.scene,
-                             self.sensor)
-        return spaced_for(task, self.description().neighbour_spacing_m)
+        task = spaced_for(seen_in_scene(load_task_variant(self.task, self.variant), self.scene,
+                                        self.sensor), self.description().neighbour_spacing_m)
+        return RandomisedLooks().with_look_alikes(task) \
+            if self.looks is LookSource.RANDOMISED else task
+
+    def scene_at(self, task: TaskSpec, spec: SceneSpec, index: int) -> Scene:
+        """Scene ``index`` of the settings' seed and stream, in its randomised look if asked."""
+        scene = sample_scene(task, spec, self.seed, self.stream, index)
+        return randomised(scene, RandomisedLooks()) \
+            if self.looks is LookSource.RANDOMISED else scene
+
+    def recorded(self) -> dict[str, Any]:
+        """What the metadata's ``extra`` says of the labels and looks, where not the defaults."""
+        return ({} if self.labels is LabelSource.PICKED else {"labels": self.labels.value}) | (
+            {} if self.looks is LookSource.TASK else {"looks": {
+                "kind": self.looks.value, "look_stream": RANDOMISED_LOOK_STREAM,
+                "draw": RandomisedLooks().to_json()}})
 
     def description(self) -> RobotDescription:
         """The robot that collects: ``robot`` resolved (the one place a collection does)."""
@@ -174,13 +234,6 @@ class CollectSettings:
         return self.every_condition
 
 
-def asked(task: TaskSpec, scene: Scene, every_condition: bool) -> tuple[Scene, ...]:
-    """The scene as drawn, then (with ``every_condition``) under each other value it can be."""
-    others = [value for value in scene.askable() if value != scene.condition.value]
-    return (scene,) + (tuple(scene.asking(value, task) for value in others)
-                       if every_condition else ())
-
-
 def collect(settings: CollectSettings, out_path: str | Path, progress: bool = True) -> Dataset:
     """Collects the dataset ``settings`` describes and writes it to ``out_path``."""
     task, spec = settings.task_spec, get_scene_spec(settings.scene)
@@ -188,12 +241,18 @@ def collect(settings: CollectSettings, out_path: str | Path, progress: bool = Tr
     # fill is refused, naming its packing, before a world is built. (A yumi collection redraws
     # failed demonstrations from later scenes: those are drawn when needed.)
     for index in range(settings.size):
-        sample_scene(task, spec, settings.seed, settings.stream, index)
+        settings.scene_at(task, spec, index)
     bar = tqdm(total=settings.size, disable=not progress, unit="scene",
                desc=f"collect {spec.name} / {task.name}")
     with bar:
         if spec.name == "paper-sim":
             samples, camera, extra = _collect_paper(task, spec, settings, bar)
+        elif settings.labels is LabelSource.CATALOG:
+            samples, camera, extra = collect_catalog_scenes(
+                task, spec, lambda index: settings.scene_at(task, spec, index), settings.size,
+                settings.asks_every_condition, settings.description(), bar)
+            extra |= {"stream": settings.stream.name.lower(), "scenes": settings.size,
+                      "every_condition": settings.asks_every_condition}
         else:
             samples, camera, extra = _collect_yumi(task, spec, settings, bar)
     first = samples[0]
@@ -204,7 +263,7 @@ def collect(settings: CollectSettings, out_path: str | Path, progress: bool = Tr
         condition_kind=task.model_condition, condition_choices=condition_choices(task, spec),
         camera=camera,
         extra=extra | {"task": _task_json(task), "object_types": list(spec.object_types)} | (
-            {} if settings.robot == "yumi" else {"robot": settings.robot}),
+            {} if settings.robot == "yumi" else {"robot": settings.robot}) | settings.recorded(),
     )
     def stacked(name: str) -> np.ndarray | None:  # None where the scene gives none
         arrays = [getattr(s, name) for s in samples]
@@ -217,22 +276,6 @@ def collect(settings: CollectSettings, out_path: str | Path, progress: bool = Tr
                       joint_positions=stacked("joint_positions"))
     save_dataset(dataset, out_path)
     return dataset
-
-
-@dataclass(frozen=True)
-class Sample:
-    """One sample as collected: the image, what the model is asked, the labels, the record.
-
-    ``depth_m`` and ``joint_positions`` are the RGB-D frame's depth and the robot's joints when
-    the image was taken (the yumi scene; the paper's scene has neither).
-    """
-
-    image: np.ndarray  # (H, W, 3) uint8
-    condition: np.ndarray  # (C,)
-    labels: np.ndarray  # (q, D)
-    scene: dict[str, Any]
-    depth_m: np.ndarray | None = None  # (H, W)
-    joint_positions: np.ndarray | None = None  # (J,)
 
 
 def _task_json(task: TaskSpec) -> dict[str, Any]:
@@ -292,7 +335,7 @@ def _collect_yumi(
                     f"collect yumi / {task.name}: {len(redrawn)} of {index} demonstrations "
                     f"failed (last: {redrawn[-1]['reason']}); the task may not be pickable"
                 )
-            scene = sample_scene(task, spec, settings.seed, settings.stream, index)
+            scene = settings.scene_at(task, spec, index)
             index += 1
             bodies = runner.setup(scene)
             images.start([bodies[t] for t in scene.targets])
@@ -301,19 +344,8 @@ def _collect_yumi(
                 redrawn.append({"scene_index": scene.index, "reason": demonstration.reason})
                 bar.set_postfix_str(f"{len(redrawn)} redrawn")
                 continue
-            record = scene.to_record() | calibration_record(images.stages[0].frame, runner)
-            samples += [Sample(stage.frame.rgb, scene.given.vector(), stage.labels,
-                               record | ({"taken": stage.taken} if stage.taken else {})
-                               | ({"stage": "approach"} if stage.approach else {}),
-                               stage.frame.depth_m, stage.joint_positions)
-                        for stage in images.stages
-                        if settings.approach_hz is not None or not stage.approach]
-            first = images.stages[0]
-            samples += [Sample(first.frame.rgb, question.given.vector(),
-                               np.stack([images.first[bodies[t]] for t in question.targets]),
-                               question.to_record() | calibration_record(first.frame, runner),
-                               first.frame.depth_m, first.joint_positions)
-                        for question in asked(task, scene, settings.asks_every_condition)[1:]]
+            samples += scene_samples(task, scene, bodies, images, settings.asks_every_condition,
+                                     approach=settings.approach_hz is not None)
             kept += 1
             bar.update()
         camera = _camera_json(runner.mounted_camera)  # as mounted: a look may move it per scene
