@@ -94,9 +94,9 @@ def test_randomised_looks_never_draw_a_held_out_colourway_print_or_look_alike_fi
             assert looks.allowed(placed.object_type, look.colours)
             assert look.texture in (TextureKind.PLAIN, TextureKind.STRIPES)
             drawn.append(look.colours[0])
-    hues = {round(int(c[1:3], 16) / 32) * 100 + round(int(c[3:5], 16) / 32) * 10
+    buckets = {round(int(c[1:3], 16) / 32) * 100 + round(int(c[3:5], 16) / 32) * 10
             + round(int(c[5:7], 16) / 32) for c in drawn}
-    assert len(hues) > 150  # spread over colour space, not a palette's few entries
+    assert len(buckets) > 150  # spread over colour space, not a palette's few entries
     assert sum(any(p.distractor for p in scene.objects) for scene in scenes) > 100  # sometimes
     # the rule itself, on the palette's own values
     assert not looks.allowed("mug", ("#ff69b4",))  # hotpink: a held-out mug
