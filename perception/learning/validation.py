@@ -26,6 +26,7 @@ import numpy as np
 
 from perception.files import atomic_write
 from perception.interface import InvalidInputError
+from perception.learning.combined import is_demonstration
 from perception.learning.data import Dataset
 
 if TYPE_CHECKING:  # torch: not for the settings of a run (`gva --help`, run identities)
@@ -43,6 +44,8 @@ class CheckConfig:
     Args:
         holdout: Fraction of the training scenes held out (rounded, at least one scene where
             two or more remain to train on); 0 trains on every scene and checks nothing.
+            Where demonstrations are trained on beside other scenes, of the demonstrations
+            (:func:`split_scenes`).
         limit_cm: The largest mean held-out position error allowed, of the whole, of each
             condition value and of each head [cm], where the grasp judge does not judge every
             held-out target (position labels, object types its map never measured). 2 cm: a
@@ -210,7 +213,20 @@ def split_scenes(dataset: Dataset, holdout: float, seed: int) -> tuple[Dataset, 
     (:func:`scene_kind`): each kind gives its share, never its last scene, so a rare object
     type is not held out whole (a random split of 20 ``single`` demonstrations once held out
     four of the five spray bottles, and the training never learned the bottle).
+
+    A training set that mixes demonstrations with other scenes (catalog-labelled, randomised
+    looks: :func:`~perception.learning.combined.is_demonstration`) holds out demonstrations
+    only, the fraction taken of them: the same scenes their split alone holds out, so the check
+    scores the kind of scene the trials show, comparably with or without the extra scenes.
     """
+    pool = [n for n, record in enumerate(dataset.scenes) if is_demonstration(record)]
+    if 0 < len(pool) < len(dataset):
+        _, drawn = split_scenes(dataset.subset(pool), holdout, seed)
+        if drawn is None:
+            return dataset, None
+        gone = set(drawn.scene_keys())
+        return dataset.subset([n for n, key in enumerate(dataset.scene_keys())
+                               if key not in gone]), drawn
     keys = dataset.scene_keys()
     scenes = list(dict.fromkeys(keys))
     count = min(max(round(holdout * len(scenes)), 1 if holdout > 0 else 0), len(scenes) - 2)
