@@ -19,9 +19,10 @@ import numpy as np
 
 from experiments.commands.arguments import integer
 from perception.drawing import AttentionRow, attention_figure, write_png
-from perception.files import atomic_write
+from perception.files import atomic_write, file_sha256
 from perception.interface import ConditionKind, InvalidInputError, PerceptionError, Prediction
 from perception.learning.checkpoint import CONFIG_FILE, WEIGHTS_FILE, read_config
+from perception.learning.combined import PARTS_KEY, concatenate
 from perception.learning.data import Dataset
 from perception.learning.dataset_file import load_dataset
 from perception.learning.evaluate import evaluate
@@ -30,6 +31,7 @@ from perception.learning.train import TrainConfig
 from perception.learning.validation import CHECK_FILE, CheckConfig, fit_checked, write_check
 from perception.model_config_file import ModelConfigFile, settings_text
 from perception.models.kqv import KqvModel
+from perception.models.torch_model import TorchModel
 from perception.registry import load_model, new_model
 from perception.remote.client import RemoteModel, is_remote
 
@@ -65,7 +67,11 @@ def add_options(parser: argparse.ArgumentParser, command: str) -> None:
 def _train_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", required=True,
                         help="registered model, preset (keypoint-16) or package.module:Class")
-    parser.add_argument("--data", type=Path, required=True, help="training dataset file")
+    parser.add_argument("--data", type=Path, required=True, action="append",
+                        help="training dataset file; again to train on several at once "
+                        "(demonstrations, then a --labels catalog set): they must agree on "
+                        "what the model reads and predicts, and the held-out check holds out "
+                        "demonstrations only")
     parser.add_argument("--out", type=Path, required=True, help="checkpoint folder to write")
     parser.add_argument("--seed", type=integer(0), default=TrainConfig.seed,
                         help="seeds the weights and the batches (%(default)s)")
@@ -83,7 +89,8 @@ def _train_options(parser: argparse.ArgumentParser) -> None:
                         help="torch CPU threads (default: the cores it may use)")
     parser.add_argument("--holdout", type=float, default=CheckConfig.holdout,
                         help="fraction of the training scenes held out to check the trained "
-                        "model (%(default)s; 0: no check)")
+                        "model, of the demonstrations where other scenes are trained on beside "
+                        "them (%(default)s; 0: no check)")
     parser.add_argument("--check-limit-cm", type=float, default=CheckConfig.limit_cm,
                         help="largest held-out mean error, of the whole, each condition and "
                         "each head [cm] (%(default)s)")
@@ -101,7 +108,11 @@ def _train_options(parser: argparse.ArgumentParser) -> None:
 
 
 def run_train(args: argparse.Namespace) -> int:
-    """``gva train``: a fresh model, fitted on ``--data``, saved in ``--out``."""
+    """``gva train``: a fresh model, fitted on ``--data``, saved in ``--out``.
+
+    Several ``--data`` files are joined (:func:`~perception.learning.combined.concatenate`)
+    and recorded in the checkpoint; one file trains exactly as before several could be given.
+    """
     out: Path = args.out
     if out.exists() and not out.is_dir():
         raise InvalidInputError("--out", str(out), "a folder for the checkpoint; it is a file")
@@ -118,7 +129,9 @@ def run_train(args: argparse.Namespace) -> int:
                                 f"({hyperparameters['points']!r}); give it one way")
     if args.points is not None:
         hyperparameters["points"] = args.points
-    dataset = load_dataset(args.data)
+    paths: list[Path] = args.data
+    dataset = load_dataset(paths[0]) if len(paths) == 1 else \
+        concatenate([load_dataset(path) for path in paths], [str(path) for path in paths])
     config = TrainConfig(steps=args.steps, batch_size=args.batch_size, seed=args.seed,
                          threads=args.threads)
     check = CheckConfig(holdout=args.holdout, limit_cm=args.check_limit_cm,
@@ -128,12 +141,19 @@ def run_train(args: argparse.Namespace) -> int:
     model, report = fit.model, fit.report
     if source is not None:
         source.record(model)
+    if len(paths) > 1 and isinstance(model, TorchModel):
+        model.provenance["datasets"] = training_files(dataset, paths)
     model.save(out)
     write_check(out, fit)
     meta = dataset.metadata
     print(f"{model.name} on {meta.scene} / {meta.task}: {report.samples} samples, "
           f"{report.steps} steps, final loss {report.final_loss:.4g}, "
           f"{report.wall_time_s:.1f} s on {report.threads} thread(s)")
+    if len(paths) > 1:
+        print("trained on: " + " + ".join(
+            f"{part['name']} ({part['task']}, {part['scenes']} scenes, {part['samples']} "
+            f"samples, {part['labels']} labels, {part['looks']} looks)"
+            for part in meta.extra[PARTS_KEY]))
     if len(report.phases) > 1:
         print("phases: " + "; ".join(f"{phase.name} {phase.steps} steps, final loss "
                                      f"{phase.final_loss:.4g}" for phase in report.phases))
@@ -147,6 +167,17 @@ def run_train(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 1
     return 0
+
+
+def training_files(dataset: Dataset, paths: Sequence[Path]) -> list[dict[str, Any]]:
+    """What a checkpoint trained on several files records of each: its part, path and SHA-256.
+
+    ``dataset`` is their :func:`~perception.learning.combined.concatenate`; its
+    ``extra["parts"]`` says what each file gave (task, scenes, samples, labels, looks), so a
+    checkpoint says it was trained on demonstrations plus a randomised set, and which files.
+    """
+    return [part | {"path": str(path.resolve()), "sha256": file_sha256(path)}
+            for part, path in zip(dataset.metadata.extra[PARTS_KEY], paths, strict=True)]
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
