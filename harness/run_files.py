@@ -18,6 +18,7 @@ from typing import Any, TypeVar
 from harness.run_folder import differences, json_form, read_json_file
 from perception.files import atomic_write
 from perception.learning.dataset_file import read_metadata
+from robots import robot_identity
 from robots.description import RobotDescription
 from sim.errors import RunFolderError
 from sim.tasks.scene_sampling import SeedStream
@@ -142,7 +143,7 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
                       | ({} if approach_hz is None else {
                           "approach_hz": approach_hz, APPROACH_MASKED_KEY: True,
                           HIDDEN_SHARE_KEY: APPROACH_HIDDEN_SHARE_MAX})
-                      | ({} if robot.name == "yumi" else {"robot": robot.name}))
+                      | robot_identity(robot.name))
     scenes = meta.extra.get("scenes", meta.size)  # a scene may give several samples
     found = {"scene": meta.scene, "task": meta.task, "size": scenes, "seed": meta.seed,
              "stream": meta.extra.get("stream"),

@@ -18,6 +18,10 @@ ROBOT_NAMES = ("yumi", "panda")
 DEFAULT_ROBOT = "yumi"
 """The robot a run uses when its user names none: the paper's. The one default of a robot;
 below the settings a user fills, every function takes its robot resolved (docs/design.md)."""
+_UNNAMED_ROBOT = "yumi"
+"""The robot identities leave unnamed: every run folder and dataset made before another robot
+existed is the YuMi's. Not :data:`DEFAULT_ROBOT`, though the same today: were the default to
+change, those folders would still be the YuMi's."""
 
 
 def get_robot(name: str) -> RobotDescription:
@@ -33,4 +37,14 @@ def get_robot(name: str) -> RobotDescription:
     raise InvalidInputError("robot", name, f"one of {', '.join(ROBOT_NAMES)}")
 
 
-__all__ = ["DEFAULT_ROBOT", "ROBOT_NAMES", "get_robot"]
+def robot_identity(name: str) -> dict[str, str]:
+    """The robot's part of an identity or record: ``{"robot": name}``, or nothing for the YuMi.
+
+    The one rule every run, dataset and folder identity follows (``run.json``, a dataset's
+    ``extra``, ``gva reproduce real``'s folders), so those made before other robots existed
+    keep their identity.
+    """
+    return {} if name == _UNNAMED_ROBOT else {"robot": name}
+
+
+__all__ = ["DEFAULT_ROBOT", "ROBOT_NAMES", "get_robot", "robot_identity"]

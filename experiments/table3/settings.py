@@ -30,7 +30,7 @@ from perception.learning.train import TrainConfig, available_threads
 from perception.learning.validation import CheckConfig
 from perception.model_config_file import ModelConfigFile
 from perception.remote.client import announced_metadata
-from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot
+from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot, robot_identity
 from robots.description import RobotDescription
 from sim.errors import InvalidInputError
 from sim.tasks.task_spec import TaskSpec, spaced_for
@@ -276,7 +276,7 @@ class ReproduceRealSettings:
         sensor = ({} if self.sensor is SensorKind.IDEAL
                   else {"sensor": SensorConfig(self.sensor).to_json()})
         loop = {"loop": self.loop.to_json()} if self.closed else {}
-        robot = {} if self.robot == "yumi" else {"robot": self.robot}
+        robot = robot_identity(self.robot)
         world = {} if self.world is None else {"world": read_variant(self.world)[1]}
         return sensor | loop | robot | world | {
                 "format_version": FORMAT_VERSION, "experiment": "reproduce-real",

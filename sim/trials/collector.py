@@ -39,7 +39,7 @@ from perception.learning.data import (
 )
 from perception.learning.dataset_file import save_dataset
 from perception.learning.mirror import MIRROR_FLAG
-from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot
+from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot, robot_identity
 from robots.description import RobotDescription
 from sim.errors import InvalidInputError, SimError
 from sim.tasks.mirror_symmetry import mirror_symmetric
@@ -157,9 +157,10 @@ class CollectSettings:
     def __post_init__(self) -> None:
         if self.robot not in ROBOT_NAMES:
             raise InvalidInputError("robot", self.robot, f"one of {', '.join(ROBOT_NAMES)}")
-        if self.robot != "yumi" and self.scene != "yumi":
-            raise InvalidInputError("robot", self.robot, f"'yumi' for the {self.scene} scene "
-                                    "(it has no robot); another robot only in the yumi scene")
+        if self.robot != DEFAULT_ROBOT and self.scene != "yumi":
+            raise InvalidInputError("robot", self.robot, f"{DEFAULT_ROBOT!r} for the "
+                                    f"{self.scene} scene (it has no robot); another robot only "
+                                    "in the yumi scene")
         if self.scene not in SCENE_NAMES:
             raise InvalidInputError("scene", self.scene, f"one of {', '.join(SCENE_NAMES)}")
         if not (self.sensor is None or isinstance(self.sensor, SensorKind)):
@@ -263,7 +264,7 @@ def collect(settings: CollectSettings, out_path: str | Path, progress: bool = Tr
         condition_kind=task.model_condition, condition_choices=condition_choices(task, spec),
         camera=camera,
         extra=extra | {"task": _task_json(task), "object_types": list(spec.object_types)} | (
-            {} if settings.robot == "yumi" else {"robot": settings.robot}) | settings.recorded(),
+            robot_identity(settings.robot)) | settings.recorded(),
     )
     def stacked(name: str) -> np.ndarray | None:  # None where the scene gives none
         arrays = [getattr(s, name) for s in samples]

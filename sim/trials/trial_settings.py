@@ -24,7 +24,7 @@ from perception.learning.learnable import LearnableModel
 from perception.learning.validation import HeldOutCheck, read_check
 from perception.plugins import build_plugin, installed_models, is_class_path, plugin_class
 from perception.remote.client import RemoteModel, announced_metadata, is_remote
-from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot
+from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot, robot_identity
 from robots.description import RobotDescription
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError
@@ -212,7 +212,7 @@ class TrialSettings:
                 "settle_s": self.settle_s, "execution": asdict(self.execution),
                 "obstacles": obstacle_identity(self.obstacles)} | self._model_identity() | (
                     {} if self.loop.loop is Loop.OPEN else {"loop": self.loop.to_json()}) | (
-                    {} if self.robot == "yumi" else {"robot": self.robot})
+                    robot_identity(self.robot))
 
     def description(self) -> RobotDescription:
         """The robot that picks."""

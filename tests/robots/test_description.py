@@ -10,7 +10,7 @@ import pytest
 
 from control.errors import InvalidInputError as ControlInputError
 from perception.errors import InvalidInputError as PerceptionInputError
-from robots import ROBOT_NAMES, get_robot, yumi
+from robots import ROBOT_NAMES, get_robot, robot_identity, yumi
 from robots.errors import InvalidInputError
 from robots.yumi import specs
 
@@ -61,6 +61,12 @@ def test_a_bad_description_is_refused_by_name():
         robot.arm("x")
     with pytest.raises(InvalidInputError, match=r"robot = 'ur5' is not allowed: one of yumi"):
         get_robot("ur5")
+
+
+def test_an_identity_names_every_robot_but_the_yumi():
+    """Folders and datasets from before other robots (all the YuMi's) keep their identity."""
+    assert robot_identity("yumi") == {}
+    assert robot_identity("panda") == {"robot": "panda"}
 
 
 def test_every_packages_bad_input_error_is_one_error():
