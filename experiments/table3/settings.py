@@ -30,7 +30,7 @@ from perception.learning.train import TrainConfig, available_threads
 from perception.learning.validation import CheckConfig
 from perception.model_config_file import ModelConfigFile
 from perception.remote.client import announced_metadata
-from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot, robot_identity
+from robots import DEFAULT_ROBOT, robot_identity
 from robots.description import RobotDescription
 from sim.errors import InvalidInputError
 from sim.tasks.task_spec import TaskSpec, spaced_for
@@ -40,6 +40,7 @@ from sim.trials.closed_loop.loop_settings import Loop, LoopSettings
 from sim.trials.execution import ExecutionSettings
 from sim.trials.trial_settings import TrialSettings, obstacle_identity, task_identity
 from sim.world.head_camera import CameraConfig, camera_config
+from sim.world.robot_choice import resolve_robot
 from sim.world.sensor import SensorConfig, SensorKind
 
 SCENE = "yumi"
@@ -193,8 +194,7 @@ class ReproduceRealSettings:
                 raise InvalidInputError("variants", list(self.variants), "variants of distinct "
                                         f"names (a file's is its stem), none called {PLAIN} or "
                                         f"{OPEN_LOOP}")
-        if self.robot not in ROBOT_NAMES:
-            raise InvalidInputError("robot", self.robot, f"one of {', '.join(ROBOT_NAMES)}")
+        self.description()  # an unknown robot is refused, naming those allowed
         if not isinstance(self.use_failed_checkpoints, bool):
             raise InvalidInputError("use_failed_checkpoints", self.use_failed_checkpoints,
                                     "True or False")
@@ -297,7 +297,7 @@ class ReproduceRealSettings:
 
     def description(self) -> RobotDescription:
         """The robot that picks: ``robot`` resolved, the one place this run names it by name."""
-        return get_robot(self.robot)
+        return resolve_robot(self.robot)
 
     def camera_config(self) -> CameraConfig:
         """The camera the run's demonstrations and trials see through: its robot's."""

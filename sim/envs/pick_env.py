@@ -37,7 +37,7 @@ from perception.interface import (
     Target,
     condition_size,
 )
-from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot
+from robots import DEFAULT_ROBOT
 from sim.errors import InvalidInputError
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_in_scene import condition_choices
@@ -49,6 +49,7 @@ from sim.trials.pick_results import PickAttempt, Sighting, trial_result
 from sim.trials.records import TrialOutcome
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_scenes import trial_scene
+from sim.world.robot_choice import resolve_robot
 from sim.world.sensor import SensorKind
 
 WORKSPACE_BOUND_M = 1.0
@@ -110,9 +111,7 @@ class PickEnv(gymnasium.Env[dict[str, Any], dict[str, Any]]):
         for name, value, least in (("first_index", first_index, 0), ("index_step", index_step, 1)):
             if isinstance(value, bool) or not isinstance(value, int) or value < least:
                 raise InvalidInputError(name, value, f"an integer >= {least}")
-        if robot not in ROBOT_NAMES:
-            raise InvalidInputError("robot", robot, f"one of {', '.join(ROBOT_NAMES)}")
-        description = get_robot(robot)
+        description = resolve_robot(robot)
         loaded = task if isinstance(task, TaskSpec) else load_task(task)
         self.task = spaced_for(seen_through(loaded, sensor), description.neighbour_spacing_m)
         self.render_mode = render_mode

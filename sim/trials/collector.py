@@ -39,7 +39,7 @@ from perception.learning.data import (
 )
 from perception.learning.dataset_file import save_dataset
 from perception.learning.mirror import MIRROR_FLAG
-from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot, robot_identity
+from robots import DEFAULT_ROBOT, robot_identity
 from robots.description import RobotDescription
 from sim.errors import InvalidInputError, SimError
 from sim.tasks.mirror_symmetry import mirror_symmetric
@@ -57,6 +57,7 @@ from sim.trials.scene_sets.randomised_looks import RandomisedLooks, randomised
 from sim.trials.scene_sets.samples import Sample, asked, scene_samples
 from sim.trials.trial_runner import TrialRunner
 from sim.world.head_camera import HeadCamera
+from sim.world.robot_choice import resolve_robot
 from sim.world.sensor import SensorKind
 
 MAX_REDRAW_FACTOR = 3
@@ -155,8 +156,7 @@ class CollectSettings:
     looks: LookSource = LookSource.TASK
 
     def __post_init__(self) -> None:
-        if self.robot not in ROBOT_NAMES:
-            raise InvalidInputError("robot", self.robot, f"one of {', '.join(ROBOT_NAMES)}")
+        self.description()  # an unknown robot is refused, naming those allowed
         if self.robot != DEFAULT_ROBOT and self.scene != "yumi":
             raise InvalidInputError("robot", self.robot, f"{DEFAULT_ROBOT!r} for the "
                                     f"{self.scene} scene (it has no robot); another robot only "
@@ -225,7 +225,7 @@ class CollectSettings:
 
     def description(self) -> RobotDescription:
         """The robot that collects: ``robot`` resolved (the one place a collection does)."""
-        return get_robot(self.robot)
+        return resolve_robot(self.robot)
 
     @property
     def asks_every_condition(self) -> bool:

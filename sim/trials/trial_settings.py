@@ -24,7 +24,7 @@ from perception.learning.learnable import LearnableModel
 from perception.learning.validation import HeldOutCheck, read_check
 from perception.plugins import build_plugin, installed_models, is_class_path, plugin_class
 from perception.remote.client import RemoteModel, announced_metadata, is_remote
-from robots import DEFAULT_ROBOT, ROBOT_NAMES, get_robot, robot_identity
+from robots import DEFAULT_ROBOT, robot_identity
 from robots.description import RobotDescription
 from robots.yumi import YUMI
 from sim.errors import InvalidInputError
@@ -41,6 +41,7 @@ from sim.trials.oracle import OraclePerception, ViewLimitedOracle
 from sim.trials.planner_setup import ObstacleSource, depth_config
 from sim.trials.runner_hooks import TRIAL_INPUTS, ModelFactory
 from sim.world.head_camera import CameraConfig, camera_config
+from sim.world.robot_choice import resolve_robot
 from sim.world.sensor import SensorConfig, SensorKind
 from sim.world.world_config import check_wait_s
 
@@ -162,8 +163,7 @@ class TrialSettings:
     announced: Mapping[str, Any] | None = field(default=None, hash=False)
 
     def __post_init__(self) -> None:
-        if self.robot not in ROBOT_NAMES:
-            raise InvalidInputError("robot", self.robot, f"one of {', '.join(ROBOT_NAMES)}")
+        self.description()  # an unknown robot is refused, naming those allowed
         if not isinstance(self.obstacles, ObstacleSource):
             allowed = ", ".join(repr(s.value) for s in ObstacleSource)
             raise InvalidInputError("obstacles", self.obstacles, f"one of {allowed}")
@@ -216,7 +216,7 @@ class TrialSettings:
 
     def description(self) -> RobotDescription:
         """The robot that picks."""
-        return get_robot(self.robot)
+        return resolve_robot(self.robot)
 
     def camera_config(self) -> CameraConfig:
         """The camera the trials see through: the robot's workcell's."""
