@@ -40,7 +40,7 @@ from sim.tasks.task_toml import load_task
 from sim.trials.planner_setup import ObstacleSource
 from sim.trials.trial_runner import TrialRunner
 from sim.world.grip import grip_of
-from sim.world.sensor import SensorConfig, SensorKind
+from sim.world.sensor import SensorConfig, SensorKind, sensor_kind
 
 TASKS = ("single", "multiple", "selected-type", "selected-position")
 
@@ -68,7 +68,7 @@ def main() -> None:
     parser.add_argument("--sensor", choices=[k.value for k in SensorKind], default="ideal")
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
-    sensor = SensorConfig(SensorKind(args.sensor))
+    sensor = SensorConfig(sensor_kind(args.sensor))
     out = args.out or Path("benchmarks/results/" + ("depth_obstacles.json" if args.sensor ==
                                                      "ideal" else "depth_obstacles_d435.json"))
 

@@ -55,7 +55,7 @@ from sim.tasks.task_spec import TaskSpec
 from sim.tasks.task_toml import load_task, task_to_toml
 from sim.trials.collector import CollectSettings, collect
 from sim.trials.trial_settings import task_identity
-from sim.world.sensor import SensorConfig, SensorKind, sensor_from_table
+from sim.world.sensor import SensorConfig, SensorKind, sensor_from_table, sensor_kind
 
 MODEL = "kqv"
 TEST_SETS = dict(zip(SET_NAMES, ("block", table3.PLAIN), strict=True))
@@ -129,7 +129,7 @@ def test_task(out: Path, spec: TaskSpec, task: str, variant: str, seed: int,
 def candidate_entry(args: argparse.Namespace, candidate: str, task: str, seed: int,
                     steps: list[Step]) -> Entry:
     """``candidate``'s checkpoint of ``task`` and ``seed``; its missing work to ``steps``."""
-    folder, sensor = table3.seed_folder(args.out / candidate, seed), SensorKind(args.sensor)
+    folder, sensor = table3.seed_folder(args.out / candidate, seed), sensor_kind(args.sensor)
     settings = table3.ReproduceRealSettings(
         models=(MODEL,), tasks=(task,), demos=args.demos, steps=args.steps, seed=seed,
         sensor=sensor, train_threads=args.train_threads)

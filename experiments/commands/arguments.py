@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 
 from experiments.commands.options import Option
 from harness.jobs import Executor, ExecutorKind
+from sim.tasks.task_sensor import as_sensor_kind
 from sim.world.sensor import DEFAULT_SENSOR, SensorKind
 
 if TYPE_CHECKING:  # imported where used: a command's --help must not load torch
@@ -127,7 +128,7 @@ def add_sensor_option(parser: argparse.ArgumentParser, otherwise: str = "") -> N
 
 def sensor_kind(args: argparse.Namespace) -> SensorKind | None:
     """The ``--sensor`` asked for; None where none was."""
-    return None if args.sensor is None else SensorKind(args.sensor)
+    return as_sensor_kind(args.sensor)
 
 
 def resume_command(args: argparse.Namespace) -> str:

@@ -23,7 +23,7 @@ from typing import Any
 
 from sim.errors import InvalidInputError
 from sim.tasks.task_spec import TaskSpec
-from sim.world.sensor import SensorConfig, SensorKind
+from sim.world.sensor import SensorConfig, SensorKind, sensor_kind
 
 PAPER_SCENE = "paper-sim"
 
@@ -35,12 +35,12 @@ def as_sensor_kind(value: Any) -> SensorKind | None:
         InvalidInputError: Anything else, naming the kinds allowed.
 
     """
-    if value is None or isinstance(value, SensorKind):
-        return value
-    names = {kind.value: kind for kind in SensorKind}
-    if isinstance(value, str) and value in names:
-        return names[value]
-    raise InvalidInputError("sensor", value, f"None or one of {', '.join(map(repr, names))}")
+    if value is None:
+        return None
+    try:
+        return sensor_kind(value)
+    except InvalidInputError as error:  # None is allowed here too
+        raise InvalidInputError(error.field, error.value, f"None or {error.allowed}") from None
 
 
 def seen_through(task: TaskSpec, sensor: SensorKind | str | None = None,

@@ -82,6 +82,22 @@ existed, and the paper-sim scene's camera, are ideal.)"""
 _ALLOWED_SENSORS = f"one of {', '.join(repr(k.value) for k in SensorKind)}"
 
 
+def sensor_kind(name: object, what: str = "sensor") -> SensorKind:
+    """The sensor kind called ``name`` (``"ideal"``, ``"d435"``; a :class:`SensorKind` is itself).
+
+    The one place a sensor's name becomes its kind: a task file's ``camera.sensor``, a record's,
+    ``--sensor``.
+
+    Raises:
+        InvalidInputError: ``name`` names no kind; the error's field is ``what``.
+
+    """
+    try:
+        return SensorKind(name)
+    except (ValueError, TypeError):
+        raise InvalidInputError(what, name, _ALLOWED_SENSORS) from None
+
+
 def sensor_from_table(table: Mapping[str, Any], where: str) -> SensorConfig:
     """The sensor a ``camera`` table (or a record :meth:`SensorConfig.to_json` wrote) names.
 
@@ -93,11 +109,7 @@ def sensor_from_table(table: Mapping[str, Any], where: str) -> SensorConfig:
     """
     if not isinstance(table, Mapping):
         raise InvalidInputError(where, table, "a table such as { sensor = \"d435\" }")
-    kind_name = table.get("sensor", SensorKind.IDEAL.value)
-    try:
-        kind = SensorKind(kind_name)
-    except (ValueError, TypeError):
-        raise InvalidInputError(f"{where}.sensor", kind_name, _ALLOWED_SENSORS) from None
+    kind = sensor_kind(table.get("sensor", SensorKind.IDEAL.value), f"{where}.sensor")
     defaults = D435Config()
     names = sorted(f.name for f in fields(D435Config))
     values: dict[str, Any] = {}
@@ -181,4 +193,4 @@ class SensorSeed:
 
 
 __all__ = ["DEFAULT_SENSOR", "SENSOR_MOUNT_TAG", "SENSOR_NOISE_TAG", "SensorConfig", "SensorKind",
-           "SensorSeed", "sensor_from_table"]
+           "SensorSeed", "sensor_from_table", "sensor_kind"]

@@ -9,7 +9,7 @@ from sim.tasks.task_sensor import seen_in_scene, seen_through
 from sim.tasks.task_toml import builtin_tasks, load_task, task_from_toml, task_to_toml
 from sim.trials.trial_settings import task_identity
 from sim.world.d435 import D435Config
-from sim.world.sensor import DEFAULT_SENSOR, SensorConfig, SensorKind
+from sim.world.sensor import DEFAULT_SENSOR, SensorConfig, SensorKind, sensor_kind
 
 IDEAL, D435 = SensorConfig(), SensorConfig(SensorKind.D435)
 CUSTOM = SensorConfig(SensorKind.D435, D435Config(subpixel_rms_px=0.1))
@@ -36,6 +36,14 @@ def test_the_flag_replaces_the_file_which_beats_the_fallback_which_beats_the_def
     with pytest.raises(InvalidInputError, match="sensor = 'kinect' is not allowed: None or one "
                        "of 'ideal', 'd435'"):
         seen_through(bare, "kinect")
+
+
+def test_a_sensor_name_becomes_its_kind_in_one_place():
+    assert sensor_kind("d435") is SensorKind.D435 and sensor_kind(SensorKind.IDEAL) is IDEAL.kind
+    for name in ("kinect", None, 3, ["d435"]):
+        with pytest.raises(InvalidInputError, match=r"file\.sensor = .* is not allowed: one of "
+                           "'ideal', 'd435'"):
+            sensor_kind(name, "file.sensor")
 
 
 def test_a_file_without_a_sensor_is_the_d435_and_one_naming_ideal_stays_ideal():
