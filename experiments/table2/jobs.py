@@ -41,10 +41,10 @@ from perception.learning.evaluate import EvaluationResult, evaluate
 from perception.learning.train import TrainConfig, TrainReport
 from perception.model_config_file import ModelConfigFile
 from perception.registry import new_model
-from robots.yumi import YUMI
 from sim.tasks.scene_sampling import SeedStream
 from sim.trials.collector import CollectSettings, collect
 from sim.trials.trial_settings import torch_threads
+from sim.world.robot_choice import resolve_robot
 from sim.world.sensor import SensorKind
 
 # datasets
@@ -89,11 +89,12 @@ def dataset_jobs(out: Path, scene: str, tasks: Sequence[str], training_seeds: Se
     wanted = [(task, seed, SeedStream.TRAIN, tuple(sizes)) for task in tasks
               for seed in training_seeds]
     wanted += [(task, test_seed, SeedStream.TEST, (test_scenes,)) for task in tasks]
+    robot = resolve_robot(CollectSettings.robot)  # the robot collect_datasets' settings hold
     jobs = []
     for task, seed, stream, sizes in wanted:
         missing = tuple(sorted(s for s in sizes if not dataset_present(
             dataset_path(out, task, stream, s, seed), scene, task, s, seed, stream,
-            robot=YUMI, sensor=sensor)))  # reproduce sim collects in the YuMi's workcell
+            robot=robot, sensor=sensor)))
         if missing:
             jobs.append(DatasetJob(task, seed, stream, missing, out, scene, sensor))
     return jobs
