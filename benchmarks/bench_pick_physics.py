@@ -199,6 +199,31 @@ def pick_physics(task: str, seeds: tuple[int, ...], n: int) -> PickPhysics:
          for phase in PHASES})
 
 
+@contextlib.contextmanager
+def solver_settings(residual_threshold: float | None, iterations: int | None) -> Iterator[None]:
+    """Every world built meanwhile gets these PyBullet solver settings: a candidate, measured.
+
+    ``solverResidualThreshold`` and ``numSolverIterations`` as given (None: the world's own;
+    the floor's half-iterations row then reads ``iterations`` too). A change of contact
+    physics: what it buys is measured here; adopting one needs the oracle's counts and the
+    grasp tolerance map re-measured (issue 76).
+    """
+    build = World._build
+
+    def built(world: World) -> None:
+        build(world)
+        if residual_threshold is not None:
+            world.client.setPhysicsEngineParameter(solverResidualThreshold=residual_threshold)
+        if iterations is not None:
+            world.client.setPhysicsEngineParameter(numSolverIterations=iterations)
+
+    World._build = built  # type: ignore[method-assign, assignment]
+    try:
+        yield
+    finally:
+        World._build = build  # type: ignore[method-assign]
+
+
 def median_step_ms(step: Callable[[int], None], steps: int, repeats: int) -> float:
     """Median over ``repeats`` of one step's wall time [ms], ``step(steps)`` timed whole."""
     times = []
@@ -246,16 +271,8 @@ def robot_and_objects_ms(steps: int, repeats: int, config: WorldConfig) -> float
         return median_step_ms(world.step, steps, repeats)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="multiple")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
-    parser.add_argument("--n", type=int, default=4)
-    parser.add_argument("--steps", type=int, default=480)
-    parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/pick_physics.json"))
-    args = parser.parse_args(argv)
-    load_before = os.getloadavg()
+def measure(args: argparse.Namespace) -> tuple[PickPhysics, dict[str, Any]]:
+    """The picks, then the floor."""
     picks = pick_physics(args.task, tuple(args.seeds), args.n)
     awake, asleep = WorldConfig(object_sleeping=False), WorldConfig()
     floor = {
@@ -268,6 +285,25 @@ def main(argv: list[str] | None = None) -> int:
             args.steps, args.repeats,
             replace(awake, solver_iterations=awake.solver_iterations // 2)),
     }
+    return picks, floor
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="multiple")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    parser.add_argument("--n", type=int, default=4)
+    parser.add_argument("--steps", type=int, default=480)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--residual-threshold", type=float, default=None,
+                        help="PyBullet's solverResidualThreshold for every world (a candidate)")
+    parser.add_argument("--iterations", type=int, default=None,
+                        help="PyBullet's numSolverIterations for every world (a candidate)")
+    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/pick_physics.json"))
+    args = parser.parse_args(argv)
+    load_before = os.getloadavg()
+    with solver_settings(args.residual_threshold, args.iterations):
+        picks, floor = measure(args)
     record = {
         "machine": {"cpu_count": os.cpu_count(), "python": platform.python_version(),
                     "processor": platform.processor() or platform.machine(),

@@ -35,3 +35,11 @@ def test_the_picks_steps_are_counted_and_timed_and_the_floor_measured(tmp_path):
         "robot_and_objects_awake_ms", "robot_and_objects_asleep_ms",
         "robot_and_objects_awake_half_solver_iterations_ms"}
     assert bullet_client.BulletClient.__getattr__ is resolve  # the timers are taken off
+
+
+def test_a_solver_candidate_reaches_every_world_built_meanwhile_and_no_other():
+    bench = load_benchmark("bench_pick_physics")
+    with bench.solver_settings(1e-5, 7), bench.World(robot=bench.YUMI) as world:
+        assert world.client.getPhysicsEngineParameters()["numSolverIterations"] == 7
+    with bench.World(robot=bench.YUMI) as world:
+        assert world.client.getPhysicsEngineParameters()["numSolverIterations"] == 100
