@@ -361,6 +361,9 @@ def test_a_panda_run_demonstrates_trains_and_picks_through_its_own_camera(tmp_pa
     arms = {pick.get("arm") for line in trials for pick in json.loads(line)["picks"]}
     reasons = " ".join(json.loads(line)["reason"] for line in trials)
     assert arms <= {"panda", None} and ("panda" in arms or "arm panda" in reasons)
+    status, stdout, stderr = gva("reproduce", "real", "--out", out, "--robot", "panda",
+                                 "--no-robustness", *TINY)  # the same run again: resumed whole
+    assert status == 0 and "0 job(s) run" in stdout, stderr
     status, _, stderr = gva("reproduce", "real", "--out", out, "--no-robustness", *TINY)
     assert status != 0 and "robot" in stderr
 
