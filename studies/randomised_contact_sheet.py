@@ -19,6 +19,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+from variant_contact_sheet import save_sheet, show  # studies/, beside this script
 
 from sim.trials.collector import CollectSettings, LabelSource, LookSource, collect
 
@@ -43,22 +44,13 @@ def main() -> None:
             firsts = [n for n, record in enumerate(data.scenes) if "taken" not in record]
             for column, sample in enumerate(firsts[:args.scenes]):
                 axis = axes[row][column]
-                axis.imshow(data.images[sample], interpolation="nearest")
+                show(axis, data.images[sample], data.metadata.task if column == 0 else None)
                 camera = data.camera(sample)
                 assert camera is not None  # a yumi dataset records its camera
                 uv = camera.project(data.labels[sample][:, :3])
                 axis.plot(uv[:, 0], uv[:, 1], "o", ms=3, mfc="white", mec="black", mew=0.6)
-                axis.set_xticks([])
-                axis.set_yticks([])
-                if column == 0:
-                    axis.set_ylabel(data.metadata.task, rotation=0, ha="right", va="center",
-                                    fontsize=8)
-    figure.suptitle(f"training scenes 0-{args.scenes - 1} of seed {args.seed}, randomised looks, "
-                    "through the D435; dots: the catalog's grasp labels", fontsize=9)
-    figure.tight_layout()
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(args.out, dpi=80)
-    print(f"wrote {args.out}")
+    save_sheet(figure, f"training scenes 0-{args.scenes - 1} of seed {args.seed}, randomised "
+               "looks, through the D435; dots: the catalog's grasp labels", args.out, dpi=80)
 
 
 if __name__ == "__main__":

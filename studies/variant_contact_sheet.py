@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -26,6 +27,24 @@ from sim.tasks.variants import builtin_variants, variant_title, with_variant
 from sim.world.sensor import SensorConfig, SensorKind
 
 OUT = Path(__file__).resolve().parents[1] / "docs" / "figures" / "variants.png"
+
+
+def show(axis: Any, image: Any, row_title: str | None = None) -> None:
+    """One cell of a contact sheet: the image, no ticks, the row's title left of its first."""
+    axis.imshow(image, interpolation="nearest")
+    axis.set_xticks([])
+    axis.set_yticks([])
+    if row_title is not None:
+        axis.set_ylabel(row_title, rotation=0, ha="right", va="center", fontsize=8)
+
+
+def save_sheet(figure: Any, title: str, out: Path, dpi: int) -> None:
+    """A contact sheet titled and written to ``out`` (its folder made)."""
+    figure.suptitle(title, fontsize=9)
+    figure.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(out, dpi=dpi)
+    print(f"wrote {out}")
 
 
 def main() -> None:
@@ -43,18 +62,9 @@ def main() -> None:
     for row, (title, task) in enumerate(rows):
         for column in range(args.scenes):
             scene = sample_scene(task, YUMI_SCENE, args.seed, SeedStream.TEST, column)
-            axis = axes[row][column]
-            axis.imshow(render_scene(scene, task), interpolation="nearest")
-            axis.set_xticks([])
-            axis.set_yticks([])
-            if column == 0:
-                axis.set_ylabel(title, rotation=0, ha="right", va="center", fontsize=8)
-    figure.suptitle(f"{args.task}, test scenes 0-{args.scenes - 1} of seed {args.seed}, "
-                    "through the D435", fontsize=9)
-    figure.tight_layout()
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(args.out, dpi=90)
-    print(f"wrote {args.out}")
+            show(axes[row][column], render_scene(scene, task), title if column == 0 else None)
+    save_sheet(figure, f"{args.task}, test scenes 0-{args.scenes - 1} of seed {args.seed}, "
+               "through the D435", args.out, dpi=90)
 
 
 if __name__ == "__main__":
