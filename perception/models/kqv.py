@@ -9,7 +9,7 @@ from outside. Its settings are :class:`KqvConfig`; where they depart from the pa
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from typing import Any, cast
 
@@ -20,7 +20,7 @@ from torch import Tensor, nn
 from perception.camera import Calibrations
 from perception.interface import Condition, InvalidInputError, ModelInput, Prediction
 from perception.language.sentence_reading import TokenReader, fit_token_reader, read_target
-from perception.language.sentences import token_embeddings
+from perception.language.sentences import token_embeddings, token_ids
 from perception.learning.data import Dataset
 from perception.learning.evaluate import evaluate
 from perception.learning.learnable import ModelSpec
@@ -90,6 +90,14 @@ class KqvModel(TorchModel):
                 "query_mlp.0.weight" in tensors:
             values["query_mode"] = "conditioned+base"
         return values
+
+    @classmethod
+    def tensors_from(cls, saved: dict[str, Tensor], expected: Mapping[str, Tensor]
+                     ) -> dict[str, Tensor]:
+        """A token reader saved before it kept the words it saw reads every word, as trained."""
+        if "reader.seen" in expected and "reader.seen" not in saved:
+            return saved | {"reader.seen": torch.ones_like(expected["reader.seen"])}
+        return saved
 
     _prototypes: Tensor | None = None  # (k, C) a sentence task's prototypes, set on first fit
     _reader: TokenReader | None = None  # what a sentence names, from its words; first fit
@@ -191,7 +199,8 @@ class KqvModel(TorchModel):
         named = dataset.condition_names()
         phrasings = sorted({(dataset.condition(i).value or "", choices.index(name))
                             for i, name in enumerate(named) if name is not None})
-        return fit_token_reader(phrasings, len(choices), token_embeddings, self.config.seed)
+        return fit_token_reader(phrasings, len(choices), token_embeddings, self.config.seed,
+                                ids=token_ids)
 
     def condition_rows(self, conditions: Sequence[Condition], rows: np.ndarray) -> np.ndarray:
         """Each sentence's row as the network reads it, under the ``"tokens"`` reading.
@@ -203,7 +212,8 @@ class KqvModel(TorchModel):
         if reader is None or prototypes is None:
             return rows
         units = unit(prototypes, dim=-1).numpy()
-        read = [read_target(reader, token_embeddings(c.value or "")) for c in conditions]
+        read = [read_target(reader, token_embeddings(c.value or ""), token_ids(c.value or ""))
+                for c in conditions]
         return units[read].astype(np.float32)
 
     def phases(self) -> list[Phase]:

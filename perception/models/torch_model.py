@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import abc
 import dataclasses
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any, ClassVar, NamedTuple, Self
 
@@ -278,9 +278,22 @@ class TorchModel(LearnableModel):
         except (KeyError, TypeError, ValueError) as error:
             raise CheckpointError(checkpoint.folder / CONFIG_FILE, f"cannot rebuild the model "
                                   f"({type(error).__name__}: {error})") from error
-        check_shapes(checkpoint, model.network.state_dict())
+        expected = model.network.state_dict()
+        checkpoint = dataclasses.replace(checkpoint, tensors=cls.tensors_from(
+            checkpoint.tensors, expected))
+        check_shapes(checkpoint, expected)
         model.network.load_state_dict(checkpoint.tensors)
         return model
+
+    @classmethod
+    def tensors_from(cls, saved: dict[str, torch.Tensor], expected: Mapping[str, torch.Tensor]
+                     ) -> dict[str, torch.Tensor]:
+        """A checkpoint's tensors, older ones completed.
+
+        Tensors a later version of the network added get the value that reads as before them
+        (from ``expected``, the network's own); by default, as saved.
+        """
+        return saved
 
     @classmethod
     def hyperparameters_from(cls, saved: dict[str, Any], tensors: frozenset[str] = frozenset()

@@ -47,6 +47,11 @@ def tokens(sentence: str) -> np.ndarray:
     return np.stack([WORDS[w] for w in sentence.split()]) + noise
 
 
+def ids(sentence: str) -> np.ndarray:
+    """Made-up word-piece ids: each word's place in :data:`WORDS`."""
+    return np.array([list(WORDS).index(w) for w in sentence.split()])
+
+
 def test_the_reader_reads_new_wordings_by_their_side_word():
     reader = fit_token_reader(TRAIN, 2, tokens, seed=0)
     assert [read_target(reader, tokens(s)) for s, _ in NEW] == [k for _, k in NEW]
@@ -54,6 +59,28 @@ def test_the_reader_reads_new_wordings_by_their_side_word():
         weights = reader.attention(torch.as_tensor(tokens(sentence), dtype=torch.float32))
         side = [i for i, w in enumerate(sentence.split()) if w in ("left", "right")]
         assert int(weights.argmax()) in side
+
+
+def test_the_reader_reads_only_the_words_its_training_saw():
+    """An unseen word whose embedding lies near the other side's word drew the attention off
+    the side word ("the right-side object please" read as left, issue 75); read by the words
+    training saw, the sentence reads as its side word says."""
+    WORDS["sidelong"] = 3.0 * WORDS["left"]  # a word no training sentence has
+    try:
+        sentence = "the right sidelong object"
+        blind = fit_token_reader(TRAIN, 2, tokens, seed=0)
+        assert read_target(blind, tokens(sentence), ids(sentence)) == 0  # reads every word
+        reader = fit_token_reader(TRAIN, 2, tokens, seed=0, ids=ids)
+        assert read_target(reader, tokens(sentence)) == 0  # no ids: every word, as before
+        assert read_target(reader, tokens(sentence), ids(sentence)) == 1
+        assert {w for w in WORDS if reader.seen[list(WORDS).index(w)]} == \
+            {w for s, _ in TRAIN for w in s.split()}
+        unknown = "hand me that"  # no word seen: read whole, never as nothing
+        assert read_target(reader, tokens(unknown), ids(unknown)) in (0, 1)
+        with pytest.raises(InvalidInputError, match=r"token ids"):
+            read_target(reader, tokens(sentence), ids(sentence)[:2])
+    finally:
+        del WORDS["sidelong"]
 
 
 def test_training_is_seeded():
@@ -86,6 +113,18 @@ def scene_tokens(sentence: str) -> np.ndarray:
     return np.stack([SCENE_WORDS[w] for w in sentence.split()]).astype(np.float32)
 
 
+def scene_ids(sentence: str) -> np.ndarray:
+    """Made-up word-piece ids for the synthetic scenes' sentences."""
+    return np.array([list(SCENE_WORDS).index(w) for w in sentence.split()])
+
+
+@pytest.fixture
+def scene_words(monkeypatch):
+    """kqv reads the synthetic scenes' sentences by the made-up words, not the encoder."""
+    monkeypatch.setattr("perception.models.kqv.token_embeddings", scene_tokens)
+    monkeypatch.setattr("perception.models.kqv.token_ids", scene_ids)
+
+
 def _worded_scenes(size: int, seed: int, fillers: tuple[str, ...]) -> Dataset:
     """Synthetic selected-type scenes, each naming its colour in a sentence; the sentence's
     pooled 'embedding' is random, unrelated to what it names, as a pooled vector can be."""
@@ -112,8 +151,7 @@ def test_auto_reads_types_by_prototype_and_other_targets_by_tokens():
 
 
 def test_kqv_reads_a_new_wording_by_its_words_where_the_pooled_vector_says_nothing(
-        tmp_path, monkeypatch):
-    monkeypatch.setattr("perception.models.kqv.token_embeddings", scene_tokens)
+        tmp_path, monkeypatch, scene_words):
     train = _worded_scenes(24, seed=1, fillers=("pick up", "grab"))
     model = KqvModel.for_dataset(train, KqvConfig(seed=0, sentence_reading="tokens"))
     model.fit(train, TrainConfig(steps=2, batch_size=4, threads=1), progress=False)
@@ -137,12 +175,23 @@ def test_kqv_reads_a_new_wording_by_its_words_where_the_pooled_vector_says_nothi
         assert bool((mine == theirs).all())
     assert {id(p) for p in model.network.reader.parameters()}.isdisjoint(
         id(p) for p in model._pose_parameters())  # trained apart, before the pose
+    seen = model.network.reader.seen
+    assert int(seen.sum()) == len({w for i in range(len(train))
+                                   for w in (train.condition(i).value or "").split()})
+    # A checkpoint saved before the reader kept its words reads every word, as it was trained.
+    folder = tmp_path / "ckpt"
+    config = json.loads((folder / "config.json").read_text())
+    save_checkpoint(folder, "kqv", {k: v for k, v in config.items() if k not in (
+        "format_version", "model", "weights_sha256", "config_sha256")},
+        {k: v for k, v in model.network.state_dict().items() if k != "reader.seen"})
+    old = KqvModel.load(folder)
+    assert bool((old.network.reader.seen == 1).all())
+    assert old.condition_rows(new[:1], rows[:1]).shape == (1, EMBEDDING_SIZE)
 
 
-def test_a_sentence_task_trains_and_predicts_as_its_one_hot_twin(monkeypatch):
+def test_a_sentence_task_trains_and_predicts_as_its_one_hot_twin(scene_words):
     """Each training sentence trains as its named target's row and the Query form is the
     one-hot twin's: read right, a sentence model is the one-hot model (up to float rounding)."""
-    monkeypatch.setattr("perception.models.kqv.token_embeddings", scene_tokens)
     text = _worded_scenes(16, seed=4, fillers=("pick up", "grab"))
     onehot = synthetic_dataset(16, conditioned=True, seed=4, image_px=48)
     train = TrainConfig(steps=30, batch_size=4, threads=1)
@@ -158,8 +207,7 @@ def test_a_sentence_task_trains_and_predicts_as_its_one_hot_twin(monkeypatch):
 
 
 def test_a_side_sentence_checkpoint_from_before_the_twin_form_keeps_its_base_queries(
-        tmp_path, monkeypatch):
-    monkeypatch.setattr("perception.models.kqv.token_embeddings", scene_tokens)
+        tmp_path, scene_words):
     text = _worded_scenes(8, seed=4, fillers=("pick up", "grab"))
     sides = replace(text.metadata, extra={})  # no object types: its targets read as sides
     text = replace(text, metadata=sides)
@@ -176,7 +224,7 @@ def test_a_side_sentence_checkpoint_from_before_the_twin_form_keeps_its_base_que
     assert KqvNet(loaded.spec, KqvConfig()).base_queries is None  # today's auto: a side's form
 
 
-def test_a_sentence_task_over_types_trains_mirrored_where_its_dataset_allows(monkeypatch):
+def test_a_sentence_task_over_types_trains_mirrored_where_its_dataset_allows(scene_words):
     """The mirror flips the image and keeps the sentence: a type is the same in the mirror."""
     base = synthetic_dataset(8, conditioned=True, seed=4, camera=CAMERA)  # on the mirror plane
     names = base.conditions.argmax(axis=1)
@@ -185,7 +233,6 @@ def test_a_sentence_task_over_types_trains_mirrored_where_its_dataset_allows(mon
                     [f"grab the {TYPES[k]} square" for k in names])
     text = replace(text, metadata=replace(text.metadata,
                                           extra=text.metadata.extra | {MIRROR_FLAG: True}))
-    monkeypatch.setattr("perception.models.kqv.token_embeddings", scene_tokens)
     model = KqvModel.for_dataset(text, KqvConfig(seed=0, starts=1))
     model.fit(text, TrainConfig(steps=2, batch_size=4, threads=1), progress=False)
     assert model._mirror is not None and model._mirror.rows is None

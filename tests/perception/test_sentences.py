@@ -13,6 +13,7 @@ from perception.files import file_sha256
 from perception.interface import Condition, ConditionKind
 from perception.language.sentences import (
     EMBEDDING_SIZE,
+    VOCABULARY_SIZE,
     WEIGHTS_SHA256,
     SentenceEncoder,
     model_folder,
@@ -72,6 +73,19 @@ def test_token_embeddings_are_the_words_before_pooling(encoder, monkeypatch):
                                encoder.encode("the one on the right"), atol=1e-5)
     with pytest.raises(InvalidInputError, match="sentence"):
         encoder.tokens("")
+
+
+def test_token_ids_name_each_token_row(encoder, monkeypatch):
+    """One word-piece id per row of the token embeddings, so a reader can tell words apart."""
+    monkeypatch.setattr(socket.socket, "connect", _no_network)
+    for sentence in ("the one on the right", "the right-side object please"):
+        ids = encoder.ids(sentence)
+        assert ids.shape == (encoder.tokens(sentence).shape[0],) and ids.dtype == np.int64
+        assert ids.max() < VOCABULARY_SIZE and encoder.ids(sentence) is ids
+    right = encoder.ids("the right-side object please")
+    assert right[2] == encoder.ids("the one on the right")[5]  # "right" is one piece, both times
+    with pytest.raises(InvalidInputError, match="sentence"):
+        encoder.ids(" ")
 
 
 def test_a_text_conditions_vector_is_its_sentences_embedding(encoder, monkeypatch):
