@@ -7,35 +7,19 @@ import sys
 
 import numpy as np
 import pytest
-from plugin_detectors import PLUGINS, imports_beyond_the_rule
+from plugin_detectors import assert_grasps_every_target, imports_beyond_the_rule
 
 from perception.errors import InvalidPredictionError
 from perception.interface import Condition, ConditionKind
 from perception.objects.catalog import OBJECT_TYPES
-from perception.plugins import build_plugin
-from robots.yumi import YUMI
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_toml import load_task
-from sim.trials.pick_results import grasp_angle_rad
-from sim.trials.trial_runner import TrialRunner
 
 TASKS = ("single", "multiple", "selected-type", "selected-position")
+PLUGIN = "shape_detector:ShapeDetector"
 POSITION_TOLERANCE_M = 0.015  # it reaches 2.2 mm on the first 25 test scenes of each task
 ANGLE_TOLERANCE_RAD = math.radians(15.0)  # it reaches 2 deg (grasp) and 3 deg (a mug's handle)
-
-
-@pytest.fixture(scope="module")
-def detector():
-    with pytest.MonkeyPatch.context() as patch:
-        patch.syspath_prepend(str(PLUGINS))
-        yield build_plugin("shape_detector:ShapeDetector")  # as --model finds it
-
-
-@pytest.fixture(scope="module")
-def runner(detector):
-    with TrialRunner(load_task("single"), lambda world, camera: detector, robot=YUMI) as runner:
-        yield runner  # sets up and renders any task's scenes: they share the light
 
 
 def test_the_detector_imports_only_perception_numpy_and_the_standard_library():
@@ -45,18 +29,8 @@ def test_the_detector_imports_only_perception_numpy_and_the_standard_library():
 @pytest.mark.parametrize("task_name", TASKS)
 def test_the_detector_grasps_every_target_within_a_centimetre_and_a_half(runner, detector,
                                                                         task_name):
-    task = load_task(task_name)
-    for index in (0, 1, 2):
-        scene = sample_scene(task, YUMI_SCENE, 0, SeedStream.TEST, index)
-        bodies = runner.setup(scene)
-        prediction = detector.predict_frame(runner.sense(), scene.condition)
-        assert len(prediction.targets) == len(scene.targets)
-        assert prediction.attention_px.shape == (len(scene.targets), 2)
-        for target, number in zip(prediction.targets, scene.targets, strict=True):
-            truth = runner.truth(bodies[number])
-            assert target.object_type == scene.objects[number].object_type
-            assert np.linalg.norm(target.position_m - truth.position) < POSITION_TOLERANCE_M
-            assert grasp_angle_rad(truth.rotation, target.rotation) < ANGLE_TOLERANCE_RAD
+    assert_grasps_every_target(runner, detector, task_name, (0, 1, 2), POSITION_TOLERANCE_M,
+                               ANGLE_TOLERANCE_RAD)
 
 
 def test_the_detector_measures_the_sponges_long_axis_and_the_mugs_handle(runner, detector):
