@@ -11,9 +11,10 @@ from __future__ import annotations
 import argparse
 import shlex
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
-from experiments.commands.options import Option
+from experiments.commands.options import CommandLine, Option
 from harness.jobs import Executor, ExecutorKind
 from sim.tasks.task_sensor import as_sensor_kind
 from sim.world.sensor import DEFAULT_SENSOR, SensorKind
@@ -129,6 +130,21 @@ def add_sensor_option(parser: argparse.ArgumentParser, otherwise: str = "") -> N
 def sensor_kind(args: argparse.Namespace) -> SensorKind | None:
     """The ``--sensor`` asked for; None where none was."""
     return as_sensor_kind(args.sensor)
+
+
+def add_reproduce_options(parser: argparse.ArgumentParser, table: CommandLine,
+                          settings: type[Any], run: Callable[[argparse.Namespace], int],
+                          progress_help: str) -> None:
+    """A ``gva reproduce`` command's options: ``--out``, ``table``'s, ``--no-progress``.
+
+    Both reproduce commands resume a run folder (``--out``) and draw progress bars; the rest
+    of their options is their ``table``'s, each default the field's of ``settings``. The
+    command runs ``run``.
+    """
+    parser.add_argument("--out", type=Path, required=True, help="run folder")
+    table.add_to(parser, settings)
+    parser.add_argument("--no-progress", action="store_true", help=progress_help)
+    parser.set_defaults(run=run)
 
 
 def resume_command(args: argparse.Namespace) -> str:

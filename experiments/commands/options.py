@@ -213,7 +213,7 @@ class CommandLine:
     Args:
         program: The command, ``gva reproduce real``.
         rows: Its options in ``--help`` order (``--out`` and ``--no-progress``, no settings
-            fields, are the command module's).
+            fields, go around them: ``arguments.add_reproduce_options``).
         order: The flags in the order :meth:`line` writes them: every written row's, once.
             Run reports already quote lines in this order, which is not ``--help``'s.
 

@@ -7,8 +7,8 @@ Its options are declared once, in :data:`experiments.table2.options.SIM`; their 
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
+from experiments.commands.arguments import add_reproduce_options
 from experiments.table2.options import SIM
 from experiments.table2.run import run_reproduce_sim
 from experiments.table2.settings import ReproduceSimSettings
@@ -16,10 +16,7 @@ from experiments.table2.settings import ReproduceSimSettings
 
 def add_options(parser: argparse.ArgumentParser) -> None:
     """The options of ``gva reproduce sim``."""
-    parser.add_argument("--out", type=Path, required=True, help="run folder")
-    SIM.add_to(parser, ReproduceSimSettings)
-    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
-    parser.set_defaults(run=run)
+    add_reproduce_options(parser, SIM, ReproduceSimSettings, run, "no progress bars")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -8,8 +8,8 @@ Its options are declared once, in :data:`experiments.table3.options.REAL`; their
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
+from experiments.commands.arguments import add_reproduce_options
 from experiments.table3.options import REAL
 from experiments.table3.run import run_reproduce_real
 from experiments.table3.settings import ReproduceRealSettings
@@ -17,10 +17,7 @@ from experiments.table3.settings import ReproduceRealSettings
 
 def add_options(parser: argparse.ArgumentParser) -> None:
     """The options of ``gva reproduce real``."""
-    parser.add_argument("--out", type=Path, required=True, help="run folder")
-    REAL.add_to(parser, ReproduceRealSettings)
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    parser.set_defaults(run=run)
+    add_reproduce_options(parser, REAL, ReproduceRealSettings, run, "no progress bar")
 
 
 def run(args: argparse.Namespace) -> int:
