@@ -76,6 +76,19 @@ def frame_header_bytes(payload: int, masked: bool) -> int:
     return length + 4 * masked
 
 
+def add_served_options(parser: argparse.ArgumentParser) -> None:
+    """The options both serve benchmarks take (this one and ``bench_serve_clients.py``).
+
+    The model served, the task and seed of the frames it predicts, how many, and a note on how
+    busy the machine was.
+    """
+    parser.add_argument("--model", required=True, help="a checkpoint folder (or a plug-in)")
+    parser.add_argument("--task", default="single")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--frames", type=int, default=10, help="distinct frames cycled over")
+    parser.add_argument("--note", default="", help="how busy the machine was, in words")
+
+
 def frames_of(settings: TrialSettings, model: PerceptionModel, count: int
               ) -> list[tuple[RgbdFrame, Condition]]:
     """The head camera's frames of the first ``count`` test scenes, with their conditions."""
@@ -143,13 +156,9 @@ def timed(model: PerceptionModel, frame: RgbdFrame, condition: Condition
 def main(argv: list[str] | None = None) -> int:
     """Measures, writes ``--out`` and prints the numbers; the exit status."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--model", required=True, help="a checkpoint folder (or a plug-in)")
-    parser.add_argument("--task", default="single")
-    parser.add_argument("--seed", type=int, default=0)
+    add_served_options(parser)
     parser.add_argument("--n", type=int, default=100, help="predictions per path")
-    parser.add_argument("--frames", type=int, default=10, help="distinct frames cycled over")
     parser.add_argument("--warmup", type=int, default=5)
-    parser.add_argument("--note", default="", help="how busy the machine was, in words")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/"
                                                          "serve_overhead.json"))
     args = parser.parse_args(argv)

@@ -39,7 +39,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 import numpy as np
-from bench_serve import frames_of, serve
+from bench_serve import add_served_options, frames_of, serve
 from websockets.sync.client import connect
 
 from perception.camera import RgbdFrame
@@ -176,15 +176,11 @@ def run_load(url: str, args: argparse.Namespace, frames: list[tuple[RgbdFrame, C
 def main(argv: list[str] | None = None) -> int:
     """Measures, writes ``--out`` and prints one line; 1 if any request went unanswered."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--model", required=True, help="a checkpoint folder (or a plug-in)")
-    parser.add_argument("--task", default="single")
-    parser.add_argument("--seed", type=int, default=0)
+    add_served_options(parser)
     parser.add_argument("--clients", type=int, default=20, help="concurrent clients")
     parser.add_argument("--requests", type=int, default=20, help="predictions per client")
-    parser.add_argument("--frames", type=int, default=10, help="distinct frames cycled over")
     parser.add_argument("--timeout", type=float, default=60.0,
                         help="a client's limit per connect and per prediction [s]")
-    parser.add_argument("--note", default="", help="how busy the machine was, in words")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/"
                                                          "serve_clients.json"))
     args = parser.parse_args(argv)
