@@ -164,22 +164,26 @@ BLOCK = ObjectSpec(
     grasp=GraspSpec((0.0, 0.0, 0.028), _DOWN, (0.0, 1.0, 0.0), 0.05, 0.08, Symmetry.TWO_FOLD),
 )
 
-# Look-alikes, never targets: the block's kin for the other two types, and a colour twin.
-# A shape twin is a target type's shape in unfinished wood, the one colour no palette gives a
-# target (docs/tasks.md): a model that takes it for the type looks at shape alone. Same
-# primitives, mass and grasp as the type, so it lies and is pushed as the type would be.
-BOTTLE_TWIN = ObjectSpec(
-    name="bottle_twin",
-    primitives=tuple(dataclasses.replace(p, rgba=_WOOD) for p in SPRAY_BOTTLE.primitives),
-    mass_kg=SPRAY_BOTTLE.mass_kg, lateral_friction=1.0, spinning_friction_m=0.003,
-    rolling_friction_m=0.0005, grasp=SPRAY_BOTTLE.grasp,
-)
-MUG_TWIN = ObjectSpec(
-    name="mug_twin",
-    primitives=tuple(dataclasses.replace(p, rgba=_WOOD) for p in MUG.primitives),
-    mass_kg=MUG.mass_kg, lateral_friction=1.0, spinning_friction_m=0.003,
-    rolling_friction_m=0.0005, grasp=MUG.grasp,
-)
+
+def _shape_twin(name: str, spec: ObjectSpec) -> ObjectSpec:
+    """``spec``'s shape in unfinished wood, named ``name``: a look-alike, never a target.
+
+    Wood is the one colour no palette gives a target (docs/tasks.md): a model that takes the
+    twin for the type looks at shape alone. Same primitives, mass and grasp as the type, so it
+    lies and is pushed as the type would be.
+    """
+    return ObjectSpec(
+        name=name,
+        primitives=tuple(dataclasses.replace(p, rgba=_WOOD) for p in spec.primitives),
+        mass_kg=spec.mass_kg, lateral_friction=1.0, spinning_friction_m=0.003,
+        rolling_friction_m=0.0005, grasp=spec.grasp,
+    )
+
+
+# Look-alikes, never targets: the block's kin for the other two types (shape twins, the
+# types' shapes in wood), and a colour twin.
+BOTTLE_TWIN = _shape_twin("bottle_twin", SPRAY_BOTTLE)
+MUG_TWIN = _shape_twin("mug_twin", MUG)
 # A 45 mm toy cube with a top layer: no target's shape (the sponge is 90 x 35 mm, the bottle and
 # the mug round). A scene paints it in one of its targets' colours, the body in the target's
 # first part's and the top in its last (sim.tasks.appearance: a sponge's foam and the scourer
