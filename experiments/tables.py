@@ -104,6 +104,15 @@ def model_config_file(files: Sequence[ModelConfigFile], model: str) -> ModelConf
     return next((file for file in files if file.model == model), None)
 
 
+def model_settings(files: Sequence[ModelConfigFile], model: str) -> dict[str, Any]:
+    """The settings ``files`` (``--model-config``) give ``model``; {}: none, its own.
+
+    ``new_model``'s keywords, as both reproduce commands train and identify a model with them.
+    """
+    file = model_config_file(files, model)
+    return {} if file is None else file.hyperparameters()
+
+
 def check_model_configs(given: Sequence[tuple[str, str]], models: Sequence[str]) -> None:
     """Raises unless each ``(model, path)`` of ``--model-config`` names its own one of ``models``.
 

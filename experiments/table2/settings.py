@@ -24,6 +24,7 @@ from experiments.tables import (
     model_config,
     model_config_file,
     model_order,
+    model_settings,
 )
 from harness.jobs import LOCAL, Executor
 from harness.run_folder import json_form
@@ -172,8 +173,7 @@ class ReproduceSimSettings:
 
     def model_settings(self, model: str) -> dict[str, Any]:
         """The settings ``model_configs`` give ``model`` (``new_model``'s keywords); {}: none."""
-        file = self.model_config_file(model)
-        return {} if file is None else file.hyperparameters()
+        return model_settings(self.model_configs, model)
 
     def command(self, out: Path) -> str:
         """The ``gva reproduce sim`` command line of these settings (workers left out).

@@ -22,7 +22,7 @@ from experiments.tables import (
     check_model_configs,
     check_models,
     model_config,
-    model_config_file,
+    model_settings,
 )
 from harness.jobs import LOCAL, Executor
 from harness.run_folder import json_form
@@ -305,8 +305,7 @@ class ReproduceRealSettings:
 
     def model_settings(self, model: str) -> dict[str, Any]:
         """The settings ``model_configs`` give ``model`` (``new_model``'s keywords); {}: none."""
-        file = model_config_file(self.model_configs, model)
-        return {} if file is None else file.hyperparameters()
+        return model_settings(self.model_configs, model)
 
     def trial_settings(self, out: Path, trial_set: TrialSet) -> TrialSettings:
         """A set's TrialSettings: checkpoint, plug-in, or served (with what it announced)."""
