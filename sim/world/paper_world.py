@@ -12,18 +12,13 @@ import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from types import TracebackType
-from typing import Any
 
 import numpy as np
-import pybullet
-import pybullet_data
-from pybullet_utils import bullet_client
 
 from robots.description import CameraMount
 from sim.errors import InvalidInputError
+from sim.world.bullet_world import TABLE_TOP_Z_IN_URDF_M, BulletWorld
 from sim.world.head_camera import CameraConfig, HeadCamera
-from sim.world.quiet import silenced_output
 from sim.world.world_config import check_wait_s
 
 PAPER_OBJECT_TYPES: tuple[str, ...] = ("duck", "soccer_ball", "mug")
@@ -33,8 +28,6 @@ PAPER_WORKSPACE_X_M: tuple[float, float] = (-0.14, 0.14)
 PAPER_WORKSPACE_Y_M: tuple[float, float] = (-0.18, 0.18)
 """Where object centres may lie [m]: an object at any corner, at any yaw, is wholly in the
 image (its bounding box projects within 4.5-123.5 px of 128)."""
-
-TABLE_TOP_Z_IN_URDF_M = 0.625
 
 
 @dataclass(frozen=True)
@@ -87,26 +80,17 @@ class PaperWorldConfig:
         check_wait_s("settle_s", self.settle_s)
 
 
-class PaperWorld:
+class PaperWorld(BulletWorld[str]):
     """One headless PyBullet world of the paper's scene; a context manager."""
 
     def __init__(self, config: PaperWorldConfig | None = None) -> None:
         self.config = config or PaperWorldConfig()
-        with silenced_output():
-            self.client: Any = bullet_client.BulletClient(connection_mode=pybullet.DIRECT)
-        self.client.setAdditionalSearchPath(pybullet_data.getDataPath())
-        self.client.setTimeStep(self.config.time_step_s)
-        self.client.setGravity(0.0, 0.0, -9.81)
+        self._connect(self.config.time_step_s, 9.81)
         self.client.loadURDF("plane.urdf", [0.0, 0.0, -TABLE_TOP_Z_IN_URDF_M])
         self.table_id = int(self.client.loadURDF(
             "table/table.urdf", [0.0, 0.0, -TABLE_TOP_Z_IN_URDF_M], useFixedBase=True))
         self.camera = HeadCamera(self.config.camera)
         self._objects: dict[int, str] = {}
-
-    @property
-    def objects(self) -> Mapping[int, str]:
-        """The objects in the world: body id -> type."""
-        return dict(self._objects)
 
     def object_type(self, body_id: int) -> str:
         """The type of an object in the world."""
@@ -165,18 +149,3 @@ class PaperWorld:
         """The camera image, uint8 (H, W, 3); ``brightness`` scales the light (1 = normal)."""
         lighting = dataclasses.replace(self.config.camera.lighting, brightness=brightness)
         return self.camera.render(self.client, lighting)
-
-    def close(self) -> None:
-        """Disconnects the client; the world is unusable afterwards."""
-        if self.client is not None:
-            self.client.disconnect()
-            self.client = None
-
-    def __enter__(self) -> PaperWorld:
-        return self
-
-    def __exit__(
-        self, kind: type[BaseException] | None, error: BaseException | None,
-        trace: TracebackType | None,
-    ) -> None:
-        self.close()

@@ -4,30 +4,25 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from types import TracebackType
 from typing import Any
 
 import numpy as np
 import pybullet
-import pybullet_data
-from pybullet_utils import bullet_client
 
 from perception.objects.catalog import ObjectSpec, PrimitiveKind
 from perception.poses import Pose, rot_z
 from robots.description import RobotDescription
 from sim.errors import InvalidInputError, SimulationError
+from sim.world.bullet_world import TABLE_TOP_Z_IN_URDF_M, BulletWorld
 from sim.world.looks import ObjectLook, dress_object, dress_table
-from sim.world.quiet import silenced_output
 from sim.world.sim_robot import SimRobot
 from sim.world.world_config import MAX_WAIT_S, TABLE_HALF_SIZE_M, WorldConfig, check_wait_s
 
-TABLE_TOP_Z_IN_URDF_M = 0.625
-"""Height of ``table/table.urdf``'s top surface in its own frame [m]."""
 StepHook = Callable[["World"], None]
 """Called with the world after each physics step (see :attr:`World.step_hook`)."""
 REST_SPEED_M_S, REST_SPEED_RAD_S = 1e-3, 1e-2
 """Below both, :meth:`World.sleep_resting_objects` takes an object to be at rest."""
-class World:
+class World(BulletWorld[ObjectSpec]):
     """One headless PyBullet world with ``robot`` at the origin on a table top at z = 0.
 
     Use it as a context manager, or call :meth:`close`. :meth:`reset_scene` keeps the client
@@ -43,17 +38,12 @@ class World:
         self.step_hook: StepHook | None = None
         """Called after every physics step (e.g. to record frames); None, the default, costs
         nothing."""
-        self.client: Any = None
+        self.client = None
         self._build()
 
     def _build(self) -> None:
         """Connects a PyBullet client and loads the floor, the table and the robot."""
-        with silenced_output():  # PyBullet prints "argv[0]=" from C on every connect
-            self.client = bullet_client.BulletClient(connection_mode=pybullet.DIRECT)
-        client = self.client
-        client.setAdditionalSearchPath(pybullet_data.getDataPath())
-        client.setTimeStep(self.config.time_step_s)
-        client.setGravity(0.0, 0.0, -self.config.gravity_m_s2)
+        client = self._connect(self.config.time_step_s, self.config.gravity_m_s2)
         client.setPhysicsEngineParameter(numSolverIterations=self.config.solver_iterations)
         cx, cy = self.config.table_center_xy_m
         self.plane_id = int(client.loadURDF("plane.urdf", [0.0, 0.0, -TABLE_TOP_Z_IN_URDF_M]))
@@ -273,11 +263,6 @@ class World:
         self.client.removeBody(body_id)
         del self._objects[body_id]
 
-    @property
-    def objects(self) -> Mapping[int, ObjectSpec]:
-        """The objects in the world: body id -> spec."""
-        return dict(self._objects)
-
     def object_spec(self, body_id: int) -> ObjectSpec:
         """Look up the catalog entry of an object in the world."""
         try:
@@ -306,21 +291,6 @@ class World:
             self.remove_object(body)
         self.robot.reset(self.description.home if q_by_name is None else q_by_name)
         self.steps = 0
-
-    def close(self) -> None:
-        """Disconnect the PyBullet client; the world is unusable afterwards."""
-        if self.client is not None:
-            self.client.disconnect()
-            self.client = None
-
-    def __enter__(self) -> World:
-        return self
-
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None,
-        traceback: TracebackType | None,
-    ) -> None:
-        self.close()
 
     def _shape_ids(self, spec: ObjectSpec) -> tuple[int, int]:
         """Collision and visual shapes of a spec, made once per world and shared by its bodies."""
