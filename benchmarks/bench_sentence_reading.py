@@ -25,7 +25,8 @@ Candidates:
 - ``kqv``: the reading kqv adopted (``KqvConfig.sentence_reading = "auto"``), as a trained
   model has it: learnt from the distinct sentences its 20 training scenes draw (each seed its
   own draw, a sentence per scene and target, :func:`sim.tasks.queries.query_for`), the token
-  reader for sides and the nearest prototype for types.
+  reader for sides (reading only the words its training sentences had, issue 75) and the
+  nearest prototype for types.
 
 Also each reading's misses, so a reader sees which wordings fail.
 """
@@ -45,7 +46,7 @@ from sklearn.linear_model import LogisticRegression
 
 from perception.interface import Condition, ConditionKind
 from perception.language.sentence_reading import fit_token_reader, read_target
-from perception.language.sentences import embed, token_embeddings
+from perception.language.sentences import embed, token_embeddings, token_ids
 from sim.tasks.queries import query_for
 from sim.tasks.scene_specs import get_scene_spec
 from sim.tasks.task_in_scene import condition_choices
@@ -107,12 +108,17 @@ def probe_reader(probe: LogisticRegression) -> Callable[[str], int]:
     return lambda sentence: int(probe.predict(embed(sentence)[None])[0])
 
 
-def token_reader(train: Pairs, targets: int, seed: int, probe: LogisticRegression | None = None
-                 ) -> Callable[[str], int]:
-    """The token reader of ``seed``; with ``probe``, their probabilities summed."""
-    reader = fit_token_reader(train, targets, token_embeddings, seed)
+def token_reader(train: Pairs, targets: int, seed: int, probe: LogisticRegression | None = None,
+                 seen_words: bool = False) -> Callable[[str], int]:
+    """The token reader of ``seed``; with ``probe``, their probabilities summed.
+
+    With ``seen_words`` it reads only the words its training sentences had, as kqv's does.
+    """
+    ids = token_ids if seen_words else None
+    reader = fit_token_reader(train, targets, token_embeddings, seed, ids=ids)
     if probe is None:
-        return lambda sentence: read_target(reader, token_embeddings(sentence))
+        return lambda sentence: read_target(reader, token_embeddings(sentence),
+                                            token_ids(sentence) if seen_words else None)
 
     def both(sentence: str) -> int:
         with torch.no_grad():
@@ -142,7 +148,7 @@ def kqv_reader(kind: str, task_name: str, targets: int, seed: int) -> Callable[[
     train = drawn(task_name, seed)
     if kind == "types":
         return prototype_reader(train, targets)
-    return token_reader(train, targets, seed)
+    return token_reader(train, targets, seed, seen_words=True)
 
 
 def score(read: Callable[[str], int], sets: dict[str, Pairs], targets: tuple[str, ...]

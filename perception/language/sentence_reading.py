@@ -87,7 +87,7 @@ class TokenReader(torch.nn.Module):
         """
         if ids is None:
             return tokens
-        ids = np.asarray(ids)
+        ids = np.array(ids, dtype=np.int64)  # a copy: the encoder's cached ids are read-only
         if ids.shape != (tokens.shape[0],) or ids.min(initial=0) < 0 or \
                 ids.max(initial=0) >= self.seen.shape[0]:
             raise InvalidInputError("token ids", ids.shape, f"one id in [0, "
