@@ -43,6 +43,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from results_file import add_out_option, write_record
+
 from experiments.cli import main as gva
 from harness.run_files import dataset_path
 from perception.learning.dataset_file import load_dataset
@@ -320,7 +322,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
                         help="a folder per row inside (%(default)s)")
     parser.add_argument("--from", dest="source", type=Path,
                         help="a finished --out: read its row folders, run nothing")
-    parser.add_argument("--json", type=Path, default=Path("benchmarks/results/ablation.json"))
+    add_out_option(parser, "ablation", flag="--json")
     args = parser.parse_args(argv)
     files = row_files()
     known = [RECIPE, *files]
@@ -358,8 +360,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 return row_status
             status = max(status, row_status)
     summary = summarise(out, args.files, args.tasks, seeds)
-    args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps(summary, indent=2) + "\n")
+    write_record(args.json, summary, announce=False)
     print("\n".join(markdown(summary)))
     print(f"wrote {args.json}")
     return status

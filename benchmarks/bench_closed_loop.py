@@ -18,17 +18,16 @@ Usage:
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import statistics
 import time
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
 import pinocchio as pin
+from results_file import add_out_option, write_record
 
 from control.depth_obstacles import GraspRegion
 from control.retarget import trajectory_state
@@ -102,8 +101,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--task", default="single")
     parser.add_argument("--model", default="oracle", help="oracle or a checkpoint folder")
-    parser.add_argument("--out", type=Path,
-                        default=Path("benchmarks/results/closed_loop_cycle.json"))
+    add_out_option(parser, "closed_loop_cycle")
     args = parser.parse_args(argv)
     settings = TrialSettings(model=args.model, task=args.task, allow_sensor_change=True)
     model = load_trial_model(settings)
@@ -128,8 +126,7 @@ def main(argv: list[str] | None = None) -> int:
         "machine": {"cpus": os.cpu_count(), "load_average_1_5_15min":
                     [round(v, 2) for v in os.getloadavg()],
                     "python": platform.python_version(), "platform": platform.platform()}}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(record, indent=2) + "\n")
+    write_record(args.out, record, announce=False)
     for part in medians:
         print(f"{part:16s} median {medians[part]:7.1f} ms  ({100 * medians[part] / total:.0f} %)")
     print(f"cycle (sum of medians) {total:.1f} ms: {1e3 / total:.1f} Hz on one core; "

@@ -10,13 +10,14 @@ in <= 120 s, on a 2-core machine. Each run writes a fresh file in a temporary fo
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import statistics
 import tempfile
 import time
 from pathlib import Path
+
+from results_file import add_out_option, write_record
 
 from perception.learning.dataset_file import read_metadata
 from sim.tasks.task_toml import builtin_tasks
@@ -31,7 +32,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--tasks", default=",".join(builtin_tasks()))
     parser.add_argument("--scenes", default="paper-sim,yumi")
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/collect.json"))
+    add_out_option(parser, "collect")
     args = parser.parse_args()
 
     rows = []
@@ -56,9 +57,7 @@ def main() -> None:
                   f"redrawn {redrawn})")
     result = {"machine": {"cpu_count": os.cpu_count(), "python": platform.python_version()},
               "repeats": args.repeats, "rows": rows}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    write_record(args.out, result)
 
 
 if __name__ == "__main__":

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import os
 import platform
 import statistics
@@ -28,6 +27,7 @@ from pathlib import Path
 import coal
 import numpy as np
 import pinocchio as pin  # coal's Python module is found through pinocchio's path
+from results_file import record_path, write_record
 
 from control.depth_obstacles import GraspRegion, OccludedSpace, depth_obstacles
 from perception.labels import nearest_rotation
@@ -69,8 +69,8 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     sensor = SensorConfig(sensor_kind(args.sensor))
-    out = args.out or Path("benchmarks/results/" + ("depth_obstacles.json" if args.sensor ==
-                                                     "ideal" else "depth_obstacles_d435.json"))
+    out = args.out or record_path("depth_obstacles" if args.sensor == "ideal"
+                                   else "depth_obstacles_d435")
 
     build = {policy: [] for policy in OccludedSpace}
     octree, render, plan_depth, plan_truth, cells = [], [], [], [], []
@@ -130,9 +130,7 @@ def main() -> None:
     for key in ("build_ms_hidden_free", "build_ms_hidden_occupied", "peer_coal_octree_build_ms",
                 "plan_ms_depth", "plan_ms_true_shapes"):
         print(f"{key}: {result[key]}")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"wrote {out}")
+    write_record(out, result)
 
 
 if __name__ == "__main__":

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import torch
+from results_file import add_out_option, write_record
 
 from harness.provenance import provenance
 from perception.files import file_sha256
@@ -69,8 +70,7 @@ def measure(steps: int, folder: Path) -> dict[str, Any]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=40)
-    parser.add_argument("--out", type=Path,
-                        default=Path("benchmarks/results/determinism.json"))
+    add_out_option(parser, "determinism")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as folder:
         row = measure(args.steps, Path(folder))
@@ -83,8 +83,7 @@ def main() -> None:
     record["weights_identical_across_capabilities"] = (
         None if len(kernels) < 2 else
         len({r["trainings"][0]["weights_sha256"] for r in kernels.values()}) == 1)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(record, indent=2) + "\n")
+    write_record(args.out, record, announce=False)
     print(f"{capability}: dataset identical {row['dataset_identical']}, same threads identical "
           f"{row['same_threads_identical']}, 1 vs 2 threads identical "
           f"{row['one_and_two_threads_identical']}; across kernel sets identical "

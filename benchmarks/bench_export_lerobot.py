@@ -12,13 +12,14 @@ The bar: export and import each within 10 s on a 2-core machine.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import statistics
 import tempfile
 import time
 from pathlib import Path
+
+from results_file import add_out_option, write_record
 
 from perception.learning.dataset_file import load_dataset, save_dataset
 from perception.learning.lerobot_format import export_lerobot, import_lerobot
@@ -30,8 +31,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", type=Path, default=Path("runs/yumi-multiple-20.gva"))
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--out", type=Path,
-                        default=Path("benchmarks/results/export_lerobot.json"))
+    add_out_option(parser, "export_lerobot")
     args = parser.parse_args()
     if not args.data.exists():
         from sim.trials.collector import CollectSettings, collect  # pybullet: only when missing
@@ -75,9 +75,7 @@ def main() -> None:
           f"{result['export_median_s']} s, import median {result['import_median_s']} s, folder "
           f"{result['folder_mb']} MB (the .gva: {result['dataset']['file_mb']} MB); round trip "
           f"{'identical' if same else 'DIFFERS'}; load {load_before:.2f} before")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    write_record(args.out, result)
 
 
 if __name__ == "__main__":

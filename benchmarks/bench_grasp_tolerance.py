@@ -40,6 +40,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from results_file import write_record
 from tqdm import tqdm
 
 from harness.jobs import JobPool
@@ -370,7 +371,7 @@ def main() -> None:
     if args.extend is not None:  # the passes before this one, as their record says
         earlier = json.loads(args.extend.read_text())["how"]
         record["how"]["earlier_passes"] = [*earlier.pop("earlier_passes", []), earlier]
-    args.out.write_text(json.dumps(record, indent=1) + "\n")
+    write_record(args.out, record, indent=1, announce=False)
     for object_type, entry in record["types"].items():
         zero = dict(zip(YAW_DEG, entry["axes"]["closing"]["picked"][0], strict=True))
         print(f"{object_type}: no offset, picked per turn {zero} of {args.n}")

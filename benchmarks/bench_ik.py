@@ -19,7 +19,6 @@ Usage:
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import platform
@@ -30,6 +29,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pybullet
+from results_file import record_path, write_record
 
 from control.ik import ArmIk, IkOptions
 from control.robot_model import RobotModel
@@ -230,8 +230,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     description = get_robot(args.robot)
-    out = args.out or Path("benchmarks/results") / (
-        "ik.json" if args.robot == "yumi" else f"ik-{args.robot}.json")
+    out = args.out or record_path("ik" if args.robot == "yumi" else f"ik-{args.robot}")
     robot = RobotModel.from_urdf(description.urdf_path, description.srdf_path)
     home = robot.q_from_dict(description.home)
     bullet = BulletIk(robot, description)
@@ -265,9 +264,7 @@ def main(argv: list[str] | None = None) -> int:
                     "python": platform.python_version(), "pinocchio": pin.__version__},
         "results": results,
     }
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(report, indent=2) + "\n")
-    print(f"wrote {out}")
+    write_record(out, report)
     return 0
 
 

@@ -20,7 +20,6 @@ condition puts the attention point on the object the condition names (bar: 95 % 
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import statistics
@@ -32,6 +31,7 @@ from typing import Any
 
 import numpy as np
 import torch
+from results_file import add_out_option, write_record
 
 from perception.interface import ConditionKind, LabelKind
 from perception.learning.dataset_file import load_dataset
@@ -97,7 +97,7 @@ def main() -> None:
                         metavar=("TRAIN", "TEST"), help="training and test datasets")
     parser.add_argument("--steps", type=int, default=TrainConfig().steps)
     parser.add_argument("--repeats", type=int, default=200)
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/kqv.json"))
+    add_out_option(parser, "kqv")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as folder:
         run(args, args.pair or default_pairs(Path(folder)))
@@ -141,9 +141,7 @@ def run(args: argparse.Namespace, pairs: list[tuple[Path, Path]]) -> None:
         "inference": inference | {"bar_ms": INFERENCE_BAR_MS, "repeats": args.repeats},
     }
     result["accuracy"] = [accuracy(train, test, args.steps) for train, test in pairs]
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2, default=str) + "\n")
-    print(f"wrote {args.out}")
+    write_record(args.out, result, default=str)
 
 
 if __name__ == "__main__":

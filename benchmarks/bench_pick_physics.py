@@ -39,6 +39,7 @@ from typing import Any
 
 import pybullet
 from pybullet_utils import bullet_client
+from results_file import add_out_option, write_record
 
 from harness.run_loop import run_trials
 from perception.objects.catalog import get_object_spec
@@ -299,7 +300,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="PyBullet's solverResidualThreshold for every world (a candidate)")
     parser.add_argument("--iterations", type=int, default=None,
                         help="PyBullet's numSolverIterations for every world (a candidate)")
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/pick_physics.json"))
+    add_out_option(parser, "pick_physics")
     args = parser.parse_args(argv)
     load_before = os.getloadavg()
     with solver_settings(args.residual_threshold, args.iterations):
@@ -324,9 +325,7 @@ def main(argv: list[str] | None = None) -> int:
               f"{numbers['step_simulation_ms']:.3f} ms a step, "
               f"{100 * numbers['share']:4.1f} % of the steps' time")
     print("floor [ms a step]: " + json.dumps(floor))
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
-    print(f"wrote {args.out}")
+    write_record(args.out, record)
     return 0
 
 

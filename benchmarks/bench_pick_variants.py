@@ -17,14 +17,13 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import os
 import platform
 import time
 from collections import Counter
-from pathlib import Path
 from typing import Any
 
+from results_file import add_out_option, write_record
 from tqdm import tqdm
 
 from control.depth_obstacles import OccludedSpace
@@ -82,7 +81,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
     parser.add_argument("--variants", nargs="+", choices=VARIANTS, default=["untyped",
                                                                           "occupied"])
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/pick_variants.json"))
+    add_out_option(parser, "pick_variants")
     args = parser.parse_args()
     runs = []
     for variant in args.variants:
@@ -95,9 +94,7 @@ def main() -> None:
     result = {"machine": {"cpu_count": os.cpu_count(), "python": platform.python_version(),
                           "processor": platform.processor() or platform.machine()},
               "runs": runs}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    write_record(args.out, result)
 
 
 if __name__ == "__main__":

@@ -29,6 +29,8 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+from results_file import add_out_option, write_record
+
 from control.pick import PickPlannerConfig, PlanBudget
 from experiments.cli import main as gva
 from sim.trials.planner_setup import make_planner
@@ -90,7 +92,7 @@ def main() -> None:
     parser.add_argument("--demos", type=int, default=2)
     parser.add_argument("--steps", type=int, default=3)
     parser.add_argument("--checkpoint", type=Path, help="reuse this checkpoint, train none")
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/plan_budget.json"))
+    add_out_option(parser, "plan_budget")
     args = parser.parse_args()
 
     started = time.perf_counter()
@@ -126,9 +128,7 @@ def main() -> None:
           f"{medians['no_budget']} s without ({args.n} trials each, {args.task})")
     print(f"trials whose records differ beyond wall time: {len(changed)} "
           f"(each a search without a plan: {result['planned_alike']})")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    write_record(args.out, result)
 
 
 if __name__ == "__main__":

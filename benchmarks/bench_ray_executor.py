@@ -28,6 +28,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from results_file import add_out_option, write_record
+
 GVA = str(Path(sys.executable).with_name("gva"))
 TABLE2 = ["reproduce", "sim", "--models", "kqv,fcn", "--tasks", "single", "--sizes", "4,20",
           "--seeds", "2", "--workers", "2"]
@@ -66,8 +68,7 @@ def _table3_counts(out: Path) -> dict:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--out", type=Path,
-                        default=Path("benchmarks/results/ray_executor.json"))
+    add_out_option(parser, "ray_executor")
     args = parser.parse_args()
 
     result: dict = {"machine": {"cpu_count": os.cpu_count(),
@@ -105,9 +106,7 @@ def main() -> int:
                                       "median": round(statistics.median(startup), 2)}
     print(f"Ray's start and stop (init, a first task, shutdown): median "
           f"{statistics.median(startup):.1f} s")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    write_record(args.out, result)
     return 0 if same else 1
 
 

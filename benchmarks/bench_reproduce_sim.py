@@ -25,6 +25,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from results_file import add_out_option, write_record
+
 from experiments.cli import build_parser, main
 from experiments.tables import PAPER_MODELS
 
@@ -95,18 +97,19 @@ def machine() -> dict[str, Any]:
             "python": platform.python_version(), "platform": platform.platform()}
 
 
-def run_or_read(experiment: str, default_result: Path,
+def run_or_read(experiment: str, record_name: str,
                 record: Callable[[Path, float | None], dict[str, Any]]) -> tuple[int, Any]:
     """Runs ``gva reproduce EXPERIMENT`` timed, or reads ``--from``; writes the record.
 
     The script's other arguments go to the command; ``record(folder, measured_s)`` is written
-    to ``--result``. Returns (exit status, the record or None where the run failed outright).
+    to ``--result`` (default ``benchmarks/results/<record_name>.json``). Returns (exit status,
+    the record or None where the run failed outright).
     """
     parser = argparse.ArgumentParser(description=sys.modules["__main__"].__doc__.splitlines()[0],
                                      allow_abbrev=False)
     parser.add_argument("--from", dest="source", type=Path,
                         help="a finished run folder: read its tables, run nothing")
-    parser.add_argument("--result", type=Path, default=default_result)
+    add_out_option(parser, record_name, flag="--result")
     args, rest = parser.parse_known_args()
     measured = None
     folder = args.source
@@ -120,14 +123,12 @@ def run_or_read(experiment: str, default_result: Path,
     elif rest:
         parser.error(f"--from reads a finished run; these go nowhere: {' '.join(rest)}")
     result = record(folder, measured)
-    args.result.parent.mkdir(parents=True, exist_ok=True)
-    args.result.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"wrote {args.result}")
+    write_record(args.result, result)
     return 0, result
 
 
 def main_bench() -> int:
-    status, result = run_or_read("sim", Path("benchmarks/results/reproduce_sim.json"), record)
+    status, result = run_or_read("sim", "reproduce_sim", record)
     if result is not None:
         print(f"{result['cells']} cells ({result['cells_computed_in_last_run']} in the last "
               f"run), last run {result['wall_time_s']:.0f} s on {result['workers']} worker(s); "

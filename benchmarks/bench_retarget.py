@@ -14,15 +14,14 @@ Usage:
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import time
 from collections.abc import Callable
-from pathlib import Path
 
 import numpy as np
 import ruckig
+from results_file import add_out_option, write_record
 
 from control.retarget import JointState, RetargetError, retarget, stop, trajectory_state
 from control.robot_model import RobotModel
@@ -65,7 +64,7 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=500, help="state/goal pairs")
     parser.add_argument("--seed", type=int, default=0, help="seed of the pairs")
     parser.add_argument("--dt", type=float, default=1 / 240, help="sampling step in [s]")
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/retarget.json"))
+    add_out_option(parser, "retarget")
     args = parser.parse_args()
 
     robot = RobotModel.from_urdf(yumi.URDF_PATH)
@@ -100,9 +99,7 @@ def main() -> None:
                     "threads": 1, "load_average_1min_before": round(load_before, 2),
                     "load_average_1min_after": round(os.getloadavg()[0], 2)},
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(report, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    write_record(args.out, report)
 
 
 if __name__ == "__main__":

@@ -54,7 +54,7 @@ def record(folder: Path, measured_s: float | None) -> dict[str, Any]:
 
 def main_bench() -> int:
     """Runs ``gva reproduce real`` (or reads ``--from``) and writes the record."""
-    status, result = run_or_read("real", Path("benchmarks/results/seed_sweeps.json"), record)
+    status, result = run_or_read("real", "seed_sweeps", record)
     if result is not None:
         print(json.dumps(result, indent=2))
     return status

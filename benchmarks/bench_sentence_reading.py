@@ -34,7 +34,6 @@ Also each reading's misses, so a reader sees which wordings fail.
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -42,6 +41,7 @@ from typing import Any
 
 import numpy as np
 import torch
+from results_file import write_record
 from sklearn.linear_model import LogisticRegression
 
 from perception.interface import Condition, ConditionKind
@@ -205,9 +205,7 @@ def main() -> int:
             cells = [f"{name} {rows[candidate][name]['right']}/{rows[candidate][name]['of']}"
                      for name in held_out]
             print(f"{kind:5s} {candidate:12s} " + ", ".join(cells))
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(record, indent=2, default=list) + "\n")
-    print(f"wrote {args.out}")
+    write_record(args.out, record, default=list)
     return 0
 
 

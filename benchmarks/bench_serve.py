@@ -29,6 +29,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+from results_file import add_out_option, write_record
 from websockets.sync.client import connect
 
 from perception.camera import RgbdFrame
@@ -159,8 +160,7 @@ def main(argv: list[str] | None = None) -> int:
     add_served_options(parser)
     parser.add_argument("--n", type=int, default=100, help="predictions per path")
     parser.add_argument("--warmup", type=int, default=5)
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/"
-                                                         "serve_overhead.json"))
+    add_out_option(parser, "serve_overhead")
     args = parser.parse_args(argv)
     load_before = os.getloadavg()
     settings = TrialSettings(args.model, args.task, seed=args.seed)
@@ -206,8 +206,7 @@ def main(argv: list[str] | None = None) -> int:
                     "note": "client and server share the machine's cores (loopback)"
                     + (f"; {args.note}" if args.note else "")},
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(record, indent=2) + "\n")
+    write_record(args.out, record, announce=False)
     print(json.dumps({k: record[k] for k in ("in_process", "remote", "overhead",
                                              "identical_predictions", "bytes_per_pick")},
                      indent=2))

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import collections
-import json
 import os
 import platform
 import shlex
@@ -34,12 +33,12 @@ import sys
 import threading
 import time
 from dataclasses import asdict, dataclass
-from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
 
 import numpy as np
 from bench_serve import add_served_options, frames_of, serve
+from results_file import add_out_option, write_record
 from websockets.sync.client import connect
 
 from perception.camera import RgbdFrame
@@ -181,8 +180,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--requests", type=int, default=20, help="predictions per client")
     parser.add_argument("--timeout", type=float, default=60.0,
                         help="a client's limit per connect and per prediction [s]")
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/"
-                                                         "serve_clients.json"))
+    add_out_option(parser, "serve_clients")
     args = parser.parse_args(argv)
     load_before = load_average()
     settings = TrialSettings(args.model, args.task, seed=args.seed)
@@ -210,8 +208,7 @@ def main(argv: list[str] | None = None) -> int:
                         load_before, load_average(),
                         "clients and server share the machine's cores (loopback)"
                         + (f"; {args.note}" if args.note else "")))
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(asdict(record), indent=2) + "\n")
+    write_record(args.out, asdict(record), announce=False)
     expected = args.clients * args.requests
     latency = record.latency
     print(f"gva serve, {args.clients} clients x {args.requests} requests (+ an idle client, "

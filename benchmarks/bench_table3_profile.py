@@ -143,7 +143,7 @@ def record(folder: Path, measured_s: float | None) -> dict[str, Any]:
 
 def main_bench() -> int:
     """Runs ``gva reproduce real`` (or reads ``--from``) and writes the profile."""
-    status, result = run_or_read("real", Path("benchmarks/results/table3_profile.json"), record)
+    status, result = run_or_read("real", "table3_profile", record)
     if result is not None:
         print(json.dumps({k: result[k] for k in ("wall_time_s", "wall_s_by_kind", "cores",
                                                  "work")}, indent=2))

@@ -28,7 +28,6 @@ starts) turns them into a training's seconds.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import statistics
@@ -40,6 +39,7 @@ from typing import Any
 
 import numpy as np
 import torch
+from results_file import add_out_option, write_record
 from torch.utils.flop_counter import FlopCounterMode
 
 from perception.learning.data import Dataset
@@ -139,7 +139,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=40)
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/train.json"))
+    add_out_option(parser, "train")
     args = parser.parse_args()
     from sim.trials.collector import CollectSettings, collect
 
@@ -164,8 +164,7 @@ def main() -> None:
             "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
                         "torch": torch.__version__, "platform": platform.platform(),
                         "load_average_1min": os.getloadavg()[0]}}
-    args.out.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
-    print(f"wrote {args.out}")
+    write_record(args.out, data)
 
 
 if __name__ == "__main__":

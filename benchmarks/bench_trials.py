@@ -22,6 +22,8 @@ import time
 from collections import Counter
 from pathlib import Path
 
+from results_file import add_out_option, write_record
+
 from harness.run_loop import run_trials
 from perception.objects.catalog import get_object_spec
 from robots.yumi import YUMI
@@ -51,7 +53,7 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=30)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
     parser.add_argument("--task", default="single")
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/trials.json"))
+    add_out_option(parser, "trials")
     parser.add_argument("--rebuilds", type=int, default=30)
     args = parser.parse_args()
 
@@ -103,9 +105,7 @@ def main() -> None:
           f"{args.rebuilds}), {100 * result['world_rebuild_share_of_median_trial']:.1f} % of the "
           "median trial")
     print(f"a step, three objects resting: awake {awake_ms:.3f} ms, asleep {asleep_ms:.3f} ms")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    write_record(args.out, result)
 
 
 if __name__ == "__main__":

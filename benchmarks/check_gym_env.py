@@ -11,11 +11,10 @@ episode against those per trial (the env's overhead).
 from __future__ import annotations
 
 import argparse
-import json
 import time
-from pathlib import Path
 
 import gymnasium
+from results_file import add_out_option, write_record
 
 from robots.yumi import YUMI
 from sim.envs.episodes import oracle_policy, run_episode
@@ -28,7 +27,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=30, help="test scenes per task (30)")
     parser.add_argument("--tasks", default="single,selected-type", help="comma-separated")
-    parser.add_argument("--out", type=Path, default=Path("benchmarks/results/gym_env_oracle.json"))
+    add_out_option(parser, "gym_env_oracle")
     args = parser.parse_args()
     record: dict[str, object] = {"benchmark": "gym_env_oracle", "seed": 0, "n": args.n}
     for task in args.tasks.split(","):
@@ -51,8 +50,7 @@ def main() -> None:
             "differ": differ, "s_per_trial": trial_s / args.n, "s_per_episode": env_s / args.n,
         }
         print(task, record[task], flush=True)
-    args.out.write_text(json.dumps(record, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    write_record(args.out, record)
 
 
 if __name__ == "__main__":

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
+from results_file import write_record
 
 from experiments.table3.settings import TASKS
 from perception.camera import PinholeCamera
@@ -150,8 +151,8 @@ def main() -> None:
               f"(x{group['outer_over_inner']:.2f}); medians "
               f"{group['inner_third']['median_error_mm']:.1f} and "
               f"{group['outer_third']['median_error_mm']:.1f} mm")
-    args.out.write_text(json.dumps({"runs": [str(r) for r in args.runs], "groups": groups},
-                                   indent=1) + "\n")
+    write_record(args.out, {"runs": [str(r) for r in args.runs], "groups": groups}, indent=1,
+                 announce=False)
     figure(groups, args.figure)
     print(f"wrote {args.out} and {args.figure}")
 

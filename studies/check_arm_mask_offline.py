@@ -24,13 +24,15 @@ have the last word.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
 import numpy as np
+from results_file import write_record
 
 from perception.camera import RgbdFrame
 from perception.labels import split_label
@@ -181,12 +183,11 @@ def main(argv: list[str] | None = None) -> int:
     for result in results:
         print(result.line())
     if args.json is not None:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(
-            {"command": "python studies/check_arm_mask_offline.py " + " ".join(
+        write_record(args.json, {
+            "command": "python studies/check_arm_mask_offline.py " + " ".join(
                 sys.argv[1:] if argv is None else argv),
-             "loop": LoopSettings().to_json(),
-             "results": [asdict(r) for r in results]}, indent=2) + "\n")
+            "loop": LoopSettings().to_json(),
+            "results": [asdict(r) for r in results]}, announce=False)
     return 0
 
 

@@ -12,8 +12,12 @@ than misses) can be read against every operating point, not only the one in use.
 from __future__ import annotations
 
 import argparse
-import json
+import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
+from results_file import add_out_option, write_record
 
 from harness.judging import judged_picks, trial_folders
 from sim.trials.records import TrialOutcome, read_trial_records
@@ -40,8 +44,7 @@ def operating_points(run: Path) -> dict[str, object]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", nargs="+", type=Path, help="gva reproduce real run folders")
-    parser.add_argument("--out", type=Path,
-                        default=Path("benchmarks/results/judge_operating_points.json"))
+    add_out_option(parser, "judge_operating_points")
     args = parser.parse_args()
     results = [operating_points(run) for run in args.runs]
     for result in results:
@@ -50,9 +53,7 @@ def main() -> None:
             print(f"  below {point['threshold']:.2f}: {point['flagged_misses']} flagged, "
                   f"{point['false_alarms']} false alarms")
         print(f"  thresholds meeting the bar: {result['meets_bar'] or 'none'}")
-    args.out.write_text(json.dumps({"benchmark": "judge_operating_points", "runs": results},
-                                   indent=1) + "\n")
-    print(f"wrote {args.out}")
+    write_record(args.out, {"benchmark": "judge_operating_points", "runs": results}, indent=1)
 
 
 if __name__ == "__main__":

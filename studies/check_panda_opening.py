@@ -15,13 +15,16 @@ Usage:
 from __future__ import annotations
 
 import argparse
-import json
 import math
+import sys
 import time
 from dataclasses import replace
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
 import numpy as np
+from results_file import write_record
 from tqdm import tqdm
 
 from perception.interface import NO_CONDITION, Condition, Prediction, Target
@@ -104,10 +107,10 @@ def main(argv: list[str] | None = None) -> dict[str, dict[str, list[str]]]:
         held = ", ".join(f"{turn} deg {p.count('success')}/{len(p)}" for turn, p in row.items())
         print(f"opened {opening} mm: {held}")
     if args.out is not None:
-        args.out.write_text(json.dumps({
+        write_record(args.out, {
             "how": {"seed": SEED, "object": OBJECT, "scenes": [s.index for s in scenes],
                     "robot": "panda", "wall_time_s": round(time.perf_counter() - start, 1)},
-            "outcomes_by_opening_mm_and_turn_deg": outcomes}, indent=1) + "\n")
+            "outcomes_by_opening_mm_and_turn_deg": outcomes}, indent=1, announce=False)
     return outcomes
 
 

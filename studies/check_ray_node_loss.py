@@ -23,8 +23,11 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
 import ray
 from ray.cluster_utils import Cluster
+from results_file import add_out_option, write_record
 
 from experiments.table2.run import run_reproduce_sim
 from experiments.table2.settings import ReproduceSimSettings
@@ -55,8 +58,7 @@ def _running_on(node: Any) -> list[str]:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path,
-                        default=Path("benchmarks/results/ray_node_loss.json"))
+    add_out_option(parser, "ray_node_loss")
     args = parser.parse_args()
 
     cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1})
@@ -99,8 +101,7 @@ def main() -> int:
               "cells_computed": dict(computed), "cells_in_table2": len(in_table),
               "failed": [o.cell.name for o in report[0].failed], "wall_s": round(wall_s, 1),
               "passed": ok}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2) + "\n")
+    write_record(args.out, result, announce=False)
     print(json.dumps(result, indent=2))
     return 0 if ok else 1
 

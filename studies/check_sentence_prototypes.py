@@ -26,11 +26,14 @@ left"/"... right"): a left-out phrasing's twin stays in the other target's proto
 from __future__ import annotations
 
 import argparse
-import json
+import sys
 from pathlib import Path
 from typing import Any
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
 import numpy as np
+from results_file import add_out_option, write_record
 from sklearn.linear_model import LogisticRegression
 
 from perception.language.sentences import embed
@@ -135,8 +138,7 @@ def probe_scores(task_name: str, scene: str) -> dict:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path,
-                        default=Path("benchmarks/results/sentence_prototypes.json"))
+    add_out_option(parser, "sentence_prototypes")
     args = parser.parse_args()
     results = [prototype_scores("selected-type-text", "yumi"),
                prototype_scores("selected-type-text", "paper-sim"),
@@ -166,11 +168,8 @@ def main() -> int:
               f"{scores['left_out_named_right']} of {scores['training_phrasings']} training "
               f"phrasings left out, {scores['retired_named_right']} of "
               f"{scores['retired_phrasings']} retired test phrasings")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps({"nearest_prototype": results,
-                                    "temperature_leave_one_out": choices,
-                                    "linear_probe": probes}, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    write_record(args.out, {"nearest_prototype": results, "temperature_leave_one_out": choices,
+                            "linear_probe": probes})
     return 0
 
 

@@ -16,10 +16,14 @@ from __future__ import annotations
 import argparse
 import copy
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
 import numpy as np
+from results_file import add_out_option, write_record
 
 from perception.judge.grasp_tolerance import LogisticTolerance, ToleranceMap, type_picks
 
@@ -75,8 +79,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--map", type=Path, default=Path("perception/judge/grasp_tolerance.json"))
     parser.add_argument("--folds", type=int, default=5)
-    parser.add_argument("--out", type=Path,
-                        default=Path("benchmarks/results/tolerance_reading.json"))
+    add_out_option(parser, "tolerance_reading")
     args = parser.parse_args()
     data = json.loads(args.map.read_text())
     result = cross_validate(data, args.folds)
@@ -85,9 +88,8 @@ def main() -> None:
             print(f"{name:<13} {reading:<9} log-loss {s['log_loss']:.3f}; {s['misses']} misses "
                   f"of {s['picks']}: {s['flagged_misses']} flagged, {s['false_alarms']} "
                   "false alarms")
-    args.out.write_text(json.dumps({"check": "tolerance_reading", "map": str(args.map),
-                                    "folds": args.folds, "result": result}, indent=1) + "\n")
-    print(f"wrote {args.out}")
+    write_record(args.out, {"check": "tolerance_reading", "map": str(args.map),
+                            "folds": args.folds, "result": result}, indent=1)
 
 
 if __name__ == "__main__":

@@ -21,12 +21,17 @@ import argparse
 import json
 import os
 import platform
+import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
+from results_file import add_out_option, write_record
 
 from harness.paired_statistics import PairedCounts, mcnemar_exact_p, newcombe_paired_interval
 from harness.run_folder import PROVENANCE_KEY, differences, json_form
@@ -125,8 +130,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--keep-types", action="store_true",
                         help="replay with the types stated: must equal the run's records")
-    parser.add_argument("--out", type=Path,
-                        default=Path("benchmarks/results/type_head_picks.json"))
+    add_out_option(parser, "type_head_picks")
     args = parser.parse_args(argv)
     jobs = [(args.run, seed, args.model, task, args.keep_types)
             for task in args.tasks for seed in args.seeds]
@@ -161,9 +165,7 @@ def main(argv: list[str] | None = None) -> int:
                           "processor": platform.processor() or platform.machine()},
               "run": str(args.run), "model": args.model, "seeds": args.seeds,
               "pooled": pooled, "sets": sets}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    write_record(args.out, result)
     return 0
 
 

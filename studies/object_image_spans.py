@@ -15,12 +15,15 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
 import math
+import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
 import numpy as np
+from results_file import write_record
 
 from perception.camera import PinholeCamera
 from perception.objects.catalog import get_object_spec
@@ -89,7 +92,7 @@ def main(argv: list[str] | None = None) -> list[ImageSpan]:
                   f"(median {row.span_median_px:5.1f}), reach {row.reach_min_px:5.1f}-"
                   f"{row.reach_max_px:5.1f} px; the focus window: {config.focus_window_px} px")
     if args.out is not None:
-        args.out.write_text(json.dumps([asdict(r) for r in rows], indent=1) + "\n")
+        write_record(args.out, [asdict(r) for r in rows], indent=1, announce=False)
     return rows
 
 
