@@ -15,7 +15,7 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-from harness.run_folder import PROVENANCE_KEY, claim_run_folder, json_form
+from harness.run_folder import PROVENANCE_KEY, claim_run_folder, json_form, read_json_file
 from harness.trial_summary import TrialSummary
 from sim.errors import RunFolderError
 from sim.trials.records import RECORD_FORMAT_VERSION, TrialRecord, record_lines, record_of_line
@@ -87,8 +87,5 @@ def stored_identity(folder: Path) -> dict[str, Any] | None:
     path = folder / "run.json"
     if not path.exists():
         return None
-    try:
-        stored = json.loads(path.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise RunFolderError(f"{path} is damaged ({error}); use another --out") from None
+    stored = read_json_file(path, "use another --out")
     return {key: value for key, value in stored.items() if key != PROVENANCE_KEY}

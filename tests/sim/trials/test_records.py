@@ -111,3 +111,18 @@ def test_a_run_file_not_utf8_is_refused_naming_the_file(tmp_path):
         TrialLog(tmp_path, {"seed": 0})
     assert str(refused.value) == (f"{run} is damaged (not UTF-8 text: byte 0 is 0xff); use "
                                   "another --out")
+
+
+def test_a_run_file_damaged_is_refused_by_the_stored_identity_too(tmp_path):
+    """stored_identity reads run.json as every run file is read: one reader, one message."""
+    from harness.trial_log import stored_identity
+
+    TrialLog(tmp_path, {"seed": 0})
+    run = tmp_path / "run.json"
+    run.write_bytes(b"\xff" + run.read_bytes())
+    with pytest.raises(RunFolderError, match=r"is damaged \(not UTF-8 text: byte 0 is 0xff\); "
+                                             r"use another --out"):
+        stored_identity(tmp_path)
+    run.write_text("{", encoding="utf-8")
+    with pytest.raises(RunFolderError, match=r"run.json is damaged \(Expecting"):
+        stored_identity(tmp_path)
