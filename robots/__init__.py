@@ -37,6 +37,15 @@ def get_robot(name: str) -> RobotDescription:
     raise InvalidInputError("robot", name, f"one of {', '.join(ROBOT_NAMES)}")
 
 
+def unnamed_robot() -> RobotDescription:
+    """The robot an identity means where it names none (:data:`_UNNAMED_ROBOT`, the YuMi).
+
+    What a record holds of a robot without naming it is this robot's: a trial run's obstacle
+    identity keeps its depth settings whatever robot picks, as identities always have.
+    """
+    return get_robot(_UNNAMED_ROBOT)
+
+
 def robot_identity(name: str) -> dict[str, str]:
     """The robot's part of an identity or record: ``{"robot": name}``, or nothing for the YuMi.
 
@@ -47,4 +56,4 @@ def robot_identity(name: str) -> dict[str, str]:
     return {} if name == _UNNAMED_ROBOT else {"robot": name}
 
 
-__all__ = ["DEFAULT_ROBOT", "ROBOT_NAMES", "get_robot", "robot_identity"]
+__all__ = ["DEFAULT_ROBOT", "ROBOT_NAMES", "get_robot", "robot_identity", "unnamed_robot"]

@@ -24,9 +24,8 @@ from perception.learning.learnable import LearnableModel
 from perception.learning.validation import HeldOutCheck, read_check
 from perception.plugins import build_plugin, installed_models, is_class_path, plugin_class
 from perception.remote.client import RemoteModel, announced_metadata, is_remote
-from robots import DEFAULT_ROBOT, robot_identity
+from robots import DEFAULT_ROBOT, robot_identity, unnamed_robot
 from robots.description import RobotDescription
-from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_in_scene import check_task_fits, condition_choices
@@ -97,11 +96,12 @@ def task_identity(task: TaskSpec) -> dict[str, Any]:
 def obstacle_identity(source: ObstacleSource) -> dict[str, Any]:
     """What a run's picks are planned around, as ``run.json`` and ``summary.json`` show it.
 
-    Its depth settings are the YuMi's whatever robot picks, as identities have always held them.
+    Its depth settings are the unnamed robot's (the YuMi's) whatever robot picks, as
+    identities have always held them (:func:`robots.unnamed_robot`).
     """
     if source is not ObstacleSource.DEPTH:
         return {"source": source.value}
-    depth = asdict(depth_config(YUMI))
+    depth = asdict(depth_config(unnamed_robot()))
     depth["occluded"] = depth["occluded"].value
     return {"source": source.value, "depth": depth}
 

@@ -10,7 +10,7 @@ import pytest
 
 from control.errors import InvalidInputError as ControlInputError
 from perception.errors import InvalidInputError as PerceptionInputError
-from robots import ROBOT_NAMES, get_robot, robot_identity, yumi
+from robots import ROBOT_NAMES, get_robot, robot_identity, unnamed_robot, yumi
 from robots.errors import InvalidInputError
 from robots.yumi import specs
 
@@ -67,6 +67,7 @@ def test_an_identity_names_every_robot_but_the_yumi():
     """Folders and datasets from before other robots (all the YuMi's) keep their identity."""
     assert robot_identity("yumi") == {}
     assert robot_identity("panda") == {"robot": "panda"}
+    assert robot_identity(unnamed_robot().name) == {}  # the robot an identity leaves unnamed
 
 
 def test_every_packages_bad_input_error_is_one_error():
