@@ -50,12 +50,6 @@ def yumi_planner() -> PickPlanner:
     return make_planner(YUMI)
 
 
-def top_down(x: float, y: float, z: float, yaw: float = np.pi / 2) -> pin.SE3:
-    """A TCP pose pointing straight down, fingers closing along the yawed x axis."""
-    down = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
-    return pin.SE3(pin.utils.rotate("z", yaw) @ down, np.array([x, y, z]))
-
-
 class DepthView:
     """What the head camera's depth image makes of a scene of boxes: the planner's obstacles.
 

@@ -1,7 +1,7 @@
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import top_down
+from tcp_poses import top_down
 
 from control.collision import Obstacle, ShapeKind
 from control.errors import InvalidInputError

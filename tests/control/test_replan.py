@@ -5,7 +5,7 @@ import itertools
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import top_down
+from tcp_poses import top_down
 
 import control.planner as planner_module
 from control.collision import Obstacle, ShapeKind

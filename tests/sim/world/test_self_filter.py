@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import top_down
+from tcp_poses import top_down
 
 from control.pick import PickRequest
 from robots import yumi
