@@ -252,6 +252,16 @@ ROOMS: Mapping[str, tuple[tuple[str, ...], ...]] = {
         ("harness.executors",),  # opens the pool a run asked for
         ("harness.run_loop", "harness.run_report"),  # runs of trials, what a run did
     ),
+    "experiments": (
+        ("experiments.tables",),  # what both tables share
+        # what every command's options are made of: options declared once, argparse types,
+        # the options of the commands that pick
+        ("experiments.commands.options", "experiments.commands.arguments",
+         "experiments.commands.pick_options"),
+        ("experiments.table2", "experiments.table3"),  # one folder per table
+        ("experiments.commands",),  # one module per gva command or family
+        ("experiments.cli",),  # the gva entry point
+    ),
 }
 
 

@@ -1,8 +1,8 @@
 """The layers of docs/design.md hold: imports point downward only, and no module import cycle.
 
-Inside ``sim``, ``perception`` and ``harness`` the same holds for their rooms (``ROOMS``): a
-module imports its own room and the ones before it, and every module is in a room. The rules
-and the checker: ``tests/layer_rules.py``.
+Inside ``sim``, ``perception``, ``harness`` and ``experiments`` the same holds for their rooms
+(``ROOMS``): a module imports its own room and the ones before it, and every module is in a
+room. The rules and the checker: ``tests/layer_rules.py``.
 """
 
 from __future__ import annotations
