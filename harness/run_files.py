@@ -30,7 +30,10 @@ from sim.trials.collector import (
     APPROACH_MASKED_KEY,
     HIDDEN_SHARE_KEY,
     CollectSettings,
+    LabelSource,
+    LookSource,
 )
+from sim.trials.scene_sets.randomised_looks import RandomisedLooks
 from sim.trials.trial_settings import task_identity
 from sim.world.head_camera import CameraConfig
 from sim.world.sensor import SensorKind
@@ -108,7 +111,9 @@ def dataset_path(out: Path, task: str, stream: SeedStream, size: int, seed: int)
 
 def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
                     stream: SeedStream, approach_hz: float | None = None, *,
-                    robot: RobotDescription, sensor: SensorKind | None = None) -> bool:
+                    robot: RobotDescription, sensor: SensorKind | None = None,
+                    labels: LabelSource = LabelSource.PICKED,
+                    looks: LookSource = LookSource.TASK) -> bool:
     """Whether ``path`` holds the dataset asked for; refuses a file that holds another.
 
     ``task`` is a built-in task's name or a task file's path. Compared: scene, task name,
@@ -123,8 +128,10 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
     from before the mask have it in view: another dataset) and how much of a target it may hide
     in one (``APPROACH_HIDDEN_SHARE_MAX``; a dataset that records none is issue 36's: 0).
     ``sensor``: the yumi scene's ``--sensor`` (None: the task file's), part of the definition.
-    A run's datasets are demonstrations in the task's looks: a set labelled by the catalog or
-    in randomised looks (``extra["labels"]``, ``extra["looks"]``) is another dataset.
+    ``labels`` and ``looks``: what the set is (:class:`~sim.trials.collector.CollectSettings`'
+    own; by default demonstrations in the task's looks): a set labelled otherwise or in other
+    looks (``extra["labels"]``, ``extra["looks"]``, the randomised draw included) is another
+    dataset, so a run's demonstrations are never taken for its randomised scenes nor back.
 
     Raises:
         RunFolderError: ``path`` holds another dataset; the message names what differs.
@@ -133,17 +140,19 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
     if not path.exists():
         return False
     meta = read_metadata(path)
+    wanted = CollectSettings(scene, task, size, seed, stream, labels=labels, looks=looks)
     definition = seen_in_scene(load_task(task), scene, sensor)  # as collect sees it
+    if looks is LookSource.RANDOMISED:
+        definition = RandomisedLooks().with_look_alikes(definition)
     asked = json_form({"scene": scene, "task": definition.name, "size": size, "seed": seed,
                        "stream": stream.name.lower(),
-                       "every_condition": CollectSettings(scene, task, size, seed,
-                                                          stream).asks_every_condition,
+                       "every_condition": wanted.asks_every_condition,
                        "definition": task_identity(definition),
                        "camera": asdict(scene_camera(scene, robot))}
                       | ({} if approach_hz is None else {
                           "approach_hz": approach_hz, APPROACH_MASKED_KEY: True,
                           HIDDEN_SHARE_KEY: APPROACH_HIDDEN_SHARE_MAX})
-                      | robot_identity(robot.name))
+                      | robot_identity(robot.name) | wanted.recorded())
     scenes = meta.extra.get("scenes", meta.size)  # a scene may give several samples
     found = {"scene": meta.scene, "task": meta.task, "size": scenes, "seed": meta.seed,
              "stream": meta.extra.get("stream"),
