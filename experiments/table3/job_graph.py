@@ -21,15 +21,17 @@ from experiments.table3.jobs import (
     JobOutcome,
     TrainJob,
     TrialsJob,
+    collect_name,
     cost,
     gif_done,
     job_resources,
     run_job,
     task_targets,
+    train_inputs,
+    train_needs,
     trials_done,
 )
 from experiments.table3.layout import (
-    dataset_file,
     error_file,
     gif_file,
     seed_folder,
@@ -72,14 +74,14 @@ def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
              and (stored := stored_identity(trials_folder(folder, s))) is not None],
             "plug-in trial set(s)")
         tasks = sorted({u.task for u in units}, key=[u.task for u in units].index)
-        collects += [CollectJob(f"collect-{t}-s{run_settings.seed}", t, run_settings, folder)
+        collects += [CollectJob(collect_name(t, run_settings.seed), t, run_settings, folder)
                      for t in tasks]
+        if run_settings.randomised_scenes:  # beside the demonstrations, for trained units only
+            collects += [CollectJob(collect_name(t, run_settings.seed, True), t, run_settings,
+                                    folder, randomised=True) for t in tasks]
         trains += [TrainJob(f"train-{u.name}-s{run_settings.seed}", u, run_settings,
                             run_settings.train_identity(u), folder) for u in units]
-    collects_todo = [j for j in collects if not dataset_present(
-        dataset_file(j.out, j.task, j.settings), SCENE, str(task_file(j.out, j.task)),
-        j.settings.demos, j.settings.seed, SeedStream.TRAIN, j.settings.approach_hz,
-        robot=j.settings.description())]
+    collects_todo = [j for j in collects if not _collected(j)]
     trains_todo = [j for j in trains if not trained_file(j.out, j.unit).exists()]
     for job in trains_todo:  # a check recorded of a checkpoint trained again is decided anew
         error_file(job.out, check_job(job.unit, job.settings.seed)).unlink(missing_ok=True)
@@ -87,12 +89,14 @@ def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
     skipped += [j.name for j in trains if j not in trains_todo]
     waiting = {j.name for j in collects_todo}
     trains_after: dict[str, list[TrainJob]] = {}  # a collection's name: the trainings it feeds
+    pending: dict[str, set[str]] = {}  # a training's name: the collections it still waits for
     ready: list[Job] = list(collects_todo)
     for job in trains_todo:
-        collect_name = f"collect-{job.unit.task}-s{job.settings.seed}"
-        if collect_name in waiting:
-            trains_after.setdefault(collect_name, []).append(job)
-        elif dataset_file(job.out, job.unit.task, job.settings).exists():
+        if waits := {name for name in train_needs(job) if name in waiting}:
+            pending[job.name] = waits
+            for name in waits:
+                trains_after.setdefault(name, []).append(job)
+        elif all(path.exists() for path in train_inputs(job)):
             ready.append(job)
     for run_settings, folder in runs:  # trials of the checkpoints that are there already
         todo, skipped_now = _trial_jobs(run_settings, folder)
@@ -103,8 +107,8 @@ def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
     later = {j.name: sum(_trials_estimate(j.settings, j.out, t)
                          for t in j.settings.trial_sets() if t.unit == j.unit)
              for j in trains_todo}
-    total = sum(map(cost, ready)) + sum(cost(j) for jobs in trains_after.values()
-                                        for j in jobs) + sum(later.values())
+    total = sum(map(cost, ready)) + sum(cost(j) for j in trains_todo if j.name in pending) \
+        + sum(later.values())
     computed: list[JobOutcome] = []
     by_name: dict[str, Job] = {job.name: job for job in ready}
     by_name |= {j.name: j for jobs in trains_after.values() for j in jobs}
@@ -127,10 +131,17 @@ def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
             bar.update(cost(job))
             released: list[Job] = []
             if isinstance(job, CollectJob):
-                released += trains_after.get(job.name, [])
-                if outcome.failure is not None:  # its trainings are left out, and their trials
-                    bar.total -= sum(chain(j) for j in released)
-                    released = []
+                for train in trains_after.get(job.name, []):
+                    if train.name not in pending:
+                        continue  # left out already: another collection it needs failed
+                    if outcome.failure is not None:  # left out, and its trials
+                        del pending[train.name]
+                        bar.total -= cost(train) + later[train.name]
+                        continue
+                    pending[train.name].discard(job.name)
+                    if not pending[train.name]:  # every dataset it trains on is there
+                        del pending[train.name]
+                        released.append(train)
             elif isinstance(job, TrainJob):
                 if outcome.failure is None:
                     released, skipped_now = _trial_jobs(job.settings, job.out, job.unit)
@@ -142,6 +153,21 @@ def run_jobs(settings: ReproduceRealSettings, out: Path, progress: bool
 
         pool.run(run_job, ready, done, job_resources, order=lambda job: -chain(job))
     return computed, skipped
+
+
+def _collected(job: CollectJob) -> bool:
+    """Whether a collection's dataset is there already (one of other settings is refused)."""
+    settings, task = job.settings, str(task_file(job.out, job.task))
+    if not job.randomised:
+        return dataset_present(job.path, SCENE, task, settings.demos, settings.seed,
+                               SeedStream.TRAIN, settings.approach_hz,
+                               robot=settings.description())
+    if not job.path.exists():
+        return False
+    wanted = settings.randomised_collect(task)
+    return dataset_present(job.path, SCENE, task, wanted.size, wanted.seed, wanted.stream,
+                           robot=settings.description(), labels=wanted.labels,
+                           looks=wanted.looks)
 
 
 def _trials_estimate(settings: ReproduceRealSettings, out: Path, trial_set: TrialSet) -> float:

@@ -15,12 +15,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from experiments.commands.models import training_files
 from experiments.table3.gifs import record_gif
 from experiments.table3.layout import (
     checkpoint_folder,
     dataset_file,
     error_file,
     gif_file,
+    randomised_file,
     task_file,
     trained_file,
     trials_folder,
@@ -36,9 +38,11 @@ from harness.run_files import (
 )
 from harness.run_folder import json_form
 from harness.run_loop import run_trials
+from perception.learning.combined import concatenate
 from perception.learning.dataset_file import DatasetError, load_dataset
 from perception.learning.train import TrainConfig
 from perception.learning.validation import fit_checked, write_check
+from perception.models.torch_model import TorchModel
 from perception.registry import new_model
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.task_in_scene import target_count
@@ -48,6 +52,7 @@ from sim.trials.trial_settings import TrialSettings, torch_threads
 
 # Rough seconds per unit of work on one loaded core, only for the progress bar's time left.
 COLLECT_S_PER_PICK = 1.2
+RANDOMISED_S_PER_SCENE = 0.1
 TRAIN_S_PER_STEP = 0.09
 TRIAL_S_PER_PICK = 2.0
 GIF_S_PER_PICK = 4.0
@@ -81,12 +86,24 @@ class JobOutcome:
 
 @dataclass(frozen=True)
 class CollectJob:
-    """Collect the demonstrations of one task."""
+    """Collect the demonstrations of one task, or (``randomised``) its randomised scenes.
 
-    name: str  # collect-<task>-s<seed>, as in messages and error files
+    The randomised scenes (``--randomised-scenes``) are a job of their own, beside the
+    demonstrations' collection: catalog labels pick nothing, so they take a fraction of its time.
+    """
+
+    name: str  # collect-<task>-s<seed> or collect-randomised-<task>-s<seed>
     task: str
     settings: ReproduceRealSettings
     out: Path
+    randomised: bool = False
+
+    @property
+    def path(self) -> Path:
+        """The dataset it writes."""
+        return (randomised_file(self.out, self.task, self.settings.randomised_scenes,
+                                self.settings.randomised_seed) if self.randomised
+                else dataset_file(self.out, self.task, self.settings))
 
 
 @dataclass(frozen=True)
@@ -139,6 +156,8 @@ def task_targets(task: str) -> int:
 
 def cost(job: Job) -> float:
     """The job's estimated seconds on one core (for the progress bar)."""
+    if isinstance(job, CollectJob) and job.randomised:
+        return RANDOMISED_S_PER_SCENE * job.settings.randomised_scenes
     if isinstance(job, CollectJob):
         return COLLECT_S_PER_PICK * job.settings.demos * task_targets(job.task)
     if isinstance(job, TrainJob):
@@ -171,10 +190,14 @@ def _work(job: Job) -> str:
 
 
 def _collect(job: CollectJob) -> str:
+    if job.randomised:
+        randomised = job.settings.randomised_collect(str(task_file(job.out, job.task)))
+        dataset = collect(randomised, job.path, progress=False)
+        return f"{randomised.size} randomised scenes ({len(dataset)} samples)"
     settings = CollectSettings(SCENE, str(task_file(job.out, job.task)), job.settings.demos,
                                job.settings.seed, SeedStream.TRAIN,
                                approach_hz=job.settings.approach_hz, robot=job.settings.robot)
-    dataset = collect(settings, dataset_file(job.out, job.task, job.settings), progress=False)
+    dataset = collect(settings, job.path, progress=False)
     extra = dataset.metadata.extra
     return f"{extra.get('scenes', len(dataset))} demonstrations ({len(dataset)} " \
            f"samples), {extra.get('demonstrations_redrawn', 0)} redrawn"
@@ -183,7 +206,8 @@ def _collect(job: CollectJob) -> str:
 def _train(job: TrainJob) -> str:
     settings, unit = job.settings, job.unit
     with torch_threads(settings.train_threads):
-        path = dataset_file(job.out, unit.task, settings)
+        paths = train_inputs(job)
+        path = paths[0]
         data = load_dataset(path, expect={"scene": SCENE,  # the task as run (its world's name)
                                           "task": settings.run_task(TrialSet(unit)).name,
                                           "seed": settings.seed})
@@ -191,12 +215,19 @@ def _train(job: TrainJob) -> str:
         if demonstrations != settings.demos:  # a demonstration has an image per pick
             raise DatasetError(path, f"holds {demonstrations} demonstrations, the run asks "
                                f"for {settings.demos}")
+        if len(paths) > 1:  # as gva train --data DEMOS --data RANDOMISED joins them
+            randomised = settings.randomised_collect(str(task_file(job.out, unit.task)))
+            extra = load_dataset(paths[1], expect={"scene": SCENE, "seed": randomised.seed,
+                                                   "task": randomised.task_spec.name})
+            data = concatenate([data, extra], [str(p) for p in paths])
         hyperparameters = settings.model_settings(unit.model)
         fit = fit_checked(lambda seed: new_model(unit.model, data, seed=seed, **hyperparameters),
                           data, TrainConfig(**settings.train_config()), settings.check,
                           progress=False)
         if (file := model_config_file(settings.model_configs, unit.model)) is not None:
             file.record(fit.model)
+        if len(paths) > 1 and isinstance(fit.model, TorchModel):
+            fit.model.provenance["datasets"] = training_files(data, paths)
         fit.model.save(checkpoint_folder(job.out, unit))
         write_check(checkpoint_folder(job.out, unit), fit)
     report, check = fit.report, fit.check
@@ -208,6 +239,29 @@ def _train(job: TrainJob) -> str:
         "check": None if check is None else check.to_json()})
     shown = "" if check is None else "; " + check.headline()
     return f"final loss {report.final_loss:.4g} in {report.wall_time_s:.0f} s{shown}"
+
+
+def train_inputs(job: TrainJob) -> list[Path]:
+    """The datasets a unit trains on: its demonstrations, then its randomised scenes if any.
+
+    The randomised scenes are the run's ``--randomised-scenes``, of the unit's task.
+    """
+    settings, task = job.settings, job.unit.task
+    return [dataset_file(job.out, task, settings)] + (
+        [randomised_file(job.out, task, settings.randomised_scenes, settings.randomised_seed)]
+        if settings.randomised_scenes else [])
+
+
+def collect_name(task: str, seed: int, randomised: bool = False) -> str:
+    """A collection job's name: ``collect-single-s0``, ``collect-randomised-single-s0``."""
+    return f"collect-{'randomised-' if randomised else ''}{task}-s{seed}"
+
+
+def train_needs(job: TrainJob) -> list[str]:
+    """The collections a training waits for: its demonstrations', and its randomised scenes'."""
+    seed, task = job.settings.seed, job.unit.task
+    return [collect_name(task, seed)] + (
+        [collect_name(task, seed, True)] if job.settings.randomised_scenes else [])
 
 
 def _trials(job: TrialsJob) -> str:

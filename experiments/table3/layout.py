@@ -60,6 +60,14 @@ def dataset_file(out: Path, task: str, settings: Demonstrated) -> Path:
     return dataset_path(out, task, SeedStream.TRAIN, settings.demos, settings.seed)
 
 
+def randomised_file(out: Path, task: str, size: int, seed: int) -> Path:
+    """A task's ``size`` scenes in randomised looks labelled by the catalog, drawn at ``seed``.
+
+    ``seed`` is the run's randomised seed, not its own: the file names what it holds.
+    """
+    return out / "datasets" / f"{task}-randomised-{size}-s{seed}.gva"
+
+
 def checkpoint_folder(out: Path, unit: Unit) -> Path:
     """The checkpoint of a unit (``trained.json`` beside its weights once complete)."""
     return out / "checkpoints" / unit.model / unit.task

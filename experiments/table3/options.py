@@ -75,12 +75,20 @@ REAL = CommandLine("gva reproduce real", (
            f"task's looks ({', '.join(builtin_variants())}, or a variant .toml file); "
            "varied-held-out demonstrates on half the palette and textures and tries on the "
            "other half (default: today's world)"),
+    Option("--randomised-scenes", parse=integer(0), metavar="N",
+           help="besides each task's demonstrations, N scenes in randomised looks labelled by "
+           "the catalog (what gva collect --labels catalog --looks randomised makes, at the "
+           "seed + 100 on the training stream), each "
+           "trained model trained on both, as gva train --data DEMOS --data RANDOMISED; the "
+           "held-out check holds out demonstrations only; plug-ins and served models are not "
+           "trained and take none ({default}: none)"),
     # --loop and --replan-hz, one field checked together; a closed loop always names its rate
     Special("--loop", "loop", add_loop_options, loop_settings, loop_options),
     ROBOT,
     # --executor and --ray-address, one field; where jobs run changes no result: never written
     Special("--executor", "executor", add_executor_options, executor),
 ), order=("--seed", "--n", "--demos", "--steps", "--seeds", "--tasks", "--models", "--variants",
-          "--balance-types", "--sensor", "--loop", "--robot", "--world", "--train-threads",
-          "--holdout", "--gif-trials", "--use-failed-checkpoints", "--model-config"))
+          "--balance-types", "--sensor", "--loop", "--robot", "--world", "--randomised-scenes",
+          "--train-threads", "--holdout", "--gif-trials", "--use-failed-checkpoints",
+          "--model-config"))
 """``gva reproduce real``'s options; ``--out`` and ``--no-progress`` are the command module's."""

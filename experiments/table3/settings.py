@@ -33,10 +33,12 @@ from perception.remote.client import announced_metadata
 from robots import DEFAULT_ROBOT, robot_identity
 from robots.description import RobotDescription
 from sim.errors import InvalidInputError
+from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.task_spec import TaskSpec, spaced_for
 from sim.tasks.task_toml import load_task
 from sim.tasks.variants import read_variant, with_variant
 from sim.trials.closed_loop.loop_settings import Loop, LoopSettings
+from sim.trials.collector import CollectSettings, LabelSource, LookSource
 from sim.trials.execution import ExecutionSettings
 from sim.trials.trial_settings import TrialSettings, obstacle_identity, task_identity
 from sim.world.head_camera import CameraConfig, camera_config
@@ -54,6 +56,11 @@ DEFAULT_VARIANTS = ("dark", "block")
 """The variants every model is tried under by default: the paper's robustness rows, darker
 light and the wooden block (``sim/tasks/variants/``)."""
 GIF_TRIALS = 3
+RANDOMISED_SEED_OFFSET = 100
+"""A seed's randomised scenes (``--randomised-scenes``) are drawn at seed + this, on the TRAIN
+stream: never the demonstrations' own scenes (seed, TRAIN) nor any trial's (TEST stream, which
+no collection of this run draws from); 100 is the offset appearance.md's offline measure drew
+at (seed 110 beside seed 10's demonstrations)."""
 FORMAT_VERSION = 3
 """What a run folder holds; 2: a demonstration keeps the image before each of its picks;
 3: a folder per seed, and a scene with a condition shown under each of its values."""
@@ -161,6 +168,13 @@ class ReproduceRealSettings:
         world: A variant every task of the run lives under, demonstrations and trials alike
             (``--world``, :mod:`sim.tasks.variants`; ``varied-held-out``: the generalisation
             protocol); named in the identity only where set. None: today's world.
+        randomised_scenes: Scenes in randomised looks labelled by the catalog, collected per
+            task beside its demonstrations (``--randomised-scenes``; what ``gva collect
+            --labels catalog --looks randomised`` makes, of the run's task file, at
+            :attr:`randomised_seed`), each trained unit trained on both as ``gva train --data
+            DEMOS --data RANDOMISED`` is: the held-out check holds out demonstrations only, and
+            the checkpoint records both files. Plug-ins and served models are not trained and
+            take none. 0: none, and no identity names it, so earlier folders resume.
 
     """
 
@@ -184,6 +198,7 @@ class ReproduceRealSettings:
     loop: LoopSettings = field(default_factory=LoopSettings)
     robot: str = DEFAULT_ROBOT
     world: str | None = None
+    randomised_scenes: int = 0
 
     def __post_init__(self) -> None:
         if self.world is not None:
@@ -207,7 +222,31 @@ class ReproduceRealSettings:
         check_choices("tasks", self.tasks, ALL_TASKS)
         check_model_configs([(f.model, f.path) for f in self.model_configs], self.models)
         check_counts(self, {"n": 1, "demos": 1, "steps": 1, "seed": 0, "seeds": 1,
-                            "train_threads": 1, "gif_trials": 0}, self.workers)
+                            "train_threads": 1, "gif_trials": 0, "randomised_scenes": 0},
+                     self.workers)
+        if self.randomised_scenes and all(is_plugin(m) for m in self.models):
+            raise InvalidInputError("randomised_scenes", self.randomised_scenes,
+                                    "0 where no model is trained (plug-ins and served models "
+                                    "are tried as they are)")
+
+    @property
+    def randomised_seed(self) -> int:
+        """The seed the randomised scenes are drawn at: the run's + the offset.
+
+        :data:`RANDOMISED_SEED_OFFSET` past the run's, on the TRAIN stream: never the
+        demonstrations' scenes nor the trials'.
+        """
+        return self.seed + RANDOMISED_SEED_OFFSET
+
+    def randomised_collect(self, task: str) -> CollectSettings:
+        """What a task's randomised scenes are: ``task`` labelled by the catalog, randomised.
+
+        ``task`` is its file, or a built-in's name; the scenes are drawn at
+        :attr:`randomised_seed`, in randomised looks.
+        """
+        return CollectSettings(SCENE, task, self.randomised_scenes, self.randomised_seed,
+                               SeedStream.TRAIN, robot=self.robot, labels=LabelSource.CATALOG,
+                               looks=LookSource.RANDOMISED)
 
     @property
     def training_seeds(self) -> range:
@@ -278,7 +317,9 @@ class ReproduceRealSettings:
         loop = {"loop": self.loop.to_json()} if self.closed else {}
         robot = robot_identity(self.robot)
         world = {} if self.world is None else {"world": read_variant(self.world)[1]}
-        return sensor | loop | robot | world | {
+        randomised = ({} if not self.randomised_scenes
+                      else {"randomised_scenes": self.randomised_scenes})
+        return sensor | loop | robot | world | randomised | {
                 "format_version": FORMAT_VERSION, "experiment": "reproduce-real",
                 "scene": SCENE, "demos": self.demos, "n": self.n,
                 "train": train, "settle_s": TrialSettings.settle_s,
@@ -287,8 +328,15 @@ class ReproduceRealSettings:
                 "variants": {Path(v).stem: read_variant(v)[1] for v in self.variants}}
 
     def train_identity(self, unit: Unit) -> dict[str, Any]:
-        """What defines a unit's checkpoint; ``trained.json`` holds it."""
-        return json_form({"model": unit.model,
+        """What defines a unit's checkpoint; ``trained.json`` holds it.
+
+        Its randomised scenes (how many, their seed, labels and looks) only where there are
+        some, so checkpoints trained before they existed keep their identity.
+        """
+        randomised = {} if not self.randomised_scenes else {"randomised_scenes": {
+            "scenes": self.randomised_scenes, "seed": self.randomised_seed,
+            **self.randomised_collect(unit.task).recorded()}}
+        return json_form(randomised | {"model": unit.model,
                           "model_config": model_config(unit.model, self.seed,
                                                        self.model_settings(unit.model)),
                           "task": task_identity(self.run_task(TrialSet(unit))), "demos": self.demos,

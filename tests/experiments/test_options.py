@@ -30,6 +30,7 @@ def parsed(line: str, table: CommandLine, settings: type):
     {"loop": LoopSettings(Loop.CLOSED, 2.5), "train_threads": 2},
     {"check": CheckConfig(holdout=0.0), "gif_trials": 0, "use_failed_checkpoints": True},
     {"tasks": ("single",), "models": ("kqv", "fcn"), "n": 2, "demos": 3, "steps": 4},
+    {"randomised_scenes": 200, "world": "varied-held-out"},
 ])
 def test_a_real_command_line_gives_back_its_settings(keywords):
     settings = ReproduceRealSettings(**keywords)
