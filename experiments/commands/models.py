@@ -19,10 +19,10 @@ import numpy as np
 
 from experiments.commands.arguments import integer
 from perception.drawing import AttentionRow, attention_figure, write_png
-from perception.files import atomic_write, file_sha256
+from perception.files import atomic_write
 from perception.interface import ConditionKind, InvalidInputError, PerceptionError, Prediction
 from perception.learning.checkpoint import CONFIG_FILE, WEIGHTS_FILE, read_config
-from perception.learning.combined import PARTS_KEY, concatenate
+from perception.learning.combined import PARTS_KEY, concatenate, training_files
 from perception.learning.data import Dataset
 from perception.learning.dataset_file import load_dataset
 from perception.learning.evaluate import evaluate
@@ -167,17 +167,6 @@ def run_train(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 1
     return 0
-
-
-def training_files(dataset: Dataset, paths: Sequence[Path]) -> list[dict[str, Any]]:
-    """What a checkpoint trained on several files records of each: its part, path and SHA-256.
-
-    ``dataset`` is their :func:`~perception.learning.combined.concatenate`; its
-    ``extra["parts"]`` says what each file gave (task, scenes, samples, labels, looks), so a
-    checkpoint says it was trained on demonstrations plus a randomised set, and which files.
-    """
-    return [part | {"path": str(path.resolve()), "sha256": file_sha256(path)}
-            for part, path in zip(dataset.metadata.extra[PARTS_KEY], paths, strict=True)]
 
 
 def run_evaluate(args: argparse.Namespace) -> int:

@@ -15,7 +15,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from experiments.commands.models import training_files
 from experiments.table3.gifs import record_gif
 from experiments.table3.layout import (
     checkpoint_folder,
@@ -38,7 +37,7 @@ from harness.run_files import (
 )
 from harness.run_folder import json_form
 from harness.run_loop import run_trials
-from perception.learning.combined import concatenate
+from perception.learning.combined import concatenate, training_files
 from perception.learning.dataset_file import DatasetError, load_dataset
 from perception.learning.train import TrainConfig
 from perception.learning.validation import fit_checked, write_check

@@ -21,10 +21,12 @@ from __future__ import annotations
 import enum
 from collections.abc import Mapping, Sequence
 from dataclasses import fields, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from perception.files import file_sha256
 from perception.interface import InvalidInputError
 from perception.learning.data import (
     JOINT_NAMES_KEY,
@@ -179,3 +181,15 @@ def _differing(ours: Any, theirs: Any) -> tuple[Any, Any]:
         return ({k: ours[k] for k in keys if k in ours}, {k: theirs[k] for k in keys
                                                           if k in theirs})
     return ours, theirs
+
+
+def training_files(dataset: Dataset, paths: Sequence[Path]) -> list[dict[str, Any]]:
+    """What a checkpoint trained on several files records of each: its part, path and SHA-256.
+
+    ``dataset`` is their :func:`concatenate`; its ``extra["parts"]`` says what each file gave
+    (task, scenes, samples, labels, looks), so a checkpoint says it was trained on
+    demonstrations plus a randomised set, and which files (``gva train --data A --data B``,
+    ``gva reproduce real --randomised-scenes``).
+    """
+    return [part | {"path": str(path.resolve()), "sha256": file_sha256(path)}
+            for part, path in zip(dataset.metadata.extra[PARTS_KEY], paths, strict=True)]
