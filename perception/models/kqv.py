@@ -19,8 +19,7 @@ from torch import Tensor, nn
 
 from perception.camera import Calibrations
 from perception.interface import Condition, InvalidInputError, ModelInput, Prediction
-from perception.language.sentence_reading import TokenReader, fit_token_reader, read_target
-from perception.language.sentences import token_embeddings, token_ids
+from perception.language.sentence_reading import TokenReader, read_sentences
 from perception.learning.data import Dataset
 from perception.learning.evaluate import evaluate
 from perception.learning.learnable import ModelSpec
@@ -35,7 +34,7 @@ from perception.learning.train import Batch, TrainConfig, TrainReport, train
 from perception.learning.validation import split_scenes
 from perception.models.kqv_config import INFERENCE_FIELDS, KqvConfig
 from perception.models.kqv_net import KqvNet
-from perception.models.kqv_samples import mirror_for, named_dataset
+from perception.models.kqv_samples import mirror_for, named_dataset, sentence_reader
 from perception.models.repaint import Repaint
 from perception.models.rise import checked_depths
 from perception.models.torch_model import Phase, TorchModel, present_mean
@@ -152,7 +151,7 @@ class KqvModel(TorchModel):
                 self._prototypes = torch.from_numpy(dataset.condition_prototypes())
                 self.network.prototypes.copy_(self._prototypes)
             if self.network.reader is not None:  # which words name which target
-                self._reader = self._fit_reader(dataset)
+                self._reader = sentence_reader(dataset, self.spec, self.config.seed)
                 self.network.reader.load_state_dict(self._reader.state_dict())
         self._mirror = mirror_for(self.spec, self.config.mirror, dataset, self.network.prototypes,
                                   config.seed)
@@ -189,19 +188,6 @@ class KqvModel(TorchModel):
                               config=config)
         return self.report
 
-    def _fit_reader(self, dataset: Dataset) -> TokenReader:
-        """A :class:`TokenReader` trained on ``dataset``'s distinct sentences and their targets.
-
-        Seconds on one core, before the starts; the encoder stays frozen and no word is
-        written by hand: what each training sentence names is all it learns from.
-        """
-        choices = self.spec.condition_choices
-        named = dataset.condition_names()
-        phrasings = sorted({(dataset.condition(i).value or "", choices.index(name))
-                            for i, name in enumerate(named) if name is not None})
-        return fit_token_reader(phrasings, len(choices), token_embeddings, self.config.seed,
-                                ids=token_ids)
-
     def condition_rows(self, conditions: Sequence[Condition], rows: np.ndarray) -> np.ndarray:
         """Each sentence's row as the network reads it, under the ``"tokens"`` reading.
 
@@ -211,10 +197,8 @@ class KqvModel(TorchModel):
         reader, prototypes = self.network.reader, self.network.prototypes
         if reader is None or prototypes is None:
             return rows
-        units = unit(prototypes, dim=-1).numpy()
-        read = [read_target(reader, token_embeddings(c.value or ""), token_ids(c.value or ""))
-                for c in conditions]
-        return units[read].astype(np.float32)
+        read = read_sentences(reader, [c.value or "" for c in conditions])
+        return unit(prototypes, dim=-1).numpy()[read].astype(np.float32)
 
     def phases(self) -> list[Phase]:
         """One phase: the target loss on every parameter but the type head's (see :meth:`fit`)."""

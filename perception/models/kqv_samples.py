@@ -1,7 +1,8 @@
 """The training samples as a kqv model trains on them: sentences by what they name, mirrored.
 
-Two choices :meth:`KqvModel.fit <perception.models.kqv.KqvModel.fit>` makes of a dataset before
-its training loop, apart from the model so each reads on its own.
+The choices :meth:`KqvModel.fit <perception.models.kqv.KqvModel.fit>` makes of a dataset before
+its training loop (and the sentence reader it trains of the dataset's sentences), apart from the
+model so each reads on its own.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import numpy as np
 from torch import Tensor
 
 from perception.interface import ConditionKind
+from perception.language.sentence_reading import TokenReader, fit_sentence_reader
 from perception.learning.data import Dataset
 from perception.learning.learnable import ModelSpec
 from perception.learning.mirror import MIRROR_FLAG, Mirror
@@ -52,3 +54,10 @@ def mirror_for(spec: ModelSpec, mirror: bool | None, dataset: Dataset,
             spec.condition_kind is not ConditionKind.TEXT or rows is not None)
     return Mirror(spec, seed, rows if spec.condition_kind is ConditionKind.TEXT else None) \
         if mirror else None
+
+
+def sentence_reader(dataset: Dataset, spec: ModelSpec, seed: int) -> TokenReader:
+    """A :class:`TokenReader` of ``dataset``'s sentences and the targets they name."""
+    named = [(dataset.condition(i).value or "", name)
+             for i, name in enumerate(dataset.condition_names()) if name is not None]
+    return fit_sentence_reader(named, spec.condition_choices, seed)

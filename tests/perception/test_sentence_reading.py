@@ -121,8 +121,8 @@ def scene_ids(sentence: str) -> np.ndarray:
 @pytest.fixture
 def scene_words(monkeypatch):
     """kqv reads the synthetic scenes' sentences by the made-up words, not the encoder."""
-    monkeypatch.setattr("perception.models.kqv.token_embeddings", scene_tokens)
-    monkeypatch.setattr("perception.models.kqv.token_ids", scene_ids)
+    monkeypatch.setattr("perception.language.sentence_reading.token_embeddings", scene_tokens)
+    monkeypatch.setattr("perception.language.sentence_reading.token_ids", scene_ids)
 
 
 def _worded_scenes(size: int, seed: int, fillers: tuple[str, ...]) -> Dataset:
