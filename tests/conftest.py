@@ -98,11 +98,30 @@ def depth_view():
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """A test marked ``ray`` lives in a ``test_ray_*.py`` file: make test's Ray phase collects
-    only those files (collecting the whole suite to select 14 tests cost it some 6 s)."""
+    only those files (collecting the whole suite to select 14 tests cost it some 6 s).
+
+    Then the scopes ``make test``'s workers take whole (a module, or a class where a module has
+    classes: ``--dist loadscope``) are put in order, those holding a ``slow`` test first, each
+    group in the order collected: the long scopes start while the other worker still has short
+    ones to take, so no worker ends the run alone on one (``--no-loadscope-reorder`` keeps this
+    order; xdist's own orders by the count of tests, which put a 15 s module of two tests last).
+    """
     strays = [item.nodeid for item in items
               if item.get_closest_marker("ray") and not item.path.name.startswith("test_ray_")]
     if strays:
         raise pytest.UsageError(f"marked ray outside a test_ray_*.py file: {', '.join(strays)}")
+    scopes: dict[str, list[pytest.Item]] = {}
+    for item in items:
+        scopes.setdefault(_scope(item.nodeid), []).append(item)
+    slow = [scope for scope, held in scopes.items()
+            if any(item.get_closest_marker("slow") for item in held)]
+    order = [*slow, *(scope for scope in scopes if scope not in set(slow))]
+    items[:] = [item for scope in order for item in scopes[scope]]
+
+
+def _scope(nodeid: str) -> str:
+    """The scope ``--dist loadscope`` gives a test: its module, or its module's class."""
+    return nodeid.rsplit("::", 1)[0]
 
 
 @pytest.fixture(scope="session")
@@ -123,3 +142,4 @@ def local_ray(request):
     start_local_ray(2)
     yield
     ray.shutdown()
+

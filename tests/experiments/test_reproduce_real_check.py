@@ -47,6 +47,7 @@ def failing_fit(*args, **kwargs):
     return replace(fit_checked(*args, **kwargs), checks=(failed(1), failed(2)))
 
 
+@pytest.mark.slow
 def test_a_failed_check_leaves_its_trials_out_unless_asked_and_keeps_what_it_has(
         tmp_path, monkeypatch):
     import experiments.table3.jobs

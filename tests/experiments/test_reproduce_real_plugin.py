@@ -21,7 +21,7 @@ from sim.trials.trial_settings import TrialSettings
 PLUGINS = Path(__file__).resolve().parents[2] / "examples" / "plugins"
 SPEC = "colour_detector:ColourDetector"
 TINY = ["--models", f"kqv,{SPEC}", "--tasks", "single", "--demos", "2", "--n", "2", "--steps",
-        "3", "--workers", "1", "--variants", "dark", "--no-progress"]
+        "3", "--workers", "1", "--variants", "dark", "--gif-trials", "1", "--no-progress"]
 
 
 @pytest.fixture(scope="module")
@@ -46,6 +46,7 @@ def _records(out: Path, model: str, name: str) -> list[dict]:
     return sorted(map(json.loads, log.read_text().splitlines()), key=lambda r: r["index"])
 
 
+@pytest.mark.slow
 def test_the_plugin_is_tried_without_demonstrations_or_training(run):
     computed = [json.loads(line)["computed"] for line in
                 (run / "history.jsonl").read_text().splitlines()]

@@ -160,6 +160,7 @@ def test_a_failing_cell_is_recorded_and_the_run_goes_on(copied_run, monkeypatch)
     assert not (copied_run / "cells" / "fcn-single-4-s0-error.json").exists()
 
 
+@pytest.mark.slow
 def test_two_workers_compute_the_same_cells_in_a_process_pool(tiny_run, tmp_path):
     settings = dataclasses.replace(TINY_SETTINGS, workers=2)
     report = run_reproduce_sim(settings, tmp_path / "pool", progress=False)

@@ -46,6 +46,7 @@ def _positions(predictions: list) -> np.ndarray:
     return np.array([p.targets[0].position_m for p in predictions])  # (N, 3)
 
 
+@pytest.mark.slow
 def test_a_camera_moved_after_training_costs_nothing_when_its_calibration_is_read(trained):
     clean = synthetic_dataset(16, kind=LabelKind.GRASP_POSE, seed=4, camera=CAMERA)
     moved = _seen_through(clean, synthetic_dataset(16, kind=LabelKind.GRASP_POSE, seed=4,

@@ -122,6 +122,7 @@ def test_the_selection_head_reads_each_target_from_a_mean_of_the_points():
     torch.testing.assert_close(spatial_expectation(heatmaps, grid), points)  # the mixture's
 
 
+@pytest.mark.slow
 def test_keypoint_min_helped_learns_positions_and_the_point_loss_pulls_its_points():
     train = grasps(24, seed=3)
     test = grasps(16, seed=4)

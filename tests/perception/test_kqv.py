@@ -363,6 +363,7 @@ def test_the_readout_is_chosen_by_label_and_camera_and_refused_without_one():
         KqvConfig(readout="rays")
 
 
+@pytest.mark.slow
 def test_the_ray_readout_learns_positions_at_untrained_places_and_survives_a_checkpoint(
         tmp_path):
     train = synthetic_dataset(24, kind=LabelKind.GRASP_POSE, seed=3, camera=CAMERA)

@@ -54,6 +54,7 @@ def _raised_twins(size: int, seed: int):
     return replace(dataset, images=images.astype(np.uint8), depths_m=depths)
 
 
+@pytest.mark.slow
 def test_depth_input_tells_apart_twins_the_colour_cannot():
     train, test = _raised_twins(24, seed=3), _raised_twins(16, seed=4)
     errors = {}

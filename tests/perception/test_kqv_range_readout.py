@@ -49,6 +49,7 @@ def _heights_unseen(size: int, seed: int) -> Dataset:
     return replace(base, labels=labels, depths_m=depths)
 
 
+@pytest.mark.slow
 def test_the_range_readout_reads_heights_only_the_depth_shows():
     train, test = _heights_unseen(32, seed=3), _heights_unseen(16, seed=4)
     errors = {}

@@ -26,6 +26,7 @@ def typed_model():
     return model, train
 
 
+@pytest.mark.slow
 def test_the_type_head_states_the_type_it_attends_to_in_untrained_scenes(typed_model):
     model, _ = typed_model
     test = typed_dataset(32, seed=1)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pytest
 from benchmark_scripts import load_study
 
 from perception.learning.dataset_file import load_dataset
@@ -10,6 +11,7 @@ from sim.trials.collector import CollectSettings, collect
 from sim.world.sensor import SensorKind
 
 
+@pytest.mark.slow
 def test_a_later_start_is_trained_checked_and_saved_with_a_type_drawn_twice(tmp_path, capsys):
     data = tmp_path / "single.gva"
     collect(CollectSettings("yumi", "single", 6, sensor=SensorKind.IDEAL), data, progress=False)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 from benchmark_scripts import load_study
 from gva_cli import gva
 
@@ -26,12 +27,13 @@ def test_untyped_keeps_the_grasp_and_drops_the_type():
     np.testing.assert_array_equal(target.position_m, [0.4, 0.0, 0.1])
 
 
+@pytest.mark.slow
 def test_a_replay_with_the_types_is_the_run_and_without_them_is_paired(tmp_path):
     check = load_study("check_type_head_picks")
     run = tmp_path / "run"
     status, _, stderr = gva("reproduce", "real", "--out", run, "--tasks", "single", "--demos",
                             "2", "--n", "2", "--steps", "3", "--workers", "1", "--holdout",
-                            "0", "--no-robustness", "--no-progress")
+                            "0", "--no-robustness", "--gif-trials", "0", "--no-progress")
     assert status == 0, stderr
     replay = tmp_path / "replay.json"
     assert check.main(["--run", str(run), "--tasks", "single", "--keep-types",

@@ -56,6 +56,7 @@ def single_trials() -> dict[int, tuple[str, str]]:
     return trial_outcomes("single", SCENES)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("task", builtin_tasks())
 def test_gymnasiums_env_checker_passes(task: str) -> None:
     env = make(task=task, render_mode="rgb_array")

@@ -36,6 +36,7 @@ def second_record_after_another_and_alone(task):
     return after_another, alone
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("task", [load_task("multiple"), D435_SINGLE], ids=["multiple", "d435"])
 def test_a_trials_record_does_not_depend_on_the_trials_before_it(task):
     # multiple trial 1 after trial 0 lifted its last object 0.09900 m, alone 0.09901 m, while
@@ -45,6 +46,7 @@ def test_a_trials_record_does_not_depend_on_the_trials_before_it(task):
     assert alone == after_another
 
 
+@pytest.mark.slow
 def test_trials_side_by_side_write_the_records_of_one_process(tmp_path):
     def records(folder):
         lines = (folder / "trials.jsonl").read_text().splitlines()
