@@ -129,7 +129,7 @@ def local_ray(request):
     """A local Ray of 2 CPUs, as CI's machine has, shared by every Ray test (started once).
 
     A pool that finds Ray running joins it and leaves it running, so each test pays no start.
-    Only tests marked ``ray`` may take it: make test runs those in a process of their own.
+    Only tests marked ``ray`` may take it: make test runs those alone, after the rest.
     """
     import ray
 

@@ -21,7 +21,7 @@ from harness.jobs import Executor, ExecutorKind, JobResources
 from harness.run_loop import run_trials
 from sim.trials.trial_settings import TrialSettings
 
-pytestmark = pytest.mark.ray  # make test runs these in a process of their own
+pytestmark = pytest.mark.ray  # make test runs these alone, after the rest
 RAY = Executor(ExecutorKind.RAY)
 
 

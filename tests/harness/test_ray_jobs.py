@@ -23,7 +23,7 @@ from harness.jobs import Executor, ExecutorKind, JobPool, JobResources
 from harness.ray_jobs import RayPool, refuse_nodes
 from sim.errors import InvalidInputError
 
-pytestmark = pytest.mark.ray  # make test runs these in a process of their own
+pytestmark = pytest.mark.ray  # make test runs these alone, after the rest
 ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
 RAY = Executor(ExecutorKind.RAY)
 
