@@ -6,12 +6,12 @@ import argparse
 from pathlib import Path
 
 from experiments.commands.arguments import Once, add_sensor_option, integer, sensor_kind
+from experiments.commands.pick_options import ROBOT
 from perception.interface import ConditionKind
 from sim.tasks.scene_picture import render_scene, write_scene_png
-from sim.tasks.scene_sampling import SeedStream, sample_scene
+from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import get_scene_spec
-from sim.tasks.task_sensor import seen_in_scene
-from sim.tasks.variants import load_task_variant
+from sim.trials.collector import CollectSettings
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:
@@ -28,17 +28,23 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scale", type=integer(1), default=1,
                         help="enlarge the PNG this many times (%(default)s: the model's size)")
     add_sensor_option(parser)
+    ROBOT.add_to(parser, CollectSettings.robot)
     parser.add_argument("--out", type=Path, required=True, help="PNG file to write")
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Renders the scene, writes the PNG and says what it shows; the exit status."""
-    task = seen_in_scene(load_task_variant(args.task, args.variant), args.scene,
-                         sensor_kind(args))
+    """Renders the scene, writes the PNG and says what it shows; the exit status.
+
+    The scene is the one ``gva collect`` would demonstrate at this index (its settings' task:
+    sensor, variant, the robot's spacing), so the picture is that demonstration's first image.
+    """
     stream = SeedStream[args.stream.upper()]
-    scene = sample_scene(task, get_scene_spec(args.scene), args.seed, stream, args.index)
-    image = render_scene(scene, task)
+    settings = CollectSettings(args.scene, args.task, args.index + 1, args.seed, stream,
+                               robot=args.robot, variant=args.variant, sensor=sensor_kind(args))
+    task = settings.task_spec
+    scene = settings.scene_at(task, get_scene_spec(args.scene), args.index)
+    image = render_scene(scene, task, settings.description())
     path = write_scene_png(image, args.out, args.scale)
     targets = ", ".join(scene.objects[i].object_type for i in scene.targets)
     condition = f"; condition {scene.condition.value}" if scene.condition.value else ""

@@ -9,7 +9,8 @@ import numpy as np
 
 from perception.drawing import write_png
 from perception.objects.catalog import get_object_spec
-from robots.yumi import YUMI
+from robots import DEFAULT_ROBOT, get_robot
+from robots.description import RobotDescription
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import Scene
 from sim.tasks.task_spec import TaskSpec
@@ -21,13 +22,16 @@ from sim.world.yumi_world import World
 SETTLE_S = 0.25
 
 
-def render_scene(scene: Scene, task: TaskSpec | None = None) -> np.ndarray:
+def render_scene(scene: Scene, task: TaskSpec | None = None,
+                 robot: RobotDescription | None = None) -> np.ndarray:
     """The camera image of ``scene`` (uint8 (H, W, 3)), as a model would get it.
 
     Under ``task``'s light and sensor (:attr:`~sim.tasks.task_spec.TaskSpec.sensor`, the D435
     where it names none; its first frame: the D435's noise drawn as a trial's would be) and the
-    scene's look; None: the ideal camera in the scene's normal light. The paper-sim scene
-    renders through its own camera, an ideal pinhole, whatever the task's sensor.
+    scene's look; None: the ideal camera in the scene's normal light. The yumi scene is seen in
+    ``robot``'s workcell through its camera (None: the default robot's), as that robot's
+    demonstrations and trials see it; the paper-sim scene through its own camera, an ideal
+    pinhole, whatever the task's sensor.
     """
     brightness = 1.0 if task is None else task.brightness
     if scene.scene == "paper-sim":
@@ -40,7 +44,8 @@ def render_scene(scene: Scene, task: TaskSpec | None = None) -> np.ndarray:
             paper.settle()
             return paper.render(brightness)
     look = scene.look
-    with World(robot=YUMI) as world:  # the yumi scene is the YuMi's workcell
+    robot = robot or get_robot(DEFAULT_ROBOT)
+    with World(robot=robot) as world:
         world.reset_scene()
         for index, placed in enumerate(scene.objects):
             world.add_object(get_object_spec(placed.object_type), placed.position_xy_m,
@@ -48,7 +53,7 @@ def render_scene(scene: Scene, task: TaskSpec | None = None) -> np.ndarray:
         if look is not None:
             world.dress_table(look.table)
         world.step(round(SETTLE_S / world.config.time_step_s))
-        config = moved_camera(camera_config(YUMI), None if look is None else look.mount)
+        config = moved_camera(camera_config(robot), None if look is None else look.mount)
         camera = HeadCamera(config, None if task is None else task.sensor)
         lighting = lighting_for(dataclasses.replace(config.lighting, brightness=brightness),
                                 None if look is None else look.light)
