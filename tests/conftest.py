@@ -113,9 +113,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     scopes: dict[str, list[pytest.Item]] = {}
     for item in items:
         scopes.setdefault(_scope(item.nodeid), []).append(item)
-    slow = [scope for scope, held in scopes.items()
-            if any(item.get_closest_marker("slow") for item in held)]
-    order = [*slow, *(scope for scope in scopes if scope not in set(slow))]
+    slow = {scope for scope, held in scopes.items()
+            if any(item.get_closest_marker("slow") for item in held)}
+    order = sorted(scopes, key=lambda scope: scope not in slow)  # stable: collected order kept
     items[:] = [item for scope in order for item in scopes[scope]]
 
 
@@ -142,4 +142,3 @@ def local_ray(request):
     start_local_ray(2)
     yield
     ray.shutdown()
-
