@@ -47,6 +47,9 @@ moves more than this between two checked ones [rad]: finer than a full-speed tra
 samples are apart (0.013 rad on the YuMi's joints 1-3 and 7, 0.029 rad on 4-6), while the
 slow descend and lift, sampled every 0.005 rad, are checked at about every other sample."""
 
+SHOWN_REASONS = 4
+"""A failed plan's reason names the first this many candidates' failures (and a spent budget)."""
+
 
 class PickPlanner:
     """Plans picks for a multi-arm robot; see the module docstring for the segments."""
@@ -121,6 +124,8 @@ class PickPlanner:
                         spent = f"{tried} candidate plans"
                         break
                     tried += 1
+                    if len(reasons) >= SHOWN_REASONS and self._ends_collide(candidate):
+                        continue  # fails wherever its motions are planned; its why unshown
                     plan, report = self._timed_plan(candidate, q0, moving)
                     if plan is not None:
                         return PlanResult(PlanStatus.SUCCESS, f"arm {arm}, {grasp_name}", plan,
@@ -138,7 +143,7 @@ class PickPlanner:
         status = PlanStatus.COLLISION if any_ik else PlanStatus.UNREACHABLE
         if any_ik and moving is not None:
             status = PlanStatus.RETARGET_FAILED
-        return PlanResult(status, "; ".join(reasons[:4 + bool(spent)]), None,
+        return PlanResult(status, "; ".join(reasons[:SHOWN_REASONS + bool(spent)]), None,
                           time.perf_counter() - started, tried, attempted)
 
     def _options(self, request: PickRequest, q0: np.ndarray, pregrasp_m: float
@@ -221,6 +226,22 @@ class PickPlanner:
         """
         every = range(self.config.ik_solutions_per_grasp)
         return (every,) if moving is None else (every[:1], every[1:])
+
+    def _ends_collide(self, c: Candidate) -> bool:
+        """Whether a segment of ``c`` must end in collision, so no plan of it can pass.
+
+        Every checked segment's last sample is its end exactly (:func:`plan_segment`,
+        :func:`retarget`; thinning keeps the last sample too): the approach ends at the
+        pre-grasp, checked against the target; descend and lift at the grasp and the lift,
+        checked ignoring it. Three configuration checks instead of timing and checking the
+        motions: a garbage grasp inside the table or a neighbour (an untrained model's) gives
+        a hundred such candidates, each costing tens of milliseconds to plan before it fails.
+        """
+        with self.checker.ignoring(self._target_names):
+            if self.checker.check(c.q_grasp).in_collision \
+                    or self.checker.check(c.q_lift).in_collision:
+                return True
+        return self.checker.check(c.q_pre).in_collision
 
     def _timed_plan(self, c: Candidate, q0: np.ndarray, moving: JointState | None
                     ) -> tuple[PickPlan | None, str]:

@@ -3,6 +3,7 @@ import pinocchio as pin
 import pytest
 from tcp_poses import top_down
 
+from control import planner as planner_module
 from control.collision import Obstacle, ShapeKind
 from control.errors import InvalidInputError
 from control.ik import ArmIk
@@ -110,6 +111,37 @@ def test_grasp_inside_an_obstacle_is_reported_as_collision(yumi_planner, yumi_ho
     # In depth the crate stands in the column through the fingers: it is taken as the target,
     # which the approach must not touch either.
     assert ("crate" if source == "shapes" else "vs target") in result.reason
+
+
+@pytest.mark.parametrize(("grasp", "reason"), [
+    (top_down(0.42, -0.10, 0.035), "crate"),  # inside the crate
+    (top_down(0.30, 0.15, -0.02), "table"),  # below the table's top
+])
+def test_a_candidate_ending_in_collision_fails_unplanned_as_it_would_planned(
+        yumi_planner, yumi_home, monkeypatch, grasp, reason):
+    """Candidates whose grasp, lift or pre-grasp collides are refused by three configuration
+    checks once the reason has its four failures: the same result, field for field (the time
+    aside), as planning and checking each one's motions, with few of them planned."""
+    crate = box("crate", (0.12, 0.12, 0.20), (0.42, -0.10, 0.10))
+    asked = PickRequest(grasp, yumi_home, obstacles=(TABLE, crate))
+    planned = []
+    timed_plan = yumi_planner._timed_plan
+
+    def counted(*args):
+        planned.append(args[0])
+        return timed_plan(*args)
+
+    monkeypatch.setattr(yumi_planner, "_timed_plan", counted)
+    quick = yumi_planner.plan(asked)
+    quick_planned = len(planned)
+    monkeypatch.setattr(yumi_planner, "_ends_collide", lambda candidate: False)
+    planned.clear()
+    slow = yumi_planner.plan(asked)
+    assert quick.status is slow.status is PlanStatus.COLLISION and reason in quick.reason
+    assert (quick.reason, quick.candidates_tried, quick.ik_attempts) == (
+        slow.reason, slow.candidates_tried, slow.ik_attempts)
+    assert len(planned) == slow.candidates_tried > 10
+    assert quick_planned <= planner_module.SHOWN_REASONS + 1
 
 
 @pytest.mark.parametrize("source", SOURCES)
