@@ -17,9 +17,9 @@ import numpy as np
 from perception.errors import InvalidInputError
 from perception.poses import Pose, rot_rpy
 from robots.description import FingerGeometry
-from robots.yumi import YUMI
+from robots.yumi import smart_gripper
 
-CATALOG_GRIPPER = YUMI.arms[0].gripper
+CATALOG_GRIPPER = smart_gripper("r")
 """The gripper the catalog's grasps are stated for and checked against: the YuMi's Smart
 Gripper, the hand of the paper whose objects the catalog holds. A fact of the catalog, not a
 default robot: the constants below are this gripper's, and a run's own hand (its

@@ -111,6 +111,20 @@ FINGERS = FingerGeometry(
     thickness_m=specs.FINGER_BOX.size[0])
 """The YuMi's fingers in its TCP frame; the tips reach about 21.5 mm past the TCP."""
 
+
+
+def smart_gripper(side: ArmSide) -> GripperDescription:
+    """The Smart Gripper on arm ``side``: its finger joints, stroke, force, speed and payload.
+
+    The same hand on either arm, but for its joints' names; the object catalog states its
+    grasps for it (:data:`perception.objects.object_spec.CATALOG_GRIPPER`).
+    """
+    return GripperDescription(
+        finger_joints=GRIPPER_JOINTS[side], max_opening_m=2.0 * FINGER_TRAVEL_M,
+        max_force_n=FINGER_MAX_FORCE_N, max_speed_m_s=FINGER_MAX_SPEED_M_S,
+        max_payload_kg=specs.PAYLOAD_KG, fingers=FINGERS)
+
+
 YUMI = RobotDescription(
     name="yumi", urdf_path=URDF_PATH, srdf_path=SRDF_PATH, base_link="yumi_body",
     footprint_m=_footprint(),
@@ -118,10 +132,7 @@ YUMI = RobotDescription(
     arms=tuple(ArmDescription(
         name=side, joints=ARM_JOINTS[side], tcp_frame=TCP_FRAME[side],
         flange_frame=FLANGE_FRAME[side], shoulder_frame=specs.arm_link_name(2, side),
-        gripper=GripperDescription(
-            finger_joints=GRIPPER_JOINTS[side], max_opening_m=2.0 * FINGER_TRAVEL_M,
-            max_force_n=FINGER_MAX_FORCE_N, max_speed_m_s=FINGER_MAX_SPEED_M_S,
-            max_payload_kg=specs.PAYLOAD_KG, fingers=FINGERS),
+        gripper=smart_gripper(side),
         max_acceleration_rad_s2={j: MAX_ACCELERATION_RAD_S2[j] for j in ARM_JOINTS[side]},
         max_jerk_rad_s3={j: MAX_JERK_RAD_S3[j] for j in ARM_JOINTS[side]},
     ) for side in ARM_SIDES),
@@ -146,4 +157,5 @@ __all__ = [
     "URDF_PATH",
     "YUMI",
     "ArmSide",
+    "smart_gripper",
 ]

@@ -22,8 +22,8 @@ import numpy as np
 
 from perception.interface import PICTURE_PX
 from perception.objects.catalog import get_object_spec
+from robots import get_robot
 from robots.description import CameraMount
-from robots.yumi import YUMI
 from sim.errors import InvalidInputError
 from sim.world.head_camera import CameraConfig, HeadCamera
 from sim.world.lighting import Lighting
@@ -106,7 +106,7 @@ def _rendered(scene: str, object_type: str, split: str, number: int) -> np.ndarr
 def _world(scene: str) -> World | PaperWorld:
     """The process's picture world of ``scene`` (kept: building one takes a few tenths of s)."""
     if scene == "yumi":
-        return World(robot=YUMI)  # the yumi scene is the YuMi's workcell
+        return World(robot=get_robot("yumi"))  # the yumi scene is the YuMi's workcell
     if scene == "paper-sim":
         return PaperWorld()
     raise InvalidInputError("scene", scene, "paper-sim or yumi")
