@@ -21,15 +21,18 @@ demo: $(STAMP)
 	$(BIN)/gva reproduce real --out runs/demo --tasks single --models kqv --no-robustness \
 		--train-threads 2
 
-# One worker per core; a module's tests stay together, so its module fixtures are made once,
-# the modules with slow tests first (tests/conftest.py orders them; xdist keeps that order).
+# One worker per core, each at one torch thread (OMP_NUM_THREADS=1: two workers at two threads
+# each on two cores cost a fifth more CPU); a module's tests stay together, so its module
+# fixtures are made once, the modules with slow tests first (tests/conftest.py orders them;
+# xdist keeps that order).
 # The Ray tests then run alone: a local Ray beside two busy workers on two cores misses its
 # health checks and takes the worker down with it (docs/testing.md). They live in
 # tests/**/test_ray_*.py (tests/conftest.py refuses a Ray test elsewhere).
 RAY_TESTS := $(shell find tests -name 'test_ray_*.py')
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n auto --dist loadscope --no-loadscope-reorder -m "not ray"
+	OMP_NUM_THREADS=1 $(BIN)/python -m pytest -q -n auto --dist loadscope --no-loadscope-reorder \
+		-m "not ray"
 	$(BIN)/python -m pytest -q -p no:xdist -m ray $(RAY_TESTS)
 
 lint: $(STAMP)

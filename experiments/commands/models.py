@@ -86,7 +86,8 @@ def _train_options(parser: argparse.ArgumentParser) -> None:
                         "its config (docs/perception.md); a key left out keeps the preset's "
                         "or the default value")
     parser.add_argument("--threads", type=integer(1), default=TrainConfig.threads,
-                        help="torch CPU threads (default: the cores it may use)")
+                        help="torch CPU threads (default: OMP_NUM_THREADS, else the cores it "
+                             "may use)")
     parser.add_argument("--holdout", type=float, default=CheckConfig.holdout,
                         help="fraction of the training scenes held out to check the trained "
                         "model, of the demonstrations where other scenes are trained on beside "

@@ -73,7 +73,8 @@ class TrainConfig:
             where noise only makes some training sentences read as another target
             (``docs/decisions/open-conditions.md``).
         device: Torch device, ``"cpu"`` (the project's target) or e.g. ``"cuda"``.
-        threads: CPU threads for torch; None uses the cores this process may run on.
+        threads: CPU threads for torch; None: :func:`default_threads` (OMP_NUM_THREADS, else
+            the cores this process may run on).
         log_every: Steps between two points of the loss curve.
 
     """
@@ -205,6 +206,21 @@ def available_threads() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
+def default_threads() -> int:
+    """Torch threads of a training that names none.
+
+    ``OMP_NUM_THREADS`` where it is set (the limit torch itself reads: one a process where
+    several share the cores, as ``make test``'s workers do), else every core this process may
+    run on.
+    """
+    limit = os.environ.get("OMP_NUM_THREADS", "").strip()
+    if not limit:
+        return available_threads()
+    if not limit.isdigit() or int(limit) < 1:
+        raise InvalidInputError("OMP_NUM_THREADS", limit, "unset, or an integer >= 1")
+    return min(int(limit), available_threads())
+
+
 def photometric_augment(images: Tensor, generator: torch.Generator,
                         hue_jitter: float = 0.0) -> Tensor:
     """Random brightness, contrast, colour gain and noise on images (B, 3, H, W) in [0, 1].
@@ -271,7 +287,7 @@ def train(
     if len(dataset) == 0:
         raise InvalidInputError("dataset", "0 samples", "at least one sample")
     device = torch.device(config.device)
-    threads = config.threads or available_threads()
+    threads = config.threads or default_threads()
     previous_threads = torch.get_num_threads()
     torch.set_num_threads(threads)
     rng = np.random.default_rng(config.seed)

@@ -25,7 +25,9 @@ from perception.learning.torch_pieces import LabelScaler
 from perception.learning.train import (
     TrainConfig,
     TrainReport,
+    available_threads,
     batch_indices,
+    default_threads,
     train,
 )
 from perception.models.kqv import KqvConfig, KqvModel
@@ -375,3 +377,17 @@ def test_the_target_loss_skips_absent_targets_and_is_the_plain_mean_when_all_are
     assert torch.allclose(model.target_loss(out, garbage, gone), model.target_loss(out, labels,
                                                                                    gone))
     assert not torch.allclose(model.target_loss(out, garbage), model.target_loss(out, labels))
+
+
+def test_a_training_takes_omp_num_threads_where_set_else_every_core(monkeypatch):
+    """``make test`` runs its workers at OMP_NUM_THREADS=1: two trainings at two threads each
+    on two cores cost a fifth more CPU than at one (docs/decisions/speed.md)."""
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    assert default_threads() == available_threads()
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    assert default_threads() == 1
+    monkeypatch.setenv("OMP_NUM_THREADS", "4096")
+    assert default_threads() == available_threads()  # never more than the cores
+    monkeypatch.setenv("OMP_NUM_THREADS", "two")
+    with pytest.raises(InvalidInputError, match=r"OMP_NUM_THREADS.*'two'.*integer >= 1"):
+        default_threads()
