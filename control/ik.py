@@ -248,20 +248,14 @@ class ArmIk:
     def _attempt(self, T_world_target: pin.SE3, q: np.ndarray) -> _Attempt:
         """One Levenberg-Marquardt descent from the reduced configuration ``q`` (n,).
 
-        Written for the interpreter's cost as much as the arithmetic's (a planner runs
-        thousands of these a pick, about 30 iterations each): the same operations in the same
-        order as the plain form (``np.linalg.norm``, ``np.ix_``), so the same bits, with
-        fewer temporary arrays and calls. ``benchmarks/bench_ik.py`` times it.
+        A failed plan runs thousands of these: the norms are written as the square root of a
+        dot and the free joints' block is taken by boolean indexing, the same operations as
+        ``np.linalg.norm`` and ``np.ix_`` with fewer temporaries, so the same bits.
         """
         opts, model, data, frame_id = self.options, self._model, self._data, self._frame_id
         weight = np.array([1.0, 1.0, 1.0] + [opts.rotation_weight_m] * 3)  # (6,) -> [m]
-        weight_column = weight[:, None]
         eye = np.eye(model.nq)
-        lower, upper, gain = self._lower, self._upper, opts.limit_gain
-        position_tolerance_m = opts.position_tolerance_m
-        rotation_tolerance_rad = opts.rotation_tolerance_rad
-        damping, max_iterations, stall = opts.damping, opts.max_iterations, opts.stall_iterations
-        solve, local = np.linalg.solve, pin.LOCAL
+        gain = opts.limit_gain
         best_cost, since_best, iteration = math.inf, 0, 0
         while True:
             pin.computeJointJacobians(model, data, q)  # includes the forward kinematics
@@ -277,31 +271,29 @@ class ArmIk:
                 best_cost, since_best = cost, 0
             else:
                 since_best += 1
-            if ((position_error_m <= position_tolerance_m
-                    and rotation_error_rad <= rotation_tolerance_rad)
-                    or iteration >= max_iterations or since_best >= stall):
+            if ((position_error_m <= opts.position_tolerance_m
+                    and rotation_error_rad <= opts.rotation_tolerance_rad)
+                    or iteration >= opts.max_iterations or since_best >= opts.stall_iterations):
                 return _Attempt(q, cost, position_error_m, rotation_error_rad, iteration)
-            J_local = pin.getFrameJacobian(model, data, frame_id, local)  # (6, n)
-            J = weight_column * (pin.Jlog6(T_frame_target.inverse()) @ J_local)  # (6, n)
-            step_low, step_high = gain * (lower - q), gain * (upper - q)  # (n,)
-            hessian = J.T @ J + (damping * cost + _DAMPING_FLOOR) * eye  # (n, n)
+            J_local = pin.getFrameJacobian(model, data, frame_id, pin.LOCAL)  # (6, n)
+            J = weight[:, None] * (pin.Jlog6(T_frame_target.inverse()) @ J_local)  # (6, n)
+            step_low, step_high = gain * (self._lower - q), gain * (self._upper - q)  # (n,)
+            hessian = J.T @ J + (opts.damping * cost + _DAMPING_FLOOR) * eye  # (n, n)
             gradient = J.T @ error  # (n,)
-            step = solve(hessian, gradient)
+            step = np.linalg.solve(hessian, gradient)
             # Joints that would pass their bound are pinned to it and the rest re-solved for
             # what remains, so one joint at a limit does not cut short the whole step.
             outside = (step < step_low) | (step > step_high)
-            if outside.any():
-                free = ~outside
-                while True:
-                    step = np.minimum(np.maximum(step, step_low), step_high)
-                    if not free.any():
-                        break
-                    pinned_step = np.where(free, 0.0, step)
-                    step[free] = solve(hessian[free][:, free],
-                                       (gradient - hessian @ pinned_step)[free])
-                    outside = (step < step_low) | (step > step_high)
-                    if not outside.any():
-                        break
-                    free &= ~outside
-            q = np.minimum(np.maximum(q + step, lower), upper)  # rounding only
+            free = np.ones(len(q), dtype=bool)
+            while outside.any():
+                step = np.minimum(np.maximum(step, step_low), step_high)
+                free &= ~outside
+                if not free.any():
+                    break
+                pinned_step = np.where(free, 0.0, step)
+                step[free] = np.linalg.solve(
+                    hessian[free][:, free], (gradient - hessian @ pinned_step)[free]
+                )
+                outside = (step < step_low) | (step > step_high)
+            q = np.minimum(np.maximum(q + step, self._lower), self._upper)  # rounding only
             iteration += 1
