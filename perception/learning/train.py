@@ -210,14 +210,15 @@ def default_threads() -> int:
     """Torch threads of a training that names none.
 
     ``OMP_NUM_THREADS`` where it is set (the limit torch itself reads: one a process where
-    several share the cores, as ``make test``'s workers do), else every core this process may
-    run on.
+    several share the cores, as ``make test``'s workers do; of an OpenMP list such as ``4,2``
+    the first, the outer level), else every core this process may run on.
     """
-    limit = os.environ.get("OMP_NUM_THREADS", "").strip()
+    limit = os.environ.get("OMP_NUM_THREADS", "").split(",")[0].strip()
     if not limit:
         return available_threads()
     if not limit.isdigit() or int(limit) < 1:
-        raise InvalidInputError("OMP_NUM_THREADS", limit, "unset, or an integer >= 1")
+        raise InvalidInputError("OMP_NUM_THREADS", limit, "unset, or an integer >= 1 (or a "
+                                "list of them, the first taken)")
     return min(int(limit), available_threads())
 
 

@@ -386,6 +386,8 @@ def test_a_training_takes_omp_num_threads_where_set_else_every_core(monkeypatch)
     assert default_threads() == available_threads()
     monkeypatch.setenv("OMP_NUM_THREADS", "1")
     assert default_threads() == 1
+    monkeypatch.setenv("OMP_NUM_THREADS", "1,2")  # OpenMP's nested list: the outer level
+    assert default_threads() == 1
     monkeypatch.setenv("OMP_NUM_THREADS", "4096")
     assert default_threads() == available_threads()  # never more than the cores
     monkeypatch.setenv("OMP_NUM_THREADS", "two")
