@@ -19,6 +19,9 @@ a record shows the picks it timed. Run on a quiet machine for the issue's number
 Usage:
     python benchmarks/bench_pick_physics.py [--task multiple] [--seeds 0] [--n 4]
         [--steps 480] [--repeats 3] [--out benchmarks/results/pick_physics.json]
+        [--residual-threshold X] [--iterations N] [--pyramid-friction] [--mug-on-its-bottom]
+
+The last four are candidates that change contact physics, measured here before any is adopted.
 """
 
 from __future__ import annotations
@@ -42,7 +45,8 @@ from pybullet_utils import bullet_client
 from results_file import add_out_option, write_record
 
 from harness.run_loop import run_trials
-from perception.objects.catalog import get_object_spec
+from perception.objects.catalog import MUG, get_object_spec
+from perception.objects.object_spec import ObjectSpec
 from robots.yumi import YUMI
 from sim.trials import execution
 from sim.trials.trial_settings import TrialSettings
@@ -201,13 +205,15 @@ def pick_physics(task: str, seeds: tuple[int, ...], n: int) -> PickPhysics:
 
 
 @contextlib.contextmanager
-def solver_settings(residual_threshold: float | None, iterations: int | None) -> Iterator[None]:
+def solver_settings(residual_threshold: float | None, iterations: int | None,
+                    cone_friction: bool | None = None) -> Iterator[None]:
     """Every world built meanwhile gets these PyBullet solver settings: a candidate, measured.
 
-    ``solverResidualThreshold`` and ``numSolverIterations`` as given (None: the world's own;
-    the floor's half-iterations row then reads ``iterations`` too). A change of contact
-    physics: what it buys is measured here; adopting one needs the oracle's counts and the
-    grasp tolerance map re-measured (issue 76).
+    ``solverResidualThreshold``, ``numSolverIterations`` and ``enableConeFriction`` (False:
+    the pyramid of two friction directions) as given (None: the world's own; the floor's
+    half-iterations row then reads ``iterations`` too). A change of contact physics: what it
+    buys is measured here; adopting one needs the oracle's counts and the grasp tolerance map
+    re-measured (issue 76).
     """
     build = World._build
 
@@ -217,12 +223,56 @@ def solver_settings(residual_threshold: float | None, iterations: int | None) ->
             world.client.setPhysicsEngineParameter(solverResidualThreshold=residual_threshold)
         if iterations is not None:
             world.client.setPhysicsEngineParameter(numSolverIterations=iterations)
+        if cone_friction is not None:
+            world.client.setPhysicsEngineParameter(enableConeFriction=int(cone_friction))
 
     World._build = built  # type: ignore[method-assign, assignment]
     try:
         yield
     finally:
         World._build = build  # type: ignore[method-assign]
+
+
+def mug_on_its_bottom() -> ObjectSpec:
+    """The catalog's mug with its twelve wall boxes 1 mm off the table: it rests on its bottom.
+
+    A candidate collision shape (issue 76): today the mug stands on the wall's twelve boxes,
+    four contact points each with the table (48 of a scene's 50 resting contacts), solved at
+    every step the mug is awake. Here its bottom disc (6 mm, 71 mm across) touches instead, as
+    a real mug's foot does; the wall is as tall above the table, the mass and grasp the same.
+    """
+    ring, rest = MUG.primitives[:12], MUG.primitives[12:]
+    raised = tuple(replace(p, size_m=(p.size_m[0], p.size_m[1], p.size_m[2] - 0.001),
+                           position_m=(p.position_m[0], p.position_m[1],
+                                       0.001 + (p.size_m[2] - 0.001) / 2)) for p in ring)
+    bottom = replace(rest[0], position_m=(0.0, 0.0, rest[0].size_m[2] / 2))
+    return replace(MUG, primitives=(*raised, bottom, *rest[1:]))
+
+
+@contextlib.contextmanager
+def mug_candidate(on: bool) -> Iterator[None]:
+    """While on, every world makes the mug's collision shape :func:`mug_on_its_bottom`'s.
+
+    Its look (the visual shapes) stays the catalog's, so what the camera sees is unchanged.
+    """
+    if not on:
+        yield
+        return
+    shape_ids = World._shape_ids
+    candidate = mug_on_its_bottom()
+
+    def shapes(world: World, spec: ObjectSpec) -> tuple[int, int]:
+        if spec.name != "mug":
+            return shape_ids(world, spec)
+        _, visual = shape_ids(world, spec)
+        collision, _ = shape_ids(world, candidate)
+        return collision, visual
+
+    World._shape_ids = shapes  # type: ignore[method-assign, assignment]
+    try:
+        yield
+    finally:
+        World._shape_ids = shape_ids  # type: ignore[method-assign]
 
 
 def median_step_ms(step: Callable[[int], None], steps: int, repeats: int) -> float:
@@ -300,10 +350,17 @@ def main(argv: list[str] | None = None) -> int:
                         help="PyBullet's solverResidualThreshold for every world (a candidate)")
     parser.add_argument("--iterations", type=int, default=None,
                         help="PyBullet's numSolverIterations for every world (a candidate)")
+    parser.add_argument("--pyramid-friction", action="store_true",
+                        help="PyBullet's enableConeFriction off in every world (a candidate)")
+    parser.add_argument("--mug-on-its-bottom", action="store_true",
+                        help="the mug's collision shape resting on its bottom disc, not on its "
+                        "wall's twelve boxes (a candidate; its look unchanged)")
     add_out_option(parser, "pick_physics")
     args = parser.parse_args(argv)
     load_before = os.getloadavg()
-    with solver_settings(args.residual_threshold, args.iterations):
+    with solver_settings(args.residual_threshold, args.iterations,
+                         False if args.pyramid_friction else None), \
+            mug_candidate(args.mug_on_its_bottom):
         picks, floor = measure(args)
     record = {
         "machine": {"cpu_count": os.cpu_count(), "python": platform.python_version(),
@@ -312,8 +369,9 @@ def main(argv: list[str] | None = None) -> int:
         "load_average_1_5_15min_before": [round(v, 2) for v in load_before],
         "load_average_1_5_15min_after": [round(v, 2) for v in os.getloadavg()],
         "command": "python benchmarks/bench_pick_physics.py " + " ".join(
-            f"--{k} {' '.join(map(str, v)) if isinstance(v, list) else v}"
-            for k, v in vars(args).items() if k != "out"),
+            f"--{k.replace('_', '-')}" + ("" if isinstance(v, bool) else
+                                          f" {' '.join(map(str, v)) if isinstance(v, list) else v}")
+            for k, v in vars(args).items() if k != "out" and v not in (None, False)),
         "picks": asdict(picks), "floor": floor,
     }
     print(f"{picks.task}: {picks.trials} trials, {picks.picks} picks ({picks.outcomes}), "

@@ -13,6 +13,10 @@ heatmap):
   augmentation, the forward pass, the backward pass;
 - the Key normalisation of the cosine similarity, as ``F.normalize`` against the reciprocal
   square root kqv uses (:func:`perception.learning.torch_pieces.unit`), forward and backward;
+- the whole step again with the Key network's coordinates concatenated to every map between
+  its layers (its :class:`~perception.learning.torch_pieces.CoordConv` layers run one by one,
+  as before :class:`~perception.learning.torch_pieces.CoordConvStack`): the same function,
+  its peer in the same run;
 - a step of the type head's phase (forward through the frozen network, the small head's
   backward);
 - the work of a pose step (``torch.utils.flop_counter``: forward and backward), the rate it
@@ -46,6 +50,7 @@ from perception.learning.data import Dataset
 from perception.learning.torch_pieces import images_to_tensor, unit
 from perception.learning.train import Batch, TrainConfig, batch_indices, photometric_augment
 from perception.models.kqv import KqvModel
+from perception.models.kqv_net import KqvNet
 from perception.registry import new_model
 
 
@@ -68,6 +73,21 @@ def matmul_gflop_per_s(size: int = 1024, repeats: int = 20) -> float:
     return 2 * size**3 / (median_ms(lambda: a @ b, 5, repeats) * 1e-3) / 1e9
 
 
+def concatenated(network: KqvNet, run: Callable[[], None], steps: int,
+                 repeats: int) -> float:
+    """:func:`median_ms` of ``run`` with the Key network's layers run one by one.
+
+    Each :class:`CoordConv` layer then appends its coordinates to every map and the next
+    convolves them with the features: what :class:`CoordConvStack` replaced.
+    """
+    stack = network.key_net
+    network.key_net = torch.nn.Sequential(*stack.children())  # type: ignore[assignment]
+    try:
+        return median_ms(run, steps, repeats)
+    finally:
+        network.key_net = stack
+
+
 def step_parts(dataset: Dataset, steps: int, repeats: int) -> dict[str, float]:
     """Milliseconds of a pose step and its parts, and of a type-phase step, on one thread."""
     model = new_model("kqv", dataset, seed=0)
@@ -82,7 +102,8 @@ def step_parts(dataset: Dataset, steps: int, repeats: int) -> dict[str, float]:
     batch = Batch(images, torch.from_numpy(dataset.conditions[index]),
                   torch.from_numpy(dataset.labels[index]),
                   torch.from_numpy(dataset.target_type_indices()[index]),
-                  torch.from_numpy(dataset.target_present()[index]))
+                  torch.from_numpy(dataset.target_present()[index]),
+                  None if dataset.depths_m is None else torch.from_numpy(dataset.depths_m[index]))
 
     def whole() -> None:
         loss = model.batch_loss(batch._replace(images=photometric_augment(raw, generator)))
@@ -107,6 +128,7 @@ def step_parts(dataset: Dataset, steps: int, repeats: int) -> dict[str, float]:
         return run
 
     result = {"step_ms": median_ms(whole, steps, repeats),
+              "step_coordinates_concatenated_ms": concatenated(network, whole, steps, repeats),
               "augment_ms": median_ms(lambda: photometric_augment(raw, generator), steps,
                                       repeats),
               "forward_ms": median_ms(forward, steps, repeats)}

@@ -24,6 +24,7 @@ from perception.learning.rotations import decode_rotation, rotation_size
 from perception.learning.torch_pieces import (
     MLP,
     CoordConv,
+    CoordConvStack,
     LabelScaler,
     coordinate_grid,
     focus,
@@ -144,7 +145,7 @@ class KqvNet(nn.Module):
         self.depth_input = c.depth_input  # a fourth input channel: the rise above the table
         colours = 4 if self.depth_input else 3
         self.values_from_depth = c.value_input == "depth"  # FCN2 reads the rise alone
-        self.key_net = nn.Sequential(  # FCN1 with CoordConv: (B, 3, H, W) -> (B, Ck + 2, h, w)
+        self.key_net = CoordConvStack(  # FCN1 with CoordConv: (B, 3, H, W) -> (B, Ck + 2, h, w)
             CoordConv(colours, wide1, 5, first),
             CoordConv(wide1 + 2, wide2, 3, second),
             *(CoordConv(wide2 + 2, wide2, 3, 1, dilation=d) for d in dilations),
@@ -302,9 +303,12 @@ class KqvNet(nn.Module):
         values = self.value_net(seen[:, 3:] if self.values_from_depth else seen)  # (B, Cv, h, w)
         height, width = keys.shape[-2:]
         if self.similarity == "cosine":
-            keys = unit(keys, dim=1)  # (B, Ck + 2, h, w), unit per cell
+            # Each cell's dot product with the unit Query over the cell's Key length: the
+            # cosine, without making (and differentiating) a unit copy of the Key map.
+            lengths = keys.square().sum(1, keepdim=True).clamp_min(1e-24)  # (B, 1, h, w)
             queries = unit(queries, dim=-1)  # (B, q', Ck + 2)
-            logits = torch.einsum("bchw,bqc->bqhw", keys, queries)  # (B, q', h, w) in [-1, 1]
+            logits = torch.einsum("bchw,bqc->bqhw", keys, queries) * torch.rsqrt(
+                lengths)  # (B, q', h, w) in [-1, 1]
         else:
             logits = torch.einsum("bchw,bqc->bqhw", keys, queries) / math.sqrt(height * width)
         heatmaps = softmax2d(logits, self.temperature)  # (B, q', h, w)

@@ -18,6 +18,8 @@ from perception.interface import Condition, ConditionKind, InvalidInputError, La
 from perception.labels import check_rotations
 from perception.learning.learnable import ModelSpec
 from perception.learning.torch_pieces import (
+    CoordConv,
+    CoordConvStack,
     LabelScaler,
     coordinate_grid,
     images_to_tensor,
@@ -65,6 +67,25 @@ def test_coordinate_grid_spans_minus_one_to_one_at_the_edges():
     assert grid[1, 0, 0] == -0.75 and grid[1, -1, 0] == 0.75  # y: top to bottom
     edges = normalised_to_pixels(torch.tensor([[-1.0, -1.0], [1.0, 1.0]]), 64, 64)
     torch.testing.assert_close(edges, torch.tensor([[-0.5, -0.5], [63.5, 63.5]]))
+
+
+def test_a_coordconv_stack_is_its_layers_run_one_by_one_forward_and_back():
+    # The stack adds each layer's coordinates as a share of the next layer's output instead of
+    # concatenating them to every map: the same sums, zero padding at the borders included.
+    torch.manual_seed(0)
+    layers = [CoordConv(4, 6, 5, 2), CoordConv(8, 6, 3, 1), CoordConv(8, 6, 3, 1, dilation=2),
+              CoordConv(8, 5, 3, 2, activation=False)]
+    stack, one_by_one = CoordConvStack(*layers), torch.nn.Sequential(*layers)
+    images = torch.rand(3, 4, 20, 24).contiguous(memory_format=torch.channels_last)
+    got, want = stack(images), one_by_one(images)
+    assert got.shape == (3, 5 + 2, 5, 6)
+    torch.testing.assert_close(got, want, rtol=1e-5, atol=1e-6)
+    shared = list(stack.parameters())  # the same layers, so the same parameters
+    for mine, theirs in zip(torch.autograd.grad(got.square().sum(), shared),
+                            torch.autograd.grad(want.square().sum(), shared), strict=True):
+        torch.testing.assert_close(mine, theirs, rtol=1e-4, atol=1e-5)
+    # the parameters keep an nn.Sequential's names: checkpoints from before still load
+    assert list(stack.state_dict()) == list(one_by_one.state_dict())
 
 
 @pytest.mark.parametrize("q", [1, 3])
