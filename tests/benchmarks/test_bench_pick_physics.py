@@ -43,3 +43,50 @@ def test_a_solver_candidate_reaches_every_world_built_meanwhile_and_no_other():
         assert world.client.getPhysicsEngineParameters()["numSolverIterations"] == 7
     with bench.World(robot=bench.YUMI) as world:
         assert world.client.getPhysicsEngineParameters()["numSolverIterations"] == 100
+
+
+def test_the_mug_candidate_rests_on_its_bottom_looks_the_same_and_is_taken_off_after():
+    bench = load_benchmark("bench_pick_physics")
+    mug = bench.get_object_spec("mug")
+    candidate = bench.mug_on_its_bottom()
+    lowest = [p.position_m[2] - p.size_m[2] / 2 for p in candidate.primitives]
+    assert min(lowest[:12]) == pytest.approx(0.001)  # the wall off the table
+    assert lowest[12] == pytest.approx(0.0)  # the bottom disc on it
+    assert (candidate.mass_kg, candidate.grasp) == (mug.mass_kg, mug.grasp)
+    with bench.mug_candidate(True), bench.World(robot=bench.YUMI) as world:
+        body = world.add_object(mug, (0.35, 0.0), 0.0)
+        world.step(120)
+        contacts = world.client.getContactPoints(body, world.table_id)
+        assert 0 < len(contacts) <= 8  # the disc's, not the wall's 48
+        looks = world.client.getVisualShapeData(body)  # the catalog's look, wall to the floor
+        assert len(looks) == len(mug.primitives)
+        assert [shape[3][2] for shape in looks[:12]] == pytest.approx(  # the wall's boxes
+            [p.size_m[2] for p in mug.primitives[:12]])
+        world.client.changeDynamics(body, -1, activationState=pybullet.ACTIVATION_STATE_WAKE_UP)
+    with bench.World(robot=bench.YUMI) as world:
+        body = world.add_object(mug, (0.35, 0.0), 0.0)
+        world.step(120)
+        assert len(world.client.getContactPoints(body, world.table_id)) > 8  # the catalog's
+
+
+def test_pyramid_friction_reaches_the_worlds_built_meanwhile(monkeypatch):
+    bench = load_benchmark("bench_pick_physics")
+    settings: list[dict] = []  # PyBullet does not report the setting back: its calls are read
+    resolve = bullet_client.BulletClient.__getattr__
+
+    def spy(client, name):
+        call = resolve(client, name)
+        if name != "setPhysicsEngineParameter":
+            return call
+
+        def recorded(**kwargs):
+            settings.append(kwargs)
+            return call(**kwargs)
+        return recorded
+
+    monkeypatch.setattr(bullet_client.BulletClient, "__getattr__", spy)
+    with bench.solver_settings(None, None, cone_friction=False), bench.World(robot=bench.YUMI):
+        assert {"enableConeFriction": 0} in settings
+    settings.clear()
+    with bench.World(robot=bench.YUMI):
+        assert settings and not any("enableConeFriction" in kwargs for kwargs in settings)
