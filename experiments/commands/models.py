@@ -12,12 +12,14 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from experiments.commands.arguments import integer
+from experiments.commands.options import CommandLine, Option
 from perception.drawing import AttentionRow, attention_figure, write_png
 from perception.files import atomic_write
 from perception.interface import ConditionKind, InvalidInputError, PerceptionError, Prediction
@@ -64,6 +66,40 @@ def add_options(parser: argparse.ArgumentParser, command: str) -> None:
                         help="the class that loads a checkpoint of an unregistered model")
 
 
+@dataclass(frozen=True)
+class TrainCommand:
+    """What ``gva train``'s options set: the training and its held-out check.
+
+    Each default is the field's in :class:`~perception.learning.train.TrainConfig` and
+    :class:`~perception.learning.validation.CheckConfig`: :data:`TRAIN_OPTIONS` reads them there.
+    """
+
+    train: TrainConfig = field(default_factory=TrainConfig)
+    check: CheckConfig = field(default_factory=CheckConfig)
+
+
+TRAIN_OPTIONS = CommandLine("gva train", rows=(
+    Option("--seed", "seeds the weights and the batches ({default})", integer(0),
+           field="train.seed"),
+    Option("--steps", "optimiser steps ({default})", integer(1), field="train.steps"),
+    Option("--batch-size", "samples per step ({default})", integer(1), field="train.batch_size"),
+    Option("--threads", "torch CPU threads (default: OMP_NUM_THREADS, else the cores it may "
+           "use)", integer(1), field="train.threads"),
+    Option("--holdout", "fraction of the training scenes held out to check the trained model, "
+           "of the demonstrations where other scenes are trained on beside them ({default}; "
+           "0: no check)", float, field="check.holdout"),
+    Option("--check-limit-cm", "largest held-out mean error, of the whole, each condition and "
+           "each head [cm] ({default})", float, field="check.limit_cm"),
+    Option("--check-min-expected", "least share of held-out targets expected picked (the mean "
+           "of the grasp judge's calibrated probabilities), of the whole, each condition and "
+           "each head (grasp labels; {default})", float, field="check.min_expected_success"),
+    Option("--attempts", "trainings tried from other starts before the checkpoint is marked "
+           "failed ({default})", integer(1), field="check.attempts"),
+), order=("--seed", "--steps", "--batch-size", "--threads", "--holdout", "--check-limit-cm",
+          "--check-min-expected", "--attempts"))
+"""``gva train``'s options that set the training and its check, each declared once."""
+
+
 def _train_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", required=True,
                         help="registered model, preset (keypoint-16) or package.module:Class")
@@ -73,36 +109,13 @@ def _train_options(parser: argparse.ArgumentParser) -> None:
                         "what the model reads and predicts, and the held-out check holds out "
                         "demonstrations only")
     parser.add_argument("--out", type=Path, required=True, help="checkpoint folder to write")
-    parser.add_argument("--seed", type=integer(0), default=TrainConfig.seed,
-                        help="seeds the weights and the batches (%(default)s)")
-    parser.add_argument("--steps", type=integer(1), default=TrainConfig.steps,
-                        help="optimiser steps (%(default)s)")
-    parser.add_argument("--batch-size", type=integer(1), default=TrainConfig.batch_size,
-                        help="samples per step (%(default)s)")
     parser.add_argument("--points", type=integer(1),
                         help="attention points of models that have the setting (keypoint)")
     parser.add_argument("--model-config", type=Path, metavar="FILE.toml",
                         help="TOML file of the model's settings, a top-level key per field of "
                         "its config (docs/perception.md); a key left out keeps the preset's "
                         "or the default value")
-    parser.add_argument("--threads", type=integer(1), default=TrainConfig.threads,
-                        help="torch CPU threads (default: OMP_NUM_THREADS, else the cores it "
-                             "may use)")
-    parser.add_argument("--holdout", type=float, default=CheckConfig.holdout,
-                        help="fraction of the training scenes held out to check the trained "
-                        "model, of the demonstrations where other scenes are trained on beside "
-                        "them (%(default)s; 0: no check)")
-    parser.add_argument("--check-limit-cm", type=float, default=CheckConfig.limit_cm,
-                        help="largest held-out mean error, of the whole, each condition and "
-                        "each head [cm] (%(default)s)")
-    parser.add_argument("--check-min-expected", type=float,
-                        default=CheckConfig.min_expected_success,
-                        help="least share of held-out targets expected picked (the mean of the "
-                        "grasp judge's calibrated probabilities), of the whole, each condition "
-                        "and each head (grasp labels; %(default)s)")
-    parser.add_argument("--attempts", type=integer(1), default=CheckConfig.attempts,
-                        help="trainings tried from other starts before the checkpoint is "
-                        "marked failed (%(default)s)")
+    TRAIN_OPTIONS.add_to(parser, TrainCommand)
     parser.add_argument("--overwrite", action="store_true",
                         help="replace a checkpoint already in --out")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -133,10 +146,8 @@ def run_train(args: argparse.Namespace) -> int:
     paths: list[Path] = args.data
     dataset = load_dataset(paths[0]) if len(paths) == 1 else \
         concatenate([load_dataset(path) for path in paths], [str(path) for path in paths])
-    config = TrainConfig(steps=args.steps, batch_size=args.batch_size, seed=args.seed,
-                         threads=args.threads)
-    check = CheckConfig(holdout=args.holdout, limit_cm=args.check_limit_cm,
-                        min_expected_success=args.check_min_expected, attempts=args.attempts)
+    chosen = TrainCommand(**TRAIN_OPTIONS.keywords(args, TrainCommand))
+    config, check = chosen.train, chosen.check
     fit = fit_checked(lambda seed: new_model(args.model, dataset, seed=seed, **hyperparameters),
                       dataset, config, check, progress=not args.no_progress, log=print)
     model, report = fit.model, fit.report
