@@ -31,15 +31,16 @@ from results_file import add_out_option, write_record
 
 from control.depth_obstacles import GraspRegion
 from control.retarget import trajectory_state
+from harness.inputs.trial_settings import TrialSettings, load_trial_model
 from perception.objects.catalog import clear_of_table
 from robots import yumi
 from sim.trials.closed_loop.loop import remembered_points
 from sim.trials.closed_loop.loop_settings import LoopSettings
 from sim.trials.closed_loop.view import hidden_share, in_plain_view
 from sim.trials.planner_setup import pick_obstacles
+from sim.trials.trial_models import torch_threads
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_scenes import trial_scene
-from sim.trials.trial_settings import TrialSettings, load_trial_model, torch_threads
 
 T = TypeVar("T")
 PARTS = ("render", "predict", "read grasp", "view", "depth obstacles", "re-plan")

@@ -19,9 +19,9 @@ from pathlib import Path
 
 from results_file import add_out_option, write_record
 
+from harness.inputs.collector import CollectSettings, collect
 from perception.learning.dataset_file import read_metadata
 from sim.tasks.task_toml import builtin_tasks
-from sim.trials.collector import CollectSettings, collect
 
 SIZES = {"paper-sim": 100, "yumi": 20}
 BARS_S = {"paper-sim": 60.0, "yumi": 120.0}

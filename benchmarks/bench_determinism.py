@@ -23,12 +23,12 @@ from typing import Any
 import torch
 from results_file import add_out_option, write_record
 
+from harness.inputs.collector import CollectSettings, collect
 from harness.provenance import provenance
 from perception.files import file_sha256
 from perception.learning.dataset_file import load_dataset
 from perception.learning.train import TrainConfig
 from perception.models.kqv import KqvConfig, KqvModel
-from sim.trials.collector import CollectSettings, collect
 
 
 def weights_sha256(model: KqvModel) -> str:

@@ -34,7 +34,7 @@ def main() -> None:
     add_out_option(parser, "export_lerobot")
     args = parser.parse_args()
     if not args.data.exists():
-        from sim.trials.collector import CollectSettings, collect  # pybullet: only when missing
+        from harness.inputs.collector import CollectSettings, collect  # pybullet: only when missing
 
         print(f"collecting {args.data} (20 yumi demonstrations of multiple, seed 0)")
         collect(CollectSettings("yumi", "multiple", 20, seed=0), args.data)

@@ -109,7 +109,7 @@ def default_pairs(folder: Path) -> list[tuple[Path, Path]]:
     Each scene of a conditioned task is asked every condition (the test scenes too), so the
     evaluation can say whether switching the condition moves the attention.
     """
-    from sim.trials.collector import CollectSettings, collect
+    from harness.inputs.collector import CollectSettings, collect
 
     pairs = []
     for task in ERROR_BARS_CM:

@@ -44,12 +44,12 @@ import pybullet
 from pybullet_utils import bullet_client
 from results_file import add_out_option, write_record
 
+from harness.inputs.trial_settings import TrialSettings
 from harness.run_loop import run_trials
 from perception.objects.catalog import MUG, get_object_spec
 from perception.objects.object_spec import ObjectSpec
 from robots.yumi import YUMI
 from sim.trials import execution
-from sim.trials.trial_settings import TrialSettings
 from sim.world.sim_robot import SimRobot
 from sim.world.world_config import WorldConfig
 from sim.world.yumi_world import World

@@ -33,10 +33,11 @@ from results_file import add_out_option, write_record
 
 from control.pick import PickPlannerConfig, PlanBudget
 from experiments.cli import main as gva
+from harness.inputs.trial_settings import TrialSettings, load_trial_model
 from sim.trials.planner_setup import make_planner
+from sim.trials.trial_models import torch_threads
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_scenes import trial_scene
-from sim.trials.trial_settings import TrialSettings, load_trial_model, torch_threads
 
 WALL_FIELDS = ("wall_time_s",)
 """The fields of a trial record that are wall time, and may differ between two runs."""

@@ -32,15 +32,16 @@ import numpy as np
 from results_file import add_out_option, write_record
 from websockets.sync.client import connect
 
+from harness.inputs.trial_settings import TrialSettings
 from perception.camera import RgbdFrame
 from perception.interface import Condition, PerceptionModel, Prediction
 from perception.remote.client import RemoteModel
 from perception.remote.codec import pack
 from perception.remote.messages import request_message
 from perception.remote.server import MAX_MESSAGE_BYTES, load_served_model
+from sim.trials.trial_models import torch_threads
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_scenes import trial_scene
-from sim.trials.trial_settings import TrialSettings, torch_threads
 
 ROOT = Path(__file__).resolve().parents[1]
 

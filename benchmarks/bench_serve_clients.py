@@ -41,11 +41,11 @@ from bench_serve import add_served_options, frames_of, serve
 from results_file import add_out_option, write_record
 from websockets.sync.client import connect
 
+from harness.inputs.trial_settings import TrialSettings
 from perception.camera import RgbdFrame
 from perception.interface import Condition, Prediction
 from perception.remote.client import RemoteModel, announced_metadata
 from perception.remote.server import MAX_MESSAGE_BYTES, load_served_model
-from sim.trials.trial_settings import TrialSettings
 
 
 @dataclass(frozen=True)

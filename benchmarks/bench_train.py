@@ -163,7 +163,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     add_out_option(parser, "train")
     args = parser.parse_args()
-    from sim.trials.collector import CollectSettings, collect
+    from harness.inputs.collector import CollectSettings, collect
 
     torch.set_num_threads(1)
     rows = {}

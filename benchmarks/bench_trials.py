@@ -24,10 +24,10 @@ from pathlib import Path
 
 from results_file import add_out_option, write_record
 
+from harness.inputs.trial_settings import TrialSettings
 from harness.run_loop import run_trials
 from perception.objects.catalog import get_object_spec
 from robots.yumi import YUMI
-from sim.trials.trial_settings import TrialSettings
 from sim.world.world_config import WorldConfig
 from sim.world.yumi_world import World
 

@@ -17,9 +17,9 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 
+from harness.inputs.collector import CollectSettings, collect
 from perception.learning.dataset_file import save_dataset
 from perception.learning.lerobot_format import export_lerobot, import_lerobot
-from sim.trials.collector import CollectSettings, collect
 
 OUT = Path("runs/lerobot-example")
 

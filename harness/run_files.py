@@ -15,6 +15,15 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
+from harness.inputs.collector import (
+    APPROACH_HIDDEN_SHARE_MAX,
+    APPROACH_MASKED_KEY,
+    HIDDEN_SHARE_KEY,
+    CollectSettings,
+    LabelSource,
+    LookSource,
+)
+from harness.inputs.trial_settings import task_identity
 from harness.run_folder import differences, json_form, read_json_file
 from perception.files import atomic_write
 from perception.learning.dataset_file import read_metadata
@@ -25,16 +34,7 @@ from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import scene_camera
 from sim.tasks.task_sensor import seen_in_scene
 from sim.tasks.task_toml import load_task
-from sim.trials.collector import (
-    APPROACH_HIDDEN_SHARE_MAX,
-    APPROACH_MASKED_KEY,
-    HIDDEN_SHARE_KEY,
-    CollectSettings,
-    LabelSource,
-    LookSource,
-)
 from sim.trials.scene_sets.randomised_looks import RandomisedLooks
-from sim.trials.trial_settings import task_identity
 from sim.world.head_camera import CameraConfig
 from sim.world.sensor import SensorKind
 
@@ -120,7 +120,7 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
     size (in scenes: a yumi demonstration has an image per pick, a training scene of a task
     with a condition a sample per condition value), seed, seed stream, whether each scene is
     asked every condition
-    (:class:`sim.trials.collector.CollectSettings` ``every_condition``, at its default for the
+    (:class:`harness.inputs.collector.CollectSettings` ``every_condition``, at its default for the
     stream), the task's definition (a task whose TOML changed since is another dataset), the
     scene's camera (other images; in the yumi scene, ``robot``'s: the robot that collects,
     resolved where the run starts), the robot where it is not the YuMi, and the approach
@@ -128,7 +128,7 @@ def dataset_present(path: Path, scene: str, task: str, size: int, seed: int,
     from before the mask have it in view: another dataset) and how much of a target it may hide
     in one (``APPROACH_HIDDEN_SHARE_MAX``; a dataset that records none is issue 36's: 0).
     ``sensor``: the yumi scene's ``--sensor`` (None: the task file's), part of the definition.
-    ``labels`` and ``looks``: what the set is (:class:`~sim.trials.collector.CollectSettings`'
+    ``labels`` and ``looks``: what the set is (:class:`~harness.inputs.collector.CollectSettings`'
     own; by default demonstrations in the task's looks): a set labelled otherwise or in other
     looks (``extra["labels"]``, ``extra["looks"]``, the randomised draw included) is another
     dataset, so a run's demonstrations are never taken for its randomised scenes nor back.

@@ -4,7 +4,7 @@ Trial ``i`` of a run with seed ``s`` runs test scene ``i`` of seed ``s`` (see
 :mod:`sim.trials.trial_scenes`), so the same seed gives the same trials, and no trial runs on a
 scene a model was trained on. Every finished trial is appended to ``trials.jsonl`` before the
 next one starts; running the same command again resumes where an interrupted run stopped. What
-a run is and how its model loads: :mod:`sim.trials.trial_settings`.
+a run is and how its model loads: :mod:`harness.inputs.trial_settings`.
 
 A model that misbehaves costs its trial, never the run: each pick records it as
 ``perception_failed`` (:mod:`sim.trials.trial_runner`). Only ``KeyboardInterrupt`` (Ctrl-C) and
@@ -23,6 +23,7 @@ from typing import Any
 from tqdm import tqdm
 
 from harness.executors import open_pool
+from harness.inputs.trial_settings import TrialSettings, held_out_check, load_trial_model
 from harness.jobs import LOCAL, Executor, ExecutorKind
 from harness.provenance import provenance
 from harness.run_folder import run_folder_lock
@@ -32,15 +33,9 @@ from perception.files import atomic_write
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import Scene
 from sim.trials.records import TrialRecord
+from sim.trials.trial_models import TrialModel, torch_threads
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_scenes import trial_scene
-from sim.trials.trial_settings import (
-    TrialModel,
-    TrialSettings,
-    held_out_check,
-    load_trial_model,
-    torch_threads,
-)
 
 TRIAL_WORKERS = 1
 """Processes a run of trials uses by default: one (a trial is one image and one plan at a

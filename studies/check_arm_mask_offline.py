@@ -34,6 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import numpy as np
 from results_file import write_record
 
+from harness.inputs.collector import APPROACH_MASKED_KEY
 from perception.camera import RgbdFrame
 from perception.labels import split_label
 from perception.learning.data import Dataset
@@ -43,7 +44,6 @@ from perception.learning.learnable import ModelSpec
 from perception.registry import load_model
 from sim.trials.closed_loop.loop_settings import LoopSettings
 from sim.trials.closed_loop.view import hidden_share
-from sim.trials.collector import APPROACH_MASKED_KEY
 from sim.trials.pick_results import grasp_angle_rad
 
 

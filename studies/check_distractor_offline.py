@@ -41,6 +41,8 @@ from experiments.commands.arguments import integer, integers, names
 from experiments.table3 import jobs
 from experiments.table3 import settings as table3
 from harness import run_files, run_report
+from harness.inputs.collector import CollectSettings, collect
+from harness.inputs.trial_settings import task_identity
 from harness.run_folder import differences, json_form
 from perception.learning.learnable import LearnableModel
 from perception.learning.train import TrainConfig
@@ -53,8 +55,6 @@ from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.task_in_scene import target_count
 from sim.tasks.task_spec import TaskSpec
 from sim.tasks.task_toml import load_task, task_to_toml
-from sim.trials.collector import CollectSettings, collect
-from sim.trials.trial_settings import task_identity
 from sim.world.sensor import SensorConfig, SensorKind, sensor_from_table, sensor_kind
 
 MODEL = "kqv"

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from harness.inputs.collector import CollectSettings
 from perception.camera import RgbdFrame
 from perception.interface import Condition, Prediction
 from perception.judge.grasp_judge import judge_grasp, yaw_of
@@ -37,7 +38,6 @@ from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import get_scene_spec
 from sim.trials.closed_loop.loop_settings import Loop, LoopSettings
 from sim.trials.closed_loop.view import hidden_share, unheeded_reason
-from sim.trials.collector import CollectSettings
 from sim.trials.pick_results import grasp_angle_rad
 from sim.trials.trial_runner import TrialRunner
 

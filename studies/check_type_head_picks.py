@@ -33,13 +33,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 from results_file import add_out_option, write_record
 
+from harness.inputs.trial_settings import TrialSettings, load_trial_model
 from harness.paired_statistics import PairedCounts, mcnemar_exact_p, newcombe_paired_interval
 from harness.run_folder import PROVENANCE_KEY, differences, json_form
 from perception.interface import NO_CONDITION, Condition, Prediction, RgbdFrame
 from sim.trials.records import RECORD_FORMAT_VERSION
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_scenes import trial_scene
-from sim.trials.trial_settings import TrialSettings, load_trial_model
 
 TASKS = ("single", "multiple", "selected-position")
 

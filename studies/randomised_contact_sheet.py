@@ -21,7 +21,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 from variant_contact_sheet import save_sheet, show  # studies/, beside this script
 
-from sim.trials.collector import CollectSettings, LabelSource, LookSource, collect
+from harness.inputs.collector import CollectSettings, LabelSource, LookSource, collect
 
 OUT = Path(__file__).resolve().parents[1] / "docs" / "figures" / "randomised_scenes.png"
 TASKS = ("single", "multiple", "selected-type", "selected-position")

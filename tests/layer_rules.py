@@ -221,7 +221,7 @@ ROOMS: Mapping[str, tuple[tuple[str, ...], ...]] = {
         ("sim.errors",),
         ("sim.world",),  # the PyBullet world, robot, head camera, looks
         ("sim.tasks",),  # task files, variants, scene sampling, appearance
-        # one pick: runner, execution, records, collector, GIFs; with one sub-package:
+        # one pick: runner, execution, records, the model by name, GIFs; with sub-packages:
         # sim.trials.closed_loop, the closed loop's picks, its settings and what a frame shows
         # of a target while the arm is in view
         ("sim.trials",),
@@ -241,6 +241,9 @@ ROOMS: Mapping[str, tuple[tuple[str, ...], ...]] = {
         ("perception.remote",),  # models served over a websocket, and their clients
     ),
     "harness": (
+        # what a run is made of: its trial settings (identity, inputs, held-out check) and the
+        # datasets it trains on (collect)
+        ("harness.inputs",),
         # a run's files: its folder, provenance, records' summary, trial log, job files
         ("harness.run_folder", "harness.provenance", "harness.trial_summary", "harness.trial_log",
          "harness.run_files"),

@@ -179,7 +179,7 @@ def test_an_import_up_the_rooms_is_found_where_it_hides(tmp_path):
     })
     found = imports(tmp_path, ["harness"])
     assert upward(found) == ["harness/ray_jobs.py:5: harness.ray_jobs imports harness.run_loop, "
-                             "room 5 of harness from room 3"]
+                             "room 6 of harness from room 4"]
     assert cycles(found) == [
         "import cycle among harness.executors, harness.ray_jobs, harness.run_loop:\n"
         "  harness/executors.py:5: harness.executors imports harness.ray_jobs\n"

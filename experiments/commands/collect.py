@@ -1,6 +1,6 @@
 """``gva collect``: a training or test dataset of a task, in one file.
 
-Defaults are :class:`~sim.trials.collector.CollectSettings`'.
+Defaults are :class:`~harness.inputs.collector.CollectSettings`'.
 """
 
 from __future__ import annotations
@@ -9,11 +9,11 @@ import argparse
 from pathlib import Path
 
 from experiments.commands.arguments import Once, add_sensor_option, integer, sensor_kind
+from harness.inputs.collector import CollectSettings, LabelSource, LookSource, collect
 from perception.interface import ConditionKind, InvalidInputError
 from robots import ROBOT_NAMES
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.variants import builtin_variants
-from sim.trials.collector import CollectSettings, LabelSource, LookSource, collect
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:

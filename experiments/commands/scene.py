@@ -7,11 +7,11 @@ from pathlib import Path
 
 from experiments.commands.arguments import Once, add_sensor_option, integer, sensor_kind
 from experiments.commands.pick_options import ROBOT
+from harness.inputs.collector import CollectSettings
 from perception.interface import ConditionKind
 from sim.tasks.scene_picture import render_scene, write_scene_png
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import get_scene_spec
-from sim.trials.collector import CollectSettings
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:

@@ -1,7 +1,7 @@
 """``gva trials``: pick trials at untrained positions, appended to a run folder.
 
-Defaults are :class:`~sim.trials.trial_settings.TrialSettings`'. No torch here: ``gva trials --model
-oracle`` never loads it.
+Defaults are :class:`~harness.inputs.trial_settings.TrialSettings`'. No torch here: ``gva
+trials --model oracle`` never loads it.
 """
 
 from __future__ import annotations
@@ -20,11 +20,11 @@ from experiments.commands.arguments import (
     sensor_kind,
 )
 from experiments.commands.pick_options import ROBOT, add_loop_options, loop_settings
+from harness.inputs.trial_settings import TrialSettings, held_out_check
 from harness.run_loop import TRIAL_WORKERS, RunStopped, run_trials
 from harness.trial_summary import TrialSummary
 from sim.tasks.variants import builtin_variants
 from sim.trials.planner_setup import ObstacleSource
-from sim.trials.trial_settings import TrialSettings, held_out_check
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:

@@ -25,6 +25,7 @@ from experiments.table2.settings import (
     checkpoint_folder,
     error_path,
 )
+from harness.inputs.collector import CollectSettings, collect
 from harness.jobs import JobResources
 from harness.run_files import (
     Failed,
@@ -42,8 +43,7 @@ from perception.learning.train import TrainConfig, TrainReport
 from perception.model_config_file import ModelConfigFile
 from perception.registry import new_model
 from sim.tasks.scene_sampling import SeedStream
-from sim.trials.collector import CollectSettings, collect
-from sim.trials.trial_settings import torch_threads
+from sim.trials.trial_models import torch_threads
 from sim.world.robot_choice import resolve_robot
 from sim.world.sensor import SensorKind
 

@@ -26,6 +26,7 @@ from experiments.tables import (
     model_order,
     model_settings,
 )
+from harness.inputs.trial_settings import task_identity
 from harness.jobs import LOCAL, Executor
 from harness.run_folder import json_form
 from perception.learning.train import TrainConfig, available_threads
@@ -33,7 +34,6 @@ from perception.model_config_file import ModelConfigFile
 from sim.errors import InvalidInputError
 from sim.tasks.task_sensor import seen_in_scene
 from sim.tasks.task_toml import load_task
-from sim.trials.trial_settings import task_identity
 from sim.world.sensor import SensorKind
 
 SIZES = (4, 20, 100)
@@ -45,7 +45,7 @@ BOLD_BELOW_CM = 5.0
 Key = tuple[str, str, int]  # (model, task, size)
 FORMAT_VERSION = 3
 """What a run folder holds; 2: a training scene of a task with a condition is asked each value
-(:class:`sim.trials.collector.CollectSettings` ``every_condition``); 3: ``kqv``'s attention
+(:class:`harness.inputs.collector.CollectSettings` ``every_condition``); 3: ``kqv``'s attention
 point is taught on paper-sim too (``KqvConfig.point_loss_weight``)."""
 
 

@@ -13,12 +13,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from harness.inputs.trial_settings import TrialSettings, load_trial_model
 from perception.interface import ConditionKind
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.trials.gif_recorder import TrialRecorder, join_trials, write_gif
+from sim.trials.trial_models import torch_threads
 from sim.trials.trial_runner import TrialRunner
-from sim.trials.trial_settings import TrialSettings, load_trial_model, torch_threads
 from sim.world.lighting import Lighting
 
 

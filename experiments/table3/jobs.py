@@ -28,6 +28,8 @@ from experiments.table3.layout import (
 )
 from experiments.table3.settings import SCENE, ReproduceRealSettings, TrialSet, Unit
 from experiments.tables import TWO_PHASE_MODELS, model_config_file
+from harness.inputs.collector import CollectSettings, collect
+from harness.inputs.trial_settings import TrialSettings
 from harness.jobs import ONE_CPU, JobResources
 from harness.run_files import (
     Failed,
@@ -46,8 +48,7 @@ from perception.registry import new_model
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.task_in_scene import target_count
 from sim.tasks.task_toml import load_task
-from sim.trials.collector import CollectSettings, collect
-from sim.trials.trial_settings import TrialSettings, torch_threads
+from sim.trials.trial_models import torch_threads
 
 # Rough seconds per unit of work on one loaded core, only for the progress bar's time left.
 COLLECT_S_PER_PICK = 1.2

@@ -5,7 +5,7 @@ A ``--models`` entry ``package.module:Class`` whose class has no weights (not a
 demonstrations or training: its trial sets run the same task files, seeds and trial indices as
 a trained model's, so the reports pair it with them unchanged. A learnable class named so is
 trained as before. A plug-in is named and checked the way ``gva trials --model`` names and
-checks it (:func:`~sim.trials.trial_settings.load_trial_model`), so its trial folders record
+checks it (:func:`~harness.inputs.trial_settings.load_trial_model`), so its trial folders record
 the identity ``gva trials`` records.
 
 A served model (``ws://HOST:PORT``, ``gva serve``) joins the same way. Its row (and folders) is
@@ -24,12 +24,12 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from experiments.tables import allowed_models
+from harness.inputs.trial_settings import TrialSettings, load_trial_model
 from perception.errors import InvalidInputError as PluginError
 from perception.learning.learnable import LearnableModel
 from perception.plugins import is_class_path, plugin_class
 from perception.remote.client import announced_metadata, is_remote
 from sim.errors import InvalidInputError
-from sim.trials.trial_settings import TrialSettings, load_trial_model
 from sim.world.sensor import SensorKind
 
 
@@ -63,7 +63,7 @@ def check_plugins(plugins: Sequence[str], tasks: Sequence[str], sensor: SensorKi
     """Raises unless each plug-in serves each task as ``gva trials --model SPEC`` requires.
 
     Each is built and checked against each task by
-    :func:`~sim.trials.trial_settings.load_trial_model` (built with no arguments, a name, the
+    :func:`~harness.inputs.trial_settings.load_trial_model` (built with no arguments, a name, the
     inputs a trial gives, grasp poses), in a few milliseconds: a run refuses a plug-in before
     it writes anything, with the message ``gva trials`` gives.
     """

@@ -24,6 +24,8 @@ from experiments.tables import (
     model_config,
     model_settings,
 )
+from harness.inputs.collector import CollectSettings, LabelSource, LookSource
+from harness.inputs.trial_settings import TrialSettings, obstacle_identity, task_identity
 from harness.jobs import LOCAL, Executor
 from harness.run_folder import json_form
 from perception.learning.train import TrainConfig, available_threads
@@ -38,9 +40,7 @@ from sim.tasks.task_spec import TaskSpec, spaced_for
 from sim.tasks.task_toml import load_task
 from sim.tasks.variants import read_variant, with_variant
 from sim.trials.closed_loop.loop_settings import Loop, LoopSettings
-from sim.trials.collector import CollectSettings, LabelSource, LookSource
 from sim.trials.execution import ExecutionSettings
-from sim.trials.trial_settings import TrialSettings, obstacle_identity, task_identity
 from sim.world.head_camera import CameraConfig, camera_config
 from sim.world.robot_choice import resolve_robot
 from sim.world.sensor import SensorConfig, SensorKind

@@ -20,7 +20,7 @@ from sim.envs.pick_env import PickEnv
 from sim.errors import InvalidInputError
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_in_scene import condition_choices
-from sim.trials.trial_settings import checked_model
+from sim.trials.trial_models import checked_model
 
 Policy = Callable[[dict[str, Any]], dict[str, Any]]
 """Maps an observation to an action (a grasp) of ``gva/Pick-v0``."""

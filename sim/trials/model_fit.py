@@ -3,7 +3,7 @@
 :func:`check_model_fits_task` refuses, in one line that says why, a model that does not predict
 grasp poses, or a checkpoint trained for another scene, condition, target count or image size,
 under another sensor (unless allowed) or through another robot's camera, in-process or served
-(by the spec ``gva serve`` announces); the trials' settings (:mod:`sim.trials.trial_settings`)
+(by the spec ``gva serve`` announces); the trials' settings (:mod:`harness.inputs.trial_settings`)
 call it before the first trial.
 """
 

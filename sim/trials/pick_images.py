@@ -1,6 +1,6 @@
 """What a demonstration keeps of its picks: the image before each, with every target's label.
 
-The collector (:mod:`sim.trials.collector`) watches each demonstration through
+The collector (:mod:`harness.inputs.collector`) watches each demonstration through
 :class:`PickImages`, a trial observer, and turns its :class:`Stage` list into dataset samples;
 :func:`calibration_record` is what a sample records of the camera where a look moved it.
 """
@@ -39,7 +39,7 @@ class PickImages:
     and before the plan, so the world is as the image shows it. A target already set aside keeps
     the label it had when it was last on the table. An approach image in which the arm hides
     more than ``hidden_share_max`` of a target's footprint (``LoopSettings.footprint_radius_m``;
-    the collector's :data:`~sim.trials.collector.APPROACH_HIDDEN_SHARE_MAX`) is left out
+    the collector's :data:`~harness.inputs.collector.APPROACH_HIDDEN_SHARE_MAX`) is left out
     (counted): a label the image cannot show teaches the model to guess.
     """
 

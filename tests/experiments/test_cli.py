@@ -15,12 +15,12 @@ from gva_cli import gva
 from experiments.cli import build_parser, main
 from experiments.table2.settings import ReproduceSimSettings
 from experiments.table3.settings import ReproduceRealSettings
+from harness.inputs.collector import CollectSettings
+from harness.inputs.trial_settings import TrialSettings
 from harness.jobs import Executor, ExecutorKind
 from perception.learning.train import TrainConfig
 from perception.learning.validation import CheckConfig
 from sim.trials.closed_loop.loop_settings import Loop, LoopSettings
-from sim.trials.collector import CollectSettings
-from sim.trials.trial_settings import TrialSettings
 from sim.world.sensor import SensorKind
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -10,12 +10,12 @@ import pytest
 from gva_cli import gva
 from user_models import synthetic_dataset
 
+from harness.inputs.collector import CollectSettings, LabelSource, LookSource, collect
 from perception.files import file_sha256
 from perception.learning import combined
 from perception.learning.checkpoint import read_config
 from perception.learning.dataset_file import load_dataset
 from perception.registry import load_model
-from sim.trials.collector import CollectSettings, LabelSource, LookSource, collect
 from sim.world.sensor import SensorKind
 
 TINY = ["--model", "kqv", "--steps", "2", "--batch-size", "2", "--threads", "1", "--no-progress"]

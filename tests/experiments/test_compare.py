@@ -21,9 +21,9 @@ from experiments.table3.report import (
     variant_comparisons,
 )
 from experiments.table3.trial_sets import TrialSetResult
+from harness.inputs.trial_settings import TrialSettings
 from harness.trial_summary import TrialSummary
 from sim.trials.records import TrialOutcome, TrialRecord
-from sim.trials.trial_settings import TrialSettings
 
 OK, FAILED = TrialOutcome.SUCCESS, TrialOutcome.PERCEPTION_FAILED
 TYPES = ("mug", "sponge", "spray_bottle")

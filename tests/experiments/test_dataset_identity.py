@@ -6,18 +6,18 @@ from dataclasses import replace
 
 import pytest
 
-from harness.run_files import dataset_path, dataset_present
-from perception.learning.dataset_file import save_dataset
-from robots.yumi import YUMI
-from sim.errors import RunFolderError
-from sim.tasks.scene_sampling import SeedStream
-from sim.trials.collector import (
+from harness.inputs.collector import (
     APPROACH_HIDDEN_SHARE_MAX,
     APPROACH_MASKED_KEY,
     HIDDEN_SHARE_KEY,
     CollectSettings,
     collect,
 )
+from harness.run_files import dataset_path, dataset_present
+from perception.learning.dataset_file import save_dataset
+from robots.yumi import YUMI
+from sim.errors import RunFolderError
+from sim.tasks.scene_sampling import SeedStream
 
 
 def test_approach_images_from_before_the_arm_mask_are_another_dataset(tmp_path):

@@ -17,9 +17,9 @@ from experiments.table2.settings import ReproduceSimSettings
 from experiments.table3.jobs import CollectJob, TrainJob, job_resources
 from experiments.table3.run import run_reproduce_real
 from experiments.table3.settings import ReproduceRealSettings, Unit
+from harness.inputs.trial_settings import TrialSettings
 from harness.jobs import Executor, ExecutorKind, JobResources
 from harness.run_loop import run_trials
-from sim.trials.trial_settings import TrialSettings
 
 pytestmark = pytest.mark.ray  # make test runs these alone, after the rest
 RAY = Executor(ExecutorKind.RAY)

@@ -16,7 +16,7 @@ from gva_cli import gva
 
 from experiments.table3.layout import task_file
 from experiments.table3.settings import ReproduceRealSettings, TrialSet, Unit
-from sim.trials.trial_settings import TrialSettings
+from harness.inputs.trial_settings import TrialSettings
 
 PLUGINS = Path(__file__).resolve().parents[2] / "examples" / "plugins"
 SPEC = "colour_detector:ColourDetector"

@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 
 from experiments.table3.settings import ReproduceRealSettings, TrialSet, Unit
+from harness.inputs.collector import CollectSettings, collect
 from sim.errors import InvalidInputError
 from sim.tasks.variants import read_variant
-from sim.trials.collector import CollectSettings, collect
 
 
 def test_the_world_lays_its_variant_over_every_task_and_enters_the_identity():

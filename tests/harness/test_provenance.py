@@ -7,11 +7,11 @@ import subprocess
 from importlib import metadata
 from pathlib import Path
 
+from harness.inputs.trial_settings import TrialSettings
 from harness.provenance import ROOT, git_revision, provenance
 from harness.run_loop import run_trials
 from perception.files import file_sha256
 from sim.tasks.task_toml import TASK_FILES
-from sim.trials.trial_settings import TrialSettings
 
 
 def test_run_json_and_the_summary_say_what_made_the_trials(tmp_path):

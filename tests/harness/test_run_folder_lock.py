@@ -10,10 +10,10 @@ from pathlib import Path
 
 import pytest
 
+from harness.inputs.trial_settings import TrialSettings
 from harness.run_folder import run_folder_lock
 from harness.run_loop import run_trials
 from sim.errors import RunFolderError
-from sim.trials.trial_settings import TrialSettings
 
 ROOT = Path(__file__).resolve().parents[3]
 

@@ -180,7 +180,7 @@ def test_gva_train_says_loudly_that_a_starved_training_failed(tmp_path):
     steps (500 until issue 65's time budget): the others already lie within half the duck's
     error.
     """
-    from sim.trials.collector import CollectSettings, collect
+    from harness.inputs.collector import CollectSettings, collect
 
     full = collect(CollectSettings("paper-sim", "selected-type", size=12, seed=6),
                    tmp_path / "full.gva", progress=False)

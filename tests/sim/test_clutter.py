@@ -15,6 +15,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from harness.inputs.collector import _task_json
+from harness.inputs.trial_settings import task_identity
 from perception.objects.catalog import (
     CLUTTER_TYPES,
     DISTRACTOR_TYPES,
@@ -33,8 +35,6 @@ from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_in_scene import check_task_fits
 from sim.tasks.task_spec import MAX_OBJECTS
 from sim.tasks.task_toml import load_task, task_from_toml, task_to_toml
-from sim.trials.collector import _task_json
-from sim.trials.trial_settings import task_identity
 from sim.world.head_camera import camera_config
 from sim.world.sensor import SensorConfig
 from sim.world.yumi_world import World

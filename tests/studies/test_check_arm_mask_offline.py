@@ -7,10 +7,10 @@ import json
 import numpy as np
 from benchmark_scripts import load_study
 
+from harness.inputs.collector import CollectSettings, collect
 from perception.learning.dataset_file import load_dataset
 from perception.learning.train import TrainConfig
 from perception.models.kqv import KqvConfig, KqvModel
-from sim.trials.collector import CollectSettings, collect
 from sim.world.sensor import SensorKind
 
 

@@ -6,9 +6,9 @@ import re
 
 from benchmark_scripts import load_study
 
+from harness.inputs.collector import CollectSettings, collect
 from perception.learning.train import TrainConfig
 from perception.models.kqv import KqvConfig, KqvModel
-from sim.trials.collector import CollectSettings, collect
 from sim.world.sensor import SensorKind
 
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 from benchmark_scripts import load_study
 
+from harness.inputs.collector import CollectSettings, collect
 from perception.learning.dataset_file import load_dataset
 from perception.registry import load_model
-from sim.trials.collector import CollectSettings, collect
 from sim.world.sensor import SensorKind
 
 

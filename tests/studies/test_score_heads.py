@@ -7,10 +7,10 @@ import re
 
 from benchmark_scripts import load_study
 
+from harness.inputs.collector import CollectSettings, LabelSource, collect
 from perception.learning.train import TrainConfig
 from perception.learning.validation import CheckConfig, fit_checked, split_scenes, write_check
 from perception.models.kqv import KqvConfig, KqvModel
-from sim.trials.collector import CollectSettings, LabelSource, collect
 from sim.world.sensor import SensorKind
 
 

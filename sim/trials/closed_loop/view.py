@@ -2,8 +2,9 @@
 
 A self-filtered frame (:meth:`sim.world.head_camera.HeadCamera.render_rgbd`) carries the robot's
 own pixels as ``robot_mask``; a closed loop heeds a re-prediction only where the camera sees the
-target followed, or the grasp named stands in plain view (:mod:`sim.trials.closed_loop.loop`), and a
-demonstration keeps only the approach images that show every target (:mod:`sim.trials.collector`).
+target followed, or the grasp named stands in plain view (:mod:`sim.trials.closed_loop.loop`), and
+a demonstration keeps only the approach images that show every target
+(:mod:`harness.inputs.collector`).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Scenes labelled by the catalog: placed, settled and seen as a trial's, never picked.
 
-A demonstration (:mod:`sim.trials.collector`) costs a pick in physics per target, 1-6 s a
+A demonstration (:mod:`harness.inputs.collector`) costs a pick in physics per target, 1-6 s a
 scene, and is kept only where every pick succeeded. Perception needs less: the image and each
 target's grasp. Here a scene is set up exactly as a trial's (:meth:`TrialRunner.setup
 <sim.trials.trial_runner.TrialRunner.setup>`: the objects dropped as the task places them,

@@ -1,6 +1,6 @@
 """What a collection makes of a scene's images: samples, each asked and labelled.
 
-Shared by the demonstrations (:mod:`sim.trials.collector`) and the scenes labelled by the
+Shared by the demonstrations (:mod:`harness.inputs.collector`) and the scenes labelled by the
 catalog (:mod:`sim.trials.scene_sets.catalog_labels`), so a sample means the same in both: the
 image before each pick with every target's label (a target already taken keeps its last one and
 is listed under ``"taken"``), then, with every condition asked, the first image once per other

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from harness.inputs.trial_settings import TrialSettings
 from perception.interface import ConditionKind
 from sim.errors import InvalidInputError
 from sim.tasks.phrasings import Phrasings, normalised, read_phrase_file
@@ -15,7 +16,6 @@ from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE, get_scene_spec
 from sim.tasks.task_spec import SIDES, ConditionForm
 from sim.tasks.task_toml import load_task, task_from_toml, task_to_toml, with_test_phrases
-from sim.trials.trial_settings import TrialSettings
 from sim.world.pictures import PICTURES_PER_SPLIT, render_picture
 
 TEXT_TASK = """

@@ -4,10 +4,10 @@ import dataclasses
 
 import pytest
 
+from harness.inputs.trial_settings import task_identity
 from sim.errors import InvalidInputError
 from sim.tasks.task_sensor import seen_in_scene, seen_through
 from sim.tasks.task_toml import builtin_tasks, load_task, task_from_toml, task_to_toml
-from sim.trials.trial_settings import task_identity
 from sim.world.d435 import D435Config
 from sim.world.sensor import DEFAULT_SENSOR, SensorConfig, SensorKind, sensor_kind
 

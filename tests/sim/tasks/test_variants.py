@@ -7,12 +7,12 @@ import tomllib
 
 import pytest
 
+from harness.inputs.trial_settings import TrialSettings
 from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_toml import load_task, task_to_toml
 from sim.tasks.variants import builtin_variants, read_variant, with_variant
-from sim.trials.trial_settings import TrialSettings
 
 TASKS = ("single", "multiple", "selected-type", "selected-position", "selected-type-text",
          "single-moved")

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from experiments.cli import main
+from harness.inputs.collector import CollectSettings, LabelSource, LookSource, collect
 from harness.run_files import dataset_present
 from perception.learning.dataset_file import load_dataset
 from robots.yumi import YUMI
@@ -11,7 +12,6 @@ from sim.errors import InvalidInputError, RunFolderError
 from sim.tasks.appearance import Split, load_palette
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import YUMI_SCENE
-from sim.trials.collector import CollectSettings, LabelSource, LookSource, collect
 from sim.trials.scene_sets.randomised_looks import RandomisedLooks
 from sim.world.textures import TextureKind
 

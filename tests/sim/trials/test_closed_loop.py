@@ -24,9 +24,9 @@ from sim.trials.closed_loop.loop_settings import Loop, LoopSettings, Reaction, r
 from sim.trials.closed_loop.view import ViewVerdict, hidden_share, in_plain_view, unheeded_reason
 from sim.trials.oracle import OraclePerception, ViewLimitedOracle
 from sim.trials.records import TrialOutcome
+from sim.trials.trial_models import TRIAL_MODELS
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_scenes import trial_scene
-from sim.trials.trial_settings import TRIAL_MODELS
 from sim.world.head_camera import HeadCamera, camera_config
 from sim.world.yumi_world import World
 

@@ -9,6 +9,7 @@ import pytest
 
 from control.depth_obstacles import GraspRegion, depth_obstacles
 from control.pick import PickRequest, PlanStatus
+from harness.inputs.trial_settings import TrialSettings
 from perception.objects.catalog import get_object_spec
 from perception.objects.grasps import grasp_pose
 from robots.yumi import YUMI
@@ -19,7 +20,6 @@ from sim.tasks.task_spec import ObjectChoice, TaskSpec
 from sim.trials.execution import ExecutionSettings, execute_pick
 from sim.trials.planner_setup import depth_config, object_obstacles, table_obstacle
 from sim.trials.records import TrialOutcome
-from sim.trials.trial_settings import TrialSettings
 from sim.world.head_camera import HeadCamera, camera_config
 from sim.world.paper_world import PaperWorldConfig
 from sim.world.world_config import MAX_WAIT_S, check_wait_s

@@ -10,6 +10,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from harness.inputs.collector import CollectSettings, collect
+from harness.inputs.trial_settings import TrialSettings
 from harness.run_loop import run_trials
 from perception.interface import ConditionKind, LabelKind
 from perception.learning.learnable import ModelSpec
@@ -22,12 +24,10 @@ from sim.tasks.scene_specs import get_scene_spec
 from sim.tasks.task_sensor import seen_through
 from sim.tasks.task_spec import spaced_for
 from sim.tasks.task_toml import load_task
-from sim.trials.collector import CollectSettings, collect
 from sim.trials.model_fit import check_camera
 from sim.trials.records import TrialOutcome
 from sim.trials.trial_runner import TrialRunner
 from sim.trials.trial_scenes import trial_scene
-from sim.trials.trial_settings import TrialSettings
 from sim.world.head_camera import CameraConfig, HeadCamera, camera_config
 
 HEAD_CAMERA_RECORD = (

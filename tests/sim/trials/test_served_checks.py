@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from harness.inputs.trial_settings import TrialSettings, load_trial_model
 from perception.interface import ConditionKind, LabelKind
 from perception.learning.learnable import ModelSpec
 from perception.learning.torch_pieces import LabelScaler
@@ -22,7 +23,6 @@ from perception.remote.client import RemoteModel
 from perception.remote.server import ModelServer, ServeSettings, start_server
 from sim.errors import InvalidInputError
 from sim.tasks.task_toml import load_task, task_to_toml
-from sim.trials.trial_settings import TrialSettings, load_trial_model
 from sim.world.sensor import SensorConfig, SensorKind
 
 YUMI_SINGLE = ModelSpec("yumi", "single", LabelKind.GRASP_POSE, 1, ConditionKind.NONE, (), 128,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from harness.inputs.trial_settings import TrialSettings
 from perception.interface import (
     NO_CONDITION,
     Condition,
@@ -18,7 +19,6 @@ from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.trials.oracle import OraclePerception
 from sim.trials.trial_runner import TrialRunner
-from sim.trials.trial_settings import TrialSettings
 
 
 def test_a_text_task_hands_the_model_the_sentence_and_records_it(tmp_path):

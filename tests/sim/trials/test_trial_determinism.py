@@ -8,13 +8,13 @@ import json
 import numpy as np
 import pytest
 
+from harness.inputs.trial_settings import TrialSettings
 from harness.run_loop import run_trials
 from robots.yumi import YUMI
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.task_toml import load_task
 from sim.trials.trial_runner import TrialRunner
-from sim.trials.trial_settings import TrialSettings
 from sim.world.sensor import SensorConfig, SensorKind
 
 D435_SINGLE = dataclasses.replace(load_task("single"), camera=SensorConfig(SensorKind.D435))

@@ -17,6 +17,7 @@ import pytest
 import torch
 from scipy.ndimage import binary_erosion, label
 
+from harness.inputs.collector import CollectSettings, collect
 from perception.camera import PinholeCamera, RgbdFrame
 from perception.interface import NO_CONDITION, LabelKind, PerceptionModel
 from perception.models.rise import rise_above_table
@@ -24,7 +25,6 @@ from robots.yumi import YUMI
 from sim.tasks.scene_sampling import SeedStream, sample_scene
 from sim.tasks.scene_specs import YUMI_SCENE
 from sim.tasks.variants import load_task_variant
-from sim.trials.collector import CollectSettings, collect
 from sim.trials.oracle import OraclePerception
 from sim.trials.trial_runner import TrialRunner
 from sim.world.head_camera import HeadCamera, camera_config

@@ -11,6 +11,7 @@ import torch
 from user_models import synthetic_dataset
 
 from experiments.cli import build_parser, main
+from harness.inputs.trial_settings import TrialSettings, load_trial_model
 from harness.run_loop import run_trials
 from harness.trial_log import TrialLog
 from perception.interface import ConditionKind, LabelKind
@@ -22,7 +23,6 @@ from perception.learning.validation import CHECK_FILE, HeldOutCheck
 from perception.models.kqv import KqvModel
 from sim.errors import InvalidInputError, RunFolderError
 from sim.tasks.task_toml import load_task, task_to_toml
-from sim.trials.trial_settings import TrialSettings, load_trial_model
 from sim.world.d435 import D435Config
 from sim.world.sensor import SensorConfig, SensorKind
 

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from experiments.cli import main
+from harness.inputs.trial_settings import TrialSettings
 from harness.run_loop import run_trials
 from perception.interface import (
     NO_CONDITION,
@@ -21,7 +22,6 @@ from sim.tasks.task_toml import load_task
 from sim.trials.oracle import OraclePerception
 from sim.trials.planner_setup import ObstacleSource
 from sim.trials.trial_runner import TrialRunner
-from sim.trials.trial_settings import TrialSettings
 from sim.world.head_camera import HeadCamera, camera_config
 from sim.world.yumi_world import World
 

@@ -282,7 +282,7 @@ def collect(settings: CollectSettings, out_path: str | Path, progress: bool = Tr
 def _task_json(task: TaskSpec) -> dict[str, Any]:
     """The task as a dataset's ``extra["task"]`` keeps it (the ideal sensor by omission).
 
-    As :func:`~sim.trials.trial_settings.task_identity` does, so a stored dataset is matched.
+    As :func:`~harness.inputs.trial_settings.task_identity` does, so a stored dataset is matched.
     """
     return json.loads(json.dumps(task.recorded_fields(), default=lambda v: v.value))
 

@@ -5,6 +5,14 @@ import pytest
 from user_models import synthetic_dataset
 
 from experiments.cli import main
+from harness.inputs import collector
+from harness.inputs.collector import (
+    APPROACH_HIDDEN_SHARE_MAX,
+    APPROACH_MASKED_KEY,
+    HIDDEN_SHARE_KEY,
+    CollectSettings,
+    collect,
+)
 from perception.camera import RgbdFrame
 from perception.interface import ConditionKind, LabelKind
 from perception.labels import split_label
@@ -15,15 +23,7 @@ from sim.errors import InvalidInputError
 from sim.tasks.scene_sampling import SeedStream
 from sim.tasks.scene_specs import get_scene_spec
 from sim.tasks.task_toml import load_task, task_to_toml
-from sim.trials import collector
 from sim.trials.closed_loop.view import hidden_share
-from sim.trials.collector import (
-    APPROACH_HIDDEN_SHARE_MAX,
-    APPROACH_MASKED_KEY,
-    HIDDEN_SHARE_KEY,
-    CollectSettings,
-    collect,
-)
 from sim.world.head_camera import CameraConfig, camera_config
 from sim.world.sensor import SensorConfig, SensorKind
 
