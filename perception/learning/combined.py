@@ -45,7 +45,7 @@ PARTS_KEY = "parts"
 """``metadata.extra`` key of a joined dataset: one entry per file, in order (its name, task,
 seed, samples, scenes, labels and looks)."""
 PICKED_LABELS, CATALOG_LABELS = "picked", "catalog"
-"""``extra["labels"]`` values: ``sim.trials.collector.LabelSource``'s (a demonstration records
+"""``extra["labels"]`` values: ``harness.inputs.collector.LabelSource``'s (a demonstration records
 none: picked)."""
 TASK_LOOKS = "task"
 """The looks of a dataset that records no ``extra["looks"]``: its task's own."""

@@ -213,7 +213,7 @@ class Dataset:
         """The samples of the dataset's first ``count`` scenes, with ``extra["scenes"]`` set.
 
         A scene may give several samples (an image before each pick of a demonstration; one
-        per condition value, :mod:`sim.trials.collector`): they share :meth:`scene_keys`.
+        per condition value, :mod:`harness.inputs.collector`): they share :meth:`scene_keys`.
         """
         if not isinstance(count, int) or count < 0:
             raise InvalidInputError("count", count, "an integer >= 0")

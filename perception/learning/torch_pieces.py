@@ -95,9 +95,10 @@ class CoordConvStack(nn.Sequential):
 
     The same function (and parameters, named as in an ``nn.Sequential``) as running the layers
     one by one, but a layer's coordinate channels reach the next as a share of its output
-    (:meth:`CoordConv.features`) rather than as channels concatenated to every map: a ``kqv``
-    training step on 2 CPU threads spent a fifth of its time on those copies and on convolving
-    the constant coordinates for each image (``benchmarks/bench_train.py``).
+    (:meth:`CoordConv.features`) rather than as channels concatenated to every map: a profile
+    of a ``kqv`` training step on one CPU thread put a sixth of it in those concatenations and
+    the copies back to channels-last after them (``docs/decisions/speed.md``;
+    ``benchmarks/bench_train.py`` times the step both ways).
     """
 
     def forward(self, x: Tensor) -> Tensor:
