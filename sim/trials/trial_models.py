@@ -35,7 +35,8 @@ from sim.world.sensor import SensorConfig
 TRIAL_MODELS: dict[str, ModelFactory] = {"oracle": OraclePerception,
                                          "oracle-view": ViewLimitedOracle}
 """Perception models the trial runner builds by name; a checkpoint folder or
-``"package.module:Class"`` names any other (see :func:`load_trial_model`)."""
+``"package.module:Class"`` names any other (see
+:func:`harness.inputs.trial_settings.load_trial_model`)."""
 
 _ALLOWED_MODELS = (f"one of {', '.join(TRIAL_MODELS)}, a checkpoint folder (gva train writes one), "
                    "'package.module:Class', the name an installed package registers in "
